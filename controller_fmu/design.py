@@ -1,0 +1,117 @@
+"""The paper's LQ feedforward-feedback design (eq. 12-15, corrected in NOTES.md).
+
+    (13)  A'P + P A - P S P + C'QC = 0,     S = B1 R^-1 B1',  A - S P Hurwitz
+    (14)  (A - S P)' P1 + P1 F = C'Q H
+    (15)  (A - S P)' P2 + P2 K + P B2 = 0
+    u = -(Kx xhat + Kz zhat + Kw what),  Kx = R^-1 B1'P, Kz = R^-1 B1'P1, Kw = R^-1 B1'P2
+
+(14) and (15) are Sylvester equations with a unique solution if and only if no
+eigenvalue of A - S P plus an eigenvalue of F (resp. K) is zero; the design checks this
+and names the offending pair. Units: gains map state units to input units.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import LinAlgError, solve_continuous_are, solve_sylvester
+
+from plant_model.linalg_checks import ModelError, uncontrollable_modes, unobservable_modes
+from plant_model.system import LinearSystem
+
+__all__ = ["TrackingDesign", "lq_tracking_design", "uncontrollable_modes",
+           "unobservable_modes", "sylvester_resonances"]
+
+
+@dataclass(frozen=True)
+class TrackingDesign:
+    """Result of :func:`lq_tracking_design` (python-control style names)."""
+
+    P: np.ndarray
+    P1: np.ndarray
+    P2: np.ndarray
+    Kx: np.ndarray
+    Kz: np.ndarray
+    Kw: np.ndarray
+    closed_loop_poles: np.ndarray     #: eigenvalues of A - B1 Kx
+    residuals: dict[str, float]       #: relative residuals of (13), (14), (15)
+
+    def gain_on_state(self) -> np.ndarray:
+        """K_s with u = -K_s [x; w; z] (the plant's state order)."""
+        return np.hstack([self.Kx, self.Kw, self.Kz])
+
+
+def sylvester_resonances(Acl: np.ndarray, G: np.ndarray) -> list[tuple[complex, complex]]:
+    """Pairs (lambda of Acl, mu of G) with lambda + mu = 0 (to a relative tolerance)."""
+    la = np.linalg.eigvals(Acl)
+    mu = np.linalg.eigvals(G)
+    scale = 1.0 + max(np.max(np.abs(la), initial=0.0), np.max(np.abs(mu), initial=0.0))
+    return [(complex(a), complex(b)) for a in la for b in mu if abs(a + b) <= 1e-8 * scale]
+
+
+def _fmt(z: complex) -> str:
+    z = complex(z)
+    return f"{z.real:.6g}" if abs(z.imag) < 1e-12 else f"{z.real:.6g}{z.imag:+.6g}j"
+
+
+def _rel(res: np.ndarray, *terms: np.ndarray) -> float:
+    scale = sum(float(np.linalg.norm(t)) for t in terms) or 1.0
+    return float(np.linalg.norm(res)) / scale
+
+
+def lq_tracking_design(system: LinearSystem) -> TrackingDesign:
+    """Solve (13)-(15) for ``system``; raise :class:`ModelError` naming what failed."""
+    A, B1, B2, C, F, H, K = (system.A, system.B1, system.B2, system.C, system.F,
+                             system.H, system.K)
+    Q, R = system.Q, system.R
+    bad = uncontrollable_modes(A, B1)
+    if bad:
+        raise ModelError(
+            "(A, B1) is not stabilizable: the mode(s) "
+            + ", ".join(_fmt(z) for z in bad)
+            + " of A are not stable and cannot be moved by u"
+        )
+    bad = unobservable_modes(A, C)
+    if bad:
+        raise ModelError(
+            "(C'QC, A) is not detectable: the mode(s) "
+            + ", ".join(_fmt(z) for z in bad)
+            + " of A are not stable and do not show in the tracked output C x"
+        )
+    Rinv = np.linalg.inv(R)
+    CQC = C.T @ Q @ C
+    try:
+        P = solve_continuous_are(A, B1, CQC, R)
+    except (LinAlgError, ValueError) as exc:
+        raise ModelError(f"the Riccati equation (13) has no stabilizing solution: {exc}") from None
+    P = 0.5 * (P + P.T)
+    S = B1 @ Rinv @ B1.T
+    Acl = A - S @ P
+    poles = np.linalg.eigvals(Acl)
+    if np.max(poles.real) >= 0:
+        raise ModelError(
+            "the Riccati solution of (13) is not stabilizing: A - S P has the eigenvalue "
+            + _fmt(poles[np.argmax(poles.real)])
+        )
+    for name, G in (("F", F), ("K", K)):
+        pairs = sylvester_resonances(Acl, G)
+        if pairs:
+            lam, mu = pairs[0]
+            eq = "(14)" if name == "F" else "(15)"
+            raise ModelError(
+                f"the Sylvester equation {eq} has no unique solution: eigenvalue "
+                f"{_fmt(lam)} of A - S P plus eigenvalue {_fmt(mu)} of {name} is zero"
+            )
+    P1 = solve_sylvester(Acl.T, F, C.T @ Q @ H)
+    P2 = solve_sylvester(Acl.T, K, -P @ B2)
+    residuals = {
+        "riccati_13": _rel(A.T @ P + P @ A - P @ S @ P + CQC, A.T @ P, P @ S @ P, CQC),
+        "sylvester_14": _rel(Acl.T @ P1 + P1 @ F - C.T @ Q @ H, Acl.T @ P1, P1 @ F, C.T @ Q @ H),
+        "sylvester_15": _rel(Acl.T @ P2 + P2 @ K + P @ B2, Acl.T @ P2, P2 @ K, P @ B2),
+    }
+    for name, value in residuals.items():
+        if not np.isfinite(value) or value > 1e-6:
+            raise ModelError(f"the design is ill-conditioned: relative residual of {name} is {value:.3g}")
+    G = Rinv @ B1.T
+    return TrackingDesign(P=P, P1=P1, P2=P2, Kx=G @ P, Kz=G @ P1, Kw=G @ P2,
+                          closed_loop_poles=poles, residuals=residuals)

@@ -1,0 +1,70 @@
+"""FMI 2.0 co-simulation slave of the estimator (a thin adapter over estimator_fmu.estimators).
+
+Inputs y, ybar (and the truth x, w, z, read only in mode 'ideal'), then u; outputs the
+estimate xhat, what, zhat of sample k, which already includes y[k] (direct feedthrough).
+"""
+import numpy as np
+
+from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
+from fmu_common.interface import ArraySpec
+from fmu_common.slave_base import ArraySlave as Fmi2Slave  # pythonfmu's loader looks for "class X(Fmi2Slave):"
+from fmu_common.system_parameters import system_mapping_from_parameters, system_parameter_specs
+from plant_model.discretization import discretize
+from plant_model.system import LinearSystem
+
+ESTIMATOR_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "x0", "w0", "z0",
+                        "W_x", "W_w", "W_z", "V_y", "V_ybar")
+MEASUREMENTS = ("y", "ybar", "x", "w", "z")
+
+
+class AuvEstimator(Fmi2Slave):
+    """Steady-state Kalman filters on [x; w] and z, or the classical / ideal estimates."""
+
+    config_file = "auv_estimator_config.json"
+    step_parameter = "h"
+    description = ("State estimator for the AUV tracking law: steady-state Kalman filters "
+                   "(current-estimator form), the paper's classical law, or the true state")
+    author = "auv-cosim"
+
+    @staticmethod
+    def interface(config):
+        d = config["dims"]
+        n, m, r, p, l_ = d["n"], d["m"], d["r"], d["p"], d["l"]
+        return system_parameter_specs(config, ESTIMATOR_PARAMETERS) + [
+            ArraySpec("h", (), "parameter", "sample period the filters are designed for",
+                      start=config["h"], unit="s"),
+            ArraySpec("noise_convention", (), "parameter",
+                      "'intensity' (W, V are continuous intensities) or 'per_sample'",
+                      start=config["system"]["noise_convention"], type="String"),
+            ArraySpec("mode", (), "parameter", "estimator: " + ", ".join(ESTIMATOR_MODES),
+                      start=config["mode"], type="String"),
+            ArraySpec("y", (p,), "input", "measured vehicle output y"),
+            ArraySpec("ybar", (p,), "input", "measured reference output ybar"),
+            ArraySpec("x", (n,), "input", "true vehicle state (read only in mode 'ideal')"),
+            ArraySpec("w", (r,), "input", "true disturbance state (read only in mode 'ideal')"),
+            ArraySpec("z", (l_,), "input", "true reference state (read only in mode 'ideal')"),
+            ArraySpec("u", (m,), "input", "control input applied over the coming step"),
+            ArraySpec("xhat", (n,), "output", "estimate of the vehicle state x",
+                      depends_on=MEASUREMENTS),
+            ArraySpec("what", (r,), "output", "estimate of the disturbance state w",
+                      depends_on=MEASUREMENTS),
+            ArraySpec("zhat", (l_,), "output", "estimate of the reference state z",
+                      depends_on=MEASUREMENTS),
+        ]
+
+    def setup(self):
+        mapping = system_mapping_from_parameters(self.par, ESTIMATOR_PARAMETERS)
+        mapping["noise_convention"] = self.par["noise_convention"]
+        system = LinearSystem.from_mapping(mapping)
+        model = discretize(system, float(self.par["h"]))
+        self.estimator = make_estimator(system, model, self.par["mode"])
+        nm = 2 * system.p + model.ns
+        self._mvec = self._in[:nm]
+        self._u = self.io["u"]
+
+    def compute_outputs(self):
+        self._out[:] = self.estimator.estimate(self._mvec)
+
+    def advance(self, step):
+        est = self._outputs_view(self._out)
+        self.estimator.update(est, self._u)

@@ -1,0 +1,144 @@
+"""State estimators for the control law, all in one linear form.
+
+Every mode is a discrete linear system with internal state q[k]; at sample k it maps
+the measurement vector mvec[k] = [y; ybar; x; w; z] (the last three are the plant's
+truth, used only by ``ideal``) and the applied u[k] to the estimate est = [xhat; what; zhat]:
+
+    est[k]  = Ce q[k] + Dm mvec[k]            (direct feedthrough of y[k], ybar[k])
+    q[k+1]  = Aq est[k] + Bu u[k]
+
+Modes:
+- ``kalman``: steady-state Kalman filters in current-estimator form, on [x; w] from y
+  (using the applied u) and on z from ybar, built on the plant's exact sampled model:
+  q is the one-step prediction, est = q + L (meas - Cm q), q[k+1] = Ad est + Bd u.
+- ``classical``: the paper's comparison law: xhat = C^+ y, zhat = H^+ ybar, and what run
+  open loop from w(0): what[k+1] = expm(K h) what[k].
+- ``ideal``: est = the true state (a lower bound on the achievable cost).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import LinAlgError, solve_discrete_are
+
+from plant_model.discretization import DiscreteModel
+from plant_model.linalg_checks import ModelError, unobservable_modes
+from plant_model.system import LinearSystem
+
+__all__ = ["ESTIMATOR_MODES", "LinearEstimator", "SteadyKalman", "steady_kalman",
+           "make_estimator"]
+
+ESTIMATOR_MODES = ("kalman", "classical", "ideal")
+
+
+@dataclass(frozen=True)
+class SteadyKalman:
+    """Steady-state discrete Kalman filter x[k+1] = A x + B u + v, y = C x + n."""
+
+    L: np.ndarray        #: gain: xf = xp + L (y - C xp)
+    P_pred: np.ndarray   #: stationary covariance of the prediction error
+    P_filt: np.ndarray   #: stationary covariance of the filtered error
+
+
+def steady_kalman(name: str, Ad: np.ndarray, Cm: np.ndarray, Qd: np.ndarray,
+                  Rd: np.ndarray) -> SteadyKalman:
+    """Gain of the stationary filter from the DARE
+
+        P = Ad P Ad' - Ad P Cm'(Cm P Cm' + Rd)^-1 Cm P Ad' + Qd,  L = P Cm'(Cm P Cm' + Rd)^-1.
+
+    ``name`` describes the filtered pair in error messages.
+    """
+    bad = unobservable_modes(Ad, Cm, continuous=False)
+    if bad:
+        modes = ", ".join(f"{z:.6g}" for z in bad)
+        raise ModelError(
+            f"the Kalman filter on {name} cannot exist: the pair is not detectable "
+            f"(sampled modes {modes} with |mode| >= 1 are not seen by the measurement)"
+        )
+    if np.linalg.matrix_rank(Rd) < Rd.shape[0]:
+        raise ModelError(
+            f"the Kalman filter on {name} needs a positive definite measurement noise "
+            "covariance; set a nonzero sensor noise or use the 'ideal' or 'classical' mode"
+        )
+    try:
+        P = solve_discrete_are(Ad.T, Cm.T, Qd, Rd)
+    except (LinAlgError, ValueError) as exc:
+        raise ModelError(f"the Kalman filter Riccati equation for {name} has no solution: {exc}") from None
+    P = 0.5 * (P + P.T)
+    S = Cm @ P @ Cm.T + Rd
+    L = np.linalg.solve(S, Cm @ P).T
+    Pf = (np.eye(P.shape[0]) - L @ Cm) @ P
+    return SteadyKalman(L=L, P_pred=P, P_filt=0.5 * (Pf + Pf.T))
+
+
+@dataclass
+class LinearEstimator:
+    """est = Ce q + Dm mvec;  q <- Aq est + Bu u  (see the module docstring)."""
+
+    mode: str
+    Ce: np.ndarray
+    Dm: np.ndarray
+    Aq: np.ndarray
+    Bu: np.ndarray
+    q0: np.ndarray
+    uses_truth: bool
+
+    def __post_init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        self.q = self.q0.copy()
+
+    def estimate(self, mvec: np.ndarray) -> np.ndarray:
+        """est[k] from the current q[k] and the measurement vector mvec[k]."""
+        return self.Ce @ self.q + self.Dm @ mvec
+
+    def update(self, est: np.ndarray, u: np.ndarray) -> None:
+        """q[k+1] = Aq est[k] + Bu u[k]."""
+        self.q = self.Aq @ est + self.Bu @ u
+
+
+def make_estimator(system: LinearSystem, model: DiscreteModel, mode: str) -> LinearEstimator:
+    """Build the estimator of ``mode`` for ``system`` sampled as ``model``."""
+    n, r, l_, p, ns = system.n, system.r, system.l, system.p, model.ns
+    nm = 2 * p + ns                     # length of mvec = [y; ybar; x; w; z]
+    if mode == "kalman":
+        nxw = n + r
+        Cxw = np.hstack([system.C, np.zeros((p, r))])
+        kxw = steady_kalman("[x; w] from y (pair ([[A, B2], [0, K]], [C, 0]))",
+                            model.Ad[:nxw, :nxw], Cxw, model.Qd[:nxw, :nxw],
+                            model.Rd[:p, :p])
+        kz = steady_kalman("z from ybar (pair (F, H))", model.Ad[nxw:, nxw:], system.H,
+                           model.Qd[nxw:, nxw:], model.Rd[p:, p:])
+        L = np.zeros((ns, 2 * p))
+        L[:nxw, :p] = kxw.L
+        L[nxw:, p:] = kz.L
+        Ce = np.eye(ns) - L @ model.M
+        Dm = np.zeros((ns, nm))
+        Dm[:, :2 * p] = L
+        return LinearEstimator(mode, Ce, Dm, model.Ad.copy(), model.Bd.copy(),
+                               system.initial_state(), uses_truth=False)
+    if mode == "classical":
+        for name, M, cols in (("C", system.C, n), ("H", system.H, l_)):
+            rank = np.linalg.matrix_rank(M)
+            if rank < cols:
+                raise ModelError(
+                    f"the classical estimator needs {name} with full column rank to "
+                    f"recover the state from its output ({name} has rank {rank} < {cols})"
+                )
+        Ce = np.zeros((ns, r))
+        Ce[n:n + r] = np.eye(r)
+        Dm = np.zeros((ns, nm))
+        Dm[:n, :p] = np.linalg.pinv(system.C)
+        Dm[n + r:, p:2 * p] = np.linalg.pinv(system.H)
+        Aq = np.zeros((r, ns))
+        Aq[:, n:n + r] = model.Ad[n:n + r, n:n + r]     # expm(K h)
+        return LinearEstimator(mode, Ce, Dm, Aq, np.zeros((r, system.m)), system.w0.copy(),
+                               uses_truth=False)
+    if mode == "ideal":
+        Dm = np.zeros((ns, nm))
+        Dm[:, 2 * p:] = np.eye(ns)
+        return LinearEstimator(mode, np.zeros((ns, 0)), Dm, np.zeros((0, ns)),
+                               np.zeros((0, system.m)), np.zeros(0), uses_truth=True)
+    raise ModelError(f"unknown estimator mode {mode!r}; expected one of {', '.join(ESTIMATOR_MODES)}")

@@ -1,0 +1,71 @@
+"""Declarative FMU interfaces: named arrays expanded to FMI 2.0 scalar variables.
+
+FMI 2.0 has no arrays, so an array ``A`` of shape (2, 3) becomes the scalar variables
+``A[1,1]`` ... ``A[2,3]`` (structured naming convention, 1-based, row major), a vector
+``x0`` becomes ``x0[1]``..., and a scalar keeps its name. The same table drives the slave
+(registration, value references) and the build step (units, descriptions,
+ModelStructure), so the two cannot drift apart.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Iterator
+
+import numpy as np
+
+__all__ = ["ArraySpec", "element_names", "expand", "UNIT_DEFINITIONS"]
+
+#: SI base-unit exponents of the units the FMUs use (FMI 2.0 <BaseUnit> attributes).
+UNIT_DEFINITIONS: dict[str, dict[str, int]] = {
+    "s": {"s": 1},
+    "m": {"m": 1},
+    "m/s": {"m": 1, "s": -1},
+    "m/s2": {"m": 1, "s": -2},
+    "N": {"kg": 1, "m": 1, "s": -2},
+    "rad": {"rad": 1},
+    "rad/s": {"rad": 1, "s": -1},
+    "kg": {"kg": 1},
+    "1/s": {"s": -1},
+}
+
+
+@dataclass(frozen=True)
+class ArraySpec:
+    """One named array of an FMU interface."""
+
+    name: str
+    shape: tuple[int, ...]
+    causality: str                       #: "parameter", "input" or "output"
+    description: str
+    start: Any = None                    #: start value (parameters and inputs)
+    unit: str | None = None
+    type: str = "Real"                   #: "Real", "Integer" or "String"
+    variability: str | None = None       #: default: fixed for parameters, else continuous
+    depends_on: tuple[str, ...] = ()     #: outputs: inputs with direct feedthrough
+
+    @property
+    def size(self) -> int:
+        return int(np.prod(self.shape)) if self.shape else 1
+
+    @property
+    def fmi_variability(self) -> str:
+        if self.variability:
+            return self.variability
+        if self.causality == "parameter":
+            return "fixed"
+        return "discrete" if self.type != "Real" else "continuous"
+
+
+def element_names(name: str, shape: tuple[int, ...]) -> list[str]:
+    """FMI structured names of the elements of an array, row major."""
+    if not shape:
+        return [name]
+    idx = np.ndindex(*shape)
+    return [f"{name}[{','.join(str(i + 1) for i in ix)}]" for ix in idx]
+
+
+def expand(specs: list[ArraySpec]) -> Iterator[tuple[ArraySpec, int, str]]:
+    """(spec, flat index, scalar name) for every scalar variable, in registration order."""
+    for spec in specs:
+        for i, nm in enumerate(element_names(spec.name, spec.shape)):
+            yield spec, i, nm

@@ -1,0 +1,297 @@
+"""The FMI plumbing shared by the three slaves: arrays in, arrays out, errors as statuses.
+
+A slave subclasses :class:`ArraySlave` and supplies four things, all plain Python:
+
+- ``interface(config)``: the list of :class:`~fmu_common.interface.ArraySpec`;
+- ``setup()``: build the mathematics from the parameter arrays ``self.par``
+  (called in exitInitializationMode, so whatever the host set is used);
+- ``compute_outputs()``: fill the output views ``self.io[name]`` from the inputs;
+- ``advance(step)``: move the internal state over one communication step.
+
+What the base class does for them:
+
+- expands the arrays into FMI scalar variables (``A[1,2]``) whose getters and setters
+  read and write numpy arrays; inputs and outputs live in one contiguous buffer each,
+  so a master that gets/sets a whole block pays one numpy slice, not one Python call per
+  scalar;
+- computes outputs lazily: after inputs are set (direct feedthrough) or a step is taken;
+- turns failures into FMI statuses with a logged message that names the problem.
+  pythonfmu 0.7 maps *any* Python exception to fmi2Fatal, and its C++ layer then drops
+  its references to the Python objects while still holding the pointers. So:
+  a non-finite input is logged (status error) when set and refused by the next
+  fmi2DoStep (fmi2Discard, the instance stays usable); a failure in
+  exitInitializationMode (design impossible, bad parameter) is logged and raised, which
+  the host sees as fmi2Fatal with the message; the objects the C++ layer lets go of are
+  kept alive here so that later calls (terminate, freeInstance) cannot touch freed memory.
+"""
+from __future__ import annotations
+
+import json
+import math
+import traceback
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu.enums import Fmi2Status
+
+from .interface import ArraySpec, expand
+
+__all__ = ["ArraySlave", "load_config"]
+
+_CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input,
+              "output": Fmi2Causality.output}
+_VARIABILITY = {"fixed": Fmi2Variability.fixed, "tunable": Fmi2Variability.tunable,
+                "continuous": Fmi2Variability.continuous,
+                "discrete": Fmi2Variability.discrete}
+_TYPES = {"Real": Real, "Integer": Integer, "String": String}
+
+#: Python objects pythonfmu's C++ layer released after a fatal error; see module doc.
+_RELEASED_AFTER_FATAL: list[Any] = []
+
+
+def load_config(resources: str | None, filename: str) -> dict[str, Any]:
+    """The build-time configuration (dimensions and start values) shipped in resources/."""
+    here = Path(resources) if resources else Path(__file__).resolve().parent.parent
+    path = here / filename
+    if not path.exists():
+        raise FileNotFoundError(f"FMU configuration {filename} not found in {here}")
+    return json.loads(path.read_text())
+
+
+class ArraySlave(Fmi2Slave):
+    """Base class of the project's slaves (see the module docstring)."""
+
+    #: name of the JSON configuration file in the FMU's resources/
+    config_file: str = ""
+    #: name of the parameter that fixes the sample period, if the slave has one
+    step_parameter: str | None = None
+
+    # ------------------------------------------------------------------ hooks
+    @staticmethod
+    def interface(config: dict[str, Any]) -> list[ArraySpec]:  # pragma: no cover
+        raise NotImplementedError
+
+    def setup(self) -> None:  # pragma: no cover
+        raise NotImplementedError
+
+    def compute_outputs(self) -> None:  # pragma: no cover
+        raise NotImplementedError
+
+    def advance(self, step: float) -> None:  # pragma: no cover
+        raise NotImplementedError
+
+    # ---------------------------------------------------------- construction
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.config = load_config(self.resources, self.config_file)
+        self.specs = self.interface(self.config)
+        self.par: dict[str, Any] = {}
+        self.io: dict[str, np.ndarray] = {}
+        n_in = sum(s.size for s in self.specs if s.causality == "input")
+        n_out = sum(s.size for s in self.specs if s.causality == "output")
+        self._in = np.zeros(n_in)
+        self._out = np.zeros(n_out)
+        self._initialized = False
+        self._dirty = True
+        self._input_error: str | None = None
+        self._get_plans: dict[tuple, Callable[[], list]] = {}
+        self._set_plans: dict[tuple, Callable[[list], None]] = {}
+        # specs are registered parameters first, then inputs, then outputs
+        order = {"parameter": 0, "input": 1, "output": 2}
+        self.specs = sorted(self.specs, key=lambda s: order[s.causality])
+        i_in = i_out = 0
+        for spec in self.specs:
+            if spec.causality == "input":
+                self.io[spec.name] = self._in[i_in:i_in + spec.size].reshape(spec.shape)
+                self.io[spec.name][...] = np.asarray(spec.start if spec.start is not None else 0.0)
+                i_in += spec.size
+            elif spec.causality == "output":
+                self.io[spec.name] = self._out[i_out:i_out + spec.size].reshape(spec.shape)
+                i_out += spec.size
+            elif spec.type == "String":
+                self.par[spec.name] = str(spec.start)
+            else:
+                dtype = float if spec.type == "Real" else np.int64
+                self.par[spec.name] = np.array(spec.start, dtype=dtype).reshape(spec.shape)
+        self._vr_in = self._vr_out = None
+        for spec, i, name in expand(self.specs):
+            var = self._make_variable(spec, i, name)
+            self.register_variable(var)
+            vr = var.value_reference
+            if spec.causality == "input" and self._vr_in is None:
+                self._vr_in = vr
+            if spec.causality == "output" and self._vr_out is None:
+                self._vr_out = vr
+
+    def _make_variable(self, spec: ArraySpec, i: int, name: str):
+        kind = _TYPES[spec.type]
+        kw: dict[str, Any] = dict(causality=_CAUSALITY[spec.causality],
+                                  variability=_VARIABILITY[spec.fmi_variability],
+                                  description=spec.description)
+        if spec.causality == "output":
+            buf = self.io[spec.name].reshape(-1)
+            kw["getter"] = lambda: float(self._outputs_view(buf)[i])
+        elif spec.causality == "input":
+            buf = self.io[spec.name].reshape(-1)
+            kw["getter"] = lambda: float(buf[i])
+            kw["setter"] = lambda v: self._set_input_element(name, buf, i, v)
+        elif spec.type == "String":
+            kw["getter"] = lambda: self.par[spec.name]
+            kw["setter"] = lambda v: self._set_parameter(spec, name, None, str(v))
+        else:
+            arr = self.par[spec.name].reshape(-1)
+            cast = float if spec.type == "Real" else int
+            kw["getter"] = lambda: cast(arr[i])
+            kw["setter"] = lambda v: self._set_parameter(spec, name, (arr, i), cast(v))
+        return kind(name, **kw)
+
+    # ------------------------------------------------------------- setters
+    def _set_parameter(self, spec: ArraySpec, name: str, target, value) -> None:
+        if self._initialized and spec.fmi_variability == "fixed":
+            self.log(f"parameter {name} is fixed: it cannot change after initialization "
+                     f"(value {value!r} ignored)", Fmi2Status.error)
+            return
+        if target is None:
+            self.par[spec.name] = value
+        else:
+            target[0][target[1]] = value
+
+    def _set_input_element(self, name: str, buf: np.ndarray, i: int, v: float) -> None:
+        buf[i] = v
+        self._dirty = True
+        if not math.isfinite(v):
+            self._flag_input(f"input {name} = {v} is not finite")
+
+    def _flag_input(self, msg: str) -> None:
+        self._input_error = msg
+        self.log(f"{msg}; the next step will be refused", Fmi2Status.error)
+
+    def _first_bad_input(self) -> str | None:
+        bad = np.flatnonzero(~np.isfinite(self._in))
+        if not bad.size:
+            return None
+        var = self.vars[self._vr_in + int(bad[0])]
+        return f"input {var.name} = {self._in[bad[0]]} is not finite"
+
+    # --------------------------------------------------------- fast get/set
+    def _outputs_view(self, buf: np.ndarray) -> np.ndarray:
+        if self._dirty and self._initialized:
+            self.compute_outputs()
+            self._dirty = False
+        return buf
+
+    def get_real(self, vrs: list[int]) -> list[float]:
+        plan = self._get_plans.get(tuple(vrs))
+        if plan is None:
+            plan = self._plan_get(vrs)
+        return plan()
+
+    def set_real(self, vrs: list[int], values: list[float]) -> None:
+        plan = self._set_plans.get(tuple(vrs))
+        if plan is None:
+            plan = self._plan_set(vrs)
+        plan(values)
+
+    def _contiguous(self, vrs: list[int], first: int | None, size: int) -> tuple[int, int] | None:
+        if first is None or not vrs:
+            return None
+        a = vrs[0] - first
+        if a < 0 or a + len(vrs) > size:
+            return None
+        if any(vr != vrs[0] + j for j, vr in enumerate(vrs)):
+            return None
+        return a, a + len(vrs)
+
+    def _plan_get(self, vrs: list[int]) -> Callable[[], list]:
+        span = self._contiguous(vrs, self._vr_out, self._out.size)
+        if span is not None:
+            a, b = span
+            out = self._out
+
+            def plan() -> list:
+                return self._outputs_view(out)[a:b].tolist()
+        else:
+            getters = []
+            for vr in vrs:
+                var = self.vars[vr]
+                if not isinstance(var, Real):
+                    raise TypeError(f"variable {var.name} (valueReference {vr}) is not a Real")
+                getters.append(var.getter)
+
+            def plan() -> list:
+                return [float(g()) for g in getters]
+        if len(self._get_plans) < 256:
+            self._get_plans[tuple(vrs)] = plan
+        return plan
+
+    def _plan_set(self, vrs: list[int]) -> Callable[[list], None]:
+        span = self._contiguous(vrs, self._vr_in, self._in.size)
+        if span is not None:
+            a, b = span
+            buf = self._in
+
+            def plan(values: list) -> None:
+                buf[a:b] = values
+                self._dirty = True
+                total = sum(values)
+                if total - total != 0.0:          # some value is nan or +-inf
+                    self._flag_input(self._first_bad_input() or "non-finite input")
+        else:
+            setters = []
+            for vr in vrs:
+                var = self.vars[vr]
+                if not isinstance(var, Real):
+                    raise TypeError(f"variable {var.name} (valueReference {vr}) is not a Real")
+                setters.append(var.setter)
+
+            def plan(values: list) -> None:
+                for s, v in zip(setters, values):
+                    s(v)
+        if len(self._set_plans) < 256:
+            self._set_plans[tuple(vrs)] = plan
+        return plan
+
+    # ----------------------------------------------------------- lifecycle
+    def _fatal(self, msg: str) -> None:
+        self.log(msg, Fmi2Status.error)
+        # pythonfmu's C++ layer releases these twice (at the error and in freeInstance)
+        keep = (self, type(self), self.log_queue)
+        _RELEASED_AFTER_FATAL.extend([keep, keep])
+        raise RuntimeError(msg)
+
+    def exit_initialization_mode(self) -> None:
+        try:
+            self.setup()
+        except Exception as exc:  # noqa: BLE001 - every failure must reach the host
+            self._fatal(f"{self.modelName} instance '{self.instance_name}': "
+                        f"initialization failed: {exc}")
+        self._initialized = True
+        self._dirty = True
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        if not self._initialized:
+            self.log("fmi2DoStep called before initialization finished", Fmi2Status.error)
+            return False
+        if self._input_error is not None:
+            msg = self._first_bad_input()
+            if msg is not None:
+                self.log(f"step at t = {current_time} s refused: {msg}", Fmi2Status.error)
+                return False
+            self._input_error = None
+        if self.step_parameter is not None:
+            h = float(self.par[self.step_parameter])
+            if abs(step_size - h) > 1e-9 * h:
+                self.log(f"communication step {step_size} s differs from this FMU's sample "
+                         f"period {self.step_parameter} = {h} s; set {self.step_parameter} "
+                         "to the step you use", Fmi2Status.error)
+                return False
+        try:
+            self.advance(step_size)
+        except Exception:  # noqa: BLE001
+            self.log(f"step at t = {current_time} s failed:\n{traceback.format_exc()}",
+                     Fmi2Status.error)
+            return False
+        self._dirty = True
+        return True

@@ -1,0 +1,52 @@
+"""The model parameters the three FMUs share: names, shapes, descriptions, start values."""
+from __future__ import annotations
+
+from typing import Any, Iterable
+
+import numpy as np
+
+from .interface import ArraySpec
+
+__all__ = ["PARAMETER_DOCS", "system_parameter_specs", "system_mapping_from_parameters"]
+
+#: name -> (shape in terms of the dimensions n, m, r, p, l; description)
+PARAMETER_DOCS: dict[str, tuple[tuple[str, ...], str]] = {
+    "A": (("n", "n"), "vehicle state matrix: x' = A x + B1 u + B2 w + m"),
+    "B1": (("n", "m"), "control input matrix B1"),
+    "B2": (("n", "r"), "disturbance input matrix B2"),
+    "C": (("p", "n"), "output matrix: y = C x + n"),
+    "F": (("l", "l"), "reference (virtual leader) exosystem: z' = F z + m_z"),
+    "H": (("p", "l"), "reference output: ybar = H z + n_z"),
+    "K": (("r", "r"), "disturbance exosystem: w' = K w + m_w"),
+    "Q": (("p", "p"), "tracking error weight Q of the cost e'Qe + u'Ru (positive definite)"),
+    "R": (("m", "m"), "control weight R of the cost e'Qe + u'Ru (positive definite)"),
+    "x0": (("n",), "initial vehicle state x(0)"),
+    "w0": (("r",), "initial disturbance state w(0)"),
+    "z0": (("l",), "initial reference state z(0)"),
+    "W_x": (("n", "n"), "intensity (PSD) of the vehicle process noise m; per-step "
+                        "covariance if noise_convention = per_sample"),
+    "W_w": (("r", "r"), "intensity (PSD) of the disturbance process noise m_w"),
+    "W_z": (("l", "l"), "intensity (PSD) of the reference process noise m_z"),
+    "V_y": (("p", "p"), "intensity of the vehicle sensor noise n (covariance V_y/h per "
+                        "sample; V_y itself if noise_convention = per_sample)"),
+    "V_ybar": (("p", "p"), "intensity of the reference sensor noise n_z (covariance "
+                           "V_ybar/h per sample)"),
+}
+
+
+def system_parameter_specs(config: dict[str, Any], names: Iterable[str]) -> list[ArraySpec]:
+    """Parameter specs for ``names``, start values from ``config['system']``."""
+    system = config["system"]
+    dims = config["dims"]
+    specs = []
+    for name in names:
+        shape_syms, doc = PARAMETER_DOCS[name]
+        shape = tuple(int(dims[s]) for s in shape_syms)
+        start = np.asarray(system[name], dtype=float).reshape(shape)
+        specs.append(ArraySpec(name, shape, "parameter", doc, start=start))
+    return specs
+
+
+def system_mapping_from_parameters(par: dict[str, Any], names: Iterable[str]) -> dict[str, Any]:
+    """The subset of a LinearSystem mapping held in the slave's parameter arrays."""
+    return {name: np.array(par[name], dtype=float) for name in names if name in par}

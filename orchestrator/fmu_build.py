@@ -1,0 +1,227 @@
+"""Build the three FMUs with pythonfmu and make their modelDescription.xml complete.
+
+pythonfmu writes no units, no InitialUnknowns and no output dependencies; this module
+adds them from the same interface tables the slaves register their variables from
+(``fmu_common.interface.ArraySpec``), so ``fmpy validate`` reports no problem and a host
+knows which outputs feed through from which inputs.
+"""
+from __future__ import annotations
+
+import importlib
+import io
+import json
+import shutil
+import sys
+import tempfile
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from lxml import etree
+
+from fmu_common.interface import UNIT_DEFINITIONS, ArraySpec, expand
+
+__all__ = ["FMU_KINDS", "FmuKind", "build_fmus", "fmu_config", "interface_of",
+           "patch_model_description", "variables_markdown"]
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@dataclass(frozen=True)
+class FmuKind:
+    """Where a slave lives and what it ships."""
+
+    model: str                      #: model identifier (= slave class name)
+    module: str                     #: importable slave module
+    packages: tuple[str, ...]       #: project packages copied into resources/
+    config_file: str
+    variable_step: bool             #: canHandleVariableCommunicationStepSize
+
+    @property
+    def script(self) -> Path:
+        return ROOT / (self.module.replace(".", "/") + ".py")
+
+
+FMU_KINDS: dict[str, FmuKind] = {
+    "plant": FmuKind("AuvPlant", "plant_model.auv_plant_slave",
+                     ("plant_model", "fmu_common"), "auv_plant_config.json", False),
+    "estimator": FmuKind("AuvEstimator", "estimator_fmu.auv_estimator_slave",
+                         ("estimator_fmu", "plant_model", "fmu_common"),
+                         "auv_estimator_config.json", False),
+    "controller": FmuKind("AuvController", "controller_fmu.auv_controller_slave",
+                          ("controller_fmu", "plant_model", "fmu_common"),
+                          "auv_controller_config.json", True),
+}
+
+
+def fmu_config(system_mapping: dict[str, Any], dims: dict[str, int], h: float, T: float,
+               seed: int, mode: str) -> dict[str, Any]:
+    """The JSON configuration an FMU is built with (dimensions and start values)."""
+    return {"system": system_mapping, "dims": dims, "h": float(h), "T": float(T),
+            "seed": int(seed), "mode": mode}
+
+
+def interface_of(kind: FmuKind, config: dict[str, Any]) -> list[ArraySpec]:
+    """The slave's interface table for ``config`` (parameters, inputs, outputs in order)."""
+    module = importlib.import_module(kind.module)
+    cls = getattr(module, kind.model)
+    order = {"parameter": 0, "input": 1, "output": 2}
+    return sorted(cls.interface(config), key=lambda s: order[s.causality])
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v))
+    return str(v)
+
+
+def patch_model_description(xml: bytes, specs: list[ArraySpec], *, T: float, h: float) -> bytes:
+    """Add units, InitialUnknowns, output dependencies and a DefaultExperiment."""
+    root = etree.fromstring(xml)
+    by_name = {name: spec for spec, _, name in expand(specs)}
+    variables = root.find("ModelVariables")
+    index: dict[str, int] = {}
+    units_used: list[str] = []
+    for i, sv in enumerate(variables.findall("ScalarVariable"), start=1):
+        name = sv.get("name")
+        spec = by_name[name]
+        index[name] = i
+        typ = sv[0]
+        if spec.unit:
+            typ.set("unit", spec.unit)
+            if spec.unit not in units_used:
+                units_used.append(spec.unit)
+        if spec.causality == "output":
+            sv.set("initial", "calculated")
+            typ.attrib.pop("start", None)
+        elif typ.get("start") is not None and spec.type == "Real":
+            typ.set("start", _fmt(float(typ.get("start"))))
+    for old in root.findall("UnitDefinitions"):
+        root.remove(old)
+    if units_used:
+        unknown = [u for u in units_used if u not in UNIT_DEFINITIONS]
+        if unknown:
+            raise ValueError(f"no SI definition for unit(s) {unknown}; add them to UNIT_DEFINITIONS")
+        ud = etree.Element("UnitDefinitions")
+        for u in units_used:
+            unit = etree.SubElement(ud, "Unit", name=u)
+            etree.SubElement(unit, "BaseUnit", {k: str(v) for k, v in UNIT_DEFINITIONS[u].items()})
+        root.insert(list(root).index(root.find("CoSimulation")) + 1, ud)
+    for old in root.findall("DefaultExperiment"):
+        root.remove(old)
+    de = etree.Element("DefaultExperiment", startTime="0.0", stopTime=_fmt(float(T)),
+                       stepSize=_fmt(float(h)))
+    root.insert(list(root).index(variables), de)
+    ms = root.find("ModelStructure")
+    for child in list(ms):
+        ms.remove(child)
+    outputs = etree.SubElement(ms, "Outputs")
+    initial = etree.SubElement(ms, "InitialUnknowns")
+    spec_names: dict[str, list[str]] = {}
+    for spec, _, name in expand(specs):
+        spec_names.setdefault(spec.name, []).append(name)
+    for spec, _, name in expand(specs):
+        if spec.causality != "output":
+            continue
+        deps = [index[n] for d in spec.depends_on for n in spec_names[d]]
+        attrs = {"index": str(index[name]), "dependencies": " ".join(map(str, deps))}
+        if deps:
+            attrs["dependenciesKind"] = " ".join(["dependent"] * len(deps))
+        etree.SubElement(outputs, "Unknown", attrs)
+        # initial values depend on every parameter and input: no dependency list
+        etree.SubElement(initial, "Unknown", index=str(index[name]))
+    if not len(outputs):
+        ms.remove(outputs)
+    if not len(initial):
+        ms.remove(initial)
+    etree.indent(root, space="  ")
+    return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
+
+
+def _rewrite_zip(path: Path, replacements: dict[str, bytes]) -> None:
+    buf = io.BytesIO()
+    with zipfile.ZipFile(path) as zin, zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zout:
+        for item in zin.infolist():
+            data = replacements.get(item.filename, None)
+            zout.writestr(item.filename, data if data is not None else zin.read(item.filename))
+    path.write_bytes(buf.getvalue())
+
+
+def build_fmu(kind: FmuKind, config: dict[str, Any], out_dir: Path) -> Path:
+    """Build one FMU into ``out_dir`` and patch its model description."""
+    from pythonfmu.builder import FmuBuilder
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="auv_build_") as tmp:
+        tmp_path = Path(tmp)
+        cfg_path = tmp_path / kind.config_file
+        cfg_path.write_text(json.dumps(config, indent=1))
+        staged = []
+        for pkg in kind.packages:      # copy without caches so the FMU holds sources only
+            dst = tmp_path / pkg
+            shutil.copytree(ROOT / pkg, dst, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "auv_*_slave.py"))
+            staged.append(dst)
+        script = kind.script
+        # the slave script itself goes to the root of resources/ (a unique module name)
+        script_root = tmp_path / "script"
+        script_root.mkdir()
+        shutil.copy2(script, script_root / script.name)
+        sys.path.insert(0, str(ROOT))
+        try:
+            fmu = FmuBuilder.build_FMU(
+                script_root / script.name, dest=out_dir,
+                project_files=[*staged, cfg_path],
+                canHandleVariableCommunicationStepSize=kind.variable_step,
+            )
+        finally:
+            sys.modules.pop(script.stem, None)
+    fmu = Path(fmu)
+    with zipfile.ZipFile(fmu) as z:
+        xml = z.read("modelDescription.xml")
+    specs = interface_of(kind, config)
+    _rewrite_zip(fmu, {"modelDescription.xml": patch_model_description(
+        xml, specs, T=config["T"], h=config["h"])})
+    return fmu
+
+
+def build_fmus(config: dict[str, Any], out_dir: Path | str) -> dict[str, Path]:
+    """Build the plant, estimator and controller FMUs for one configuration."""
+    out = Path(out_dir)
+    return {name: build_fmu(kind, config, out) for name, kind in FMU_KINDS.items()}
+
+
+def _start_text(spec: ArraySpec) -> str:
+    if spec.causality == "output":
+        return ""
+    v = spec.start
+    if spec.type == "String":
+        return f"`{v}`"
+    arr = np.asarray(v if v is not None else 0.0)
+    if arr.ndim == 0:
+        return _fmt(arr.item())
+    return "`" + json.dumps(arr.tolist()) + "`"
+
+
+def variables_markdown(config: dict[str, Any]) -> str:
+    """A table per FMU: name, causality, variability, unit, start, description."""
+    lines = []
+    for key, kind in FMU_KINDS.items():
+        lines += [f"### {kind.model}.fmu ({key})", "",
+                  "| name | causality | variability | unit | start | description |",
+                  "|---|---|---|---|---|---|"]
+        for spec in interface_of(kind, config):
+            if spec.shape:
+                idx = ",".join(f"{'ijk'[a]}" for a in range(len(spec.shape)))
+                rng = ", ".join(f"{'ijk'[a]}=1..{n}" for a, n in enumerate(spec.shape))
+                name = f"`{spec.name}[{idx}]` ({rng})"
+            else:
+                name = f"`{spec.name}`"
+            desc = spec.description
+            if spec.depends_on:
+                desc += f"; direct feedthrough from {', '.join(spec.depends_on)}"
+            lines.append(f"| {name} | {spec.causality} | {spec.fmi_variability} | "
+                         f"{spec.unit or ''} | {_start_text(spec)} | {desc} |")
+        lines.append("")
+    return "\n".join(lines)

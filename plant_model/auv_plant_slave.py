@@ -1,0 +1,59 @@
+"""FMI 2.0 co-simulation slave of the plant (a thin adapter over plant_model.plant).
+
+Inputs u; outputs y, ybar (noisy measurements) and the truth x, w, z, e = H z - C x.
+No output depends directly on u (the plant is strictly proper when sampled).
+"""
+from fmu_common.interface import ArraySpec
+from fmu_common.slave_base import ArraySlave as Fmi2Slave  # pythonfmu's loader looks for "class X(Fmi2Slave):"
+from fmu_common.system_parameters import system_mapping_from_parameters, system_parameter_specs
+from plant_model.discretization import discretize
+from plant_model.plant import Plant
+from plant_model.system import LinearSystem
+
+PLANT_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "x0", "w0", "z0",
+                    "W_x", "W_w", "W_z", "V_y", "V_ybar")
+
+
+class AuvPlant(Fmi2Slave):
+    """Vehicles, disturbance and reference exosystems and noisy sensors, sampled at h."""
+
+    config_file = "auv_plant_config.json"
+    step_parameter = "h"
+    description = ("AUV consensus tracking plant (Yuan, Zhang, Zhou): linear vehicles, "
+                   "disturbance and reference exosystems, noisy sensors; exact sampling")
+    author = "auv-cosim"
+
+    @staticmethod
+    def interface(config):
+        d = config["dims"]
+        n, m, r, p, l_ = d["n"], d["m"], d["r"], d["p"], d["l"]
+        return system_parameter_specs(config, PLANT_PARAMETERS) + [
+            ArraySpec("h", (), "parameter", "sample period: the communication step the "
+                      "plant is discretized for", start=config["h"], unit="s"),
+            ArraySpec("seed", (), "parameter", "seed of the noise generator (numpy PCG64)",
+                      start=config["seed"], type="Integer"),
+            ArraySpec("noise_convention", (), "parameter",
+                      "'intensity' (W, V are continuous intensities) or 'per_sample'",
+                      start=config["system"]["noise_convention"], type="String"),
+            ArraySpec("u", (m,), "input", "control input u held over the step"),
+            ArraySpec("y", (p,), "output", "measured vehicle output y = C x + n"),
+            ArraySpec("ybar", (p,), "output", "measured reference output ybar = H z + n_z"),
+            ArraySpec("x", (n,), "output", "true vehicle state x"),
+            ArraySpec("w", (r,), "output", "true disturbance state w"),
+            ArraySpec("z", (l_,), "output", "true reference state z"),
+            ArraySpec("e", (p,), "output", "true tracking error e = H z - C x"),
+        ]
+
+    def setup(self):
+        mapping = system_mapping_from_parameters(self.par, PLANT_PARAMETERS)
+        mapping["noise_convention"] = self.par["noise_convention"]
+        system = LinearSystem.from_mapping(mapping)
+        self.model = discretize(system, float(self.par["h"]))
+        self.plant = Plant(self.model, system.initial_state(), int(self.par["seed"]))
+        self._u = self.io["u"]
+
+    def compute_outputs(self):
+        self._out[:] = self.plant.output
+
+    def advance(self, step):
+        self.plant.step(self._u)

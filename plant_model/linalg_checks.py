@@ -1,0 +1,148 @@
+"""Input checks shared by every component: shapes, finiteness, symmetry, definiteness.
+
+Each check raises :class:`ModelError` with a message that names the matrix and the
+problem, so that a scenario loader, a CLI and an FMU slave can all report it as is.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+__all__ = [
+    "ModelError",
+    "as_matrix",
+    "as_vector",
+    "check_symmetric_psd",
+    "check_symmetric_pd",
+    "psd_factor",
+    "uncontrollable_modes",
+    "unobservable_modes",
+]
+
+
+class ModelError(ValueError):
+    """A model, design or scenario is invalid; the message names what is wrong."""
+
+
+def as_matrix(name: str, value, shape: Sequence[int] | None = None) -> np.ndarray:
+    """Return ``value`` as a finite 2-D float array, checking its shape.
+
+    ``shape`` entries may be ``None`` for "any size".
+    """
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ModelError(f"{name}: not a numeric matrix ({exc})") from None
+    if arr.ndim == 0:
+        raise ModelError(f"{name}: expected a matrix, got the scalar {arr.item()!r}")
+    if arr.ndim == 1:
+        arr = arr.reshape(1, -1)
+    if arr.ndim != 2:
+        raise ModelError(f"{name}: expected a 2-D matrix, got an array with {arr.ndim} dimensions")
+    if shape is not None:
+        for axis, (got, want) in enumerate(zip(arr.shape, shape)):
+            if want is not None and got != want:
+                exp = "x".join("?" if s is None else str(s) for s in shape)
+                raise ModelError(
+                    f"{name}: wrong shape {arr.shape[0]}x{arr.shape[1]}, expected {exp}"
+                )
+    _check_finite(name, arr)
+    return arr
+
+
+def as_vector(name: str, value, length: int | None = None) -> np.ndarray:
+    """Return ``value`` as a finite 1-D float array of the given length."""
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ModelError(f"{name}: not a numeric vector ({exc})") from None
+    arr = np.atleast_1d(arr)
+    if arr.ndim != 1:
+        raise ModelError(f"{name}: expected a vector, got an array of shape {arr.shape}")
+    if length is not None and arr.shape[0] != length:
+        raise ModelError(f"{name}: wrong length {arr.shape[0]}, expected {length}")
+    _check_finite(name, arr)
+    return arr
+
+
+def _check_finite(name: str, arr: np.ndarray) -> None:
+    bad = np.argwhere(~np.isfinite(arr))
+    if bad.size:
+        idx = tuple(int(i) + 1 for i in bad[0])
+        where = f"[{','.join(map(str, idx))}]"
+        raise ModelError(f"{name}{where} = {arr[tuple(bad[0])]} is not finite")
+
+
+def check_symmetric_psd(name: str, M: np.ndarray, *, definite: bool = False) -> None:
+    """Require ``M`` symmetric and positive semidefinite (definite if asked).
+
+    Symmetry tolerance: ``|M - M'| <= 1e-10 (1 + max|M|)``.
+    """
+    scale = 1.0 + float(np.max(np.abs(M))) if M.size else 1.0
+    asym = float(np.max(np.abs(M - M.T))) if M.size else 0.0
+    if asym > 1e-10 * scale:
+        i, j = np.unravel_index(int(np.argmax(np.abs(M - M.T))), M.shape)
+        raise ModelError(
+            f"{name} is not symmetric: {name}[{i + 1},{j + 1}] = {M[i, j]:g} but "
+            f"{name}[{j + 1},{i + 1}] = {M[j, i]:g}"
+        )
+    if not M.size:
+        return
+    eig = np.linalg.eigvalsh(0.5 * (M + M.T))
+    tol = 1e-12 * scale
+    lo = float(eig.min())
+    if definite and lo <= tol:
+        raise ModelError(
+            f"{name} must be positive definite; its smallest eigenvalue is {lo:.6g}"
+        )
+    if lo < -tol:
+        raise ModelError(
+            f"{name} must be positive semidefinite (a covariance or intensity); "
+            f"its smallest eigenvalue is {lo:.6g}"
+        )
+
+
+def check_symmetric_pd(name: str, M: np.ndarray) -> None:
+    """Require ``M`` symmetric positive definite."""
+    check_symmetric_psd(name, M, definite=True)
+
+
+def psd_factor(M: np.ndarray) -> np.ndarray:
+    """A factor L with ``L L' = M`` for a symmetric positive semidefinite ``M``.
+
+    Uses the eigendecomposition, so a singular covariance (a noise that is switched
+    off in some direction) is fine, unlike the Cholesky factorisation.
+    """
+    if M.size == 0:
+        return np.zeros_like(M)
+    w, V = np.linalg.eigh(0.5 * (M + M.T))
+    return V * np.sqrt(np.clip(w, 0.0, None))
+
+
+def _pbh_rank_deficient(A: np.ndarray, X: np.ndarray, lam: complex, *, rows: bool) -> bool:
+    n = A.shape[0]
+    Ml = A - lam * np.eye(n)
+    M = np.hstack([Ml, X]) if rows else np.vstack([Ml, X])
+    s = np.linalg.svd(M, compute_uv=False)
+    scale = max(1.0, float(np.linalg.norm(A, 2)), float(np.linalg.norm(X, 2)) if X.size else 0.0)
+    return s[-1] <= 1e-9 * scale if s.size >= n else True
+
+
+def uncontrollable_modes(A: np.ndarray, B: np.ndarray, *, only_unstable: bool = True,
+                         continuous: bool = True) -> list[complex]:
+    """Eigenvalues lambda of A where rank [A - lambda I, B] < n (PBH test)."""
+    out = []
+    for lam in np.linalg.eigvals(A):
+        unstable = lam.real >= -1e-9 if continuous else abs(lam) >= 1 - 1e-9
+        if only_unstable and not unstable:
+            continue
+        if _pbh_rank_deficient(A, B, lam, rows=True):
+            out.append(complex(lam))
+    return out
+
+
+def unobservable_modes(A: np.ndarray, C: np.ndarray, *, only_unstable: bool = True,
+                       continuous: bool = True) -> list[complex]:
+    """Eigenvalues lambda of A where rank [A - lambda I; C] < n (PBH test)."""
+    return uncontrollable_modes(A.T, C.T, only_unstable=only_unstable, continuous=continuous)

@@ -1,0 +1,99 @@
+"""The sampled plant: vehicles, disturbance and reference exosystems, noisy sensors.
+
+At sample k (time k h) the plant holds s[k] = [x; w; z] and the noise row drawn for k:
+
+    y[k]    = C x[k] + n[k]          ybar[k] = H z[k] + n_z[k]
+    e[k]    = H z[k] - C x[k]         (noiseless, for scoring)
+    s[k+1]  = Ad s[k] + Bd u[k] + v[k]
+
+Every random number comes from one ``numpy.random.Generator(PCG64(seed))``: per step one
+standard normal vector xi[k] of length ns + 2p, drawn in blocks of rows (a block of
+rows is the same stream as row-by-row draws), and [v[k]; n[k]; n_z[k]] = L xi[k] with
+L = blkdiag(chol-like factors of Qd and Rd). The same seed gives the same traces.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .discretization import DiscreteModel
+from .linalg_checks import psd_factor
+
+__all__ = ["NoiseStream", "Plant", "plant_output_layout"]
+
+
+def _noise_factor(model: DiscreteModel) -> np.ndarray:
+    """L with L L' = blkdiag(Qd, Rd)."""
+    d = model.noise_dim
+    L = np.zeros((d, d))
+    L[:model.ns, :model.ns] = psd_factor(model.Qd)
+    L[model.ns:, model.ns:] = psd_factor(model.Rd)
+    return L
+
+
+class NoiseStream:
+    """Rows [v[k]; n[k]; n_z[k]] for k = 0, 1, ..., drawn lazily in blocks."""
+
+    def __init__(self, model: DiscreteModel, seed: int, block: int = 2048):
+        self._LT = _noise_factor(model).T.copy()
+        self._rng = np.random.default_rng(int(seed))
+        self._block = int(block)
+        self._buf = np.empty((0, model.noise_dim))
+        self._i = 0
+
+    @staticmethod
+    def all_rows(model: DiscreteModel, seed: int, steps: int) -> np.ndarray:
+        """The first ``steps`` rows at once (same values as drawing them one by one)."""
+        rng = np.random.default_rng(int(seed))
+        return rng.standard_normal((steps, model.noise_dim)) @ _noise_factor(model).T
+
+    def next_row(self) -> np.ndarray:
+        if self._i >= self._buf.shape[0]:
+            self._buf = self._rng.standard_normal((self._block, self._LT.shape[0])) @ self._LT
+            self._i = 0
+        row = self._buf[self._i]
+        self._i += 1
+        return row
+
+
+def plant_output_layout(model: DiscreteModel) -> dict[str, slice]:
+    """Slices of the plant's output vector [y, ybar, x, w, z, e]."""
+    p, n, r, l_ = model.p, model.n, model.r, model.l
+    names = (("y", p), ("ybar", p), ("x", n), ("w", r), ("z", l_), ("e", p))
+    out, i = {}, 0
+    for name, size in names:
+        out[name] = slice(i, i + size)
+        i += size
+    return out
+
+
+class Plant:
+    """Sampled plant; ``output`` is the vector [y, ybar, x, w, z, e] at the current k."""
+
+    def __init__(self, model: DiscreteModel, s0: np.ndarray, seed: int):
+        self.model = model
+        self.seed = int(seed)
+        ns, p = model.ns, model.p
+        # one matrix gives every output: [M; I; E] s
+        self._O = np.vstack([model.M, np.eye(ns), model.E])
+        self._Ad, self._Bd = model.Ad, model.Bd
+        self._ns, self._2p = ns, 2 * p
+        self.reset(s0)
+
+    def reset(self, s0: np.ndarray) -> None:
+        self.k = 0
+        self.s = np.array(s0, dtype=float)
+        self._noise = NoiseStream(self.model, self.seed)
+        self._row = self._noise.next_row()
+        self._refresh()
+
+    def _refresh(self) -> None:
+        out = self._O @ self.s
+        out[:self._2p] += self._row[self._ns:]
+        self.output = out
+
+    def step(self, u: np.ndarray) -> None:
+        """Advance one step with u held constant: s <- Ad s + Bd u + v[k]."""
+        self.s = self._Ad @ self.s + self._Bd @ u + self._row[:self._ns]
+        self.k += 1
+        self._row = self._noise.next_row()
+        self._refresh()
