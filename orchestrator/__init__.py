@@ -1,0 +1,1 @@
+"""Orchestrator: scenarios, FMU build, the fmpy co-simulation master, Rerun traces, CLI."""

@@ -65,7 +65,7 @@ class FmuInstance:
             addLoggerProxy(ctypes.byref(self._callbacks))
         except Exception:  # pragma: no cover - message formatting only
             pass
-        self.slave.instantiate(callbacks=self._callbacks, loggingOn=False)
+        self.slave.instantiate(callbacks=self._callbacks, loggingOn=True)
         dll = self.slave.dll
         self.component = self.slave.component
 

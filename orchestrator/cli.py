@@ -1,0 +1,220 @@
+"""``auv-cosim``: build the FMUs, run, compare, validate and benchmark.
+
+Every error a user can cause (a bad scenario, an impossible design, an FMU that
+refuses a call) is printed as one line naming the problem, with exit status 2.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Sequence
+
+from estimator_fmu.estimators import ESTIMATOR_MODES
+from plant_model.linalg_checks import ModelError
+
+from .master import CosimError
+from .scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def parse_seeds(text: str) -> list[int]:
+    """'0-9' -> 0..9, '1,4,7' -> [1, 4, 7], '3' -> [3]."""
+    seeds: list[int] = []
+    try:
+        for part in text.split(","):
+            part = part.strip()
+            if "-" in part:
+                a, b = (int(x) for x in part.split("-", 1))
+                if b < a:
+                    raise ValueError
+                seeds.extend(range(a, b + 1))
+            else:
+                seeds.append(int(part))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"seeds {text!r}: expected a range '0-9', a list '1,4,7' or one seed") from None
+    if any(s < 0 for s in seeds):
+        raise argparse.ArgumentTypeError(f"seeds {text!r}: seeds must be non-negative")
+    return seeds
+
+
+def _positive(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not v > 0 or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number of seconds")
+    return v
+
+
+def _scenario(args: argparse.Namespace) -> Scenario:
+    sc = load_scenario(args.scenario)
+    return sc.with_run(T=getattr(args, "T", None), h=getattr(args, "h", None),
+                       seed=getattr(args, "seed", None), estimator=getattr(args, "estimator", None))
+
+
+def _print_summary(summary: dict) -> None:
+    print(f"scenario {summary['scenario']}: T = {summary['T']} s, h = {summary['h']} s, "
+          f"{summary['steps']} steps, seeds {summary['seeds']}, "
+          f"noise convention '{summary['noise_convention']}', statistics over "
+          f"t in [{summary['stats_window_s'][0]:.3g}, {summary['stats_window_s'][1]:.3g}) s")
+    print(f"{'method':>10s} {'cost rate':>12s} {'(std)':>9s} {'predicted':>10s}   rms e (sim / pred)")
+    for name, m in summary["methods"].items():
+        c = m["cost_rate"]
+        pred = "n/a" if c["predicted"] is None else f"{c['predicted']:.4g}"
+        rms = ", ".join(
+            f"{a:.3g}/{'n/a' if b is None else format(b, '.3g')}"
+            for a, b in zip(m["rms_e"]["mean"], m["rms_e"]["predicted"] or [None] * len(m["rms_e"]["mean"])))
+        print(f"{name:>10s} {c['mean']:12.4g} {c['std']:9.2g} {pred:>10s}   {rms}")
+    print(f"wrote {summary['rrd']['path']} (open it with: rerun {summary['rrd']['path']}) and "
+          f"{Path(summary['rrd']['path']).parent / 'summary.json'}; wall time {summary['wall_s']:.1f} s")
+
+
+def cmd_build(args: argparse.Namespace) -> int:
+    from .workflow import build, write_fmu_readme
+    sc = _scenario(args)
+    out = Path(args.out)
+    paths = build(sc, out)
+    if out.resolve() == (ROOT / "fmus").resolve():
+        write_fmu_readme(sc, out / "README.md")
+    for k, p in paths.items():
+        print(f"{k:>10s}: {p} ({p.stat().st_size} bytes)")
+    return 0
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from .workflow import simulate
+    sc = _scenario(args)
+    out = Path(args.out or f"out/{sc.name}_{sc.estimator}_seed{sc.seed}")
+    _print_summary(simulate(sc, [sc.estimator], [sc.seed], out, progress=not args.quiet,
+                            log=(lambda s: None) if args.quiet else print))
+    return 0
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from .workflow import simulate
+    sc = _scenario(args)
+    out = Path(args.out or f"out/{sc.name}_compare")
+    _print_summary(simulate(sc, list(ESTIMATOR_MODES), args.seeds, out, progress=not args.quiet,
+                            log=(lambda s: None) if args.quiet else print))
+    return 0
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    import tempfile
+
+    from fmpy.validation import validate_fmu
+
+    from .workflow import build
+    if args.fmus:
+        paths = {p.stem: p for p in (Path(x) for x in args.fmus)}
+        missing = [str(p) for p in paths.values() if not p.exists()]
+        if missing:
+            raise ScenarioError(f"FMU file(s) not found: {', '.join(missing)}")
+        tmp = None
+    else:
+        tmp = tempfile.TemporaryDirectory(prefix="auv_validate_")
+        paths = build(_scenario(args), Path(tmp.name))
+    bad = 0
+    for name, p in paths.items():
+        problems = validate_fmu(str(p))
+        bad += len(problems)
+        print(f"{name:>10s}: {p.name}: " + ("no problem" if not problems else f"{len(problems)} problem(s)"))
+        for prob in problems:
+            print(f"            - {prob}")
+    if tmp:
+        tmp.cleanup()
+    return 1 if bad else 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from .bench import benchmark
+    sc = _scenario(args)
+    r = benchmark(sc, mode=sc.estimator, seed=sc.seed)
+    if args.json:
+        print(json.dumps(r, indent=2))
+        return 0
+    print(f"scenario {r['scenario']}, estimator {r['mode']}, {r['steps']} steps of {r['h']} s; "
+          f"load average {r['loadavg'][0]:.2f} on {r['cpus']} CPUs")
+    print(f"  co-simulation loop (3 FMUs)   {r['cosim_loop_s']:8.3f} s  {r['cosim_us_per_step']:7.2f} us/step")
+    print(f"  .rrd writing                  {r['rrd_write_s']:8.3f} s  ({100 * r['rrd_fraction_of_run']:.1f} % of loop + rrd)")
+    print(f"  monolithic numpy loop         {r['monolithic_s']:8.3f} s  {r['monolithic_us_per_step']:7.2f} us/step")
+    print(f"  ratio (loop + rrd) / monolithic  {r['ratio_cosim_to_monolithic']:.2f}   "
+          f"(loop only {r['ratio_loop_only']:.2f}; target <= 1.5)")
+    print(f"  setup (extract, instantiate, initialize) {r['cosim_setup_s']:.3f} s; build {r['build_s']:.3f} s")
+    print("  FMI calls: " + ", ".join(f"{k} {v:.2f}" for k, v in r["fmi_calls"].items()))
+    print(f"  max |co-simulation - monolithic| over all traces: {r['max_abs_difference']:.2e}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="auv-cosim",
+        description="Optimal consensus tracking control of AUVs (Yuan, Zhang, Zhou) as three "
+                    "FMI 2.0 co-simulation FMUs coupled on fmpy, traced to Rerun.")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    def common(sp: argparse.ArgumentParser, *, run: bool = True) -> None:
+        sp.add_argument("--scenario", default="paper",
+                        help=f"built-in name ({', '.join(builtin_scenarios())}) or a .toml file "
+                             "(default: paper)")
+        if run:
+            sp.add_argument("--T", type=_positive, help="simulated time, s (default: scenario's)")
+            sp.add_argument("--h", type=_positive, help="communication step, s (default: scenario's)")
+
+    sp = sub.add_parser("build", help="build the three FMUs (default into fmus/)")
+    common(sp)
+    sp.add_argument("--out", default=str(ROOT / "fmus"), help="output folder (default: fmus/)")
+    sp.set_defaults(func=cmd_build)
+
+    sp = sub.add_parser("run", help="co-simulate one estimator mode, write .rrd and summary.json")
+    common(sp)
+    sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="estimator mode (default: kalman)")
+    sp.add_argument("--seed", type=int, help="noise seed (default: scenario's)")
+    sp.add_argument("--out", help="output folder (default: out/<scenario>_<estimator>_seed<seed>)")
+    sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
+    sp.set_defaults(func=cmd_run)
+
+    sp = sub.add_parser("compare", help="the three estimator modes on the same noise and seeds")
+    common(sp)
+    sp.add_argument("--seeds", type=parse_seeds, default=list(range(10)),
+                    help="seeds: '0-9' (default), '1,4,7' or one seed")
+    sp.add_argument("--out", help="output folder (default: out/<scenario>_compare)")
+    sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
+    sp.set_defaults(func=cmd_compare)
+
+    sp = sub.add_parser("validate", help="fmpy validate the FMUs (built afresh, or given)")
+    common(sp, run=False)
+    sp.add_argument("fmus", nargs="*", help=".fmu files to validate instead of building")
+    sp.set_defaults(func=cmd_validate)
+
+    sp = sub.add_parser("bench", help="time the co-simulation against the monolithic loop")
+    common(sp)
+    sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="estimator mode (default: kalman)")
+    sp.add_argument("--seed", type=int, help="noise seed")
+    sp.add_argument("--json", action="store_true", help="print the figures as JSON")
+    sp.set_defaults(func=cmd_bench)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if getattr(args, "seed", None) is not None and args.seed < 0:
+        parser.error(f"--seed {args.seed}: seeds must be non-negative")
+    try:
+        return args.func(args)
+    except (ScenarioError, ModelError, CosimError) as exc:
+        print(f"auv-cosim {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

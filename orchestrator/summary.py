@@ -1,0 +1,72 @@
+"""Figures of merit from traces, and the summary.json the CLI writes.
+
+Simulated figures are time averages at the sample instants over the window
+[t_from, T), where t_from = min(T/2, 5 time constants of the slowest closed-loop mode)
+leaves out the start-up transient, so that they estimate the stationary values the
+Lyapunov prediction gives:
+
+    rms_e[i] = sqrt(mean_k e_i[k]^2),  rms_u[j] = sqrt(mean_k u_j[k]^2),
+    cost_rate = mean_k (e[k]' Q e[k] + u[k]' R u[k])       (J/T, per second)
+"""
+from __future__ import annotations
+
+import importlib.metadata as md
+import math
+import platform
+from typing import Any, Iterable
+
+import numpy as np
+
+__all__ = ["trace_stats", "method_summary", "versions", "stats_window"]
+
+
+def stats_window(T: float, h: float, settling_time: float) -> int:
+    """First sample index of the statistics window."""
+    t_from = min(T / 2.0, settling_time if math.isfinite(settling_time) else T / 2.0)
+    return int(math.ceil(t_from / h - 1e-9))
+
+
+def trace_stats(traces: dict[str, np.ndarray], Q: np.ndarray, R: np.ndarray,
+                k0: int) -> dict[str, Any]:
+    """RMS of each e and u component and the cost rate over samples k >= k0."""
+    e, u = traces["e"][k0:], traces["u"][k0:]
+    cost = np.einsum("ki,ij,kj->k", e, Q, e) + np.einsum("ki,ij,kj->k", u, R, u)
+    return {"rms_e": np.sqrt(np.mean(e * e, axis=0)).tolist(),
+            "rms_u": np.sqrt(np.mean(u * u, axis=0)).tolist(),
+            "cost_rate": float(np.mean(cost))}
+
+
+def _mean_std(rows: list[list[float]]) -> tuple[list[float], list[float]]:
+    a = np.asarray(rows, dtype=float)
+    std = a.std(axis=0, ddof=1) if a.shape[0] > 1 else np.zeros(a.shape[1:])
+    return a.mean(axis=0).tolist(), np.atleast_1d(std).tolist()
+
+
+def method_summary(per_seed: list[dict[str, Any]], prediction: Any) -> dict[str, Any]:
+    """Mean, standard deviation over seeds, and the prediction, as summary.json wants."""
+    out: dict[str, Any] = {}
+    for key, pred in (("rms_e", prediction.rms_e), ("rms_u", prediction.rms_u)):
+        mean, std = _mean_std([s[key] for s in per_seed])
+        out[key] = {"mean": mean, "std": std, "predicted": pred}
+    costs = [s["cost_rate"] for s in per_seed]
+    out["cost_rate"] = {
+        "mean": float(np.mean(costs)),
+        "std": float(np.std(costs, ddof=1)) if len(costs) > 1 else 0.0,
+        "predicted": prediction.cost_rate,
+        "per_seed": costs,
+    }
+    if prediction.reason:
+        out["prediction_note"] = prediction.reason
+    return out
+
+
+def versions(packages: Iterable[str] = ("auv-cosim", "numpy", "scipy", "fmpy", "pythonfmu",
+                                         "rerun-sdk")) -> dict[str, str]:
+    """Versions of Python and the packages that produced a result."""
+    out = {"python": platform.python_version()}
+    for name in packages:
+        try:
+            out[name] = md.version(name)
+        except md.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
