@@ -96,14 +96,19 @@ class ArraySlave(Fmi2Slave):
         self._initialized = False
         self._dirty = True
         self._input_error: str | None = None
+        self._sample_period: float | None = None
         self._get_plans: dict[tuple, Callable[[], list]] = {}
         self._set_plans: dict[tuple, Callable[[list], None]] = {}
         # specs are registered parameters first, then inputs, then outputs
         order = {"parameter": 0, "input": 1, "output": 2}
         self.specs = sorted(self.specs, key=lambda s: order[s.causality])
         i_in = i_out = 0
+        feeding = {d for s in self.specs if s.causality == "output" for d in s.depends_on}
+        #: input elements that outputs depend on directly (setting them dirties outputs)
+        self._feeds = np.zeros(n_in, dtype=bool)
         for spec in self.specs:
             if spec.causality == "input":
+                self._feeds[i_in:i_in + spec.size] = spec.name in feeding
                 self.io[spec.name] = self._in[i_in:i_in + spec.size].reshape(spec.shape)
                 self.io[spec.name][...] = np.asarray(spec.start if spec.start is not None else 0.0)
                 i_in += spec.size
@@ -136,7 +141,8 @@ class ArraySlave(Fmi2Slave):
         elif spec.causality == "input":
             buf = self.io[spec.name].reshape(-1)
             kw["getter"] = lambda: float(buf[i])
-            kw["setter"] = lambda v: self._set_input_element(name, buf, i, v)
+            feeds = spec.name in {d for s in self.specs for d in s.depends_on}
+            kw["setter"] = lambda v: self._set_input_element(name, buf, i, v, feeds)
         elif spec.type == "String":
             kw["getter"] = lambda: self.par[spec.name]
             kw["setter"] = lambda v: self._set_parameter(spec, name, None, str(v))
@@ -158,9 +164,11 @@ class ArraySlave(Fmi2Slave):
         else:
             target[0][target[1]] = value
 
-    def _set_input_element(self, name: str, buf: np.ndarray, i: int, v: float) -> None:
+    def _set_input_element(self, name: str, buf: np.ndarray, i: int, v: float,
+                           feeds: bool) -> None:
         buf[i] = v
-        self._dirty = True
+        if feeds:
+            self._dirty = True
         if not math.isfinite(v):
             self._flag_input(f"input {name} = {v} is not finite")
 
@@ -231,10 +239,12 @@ class ArraySlave(Fmi2Slave):
         if span is not None:
             a, b = span
             buf = self._in
+            feeds = bool(self._feeds[a:b].any())
 
             def plan(values: list) -> None:
                 buf[a:b] = values
-                self._dirty = True
+                if feeds:
+                    self._dirty = True
                 total = sum(values)
                 if total - total != 0.0:          # some value is nan or +-inf
                     self._flag_input(self._first_bad_input() or "non-finite input")
@@ -267,6 +277,8 @@ class ArraySlave(Fmi2Slave):
         except Exception as exc:  # noqa: BLE001 - every failure must reach the host
             self._fatal(f"{self.modelName} instance '{self.instance_name}': "
                         f"initialization failed: {exc}")
+        self._sample_period = (None if self.step_parameter is None
+                               else float(self.par[self.step_parameter]))
         self._initialized = True
         self._dirty = True
 
@@ -280,8 +292,8 @@ class ArraySlave(Fmi2Slave):
                 self.log(f"step at t = {current_time} s refused: {msg}", Fmi2Status.error)
                 return False
             self._input_error = None
-        if self.step_parameter is not None:
-            h = float(self.par[self.step_parameter])
+        h = self._sample_period
+        if h is not None and step_size != h:
             if abs(step_size - h) > 1e-9 * h:
                 self.log(f"communication step {step_size} s differs from this FMU's sample "
                          f"period {self.step_parameter} = {h} s; set {self.step_parameter} "
