@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import ctypes
 import gc
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -67,9 +68,16 @@ def test_parameters_set_by_the_host_are_used(paper, fmus):
     assert not np.allclose(base["u"], ref["u"])
 
 
-def _instance(fmus, key, cfg, tag):
+@contextmanager
+def _instance(fmus, key, tag):
+    """A real instance of one FMU, terminated, freed and unzipped files removed after."""
     ex = _Extracted({key: fmus[key]})
-    return ex, FmuInstance(key, fmus[key], ex.dirs[key], f"{key}_{tag}")
+    inst = FmuInstance(key, fmus[key], ex.dirs[key], f"{key}_{tag}")
+    try:
+        yield inst
+    finally:
+        inst.close()
+        ex.cleanup()
 
 
 def test_impossible_design_is_an_error_status_with_a_message_and_the_host_goes_on(paper, fmus):
@@ -80,16 +88,12 @@ def test_impossible_design_is_an_error_status_with_a_message_and_the_host_goes_o
         if k.startswith("B1["):
             params[k] = 0.0
     params["A[1,1]"] = 0.5
-    ex, inst = _instance(fmus, "controller", cfg, "bad")
-    try:
+    with _instance(fmus, "controller", "bad") as inst:
         with pytest.raises(CosimError) as err:
             inst.initialize(params, T=1.0)
         msg = str(err.value)
         assert "not stabilizable" in msg and "0.5" in msg
         assert any(status in ("Error", "Fatal") for status, _ in inst.messages)
-    finally:
-        inst.close()
-        ex.cleanup()
     gc.collect()
     # the process and fmpy still work: a normal run afterwards is correct
     res = run_cosimulation(fmus, cfg, mode="kalman", seed=0, steps=200)
@@ -101,19 +105,14 @@ def test_bad_parameter_in_fmu_names_it(paper, fmus):
     cfg = scenario_config(paper)
     params = fmu_parameters("plant", cfg)
     params["V_y[1,2]"] = 0.5          # asymmetric covariance
-    ex, inst = _instance(fmus, "plant", cfg, "asym")
-    try:
+    with _instance(fmus, "plant", "asym") as inst:
         with pytest.raises(CosimError, match=r"V_y is not symmetric"):
             inst.initialize(params, T=1.0)
-    finally:
-        inst.close()
-        ex.cleanup()
 
 
 def test_nan_input_is_refused_with_discard_and_a_message_then_recovers(paper, fmus):
     cfg = scenario_config(paper)
-    ex, inst = _instance(fmus, "controller", cfg, "nan")
-    try:
+    with _instance(fmus, "controller", "nan") as inst:
         inst.initialize(fmu_parameters("controller", cfg), T=1.0)
         s = inst.slave
         s.setReal([inst.vr["xhat[2]"]], [float("nan")])
@@ -124,16 +123,12 @@ def test_nan_input_is_refused_with_discard_and_a_message_then_recovers(paper, fm
         assert inst.do_step(inst.component, 0.0, 0.01, 1) == 0
         u = s.getReal([inst.vr["u[1]"], inst.vr["u[2]"]])
         assert np.all(np.isfinite(u)) and np.any(np.abs(u) > 0)
-    finally:
-        inst.close()
-        ex.cleanup()
 
 
 def test_nan_input_stops_the_master_with_a_named_error(paper, fmus):
     """A NaN reaching the estimator makes the master stop, naming FMU and input."""
     cfg = scenario_config(paper)
-    ex, inst = _instance(fmus, "estimator", cfg, "nan2")
-    try:
+    with _instance(fmus, "estimator", "nan2") as inst:
         inst.initialize(fmu_parameters("estimator", cfg), T=1.0)
         vr = (ctypes.c_uint * 1)(inst.vr["y[1]"])
         val = (ctypes.c_double * 1)(float("inf"))
@@ -142,32 +137,21 @@ def test_nan_input_stops_the_master_with_a_named_error(paper, fmus):
         assert st == 2
         err = inst.fail("fmi2DoStep at t = 0 s", st)
         assert "estimator FMU" in str(err) and "y[1] = inf" in str(err)
-    finally:
-        inst.close()
-        ex.cleanup()
 
 
 def test_wrong_communication_step_is_refused(paper, fmus):
     cfg = scenario_config(paper)
-    ex, inst = _instance(fmus, "plant", cfg, "step")
-    try:
+    with _instance(fmus, "plant", "step") as inst:
         inst.initialize(fmu_parameters("plant", cfg), T=1.0)
         assert inst.do_step(inst.component, 0.0, 0.05, 1) == 2
         assert any("differs from this FMU's sample period h = 0.01" in m for _, m in inst.messages)
         assert inst.do_step(inst.component, 0.0, 0.01, 1) == 0
-    finally:
-        inst.close()
-        ex.cleanup()
 
 
 def test_fixed_parameter_change_after_initialization_is_refused(paper, fmus):
     cfg = scenario_config(paper)
-    ex, inst = _instance(fmus, "controller", cfg, "fixed")
-    try:
+    with _instance(fmus, "controller", "fixed") as inst:
         inst.initialize(fmu_parameters("controller", cfg), T=1.0)
         inst.slave.setReal([inst.vr["Q[1,1]"]], [5.0])
         assert inst.slave.getReal([inst.vr["Q[1,1]"]]) == [1.0]
         assert any("Q[1,1] is fixed" in m for _, m in inst.messages)
-    finally:
-        inst.close()
-        ex.cleanup()
