@@ -17,6 +17,7 @@ Every problem is reported as a :class:`ScenarioError` naming the file, section a
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -80,13 +81,14 @@ def builtin_scenarios() -> list[str]:
 
 
 def _check_run(T: float, h: float, estimator: str, where: str) -> None:
-    if not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
+    if isinstance(h, bool) or not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
         raise ScenarioError(f"{where}: [simulation] h = {h!r} must be a positive number of seconds")
-    if not (isinstance(T, (int, float)) and math.isfinite(T) and T >= h):
+    if isinstance(T, bool) or not (isinstance(T, (int, float)) and math.isfinite(T) and T >= h):
         raise ScenarioError(f"{where}: [simulation] T = {T!r} must be at least one step h = {h} s")
     if estimator not in ESTIMATOR_MODES:
         raise ScenarioError(
-            f"{where}: estimator {estimator!r} is unknown; expected one of {', '.join(ESTIMATOR_MODES)}"
+            f"{where}: [simulation] estimator {estimator!r} is unknown; "
+            f"expected one of {', '.join(ESTIMATOR_MODES)}"
         )
 
 
@@ -137,11 +139,14 @@ def scenario_from_dict(data: dict[str, Any], where: str = "scenario") -> Scenari
     sim = data["simulation"]
     T, h = sim["T"], sim["h"]
     seed = sim.get("seed", 0)
-    if not isinstance(seed, int) or seed < 0:
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ScenarioError(f"{where}: [simulation] seed = {seed!r} must be a non-negative integer")
     estimator = sim.get("estimator", "kalman")
     _check_run(T, h, estimator, where)
     mapping: dict[str, Any] = {}
+    section_of: dict[str, str] = {"noise_convention": "noise"}   # LinearSystem key -> section
+    for section in ("vehicles", "disturbance", "reference", "cost", "noise"):
+        section_of.update(dict.fromkeys(data.get(section, {}), section))
     for section in ("vehicles", "disturbance", "reference", "cost"):
         mapping.update(data.get(section, {}))
     noise = dict(data.get("noise", {}))
@@ -151,7 +156,10 @@ def scenario_from_dict(data: dict[str, Any], where: str = "scenario") -> Scenari
     try:
         system = LinearSystem.from_mapping(mapping)
     except ModelError as exc:
-        raise ScenarioError(f"{where}: {exc}") from None
+        # a ModelError message starts with the name of the offending entry: add its section
+        key = re.match(r"\w+", str(exc))
+        section = section_of.get(key.group(0)) if key else None
+        raise ScenarioError(f"{where}: {f'[{section}] ' if section else ''}{exc}") from None
     return Scenario(name=str(data.get("name", Path(where).stem)),
                     description=str(data.get("description", "")), system=system,
                     T=float(T), h=float(h), seed=int(seed), estimator=estimator, source=where)

@@ -121,9 +121,12 @@ class LinearSystem:
             v = d.get(name, default)
             if np.ndim(v) == 0:
                 try:
-                    return float(v) * np.eye(size)
+                    x = float(v)
                 except (TypeError, ValueError):
                     raise ModelError(f"{name}: not a number: {v!r}") from None
+                if not np.isfinite(x):
+                    raise ModelError(f"{name} = {x} is not finite")
+                return x * np.eye(size)
             return as_matrix(name, v, (size, size))
 
         Q = square("Q", p, 1.0)

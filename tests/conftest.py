@@ -1,0 +1,73 @@
+"""Shared fixtures: the paper's example typed in from NOTES.md, and small scalar systems.
+
+The paper's matrices are copied from /work/shared/paper/NOTES.md here, independently of
+orchestrator/scenarios/paper.toml, so that test_scenario.py can compare the two.
+"""
+from __future__ import annotations
+
+import copy
+
+import pytest
+
+from plant_model.system import LinearSystem
+
+#: The paper's example (NOTES.md): every noise intensity 2, Q = R = I, T = 300 s.
+PAPER_MAPPING = {
+    "A": [[-1.0, 0.0], [0.0, -1.0]],
+    "B1": [[3.0, 2.0], [4.0, 5.0]],
+    "B2": [[-0.1, 0.0], [0.0, 1.0]],
+    "C": [[1.0, 2.0], [3.0, 4.0]],
+    "x0": [0.0, 0.0],
+    "F": [[-0.1, 1.0], [-1.0, -0.2]],
+    "H": [[0.2, 4.0], [2.0, 5.0]],
+    "z0": [0.4, 0.5],
+    "K": [[-5.0, 1.0], [-1.0, -9.0]],
+    "w0": [0.3, 0.4],
+    "Q": [[1.0, 0.0], [0.0, 1.0]],
+    "R": [[1.0, 0.0], [0.0, 1.0]],
+    "W_x": [[2.0, 0.0], [0.0, 2.0]],
+    "W_w": [[2.0, 0.0], [0.0, 2.0]],
+    "W_z": [[2.0, 0.0], [0.0, 2.0]],
+    "V_y": [[2.0, 0.0], [0.0, 2.0]],
+    "V_ybar": [[2.0, 0.0], [0.0, 2.0]],
+    "noise_convention": "intensity",
+}
+
+def scalar_mapping(**changes) -> dict:
+    """A 1x1 system (n = m = r = p = l = 1) with unit noise; entries may be overridden."""
+    d = {
+        "A": [[-1.0]], "B1": [[1.0]], "B2": [[1.0]], "C": [[1.0]],
+        "F": [[-0.5]], "H": [[1.0]], "K": [[-2.0]],
+        "Q": 1.0, "R": 1.0,
+        "W_x": 1.0, "W_w": 1.0, "W_z": 1.0, "V_y": 1.0, "V_ybar": 1.0,
+    }
+    d.update(changes)
+    return d
+
+
+@pytest.fixture
+def paper_mapping() -> dict:
+    """A fresh deep copy of the paper's mapping (safe to modify in a test)."""
+    return copy.deepcopy(PAPER_MAPPING)
+
+
+@pytest.fixture(scope="session")
+def paper_system() -> LinearSystem:
+    return LinearSystem.from_mapping(copy.deepcopy(PAPER_MAPPING))
+
+
+@pytest.fixture(scope="session")
+def scalar_system() -> LinearSystem:
+    return LinearSystem.from_mapping(scalar_mapping())
+
+
+@pytest.fixture
+def scalar_mapping_factory():
+    """Factory: ``scalar_mapping_factory(**changes)`` -> a fresh 1x1 mapping."""
+    return scalar_mapping
+
+
+@pytest.fixture
+def make_scalar():
+    """Factory: ``make_scalar(**changes)`` -> validated 1x1 LinearSystem."""
+    return lambda **changes: LinearSystem.from_mapping(scalar_mapping(**changes))
