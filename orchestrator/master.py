@@ -41,9 +41,6 @@ class CosimError(RuntimeError):
     """An FMU refused a call; the message names the FMU, the call and what it logged."""
 
 
-_c_double_p = ctypes.c_void_p
-
-
 class FmuInstance:
     """One FMU instance with a message log and raw FMI entry points for the hot loop."""
 
@@ -249,20 +246,27 @@ def _loop(P, E, C, rec_p, rec_e, rec_u, vr_p_out, vr_p_u, vr_e_in, vr_e_u, vr_e_
         for k in range(k0, min(k0 + chunk, steps)):
             rp, re_, ru = bp + k * sp, be + k * se, bu + k * su
             t = k * h
-            if getP(cp, aPo, nPo, rp):
-                raise P.fail(f"fmi2GetReal at t = {t} s", getP(cp, aPo, nPo, rp))
-            if setE(ce, aEi, nEi, rp):
-                raise E.fail(f"fmi2SetReal (measurements) at t = {t} s", 3)
-            if getE(ce, aEo, nEo, re_):
-                raise E.fail(f"fmi2GetReal at t = {t} s", 3)
-            if setC(cc, aCi, nCi, re_):
-                raise C.fail(f"fmi2SetReal at t = {t} s", 3)
-            if getC(cc, aCo, nCo, ru):
-                raise C.fail(f"fmi2GetReal at t = {t} s", 3)
-            if setP(cp, aPu, nPu, ru):
-                raise P.fail(f"fmi2SetReal at t = {t} s", 3)
-            if setE(ce, aEu, nEu, ru):
-                raise E.fail(f"fmi2SetReal (u) at t = {t} s", 3)
+            st = getP(cp, aPo, nPo, rp)
+            if st:
+                raise P.fail(f"fmi2GetReal at t = {t} s", st)
+            st = setE(ce, aEi, nEi, rp)
+            if st:
+                raise E.fail(f"fmi2SetReal (measurements) at t = {t} s", st)
+            st = getE(ce, aEo, nEo, re_)
+            if st:
+                raise E.fail(f"fmi2GetReal at t = {t} s", st)
+            st = setC(cc, aCi, nCi, re_)
+            if st:
+                raise C.fail(f"fmi2SetReal at t = {t} s", st)
+            st = getC(cc, aCo, nCo, ru)
+            if st:
+                raise C.fail(f"fmi2GetReal at t = {t} s", st)
+            st = setP(cp, aPu, nPu, ru)
+            if st:
+                raise P.fail(f"fmi2SetReal at t = {t} s", st)
+            st = setE(ce, aEu, nEu, ru)
+            if st:
+                raise E.fail(f"fmi2SetReal (u) at t = {t} s", st)
             st = stepP(cp, t, h, 1)
             if st:
                 raise P.fail(f"fmi2DoStep at t = {t} s", st)
