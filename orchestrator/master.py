@@ -168,8 +168,12 @@ class _Extracted:
 
 
 def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str, seed: int,
-                     steps: int, progress: bool = False) -> RunResult:
-    """Run the three FMUs for ``steps`` communication steps of ``config['h']``."""
+                     steps: int, progress: Any = False) -> RunResult:
+    """Run the three FMUs for ``steps`` communication steps of ``config['h']``.
+
+    ``progress``: False, True (a progress bar shown after one second), or a shared
+    bar object with ``update(n)``.
+    """
     cfg = dict(config, mode=mode, seed=int(seed))
     h = float(cfg["h"])
     d = cfg["dims"]
@@ -238,9 +242,11 @@ def _loop(P, E, C, rec_p, rec_e, rec_u, vr_p_out, vr_p_u, vr_e_in, vr_e_u, vr_e_
     bp, be, bu = (a.ctypes.data for a in (rec_p, rec_e, rec_u))
     sp, se, su = (a.strides[0] for a in (rec_p, rec_e, rec_u))
     bar = None
-    if progress:
+    if progress is True:
         from tqdm import tqdm
         bar = tqdm(total=steps, unit="step", delay=1.0, leave=False)
+    elif progress:
+        bar = progress               # a shared bar (an object with update(n))
     chunk = 2000
     for k0 in range(0, steps, chunk):
         for k in range(k0, min(k0 + chunk, steps)):
@@ -278,5 +284,5 @@ def _loop(P, E, C, rec_p, rec_e, rec_u, vr_p_out, vr_p_u, vr_e_in, vr_e_u, vr_e_
                 raise C.fail(f"fmi2DoStep at t = {t} s", st)
         if bar is not None:
             bar.update(min(chunk, steps - k0))
-    if bar is not None:
+    if progress is True:
         bar.close()

@@ -84,6 +84,12 @@ def simulate(sc: Scenario, modes: Sequence[str], seeds: Sequence[int], out_dir: 
     rrd_runs: dict[str, dict[str, np.ndarray]] = {}
     loop_us: list[float] = []
     window: tuple[float, float] | None = None
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(modes) * len(seeds) * sc.steps, unit="step", delay=1.0,
+                   leave=False, unit_scale=True)
+        log = bar.write
     for mode in modes:
         pred = predict_stationary(sc.system, model, make_estimator(sc.system, model, mode), Ks)
         k0 = stats_window(sc.T, sc.h, pred.settling_time)
@@ -91,7 +97,7 @@ def simulate(sc: Scenario, modes: Sequence[str], seeds: Sequence[int], out_dir: 
         per_seed = []
         for seed in seeds:
             res = run_cosimulation(fmus, cfg, mode=mode, seed=seed, steps=sc.steps,
-                                   progress=progress)
+                                   progress=bar)
             loop_us.append(res.loop_s / sc.steps * 1e6)
             per_seed.append(trace_stats(res.traces, sc.system.Q, sc.system.R, k0))
             if mode not in rrd_runs:
@@ -100,6 +106,8 @@ def simulate(sc: Scenario, modes: Sequence[str], seeds: Sequence[int], out_dir: 
                 f"(predicted {pred.cost_rate if pred.cost_rate is None else round(pred.cost_rate, 4)}), "
                 f"{res.loop_s:.2f} s")
         methods[mode] = method_summary(per_seed, pred)
+    if bar is not None:
+        bar.close()
     rrd_path = out / f"{sc.name}.rrd"
     rrd_info = write_rrd(rrd_path, rrd_runs, sc.h, recording_name=f"{sc.name} ({', '.join(modes)})")
     summary = {
