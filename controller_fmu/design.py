@@ -88,7 +88,8 @@ def lq_tracking_design(system: LinearSystem) -> TrackingDesign:
     S = B1 @ Rinv @ B1.T
     Acl = A - S @ P
     poles = np.linalg.eigvals(Acl)
-    if np.max(poles.real) >= 0:
+    margin = 1e-9 * max(1.0, float(np.max(np.abs(poles))))
+    if np.max(poles.real) >= -margin:
         raise ModelError(
             "the Riccati solution of (13) is not stabilizing: A - S P has the eigenvalue "
             + _fmt(poles[np.argmax(poles.real)])

@@ -187,7 +187,7 @@ dims = st.fixed_dictionaries({
     "r": st.integers(1, 4), "l": st.integers(1, 4)})
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=40, deadline=None, derandomize=True)
 @given(dims=dims, seed=st.integers(0, 2**32 - 1),
        kind=st.sampled_from(["symmetric", "shifted"]), a_shift=st.floats(-2.0, 0.5))
 def test_random_stabilizable_systems(dims, seed, kind, a_shift):
@@ -245,7 +245,8 @@ def integer_systems(draw):
     }
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=40, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
 @given(mapping=integer_systems())
 def test_design_succeeds_or_raises_model_error(mapping):
     s = LinearSystem.from_mapping(mapping)

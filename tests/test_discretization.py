@@ -74,7 +74,7 @@ def test_unstable_and_oscillatory_dynamics():
     np.testing.assert_allclose(van_loan(Ac, Wc, h), _qd_integral(Ac, Wc, h), rtol=1e-9)
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=30, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 2**32 - 1), ns=st.integers(1, 6), m=st.integers(1, 4),
        h=st.floats(1e-3, 1.0))
 def test_random_models_against_integrals(seed, ns, m, h):

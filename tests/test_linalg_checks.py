@@ -128,7 +128,7 @@ def test_definite_accepts_spd():
     check_symmetric_pd("R", np.array([[2.0, 1.0], [1.0, 2.0]]))
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=40, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 6), rank=st.integers(0, 6))
 def test_psd_factor_reproduces_psd_matrix(seed, n, rank):
     rng = np.random.default_rng(seed)
@@ -183,7 +183,7 @@ def test_unobservable_is_the_dual_of_uncontrollable():
     assert len(modes) == 1 and abs(modes[0] - 1.0) < 1e-12
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=40, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 6), m=st.integers(1, 4))
 def test_generic_pairs_are_controllable(seed, n, m):
     rng = np.random.default_rng(seed)
@@ -196,7 +196,7 @@ def test_generic_pairs_are_controllable(seed, n, m):
         assert uncontrollable_modes(A, B, only_unstable=False) == []
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=40, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 6), m=st.integers(1, 4),
        lam=st.floats(0.0, 3.0))
 def test_hidden_uncontrollable_mode_is_found_in_any_basis(seed, n, m, lam):
