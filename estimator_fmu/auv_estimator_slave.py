@@ -3,8 +3,6 @@
 Inputs y, ybar (and the truth x, w, z, read only in mode 'ideal'), then u; outputs the
 estimate xhat, what, zhat of sample k, which already includes y[k] (direct feedthrough).
 """
-import numpy as np
-
 from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
 from fmu_common.interface import ArraySpec
 from fmu_common.slave_base import ArraySlave as Fmi2Slave  # pythonfmu's loader looks for "class X(Fmi2Slave):"

@@ -103,12 +103,12 @@ class ArraySlave(Fmi2Slave):
         order = {"parameter": 0, "input": 1, "output": 2}
         self.specs = sorted(self.specs, key=lambda s: order[s.causality])
         i_in = i_out = 0
-        feeding = {d for s in self.specs if s.causality == "output" for d in s.depends_on}
+        self._feeding = {d for s in self.specs if s.causality == "output" for d in s.depends_on}
         #: input elements that outputs depend on directly (setting them dirties outputs)
         self._feeds = np.zeros(n_in, dtype=bool)
         for spec in self.specs:
             if spec.causality == "input":
-                self._feeds[i_in:i_in + spec.size] = spec.name in feeding
+                self._feeds[i_in:i_in + spec.size] = spec.name in self._feeding
                 self.io[spec.name] = self._in[i_in:i_in + spec.size].reshape(spec.shape)
                 self.io[spec.name][...] = np.asarray(spec.start if spec.start is not None else 0.0)
                 i_in += spec.size
@@ -141,7 +141,7 @@ class ArraySlave(Fmi2Slave):
         elif spec.causality == "input":
             buf = self.io[spec.name].reshape(-1)
             kw["getter"] = lambda: float(buf[i])
-            feeds = spec.name in {d for s in self.specs for d in s.depends_on}
+            feeds = spec.name in self._feeding
             kw["setter"] = lambda v: self._set_input_element(name, buf, i, v, feeds)
         elif spec.type == "String":
             kw["getter"] = lambda: self.par[spec.name]

@@ -15,7 +15,8 @@ from typing import Any
 import numpy as np
 
 from fmu_common.interface import element_names
-from .master import FmuInstance, _Extracted, fmu_parameters, run_cosimulation
+from .master import (PLANT_OUTPUTS, FmuInstance, _Extracted, fmu_parameters, run_cosimulation,
+                     signal_names)
 from .reference import run_monolithic
 from .scenario import Scenario
 from .workflow import build, scenario_config
@@ -31,8 +32,7 @@ def _fmi_call_costs(fmus: dict[str, Path], cfg: dict[str, Any], reps: int = 2000
     try:
         P = FmuInstance("plant", fmus["plant"], ex.dirs["plant"], "bench_plant")
         P.initialize(fmu_parameters("plant", cfg), T=cfg["T"])
-        names = [nm for o, k in (("y", d["p"]), ("ybar", d["p"]), ("x", d["n"]), ("w", d["r"]),
-                                 ("z", d["l"]), ("e", d["p"])) for nm in element_names(o, (k,))]
+        names = signal_names(PLANT_OUTPUTS, d)
         vr = P.vrs(names)
         buf = (ctypes.c_double * len(names))()
         u_vr = P.vrs(element_names("u", (d["m"],)))

@@ -30,7 +30,7 @@ from fmu_common.interface import element_names
 from .fmu_build import FMU_KINDS, interface_of
 
 __all__ = ["CosimError", "FmuInstance", "RunResult", "run_cosimulation", "PLANT_OUTPUTS",
-           "ESTIMATOR_OUTPUTS"]
+           "ESTIMATOR_OUTPUTS", "signal_names", "signal_size"]
 
 PLANT_OUTPUTS = ("y", "ybar", "x", "w", "z", "e")
 ESTIMATOR_OUTPUTS = ("xhat", "what", "zhat")
@@ -187,14 +187,13 @@ def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str
             inst[key] = FmuInstance(key, fmus[key], ex.dirs[key], f"{key}_{mode}_{seed}")
             inst[key].initialize(fmu_parameters(key, cfg), T=steps * h)
         P, E, C = inst["plant"], inst["estimator"], inst["controller"]
-        p_out = [nm for o in PLANT_OUTPUTS for nm in element_names(o, (_size(o, d),))]
+        p_out = signal_names(PLANT_OUTPUTS, d)
         e_meas = p_out[:2 * p + (ns if mode == "ideal" else 0)]
-        e_out = [nm for o in ESTIMATOR_OUTPUTS for nm in element_names(o, (_size(o, d),))]
+        e_out = signal_names(ESTIMATOR_OUTPUTS, d)      # also the controller's inputs
         u_names = element_names("u", (m,))
-        c_in = [nm for o in ("xhat", "what", "zhat") for nm in element_names(o, (_size(o, d),))]
         vr_p_out, vr_p_u = P.vrs(p_out), P.vrs(u_names)
         vr_e_in, vr_e_u, vr_e_out = E.vrs(e_meas), E.vrs(u_names), E.vrs(e_out)
-        vr_c_in, vr_c_out = C.vrs(c_in), C.vrs(u_names)
+        vr_c_in, vr_c_out = C.vrs(e_out), C.vrs(u_names)
         rec_p = np.zeros((steps, len(p_out)))
         rec_e = np.zeros((steps, len(e_out)))
         rec_u = np.zeros((steps, m))
@@ -207,24 +206,26 @@ def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str
             fmu.close()
         ex.cleanup()
     traces: dict[str, np.ndarray] = {}
-    i = 0
-    for o in PLANT_OUTPUTS:
-        k = _size(o, d)
-        traces[o] = rec_p[:, i:i + k]
-        i += k
-    i = 0
-    for o in ESTIMATOR_OUTPUTS:
-        k = _size(o, d)
-        traces[o] = rec_e[:, i:i + k]
-        i += k
+    for names, rec in ((PLANT_OUTPUTS, rec_p), (ESTIMATOR_OUTPUTS, rec_e)):
+        i = 0
+        for o in names:
+            k = signal_size(o, d)
+            traces[o] = rec[:, i:i + k]
+            i += k
     traces["u"] = rec_u
     return RunResult(mode=mode, seed=int(seed), h=h, traces=traces,
                      wall_s=time.perf_counter() - t0, loop_s=loop_s)
 
 
-def _size(name: str, d: dict[str, int]) -> int:
+def signal_size(name: str, d: dict[str, int]) -> int:
+    """Length of a signal of the loop for the dimensions ``d`` (n, m, r, p, l)."""
     return {"y": d["p"], "ybar": d["p"], "x": d["n"], "w": d["r"], "z": d["l"], "e": d["p"],
             "xhat": d["n"], "what": d["r"], "zhat": d["l"], "u": d["m"]}[name]
+
+
+def signal_names(signals: tuple[str, ...], d: dict[str, int]) -> list[str]:
+    """FMI scalar names of consecutive vector signals, e.g. y[1], y[2], ybar[1], ..."""
+    return [nm for o in signals for nm in element_names(o, (signal_size(o, d),))]
 
 
 def _loop(P, E, C, rec_p, rec_e, rec_u, vr_p_out, vr_p_u, vr_e_in, vr_e_u, vr_e_out,

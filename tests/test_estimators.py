@@ -183,7 +183,7 @@ def test_kalman_estimator_equals_textbook_filter(paper_system, model):
     """The one-form estimator reproduces a textbook predict / update loop."""
     steps = 400
     truth, ests, meas, U = _run_open_loop(paper_system, model, "kalman", steps)
-    n, r, p = model.n, model.r, model.p
+    p = model.p
     nxw, Cxw = _blocks(model)
     Pxw = riccati_iteration(model.Ad[:nxw, :nxw], Cxw, model.Qd[:nxw, :nxw], model.Rd[:p, :p])
     Lxw = Pxw @ Cxw.T @ np.linalg.inv(Cxw @ Pxw @ Cxw.T + model.Rd[:p, :p])

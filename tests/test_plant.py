@@ -77,7 +77,7 @@ def test_step_follows_the_sampled_model_with_the_stream_rows(model, paper_system
     C, Hm = paper_system.C, paper_system.H
     ref = []
     for k in range(steps + 1):
-        x, w, z = s[:n], s[n:n + r], s[n + r:]
+        x, z = s[:n], s[n + r:]
         ref.append(np.concatenate([C @ x + rows[k, ns:ns + p], Hm @ z + rows[k, ns + p:],
                                    s, Hm @ z - C @ x]))
         if k < steps:
