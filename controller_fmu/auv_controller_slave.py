@@ -2,15 +2,16 @@
 
 Solves the paper's design (eq. 13-15, corrected) in exitInitializationMode from whatever
 parameters the host set, then u = -(Kx xhat + Kw what + Kz zhat) on demand (direct
-feedthrough from the estimates). Static law: any communication step works.
+feedthrough from the estimates); with tracking = 'regulator' the feedforward comes from the
+output-regulation equations instead (controller_fmu.regulator). Static law: any
+communication step works.
 """
 import numpy as np
 
-from controller_fmu.design import lq_tracking_design
+from controller_fmu.regulator import TRACKING_MODES, tracking_law
 from fmu_common.interface import ArraySpec
 from fmu_common.slave_base import ArraySlave as Fmi2Slave  # pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.system_parameters import system_mapping_from_parameters, system_parameter_specs
-from plant_model.system import LinearSystem
+from fmu_common.system_parameters import model_parameter_specs, system_from_parameters
 
 CONTROLLER_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "Q", "R")
 ESTIMATES = ("xhat", "what", "zhat")
@@ -28,7 +29,11 @@ class AuvController(Fmi2Slave):
     def interface(config):
         d = config["dims"]
         n, m, r, l_ = d["n"], d["m"], d["r"], d["l"]
-        return system_parameter_specs(config, CONTROLLER_PARAMETERS) + [
+        return model_parameter_specs(config, "controller", CONTROLLER_PARAMETERS) + [
+            ArraySpec("tracking", (), "parameter",
+                      "tracking law: 'lq' (the paper, eq. 12-15) or 'regulator' (zero steady "
+                      "error for persistent references: output regulation with the same Riccati "
+                      "feedback)", start=config.get("tracking", "lq"), type="String"),
             ArraySpec("xhat", (n,), "input", "estimate of the vehicle state x"),
             ArraySpec("what", (r,), "input", "estimate of the disturbance state w"),
             ArraySpec("zhat", (l_,), "input", "estimate of the reference state z"),
@@ -37,11 +42,15 @@ class AuvController(Fmi2Slave):
         ]
 
     def setup(self):
-        mapping = system_mapping_from_parameters(self.par, CONTROLLER_PARAMETERS)
-        system = LinearSystem.from_mapping(mapping)
-        self.design = lq_tracking_design(system)
-        self._negK = -self.design.gain_on_state()
-        self.log(f"design: closed-loop poles {np.round(self.design.closed_loop_poles, 6).tolist()}, "
+        system = system_from_parameters(self.config, "controller", self.par, CONTROLLER_PARAMETERS)
+        mode = self.par["tracking"]
+        if mode not in TRACKING_MODES:
+            raise ValueError(f"parameter tracking = {mode!r} is not one of {', '.join(TRACKING_MODES)}")
+        self.law = tracking_law(system, mode)
+        self.design = self.law.design
+        self._negK = -self.law.Ks
+        poles = self.design.closed_loop_poles
+        self.log(f"design ({mode}): slowest closed-loop pole {poles[np.argmax(poles.real)]:.6g}, "
                  f"relative residuals {self.design.residuals}")
 
     def compute_outputs(self):

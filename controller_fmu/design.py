@@ -1,7 +1,7 @@
 """The paper's LQ feedforward-feedback design (eq. 12-15, corrected in NOTES.md).
 
     (13)  A'P + P A - P S P + C'QC = 0,     S = B1 R^-1 B1',  A - S P Hurwitz
-    (14)  (A - S P)' P1 + P1 F = C'Q H
+    (14)  (A - S P)' P1 + P1 F + P Bz = C'Q H   (Bz = 0 in the paper; see LinearSystem)
     (15)  (A - S P)' P2 + P2 K + P B2 = 0
     u = -(Kx xhat + Kz zhat + Kw what),  Kx = R^-1 B1'P, Kz = R^-1 B1'P1, Kw = R^-1 B1'P2
 
@@ -61,8 +61,8 @@ def _rel(res: np.ndarray, *terms: np.ndarray) -> float:
 
 def lq_tracking_design(system: LinearSystem) -> TrackingDesign:
     """Solve (13)-(15) for ``system``; raise :class:`ModelError` naming what failed."""
-    A, B1, B2, C, F, H, K = (system.A, system.B1, system.B2, system.C, system.F,
-                             system.H, system.K)
+    A, B1, B2, Bz, C, F, H, K = (system.A, system.B1, system.B2, system.Bz, system.C,
+                                 system.F, system.H, system.K)
     Q, R = system.Q, system.R
     bad = uncontrollable_modes(A, B1)
     if bad:
@@ -103,11 +103,12 @@ def lq_tracking_design(system: LinearSystem) -> TrackingDesign:
                 f"the Sylvester equation {eq} has no unique solution: eigenvalue "
                 f"{_fmt(lam)} of A - S P plus eigenvalue {_fmt(mu)} of {name} is zero"
             )
-    P1 = solve_sylvester(Acl.T, F, C.T @ Q @ H)
+    CQH = C.T @ Q @ H
+    P1 = solve_sylvester(Acl.T, F, CQH - P @ Bz)
     P2 = solve_sylvester(Acl.T, K, -P @ B2)
     residuals = {
         "riccati_13": _rel(A.T @ P + P @ A - P @ S @ P + CQC, A.T @ P, P @ S @ P, CQC),
-        "sylvester_14": _rel(Acl.T @ P1 + P1 @ F - C.T @ Q @ H, Acl.T @ P1, P1 @ F, C.T @ Q @ H),
+        "sylvester_14": _rel(Acl.T @ P1 + P1 @ F + P @ Bz - CQH, Acl.T @ P1, P1 @ F, P @ Bz, CQH),
         "sylvester_15": _rel(Acl.T @ P2 + P2 @ K + P @ B2, Acl.T @ P2, P2 @ K, P @ B2),
     }
     for name, value in residuals.items():

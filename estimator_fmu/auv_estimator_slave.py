@@ -6,9 +6,8 @@ estimate xhat, what, zhat of sample k, which already includes y[k] (direct feedt
 from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
 from fmu_common.interface import ArraySpec
 from fmu_common.slave_base import ArraySlave as Fmi2Slave  # pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.system_parameters import system_mapping_from_parameters, system_parameter_specs
+from fmu_common.system_parameters import model_parameter_specs, system_from_parameters
 from plant_model.discretization import discretize
-from plant_model.system import LinearSystem
 
 ESTIMATOR_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "x0", "w0", "z0",
                         "W_x", "W_w", "W_z", "V_y", "V_ybar")
@@ -28,7 +27,7 @@ class AuvEstimator(Fmi2Slave):
     def interface(config):
         d = config["dims"]
         n, m, r, p, l_ = d["n"], d["m"], d["r"], d["p"], d["l"]
-        return system_parameter_specs(config, ESTIMATOR_PARAMETERS) + [
+        return model_parameter_specs(config, "estimator", ESTIMATOR_PARAMETERS) + [
             ArraySpec("h", (), "parameter", "sample period the filters are designed for",
                       start=config["h"], unit="s"),
             ArraySpec("noise_convention", (), "parameter",
@@ -51,9 +50,8 @@ class AuvEstimator(Fmi2Slave):
         ]
 
     def setup(self):
-        mapping = system_mapping_from_parameters(self.par, ESTIMATOR_PARAMETERS)
-        mapping["noise_convention"] = self.par["noise_convention"]
-        system = LinearSystem.from_mapping(mapping)
+        system = system_from_parameters(self.config, "estimator", self.par, ESTIMATOR_PARAMETERS,
+                                        self.par["noise_convention"])
         model = discretize(system, float(self.par["h"]))
         self.estimator = make_estimator(system, model, self.par["mode"])
         nm = 2 * system.p + model.ns

@@ -8,9 +8,13 @@ truth, used only by ``ideal``) and the applied u[k] to the estimate est = [xhat;
     q[k+1]  = Aq est[k] + Bu u[k]
 
 Modes:
-- ``kalman``: steady-state Kalman filters in current-estimator form, on [x; w] from y
-  (using the applied u) and on z from ybar, built on the plant's exact sampled model:
-  q is the one-step prediction, est = q + L (meas - Cm q), q[k+1] = Ad est + Bd u.
+- ``kalman``: a steady-state Kalman filter in current-estimator form on [x; w; z] from
+  [y; ybar] (using the applied u), built on the plant's exact sampled model:
+  q is the one-step prediction, est = q + L (meas - M q), q[k+1] = Ad est + Bd u.
+  Without Bz (the paper) the joint filter splits exactly into the filter on [x; w] from y
+  and the filter on z from ybar (NOTES.md). Reference states that form a known planned
+  path (:meth:`LinearSystem.known_reference_mask`) are not filtered: their estimate is
+  propagated exactly from z(0), and ybar is not used when the whole reference is known.
 - ``classical``: the paper's comparison law: xhat = C^+ y, zhat = H^+ ybar, and what run
   open loop from w(0): what[k+1] = expm(K h) what[k].
 - ``ideal``: est = the true state (a lower bound on the achievable cost).
@@ -99,21 +103,34 @@ class LinearEstimator:
         self.q = self.Aq @ est + self.Bu @ u
 
 
+def _one_based(idx: np.ndarray) -> str:
+    return "[" + ",".join(str(i + 1) for i in idx) + "]"
+
+
 def make_estimator(system: LinearSystem, model: DiscreteModel, mode: str) -> LinearEstimator:
     """Build the estimator of ``mode`` for ``system`` sampled as ``model``."""
     n, r, l_, p, ns = system.n, system.r, system.l, system.p, model.ns
     nm = 2 * p + ns                     # length of mvec = [y; ybar; x; w; z]
     if mode == "kalman":
-        nxw = n + r
-        Cxw = np.hstack([system.C, np.zeros((p, r))])
-        kxw = steady_kalman("[x; w] from y (pair ([[A, B2], [0, K]], [C, 0]))",
-                            model.Ad[:nxw, :nxw], Cxw, model.Qd[:nxw, :nxw],
-                            model.Rd[:p, :p])
-        kz = steady_kalman("z from ybar (pair (F, H))", model.Ad[nxw:, nxw:], system.H,
-                           model.Qd[nxw:, nxw:], model.Rd[p:, p:])
+        known = system.known_reference_mask()
+        zs = n + r + np.flatnonzero(~known)           # filtered reference states
+        xw = np.arange(n + r)
+        y_rows, ybar_rows = np.arange(p), np.arange(p, 2 * p)
+        zname = "z" if known.sum() == 0 else f"z{_one_based(zs - n - r)}"
+        if not np.any(system.Bz[:, ~known]):
+            # No filtered reference state drives the vehicles: the joint filter splits
+            # exactly into a filter on [x; w] from y and one on the reference from ybar.
+            blocks = [("[x; w] from y (pair ([[A, B2], [0, K]], [C, 0]))", xw, y_rows)]
+            if zs.size:
+                blocks.append((f"{zname} from ybar (pair (F, H))", zs, ybar_rows))
+        else:
+            blocks = [(f"[x; w; {zname}] from [y; ybar]", np.concatenate([xw, zs]),
+                       np.arange(2 * p))]
         L = np.zeros((ns, 2 * p))
-        L[:nxw, :p] = kxw.L
-        L[nxw:, p:] = kz.L
+        for name, S, rows in blocks:
+            kf = steady_kalman(name, model.Ad[np.ix_(S, S)], model.M[np.ix_(rows, S)],
+                               model.Qd[np.ix_(S, S)], model.Rd[np.ix_(rows, rows)])
+            L[np.ix_(S, rows)] = kf.L
         Ce = np.eye(ns) - L @ model.M
         Dm = np.zeros((ns, nm))
         Dm[:, :2 * p] = L

@@ -26,6 +26,8 @@ UNIT_DEFINITIONS: dict[str, dict[str, int]] = {
     "rad/s": {"rad": 1, "s": -1},
     "kg": {"kg": 1},
     "1/s": {"s": -1},
+    "1/m2": {"m": -2},
+    "1/N2": {"kg": -2, "m": -2, "s": 4},
 }
 
 

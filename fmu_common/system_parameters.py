@@ -7,7 +7,8 @@ import numpy as np
 
 from .interface import ArraySpec
 
-__all__ = ["PARAMETER_DOCS", "system_parameter_specs", "system_mapping_from_parameters"]
+__all__ = ["PARAMETER_DOCS", "system_parameter_specs", "system_mapping_from_parameters",
+           "model_parameter_specs", "system_from_parameters"]
 
 #: name -> (shape in terms of the dimensions n, m, r, p, l; description)
 PARAMETER_DOCS: dict[str, tuple[tuple[str, ...], str]] = {
@@ -50,3 +51,31 @@ def system_parameter_specs(config: dict[str, Any], names: Iterable[str]) -> list
 def system_mapping_from_parameters(par: dict[str, Any], names: Iterable[str]) -> dict[str, Any]:
     """The subset of a LinearSystem mapping held in the slave's parameter arrays."""
     return {name: np.array(par[name], dtype=float) for name in names if name in par}
+
+
+def model_parameter_specs(config: dict[str, Any], kind: str, names: Iterable[str]) -> list[ArraySpec]:
+    """The model parameters of an FMU of ``kind``: the fleet interface
+    (:mod:`fmu_common.fleet_parameters`) when the FMU was built for a fleet, else the
+    system matrices ``names``."""
+    if config.get("fleet") is not None:
+        from .fleet_parameters import fleet_parameter_specs
+        return fleet_parameter_specs(config["fleet"], kind)
+    return system_parameter_specs(config, names)
+
+
+def system_from_parameters(config: dict[str, Any], kind: str, par: dict[str, Any],
+                           names: Iterable[str], noise_convention: str | None = None):
+    """The LinearSystem described by the parameter values ``par`` (see model_parameter_specs)."""
+    from plant_model.system import LinearSystem
+    if config.get("fleet") is not None:
+        from plant_model.fleet import fleet_system
+
+        from .fleet_parameters import fleet_spec_from_parameters
+        spec = fleet_spec_from_parameters(config["fleet"], kind, par)
+        if noise_convention is not None:
+            spec["noise_convention"] = noise_convention
+        return fleet_system(spec)
+    mapping = system_mapping_from_parameters(par, names)
+    if noise_convention is not None:
+        mapping["noise_convention"] = noise_convention
+    return LinearSystem.from_mapping(mapping)

@@ -57,10 +57,17 @@ FMU_KINDS: dict[str, FmuKind] = {
 
 
 def fmu_config(system_mapping: dict[str, Any], dims: dict[str, int], h: float, T: float,
-               seed: int, mode: str) -> dict[str, Any]:
-    """The JSON configuration an FMU is built with (dimensions and start values)."""
+               seed: int, mode: str, tracking: str = "lq",
+               fleet: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The JSON configuration an FMU is built with (dimensions and start values).
+
+    For a fleet the FMUs get the fleet parameter interface (fmu_common.fleet_parameters)
+    and the stacked matrices are not shipped (they are rebuilt from the fleet spec).
+    """
+    if fleet is not None:
+        system_mapping = {"noise_convention": system_mapping.get("noise_convention", "intensity")}
     return {"system": system_mapping, "dims": dims, "h": float(h), "T": float(T),
-            "seed": int(seed), "mode": mode}
+            "seed": int(seed), "mode": mode, "tracking": tracking, "fleet": fleet}
 
 
 def interface_of(kind: FmuKind, config: dict[str, Any]) -> list[ArraySpec]:

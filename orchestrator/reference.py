@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from controller_fmu.design import lq_tracking_design
+from controller_fmu.regulator import tracking_law
 from estimator_fmu.estimators import steady_kalman
 from plant_model.discretization import discretize
 from plant_model.linalg_checks import ModelError
@@ -21,23 +21,33 @@ __all__ = ["run_monolithic"]
 
 
 def run_monolithic(system: LinearSystem, h: float, mode: str, seed: int,
-                   steps: int) -> dict[str, np.ndarray]:
+                   steps: int, tracking: str = "lq") -> dict[str, np.ndarray]:
     """Traces (row k = sample k) of the closed loop: y, ybar, x, w, z, e, xhat, what, zhat, u."""
     model = discretize(system, h)
-    design = lq_tracking_design(system)
+    Ks = tracking_law(system, tracking).Ks
     n, r, l_, p, m = system.n, system.r, system.l, system.p, system.m
     ns, nxw = n + r + l_, n + r
     C, H = system.C, system.H
-    Kx, Kw, Kz = design.Kx, design.Kw, design.Kz
+    Kx, Kw, Kz = Ks[:, :n], Ks[:, n:nxw], Ks[:, nxw:]
     Ad, Bd = model.Ad, model.Bd
-    Axw, Bx, Az = Ad[:nxw, :nxw], Bd[:nxw], Ad[nxw:, nxw:]
     noise = NoiseStream.all_rows(model, seed, steps)
     if mode == "kalman":
-        Cxw = np.hstack([C, np.zeros((p, r))])
-        Lxw = steady_kalman("[x; w]", Axw, Cxw, model.Qd[:nxw, :nxw], model.Rd[:p, :p]).L
-        Lz = steady_kalman("z", Az, H, model.Qd[nxw:, nxw:], model.Rd[p:, p:]).L
-        pred_xw = np.concatenate([system.x0, system.w0])
-        pred_z = system.z0.copy()
+        # one gain L on s = [x; w; z] from [y; ybar]; planned-path reference states
+        # (no noise) are propagated, not filtered; the filter splits into [x; w] from y
+        # and z from ybar unless a filtered reference state drives the vehicles (Bz).
+        zs = nxw + np.flatnonzero(~system.known_reference_mask())
+        Lfull = np.zeros((ns, 2 * p))
+        xw, yr, ybr = np.arange(nxw), np.arange(p), np.arange(p, 2 * p)
+        split = not np.any(system.Bz[:, zs - nxw])
+        blocks = ([(xw, yr), (zs, ybr)] if split else
+                  [(np.concatenate([xw, zs]), np.arange(2 * p))])
+        for S, rows in blocks:
+            if S.size:
+                Lfull[np.ix_(S, rows)] = steady_kalman(
+                    "reference filter", Ad[np.ix_(S, S)], model.M[np.ix_(rows, S)],
+                    model.Qd[np.ix_(S, S)], model.Rd[np.ix_(rows, rows)]).L
+        Ms = model.M
+        pred = system.initial_state()
     elif mode == "classical":
         Cp, Hp = np.linalg.pinv(C), np.linalg.pinv(H)
         AK = Ad[n:nxw, n:nxw]
@@ -54,9 +64,8 @@ def run_monolithic(system: LinearSystem, h: float, mode: str, seed: int,
         y = C @ x + nm[:p]
         ybar = H @ z + nm[p:]
         if mode == "kalman":
-            filt_xw = pred_xw + Lxw @ (y - C @ pred_xw[:n])
-            filt_z = pred_z + Lz @ (ybar - H @ pred_z)
-            xhat, what, zhat = filt_xw[:n], filt_xw[n:], filt_z
+            filt = pred + Lfull @ (np.concatenate([y, ybar]) - Ms @ pred)
+            xhat, what, zhat = filt[:n], filt[n:nxw], filt[nxw:]
         elif mode == "classical":
             xhat, what, zhat = Cp @ y, what_ol, Hp @ ybar
         else:
@@ -68,8 +77,7 @@ def run_monolithic(system: LinearSystem, h: float, mode: str, seed: int,
             out[key][k] = val
         s = Ad @ s + Bd @ u + v
         if mode == "kalman":
-            pred_xw = Axw @ filt_xw + Bx @ u
-            pred_z = Az @ filt_z
+            pred = Ad @ filt + Bd @ u
         elif mode == "classical":
             what_ol = AK @ what_ol
     return out

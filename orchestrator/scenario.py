@@ -4,7 +4,8 @@ A scenario is either the name of a built-in file in ``orchestrator/scenarios/`` 
 is the default) or a path to a ``.toml`` file. Sections and keys::
 
     name, description
-    [simulation]  T (s), h (s), seed, estimator ("kalman" | "classical" | "ideal")
+    [simulation]  T (s), h (s), seed, estimator ("kalman" | "classical" | "ideal"),
+                  tracking ("lq" | "regulator")
     [vehicles]    A, B1, B2, C, x0
     [disturbance] K, w0
     [reference]   F, H, z0
@@ -12,6 +13,8 @@ is the default) or a path to a ``.toml`` file. Sections and keys::
     [cost]        Q, R
 
 A number where a square matrix is expected means that number times the identity.
+A file with a ``[leader]`` or ``[graph]`` section describes a fleet of N vehicles on a
+communication graph instead (:mod:`orchestrator.fleet_scenario`).
 Every problem is reported as a :class:`ScenarioError` naming the file, section and key.
 """
 from __future__ import annotations
@@ -23,16 +26,20 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from controller_fmu.regulator import TRACKING_MODES
 from estimator_fmu.estimators import ESTIMATOR_MODES
+from plant_model.fleet import fleet_system, resolve_fleet_spec
 from plant_model.linalg_checks import ModelError
 from plant_model.system import LinearSystem
+
+from .fleet_scenario import fleet_spec_from_dict, is_fleet_scenario, section_of_model_error
 
 __all__ = ["Scenario", "ScenarioError", "load_scenario", "builtin_scenarios", "SCENARIO_DIR"]
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
 
 _SCHEMA: dict[str, dict[str, bool]] = {   # section -> key -> required
-    "simulation": {"T": True, "h": True, "seed": False, "estimator": False},
+    "simulation": {"T": True, "h": True, "seed": False, "estimator": False, "tracking": False},
     "vehicles": {"A": True, "B1": True, "B2": True, "C": True, "x0": False},
     "disturbance": {"K": True, "w0": False},
     "reference": {"F": True, "H": True, "z0": False},
@@ -59,6 +66,8 @@ class Scenario:
     seed: int
     estimator: str
     source: str
+    tracking: str = "lq"
+    fleet: dict[str, Any] | None = None     #: the fleet spec (plant_model.fleet), if a fleet
 
     @property
     def steps(self) -> int:
@@ -66,12 +75,14 @@ class Scenario:
         return int(round(self.T / self.h))
 
     def with_run(self, *, T: float | None = None, h: float | None = None,
-                 seed: int | None = None, estimator: str | None = None) -> "Scenario":
+                 seed: int | None = None, estimator: str | None = None,
+                 tracking: str | None = None) -> "Scenario":
         """A copy with run settings overridden (checked like the file's)."""
         new = replace(self, T=self.T if T is None else float(T), h=self.h if h is None else float(h),
                       seed=self.seed if seed is None else int(seed),
-                      estimator=self.estimator if estimator is None else estimator)
-        _check_run(new.T, new.h, new.estimator, new.source)
+                      estimator=self.estimator if estimator is None else estimator,
+                      tracking=self.tracking if tracking is None else tracking)
+        _check_run(new.T, new.h, new.estimator, new.source, new.tracking)
         return new
 
 
@@ -80,7 +91,7 @@ def builtin_scenarios() -> list[str]:
     return sorted(p.stem for p in SCENARIO_DIR.glob("*.toml"))
 
 
-def _check_run(T: float, h: float, estimator: str, where: str) -> None:
+def _check_run(T: float, h: float, estimator: str, where: str, tracking: str = "lq") -> None:
     if isinstance(h, bool) or not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
         raise ScenarioError(f"{where}: [simulation] h = {h!r} must be a positive number of seconds")
     if isinstance(T, bool) or not (isinstance(T, (int, float)) and math.isfinite(T) and T >= h):
@@ -90,6 +101,37 @@ def _check_run(T: float, h: float, estimator: str, where: str) -> None:
             f"{where}: [simulation] estimator {estimator!r} is unknown; "
             f"expected one of {', '.join(ESTIMATOR_MODES)}"
         )
+    if tracking not in TRACKING_MODES:
+        raise ScenarioError(
+            f"{where}: [simulation] tracking {tracking!r} is unknown; "
+            f"expected one of {', '.join(TRACKING_MODES)}"
+        )
+
+
+def _fleet_scenario(data: dict[str, Any], where: str) -> Scenario:
+    try:
+        spec, sim = fleet_spec_from_dict(data)
+    except ValueError as exc:
+        section = getattr(exc, "section", "")
+        raise ScenarioError(f"{where}: {f'[{section}] ' if section else ''}{exc}") from None
+    for key in ("T", "h"):
+        if key not in sim:
+            raise ScenarioError(f"{where}: missing key(s) in [simulation]: {key}")
+    seed = sim.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ScenarioError(f"{where}: [simulation] seed = {seed!r} must be a non-negative integer")
+    estimator, tracking = sim.get("estimator", "kalman"), sim.get("tracking", "lq")
+    _check_run(sim["T"], sim["h"], estimator, where, tracking)
+    try:
+        system = fleet_system(spec)
+        spec = resolve_fleet_spec(spec)
+    except ModelError as exc:
+        section = section_of_model_error(str(exc))
+        raise ScenarioError(f"{where}: {f'[{section}] ' if section else ''}{exc}") from None
+    return Scenario(name=str(data.get("name", Path(where).stem)),
+                    description=str(data.get("description", "")), system=system,
+                    T=float(sim["T"]), h=float(sim["h"]), seed=int(seed), estimator=estimator,
+                    source=where, tracking=tracking, fleet=spec)
 
 
 def _resolve(spec: str | Path) -> Path:
@@ -120,6 +162,8 @@ def load_scenario(spec: str | Path = "paper") -> Scenario:
 
 def scenario_from_dict(data: dict[str, Any], where: str = "scenario") -> Scenario:
     """Validate a parsed scenario mapping (see the module docstring for the keys)."""
+    if is_fleet_scenario(data):
+        return _fleet_scenario(data, where)
     unknown = sorted(set(data) - _TOP)
     if unknown:
         raise ScenarioError(f"{where}: unknown section(s) or key(s): {', '.join(unknown)}")
@@ -142,7 +186,8 @@ def scenario_from_dict(data: dict[str, Any], where: str = "scenario") -> Scenari
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ScenarioError(f"{where}: [simulation] seed = {seed!r} must be a non-negative integer")
     estimator = sim.get("estimator", "kalman")
-    _check_run(T, h, estimator, where)
+    tracking = sim.get("tracking", "lq")
+    _check_run(T, h, estimator, where, tracking)
     mapping: dict[str, Any] = {}
     section_of: dict[str, str] = {"noise_convention": "noise"}   # LinearSystem key -> section
     for section in ("vehicles", "disturbance", "reference", "cost", "noise"):
@@ -162,4 +207,5 @@ def scenario_from_dict(data: dict[str, Any], where: str = "scenario") -> Scenari
         raise ScenarioError(f"{where}: {f'[{section}] ' if section else ''}{exc}") from None
     return Scenario(name=str(data.get("name", Path(where).stem)),
                     description=str(data.get("description", "")), system=system,
-                    T=float(T), h=float(h), seed=int(seed), estimator=estimator, source=where)
+                    T=float(T), h=float(h), seed=int(seed), estimator=estimator, source=where,
+                    tracking=tracking)

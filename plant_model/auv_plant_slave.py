@@ -5,10 +5,9 @@ No output depends directly on u (the plant is strictly proper when sampled).
 """
 from fmu_common.interface import ArraySpec
 from fmu_common.slave_base import ArraySlave as Fmi2Slave  # pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.system_parameters import system_mapping_from_parameters, system_parameter_specs
+from fmu_common.system_parameters import model_parameter_specs, system_from_parameters
 from plant_model.discretization import discretize
 from plant_model.plant import Plant
-from plant_model.system import LinearSystem
 
 PLANT_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "x0", "w0", "z0",
                     "W_x", "W_w", "W_z", "V_y", "V_ybar")
@@ -27,7 +26,7 @@ class AuvPlant(Fmi2Slave):
     def interface(config):
         d = config["dims"]
         n, m, r, p, l_ = d["n"], d["m"], d["r"], d["p"], d["l"]
-        return system_parameter_specs(config, PLANT_PARAMETERS) + [
+        return model_parameter_specs(config, "plant", PLANT_PARAMETERS) + [
             ArraySpec("h", (), "parameter", "sample period: the communication step the "
                       "plant is discretized for", start=config["h"], unit="s"),
             ArraySpec("seed", (), "parameter", "seed of the noise generator (numpy PCG64)",
@@ -45,9 +44,8 @@ class AuvPlant(Fmi2Slave):
         ]
 
     def setup(self):
-        mapping = system_mapping_from_parameters(self.par, PLANT_PARAMETERS)
-        mapping["noise_convention"] = self.par["noise_convention"]
-        system = LinearSystem.from_mapping(mapping)
+        system = system_from_parameters(self.config, "plant", self.par, PLANT_PARAMETERS,
+                                        self.par["noise_convention"])
         self.model = discretize(system, float(self.par["h"]))
         self.plant = Plant(self.model, system.initial_state(), int(self.par["seed"]))
         self._u = self.io["u"]

@@ -2,11 +2,16 @@
 
 Continuous time, states stacked as in the paper:
 
-    vehicles      x' = A x + B1 u + B2 w + m,   y    = C x + n
+    vehicles      x' = A x + B1 u + B2 w + Bz z + m,   y    = C x + n
     disturbance   w' = K w + m_w
     reference     z' = F z + m_z,               ybar = H z + n_z
     tracking error  e = H z - C x
     cost rate       e' Q e + u' R u
+
+Bz (zero by default, as in the paper's single-vehicle example) carries the leader into the
+vehicles' dynamics: in a fleet on a communication graph the pinning term a_i0 (x_0 - x_i)
+of eq. 1 brings the leader's state x_0 = T z into the vehicles that hear it
+(:mod:`plant_model.fleet`).
 
 Noise intensities (power spectral densities) W_x, W_w, W_z of m, m_w, m_z and
 V_y, V_ybar of n, n_z; see :mod:`plant_model.discretization` for what a sample sees.
@@ -29,7 +34,7 @@ __all__ = ["LinearSystem", "NOISE_CONVENTIONS", "MATRIX_NAMES"]
 #: each measurement sample, whatever h is (a different experiment, named as such).
 NOISE_CONVENTIONS = ("intensity", "per_sample")
 
-MATRIX_NAMES = ("A", "B1", "B2", "C", "F", "H", "K", "Q", "R",
+MATRIX_NAMES = ("A", "B1", "B2", "Bz", "C", "F", "H", "K", "Q", "R",
                 "W_x", "W_w", "W_z", "V_y", "V_ybar")
 
 
@@ -44,6 +49,7 @@ class LinearSystem:
     F: np.ndarray
     H: np.ndarray
     K: np.ndarray
+    Bz: np.ndarray
     x0: np.ndarray
     w0: np.ndarray
     z0: np.ndarray
@@ -116,6 +122,7 @@ class LinearSystem:
         F = as_matrix("F", F, (l_, l_))
         H = as_matrix("H", d["H"], (p, l_))
         K = as_matrix("K", d["K"], (r, r))
+        Bz = as_matrix("Bz", d.get("Bz", np.zeros((n, l_))), (n, l_))
 
         def square(name: str, size: int, default: float) -> np.ndarray:
             v = d.get(name, default)
@@ -144,7 +151,7 @@ class LinearSystem:
                 f"noise_convention {conv!r} is not one of {', '.join(NOISE_CONVENTIONS)}"
             )
         return cls(
-            A=A, B1=B1, B2=B2, C=C, F=F, H=H, K=K,
+            A=A, B1=B1, B2=B2, C=C, F=F, H=H, K=K, Bz=Bz,
             x0=as_vector("x0", d.get("x0", np.zeros(n)), n),
             w0=as_vector("w0", d.get("w0", np.zeros(r)), r),
             z0=as_vector("z0", d.get("z0", np.zeros(l_)), l_),
@@ -181,7 +188,7 @@ class LinearSystem:
         """Continuous model of the true state s = [x; w; z].
 
         Returns (Ac, Bc, Wc): s' = Ac s + Bc u + noise with intensity Wc, where
-        Ac = [[A, B2, 0], [0, K, 0], [0, 0, F]], Bc = [B1; 0; 0],
+        Ac = [[A, B2, Bz], [0, K, 0], [0, 0, F]], Bc = [B1; 0; 0],
         Wc = blkdiag(W_x, W_w, W_z).
         """
         n, r, l_, m = self.n, self.r, self.l, self.m
@@ -189,6 +196,7 @@ class LinearSystem:
         Ac = np.zeros((ns, ns))
         Ac[:n, :n] = self.A
         Ac[:n, n:n + r] = self.B2
+        Ac[:n, n + r:] = self.Bz
         Ac[n:n + r, n:n + r] = self.K
         Ac[n + r:, n + r:] = self.F
         Bc = np.zeros((ns, m))
@@ -198,6 +206,22 @@ class LinearSystem:
         Wc[n:n + r, n:n + r] = self.W_w
         Wc[n + r:, n + r:] = self.W_z
         return Ac, Bc, Wc
+
+    def known_reference_mask(self) -> np.ndarray:
+        """Boolean mask over z of the reference states that are deterministic and known.
+
+        A planned leader path (no process noise on a state, and no noise-driven state
+        feeding it through F) is known to every vehicle from z(0): its estimate is
+        propagated exactly instead of filtered. The largest such set D satisfies
+        W_z[D, :] = 0 and F[D, not D] = 0.
+        """
+        known = ~np.any(self.W_z != 0.0, axis=1)
+        while True:
+            feeds = np.any(self.F[np.ix_(known, ~known)] != 0.0, axis=1)
+            if not feeds.any():
+                return known
+            idx = np.flatnonzero(known)
+            known[idx[feeds]] = False
 
     def error_matrix(self) -> np.ndarray:
         """E with e = E s = H z - C x for s = [x; w; z]."""

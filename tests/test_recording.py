@@ -10,10 +10,15 @@ from rerun.chunk import RrdReader
 
 from orchestrator.recording import (
     TRACE_KEYS,
+    FleetLayout,
     method_color,
+    read_rrd_blueprint_tree,
     read_rrd_blueprint_views,
+    read_rrd_line_strips,
+    read_rrd_points,
     read_rrd_scalars,
     read_rrd_series_styles,
+    read_rrd_visible_time_ranges,
     rrd_has_blueprint,
     write_rrd,
 )
@@ -65,7 +70,7 @@ def written(tmp_path_factory):
 
 
 def test_every_series_round_trips_exactly(written):
-    path, runs, info = written
+    path, runs, _info = written
     expected = expected_series(runs)
     got = read_rrd_scalars(path)
 
@@ -238,3 +243,316 @@ def test_timing_three_methods_30000_steps(tmp_path):
     got = read_rrd_scalars(tmp_path / "timing.rrd")
     assert np.array_equal(got["control/2/ideal"][2], runs["ideal"]["u"][:, 1])
     assert np.array_equal(got["control/2/ideal"][1], np.arange(steps) * H_NS)
+
+
+# ---------------------------------------------------------------------------------------------
+# Fleet of N vehicles: 3D scene, per-vehicle series, fleet blueprint
+# ---------------------------------------------------------------------------------------------
+
+N_VEH = 3
+FLEET_STEPS = 263          # not a multiple of the trail stride: the last step closes the trail
+FLEET_H = 0.1
+FLEET_H_NS = 100_000_000
+TRAIL_S = 5.0              # 50 steps
+TRAIL_SAMPLE_S = 0.5       # stride 5 steps
+FLEET_METHODS = ("kalman", "classical")
+FLEET_DIMS = {"x": 6 * N_VEH, "w": 2, "z": 2, "e": 3 * N_VEH, "u": 3 * N_VEH,
+              "xhat": 6 * N_VEH, "what": 2, "zhat": 2, "y": 4, "ybar": 2}
+EDGES = ((1, 2), (2, 3), (3, 1), (1, 3))
+PINNED = (1, 3)
+
+
+def make_fleet(n=N_VEH, edges=EDGES, pinned=PINNED, **changes):
+    """Positions in columns 0..2 of each vehicle's 6-block of x; 3 errors and 3 controls per vehicle."""
+    fields = {
+        "position_index": np.arange(6 * n).reshape(n, 6)[:, :3],
+        "error_index": np.arange(3 * n).reshape(n, 3),
+        "control_index": np.arange(3 * n).reshape(n, 3),
+        "error_names": ("north", "east", "down"),
+        "control_names": ("X_n", "X_e", "X_d"),
+        "leader_output": np.array([[1.0, 0.0], [0.0, 1.0], [0.25, -0.5]]),
+        "offsets": np.array([[10.0 * i, -5.0 * i, 1.0 + i] for i in range(n)]),
+        "edges": edges,
+        "pinned": pinned,
+    }
+    fields.update(changes)
+    return FleetLayout(**fields)
+
+
+def make_fleet_runs(methods=FLEET_METHODS, steps=FLEET_STEPS, n=N_VEH, seed=99):
+    """Vehicles drifting around a moving leader (metres, non-round values), random other traces."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(steps)[:, None] * FLEET_H
+    runs = {}
+    for m in methods:
+        traces = {k: rng.standard_normal((steps, d)) for k, d in FLEET_DIMS.items() if k not in ("x", "e", "u")}
+        traces["e"] = rng.standard_normal((steps, 3 * n))
+        traces["u"] = rng.standard_normal((steps, 3 * n)) * 100.0
+        traces["z"] = np.hstack([3.0 * t + 0.1, 500.0 + 0.5 * np.sin(t)])
+        x = rng.standard_normal((steps, 6 * n))
+        x[:, 0::6] += 3.0 * t + rng.uniform(-50, 50, n)   # north
+        x[:, 1::6] += 500.0 + rng.uniform(-50, 50, n)    # east
+        x[:, 2::6] += 20.0 + rng.uniform(0, 5, n)        # down
+        traces["x"] = x
+        runs[m] = traces
+    return runs
+
+
+@pytest.fixture(scope="module")
+def fleet_written(tmp_path_factory):
+    runs = make_fleet_runs()
+    fleet = make_fleet()
+    path = tmp_path_factory.mktemp("rrd") / "fleet.rrd"
+    info = write_rrd(path, runs, FLEET_H, recording_name="fleet round trip", fleet=fleet,
+                     trail_seconds=TRAIL_S, trail_sample_seconds=TRAIL_SAMPLE_S)
+    return path, runs, fleet, info
+
+
+def positions(run, fleet):
+    return run["x"][:, fleet.position_index]  # (steps, N, 3) float64
+
+
+def leader_position(run, fleet):
+    return run["z"] @ fleet.leader_output.T  # (steps, 3)
+
+
+def test_fleet_vehicle_positions_round_trip(fleet_written):
+    path, runs, fleet, _ = fleet_written
+    k = np.arange(FLEET_STEPS)
+    for m in FLEET_METHODS:
+        step, sim_time, pts = read_rrd_points(path, f"world/{m}/vehicles")
+        assert np.array_equal(step, k) and np.array_equal(sim_time, k * FLEET_H_NS)
+        assert pts.dtype == np.float32 and pts.shape == (FLEET_STEPS, N_VEH, 3)
+        want = positions(runs[m], fleet).astype(np.float32)  # Rerun positions are float32
+        assert np.array_equal(pts, want)
+        for s in (0, 1, 77, 150, FLEET_STEPS - 1):
+            for i in range(N_VEH):
+                assert np.array_equal(pts[s, i], runs[m]["x"][s, [6 * i, 6 * i + 1, 6 * i + 2]].astype(np.float32))
+    # the two methods are kept apart
+    a = read_rrd_points(path, "/world/kalman/vehicles")[2]
+    b = read_rrd_points(path, "world/classical/vehicles")[2]
+    assert not np.array_equal(a, b)
+
+
+def test_fleet_leader_and_targets(fleet_written):
+    path, runs, fleet, _ = fleet_written
+    for m in FLEET_METHODS:
+        lead = leader_position(runs[m], fleet)
+        step, _, got_lead = read_rrd_points(path, f"world/{m}/leader")
+        assert np.array_equal(step, np.arange(FLEET_STEPS))
+        assert got_lead.shape == (FLEET_STEPS, 1, 3)
+        assert np.array_equal(got_lead[:, 0], lead.astype(np.float32))
+        _, _, got_targets = read_rrd_points(path, f"world/{m}/targets")
+        want = (lead[:, None, :] + fleet.offsets[None, :, :]).astype(np.float32)
+        assert np.array_equal(got_targets, want)
+        # spot check against the definition, vehicle by vehicle
+        for s in (0, 100, FLEET_STEPS - 1):
+            for i in range(N_VEH):
+                np.testing.assert_allclose(got_targets[s, i], lead[s] + fleet.offsets[i], rtol=1e-6)
+
+
+def test_fleet_edges_join_the_vehicles(fleet_written):
+    path, _, _, _ = fleet_written
+    for m in FLEET_METHODS:
+        step, _, strips = read_rrd_line_strips(path, f"world/{m}/edges")
+        _, _, veh = read_rrd_points(path, f"world/{m}/vehicles")
+        _, _, lead = read_rrd_points(path, f"world/{m}/leader")
+        assert np.array_equal(step, np.arange(FLEET_STEPS))
+        assert strips.shape == (FLEET_STEPS, len(EDGES) + len(PINNED), 2, 3)
+        for e, (j, i) in enumerate(EDGES):  # from vehicle j to vehicle i
+            assert np.array_equal(strips[:, e, 0], veh[:, j - 1]), (j, i)
+            assert np.array_equal(strips[:, e, 1], veh[:, i - 1]), (j, i)
+        for p, i in enumerate(PINNED):      # from the leader to the pinned vehicle
+            assert np.array_equal(strips[:, len(EDGES) + p, 0], lead[:, 0])
+            assert np.array_equal(strips[:, len(EDGES) + p, 1], veh[:, i - 1])
+
+
+def test_fleet_trails_are_decimated_segments(fleet_written):
+    path, runs, fleet, _ = fleet_written
+    stride = round(TRAIL_SAMPLE_S / FLEET_H)
+    ks = np.append(np.arange(0, FLEET_STEPS, stride), FLEET_STEPS - 1)  # 263 is not on the stride
+    for m in FLEET_METHODS:
+        step, sim_time, strips = read_rrd_line_strips(path, f"world/{m}/trails")
+        assert np.array_equal(step, ks[1:]) and np.array_equal(sim_time, ks[1:] * FLEET_H_NS)
+        assert strips.shape == (ks.size - 1, N_VEH, 2, 3)
+        pos = positions(runs[m], fleet).astype(np.float32)
+        assert np.array_equal(strips[:, :, 0], pos[ks[:-1]])
+        assert np.array_equal(strips[:, :, 1], pos[ks[1:]])
+        assert np.array_equal(strips[1:, :, 0], strips[:-1, :, 1])  # one connected trail per vehicle
+
+
+def test_fleet_per_vehicle_series(fleet_written):
+    path, runs, fleet, info = fleet_written
+    got = read_rrd_scalars(path)
+    k = np.arange(FLEET_STEPS)
+    expected = {}
+    for m in FLEET_METHODS:
+        for i in range(1, N_VEH + 1):
+            for c, name in enumerate(fleet.error_names):
+                expected[f"vehicles/{i}/error/{name}/{m}"] = runs[m]["e"][:, fleet.error_index[i - 1, c]]
+            for c, name in enumerate(fleet.control_names):
+                expected[f"vehicles/{i}/control/{name}/{m}"] = runs[m]["u"][:, fleet.control_index[i - 1, c]]
+    for entity, values in expected.items():
+        step, sim_time, read = got[entity]
+        assert np.array_equal(step, k) and np.array_equal(sim_time, k * FLEET_H_NS), entity
+        assert np.array_equal(read, values), entity
+    assert np.array_equal(got["vehicles/2/error/east/kalman"][2], runs["kalman"]["e"][:, 4])
+    assert np.array_equal(got["vehicles/3/control/X_d/classical"][2], runs["classical"]["u"][:, 8])
+    # in addition to, not instead of, the per-component series
+    base = expected_series(runs)
+    assert set(got) == set(base) | set(expected)
+    for entity, values in base.items():
+        assert np.array_equal(got[entity][2], values), entity
+    assert info["signals"] == len(base) + len(expected)
+    assert set(info) == {"rrd_s", "signals", "bytes"} and info["bytes"] == path.stat().st_size
+
+
+def test_fleet_series_styles(fleet_written):
+    path, _, fleet, _ = fleet_written
+    styles = read_rrd_series_styles(path)
+    colors = method_color(list(FLEET_METHODS))
+    for m in FLEET_METHODS:
+        shades = set()
+        for i in (1, N_VEH):
+            for group, names in (("error", fleet.error_names), ("control", fleet.control_names)):
+                for c, name in enumerate(names):
+                    series, rgba = styles[f"vehicles/{i}/{group}/{name}/{m}"]
+                    assert series == f"{m} {name}"
+                    if c == 0:
+                        assert rgba == colors[m] + (255,)
+                    shades.add((group, c, rgba))
+        # components of one method get distinct shades of the method colour
+        assert len({rgba for g, c, rgba in shades if g == "error"}) == len(fleet.error_names)
+
+
+def _static_component(path, entity, column):
+    for chunk in RrdReader(path).stream():
+        if chunk.is_static and chunk.entity_path.strip("/") == entity:
+            batch = chunk.to_record_batch()
+            if column in batch.schema.names:
+                return batch.column(column).to_pylist()[-1]
+    return None
+
+
+def test_fleet_world_is_ned_and_labelled(fleet_written):
+    path, _, _, _ = fleet_written
+    frd = [5, 3, 2]  # ViewDir Forward, Right, Down: x north, y east, z down
+    assert _static_component(path, "world", "ViewCoordinates:xyz") == [frd]
+    for m in FLEET_METHODS:
+        assert _static_component(path, f"world/{m}", "ViewCoordinates:xyz") == [frd]
+        assert _static_component(path, f"world/{m}/vehicles", "Points3D:labels") == ["1", "2", "3"]
+        assert _static_component(path, f"world/{m}/vehicles", "Points3D:radii") == [1.0]
+        assert _static_component(path, f"world/{m}/leader", "Points3D:labels") == ["leader"]
+
+
+def _views(node):
+    if node["kind"] == "view":
+        return [node]
+    return [v for child in node["contents"] for v in _views(child)]
+
+
+def test_fleet_blueprint_layout(fleet_written):
+    path, _, _, _ = fleet_written
+    tree = read_rrd_blueprint_tree(path)
+    assert tree["kind"] == "Horizontal" and len(tree["contents"]) == 2
+    left, right = tree["contents"]
+    # left: one 3D view per method in tabs, the first method first
+    assert left["kind"] == "Tabs"
+    assert [(v["class"], v["name"], v["origin"]) for v in left["contents"]] == [
+        ("3D", f"fleet {m}", f"/world/{m}") for m in FLEET_METHODS]
+    # right: per-vehicle error and control views in a 2-column grid (N <= 8)
+    assert right["kind"] == "Grid"
+    assert [(v["class"], v["name"], v["origin"]) for v in right["contents"]] == [
+        ("TimeSeries", f"vehicle {i} {g}", f"/vehicles/{i}/{g}")
+        for i in range(1, N_VEH + 1) for g in ("error", "control")]
+    # read_rrd_blueprint_views lists them too, and the per-component grid is left out
+    views = read_rrd_blueprint_views(path)
+    assert views["fleet kalman"] == ("3D", "/world/kalman")
+    assert views["vehicle 2 control"] == ("TimeSeries", "/vehicles/2/control")
+    assert set(views) == {v["name"] for v in _views(tree)}
+    assert "error-1" not in views and len(views) == len(FLEET_METHODS) + 2 * N_VEH
+
+
+def test_fleet_trail_visible_time_range(fleet_written):
+    path, _, _, _ = fleet_written
+    ranges = read_rrd_visible_time_ranges(path)
+    want = {
+        "sim_time": (("cursor_relative", -round(TRAIL_S * 1e9)), ("cursor_relative", 0)),
+        "step": (("cursor_relative", -round(TRAIL_S / FLEET_H)), ("cursor_relative", 0)),
+    }
+    # only the trail entities carry a range; the rest of the 3D view shows the latest sample
+    assert ranges == {(f"fleet {m}", f"/world/{m}/trails"): want for m in FLEET_METHODS}
+
+
+def test_fleet_many_vehicles_use_tabs(tmp_path):
+    n = 10
+    runs = make_fleet_runs(methods=("ideal",), steps=12, n=n, seed=5)
+    fleet = make_fleet(n=n, edges=tuple((i, i + 1) for i in range(1, n)), pinned=(1,))
+    path = tmp_path / "ten.rrd"
+    write_rrd(path, runs, FLEET_H, recording_name="ten", fleet=fleet)
+    tree = read_rrd_blueprint_tree(path)
+    left, right = tree["contents"]
+    assert (left["kind"], left["class"], left["origin"]) == ("view", "3D", "/world/ideal")
+    assert right["kind"] == "Tabs"
+    assert [t["name"] for t in right["contents"]] == ["vehicles 1-4", "vehicles 5-8", "vehicles 9-10"]
+    assert all(t["kind"] == "Grid" for t in right["contents"])
+    assert [v["origin"] for v in _views(right)] == [
+        f"/vehicles/{i}/{g}" for i in range(1, n + 1) for g in ("error", "control")]
+    # default trail: 60 s on both timelines
+    assert read_rrd_visible_time_ranges(path)[("fleet ideal", "/world/ideal/trails")] == {
+        "sim_time": (("cursor_relative", -60_000_000_000), ("cursor_relative", 0)),
+        "step": (("cursor_relative", -600), ("cursor_relative", 0)),
+    }
+    _, _, edges = read_rrd_line_strips(path, "world/ideal/edges")
+    assert edges.shape == (12, n, 2, 3)
+
+
+def test_no_fleet_file_has_no_fleet_entities(written):
+    path, _, _ = written
+    assert read_rrd_visible_time_ranges(path) == {}
+    tree = read_rrd_blueprint_tree(path)
+    assert tree["kind"] == "Grid" and all(v["class"] == "TimeSeries" for v in _views(tree))
+    with pytest.raises(KeyError):
+        read_rrd_points(path, "world/kalman/vehicles")
+    assert not any(e.startswith("vehicles/") for e in read_rrd_scalars(path))
+
+
+@pytest.mark.parametrize("changes, pattern", [
+    ({"position_index": np.array([[0, 1, 2], [6, 7, 8], [12, 13, 18]])},
+     r"position_index\[2, 2\] = 18 .*out of range.*'x'.*18 columns"),
+    ({"position_index": np.array([[0, 1], [6, 7], [12, 13]])}, r"position_index must have shape \(N, 3\)"),
+    ({"position_index": np.array([[0.0, 1, 2], [6, 7, 8], [12, 13, 14]])}, r"position_index must be an integer"),
+    ({"error_index": np.array([[0, 1, 2], [3, 4, 5], [6, 7, 9]])}, r"error_index\[2, 2\] = 9 .*'e'"),
+    ({"error_index": np.arange(6).reshape(2, 3)}, r"error_index has 2 rows"),
+    ({"control_index": np.array([[-1, 1, 2], [3, 4, 5], [6, 7, 8]])}, r"control_index\[0, 0\] = -1 .*'u'"),
+    ({"error_names": ("north", "east")}, r"error_names has 2 labels"),
+    ({"control_names": ("X_n", "X/e", "X_d")}, r"control_names label 'X/e'"),
+    ({"offsets": np.zeros((3, 2))}, r"offsets must have shape \(N, 3\) = \(3, 3\), got shape \(3, 2\)"),
+    ({"offsets": np.zeros((2, 3))}, r"offsets must have shape"),
+    ({"leader_output": np.eye(3)}, r"leader_output must have shape \(3, l\) = \(3, 2\)"),
+    ({"edges": ((1, 2), (2, 4))}, r"edges\[1\] = \(2, 4\) names vehicle 4.*N = 3"),
+    ({"edges": ((0, 1),)}, r"edges\[0\] = \(0, 1\) names vehicle 0"),
+    ({"edges": ((1, 2, 3),)}, r"edges\[0\].*not a pair"),
+    ({"edges": ((2, 2),)}, r"edges\[0\] = \(2, 2\) is a self-loop"),
+    ({"pinned": (1, 7)}, r"pinned\[1\] names vehicle 7"),
+])
+def test_bad_fleet_layout_raises(tmp_path, changes, pattern):
+    runs = make_fleet_runs(methods=("kalman",), steps=10)
+    with pytest.raises(ValueError, match=pattern):
+        write_rrd(tmp_path / "bad.rrd", runs, FLEET_H, recording_name="bad", fleet=make_fleet(**changes))
+    assert not (tmp_path / "bad.rrd").exists()
+
+
+def test_fleet_checked_against_every_run(tmp_path):
+    runs = make_fleet_runs(methods=("kalman", "classical"), steps=10)
+    runs["classical"]["u"] = runs["classical"]["u"][:, :8]
+    with pytest.raises(ValueError, match=r"control_index\[2, 2\] = 8 .*'classical' trace 'u'"):
+        write_rrd(tmp_path / "bad.rrd", runs, FLEET_H, recording_name="bad", fleet=make_fleet())
+
+
+@pytest.mark.parametrize("kwargs", [{"trail_seconds": 0.0}, {"trail_seconds": float("nan")},
+                                    {"trail_sample_seconds": -1.0}])
+def test_bad_trail_settings_raise(tmp_path, kwargs):
+    runs = make_fleet_runs(methods=("kalman",), steps=10)
+    with pytest.raises(ValueError, match=next(iter(kwargs))):
+        write_rrd(tmp_path / "bad.rrd", runs, FLEET_H, recording_name="bad", fleet=make_fleet(), **kwargs)

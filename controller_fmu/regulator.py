@@ -1,0 +1,139 @@
+"""Output regulation: zero steady-state error for persistent references (NOTES.md).
+
+With a marginally stable exosystem (a constant offset, a straight run, a circle, a survey
+pattern) the paper's law (eq. 12-15) exists but leaves a steady tracking error. The
+regulator equations of Francis (1977) remove it. With the exogenous state v = [w; z]
+(v' = S v, S = blkdiag(K, F)), the plant x' = A x + B1 u + Pv v, Pv = [B2, Bz], and the
+error e = Hv v - C x, Hv = [0, H], find Pi (n x (r+l)) and Gamma (m x (r+l)) with
+
+    Pi S = A Pi + B1 Gamma + Pv,        C Pi = Hv.
+
+Then u = Gamma v - Kx (x - Pi v) with Kx from the same Riccati equation (13) gives
+eps = x - Pi v, eps' = (A - B1 Kx) eps, so e = -C eps -> 0 for every exosystem motion.
+The equations are solvable for every Pv, Hv if and only if, at every eigenvalue lambda of
+S, the matrix [[A - lambda I, B1], [C, 0]] has full row rank n + p (lambda is not a
+transmission zero of (A, B1, C) and there are at least as many inputs as outputs).
+
+Both tracking modes are returned as one gain on the plant's state order [x; w; z]:
+
+    lq:         u = -(Kx x + Kw w + Kz z)                        (the paper)
+    regulator:  u = -Kx x + (Gamma + Kx Pi) [w; z]
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import lu_factor, lu_solve, schur
+
+from plant_model.linalg_checks import ModelError
+from plant_model.system import LinearSystem
+
+from .design import TrackingDesign, lq_tracking_design
+
+__all__ = ["TRACKING_MODES", "TrackingLaw", "solve_regulator_equations", "tracking_law"]
+
+TRACKING_MODES = ("lq", "regulator")
+
+
+def _fmt(z: complex) -> str:
+    z = complex(z)
+    return f"{z.real:.6g}" if abs(z.imag) < 1e-12 else f"{z.real:.6g}{z.imag:+.6g}j"
+
+
+def solve_regulator_equations(A: np.ndarray, B1: np.ndarray, C: np.ndarray, S: np.ndarray,
+                              Pv: np.ndarray, Hv: np.ndarray, *,
+                              exosystem: str = "S") -> tuple[np.ndarray, np.ndarray]:
+    """(Pi, Gamma) with Pi S = A Pi + B1 Gamma + Pv and C Pi = Hv.
+
+    Column by column in the complex Schur basis of S (S = U T U^H, T upper triangular):
+    for the k-th Schur vector, [[A - T_kk I, B1], [C, 0]] [pi_k; gamma_k] =
+    [sum_{j<k} pi_j T_jk - (Pv U)_k; (Hv U)_k]; one LU factorisation per distinct
+    eigenvalue. ``exosystem`` names S in error messages. Raises :class:`ModelError`
+    naming the eigenvalue at which the equations have no solution.
+    """
+    n, m = B1.shape
+    p = C.shape[0]
+    nv = S.shape[0]
+    if nv == 0:
+        return np.zeros((n, 0)), np.zeros((m, 0))
+    if m < p:
+        raise ModelError(
+            f"the regulator equations have no solution in general: {m} inputs cannot hold "
+            f"{p} outputs on a persistent reference (need at least as many inputs as outputs)")
+    T, U = schur(S.astype(complex), output="complex")
+    PvU = Pv @ U
+    HvU = Hv @ U
+    Pi_t = np.zeros((n, nv), dtype=complex)
+    Ga_t = np.zeros((m, nv), dtype=complex)
+    factors: dict[tuple[float, float], object] = {}
+    scale = 1.0 + float(np.abs(A).max(initial=0.0)) + float(np.abs(S).max(initial=0.0))
+    for k in range(nv):
+        lam = T[k, k]
+        key = (round(lam.real, 12), round(lam.imag, 12))
+        Mk = np.zeros((n + p, n + m), dtype=complex)
+        Mk[:n, :n] = A - lam * np.eye(n)
+        Mk[:n, n:] = B1
+        Mk[n:, :n] = C
+        rhs = np.concatenate([Pi_t[:, :k] @ T[:k, k] - PvU[:, k], HvU[:, k]])
+        if m == p:
+            if key not in factors:
+                sv = np.linalg.svd(Mk, compute_uv=False)
+                if sv[-1] <= 1e-10 * max(sv[0], scale):
+                    raise ModelError(
+                        f"the regulator equations have no solution: at eigenvalue {_fmt(lam)} "
+                        f"of the exosystem {exosystem}, [[A - lambda I, B1], [C, 0]] is "
+                        f"singular (a transmission zero of (A, B1, C) at {_fmt(lam)})")
+                factors[key] = lu_factor(Mk)
+            sol = lu_solve(factors[key], rhs)
+        else:
+            sol = np.linalg.lstsq(Mk, rhs, rcond=None)[0]
+            res = np.linalg.norm(Mk @ sol - rhs)
+            if res > 1e-8 * (1.0 + np.linalg.norm(rhs)):
+                raise ModelError(
+                    f"the regulator equations have no solution: at eigenvalue {_fmt(lam)} "
+                    f"of the exosystem {exosystem}, [[A - lambda I, B1], [C, 0]] loses row "
+                    f"rank (residual {res:.3g})")
+        Pi_t[:, k] = sol[:n]
+        Ga_t[:, k] = sol[n:]
+    Uh = U.conj().T
+    Pi = (Pi_t @ Uh).real
+    Gamma = (Ga_t @ Uh).real
+    res = max(np.linalg.norm(Pi @ S - A @ Pi - B1 @ Gamma - Pv),
+              np.linalg.norm(C @ Pi - Hv))
+    ref = 1.0 + np.linalg.norm(Pv) + np.linalg.norm(Hv)
+    if not np.isfinite(res) or res > 1e-6 * ref * scale:
+        raise ModelError(f"the regulator equations are ill-conditioned: residual {res:.3g}")
+    return Pi, Gamma
+
+
+@dataclass(frozen=True)
+class TrackingLaw:
+    """u = -Ks [x; w; z] for one tracking mode (see the module docstring)."""
+
+    mode: str
+    Ks: np.ndarray
+    design: TrackingDesign
+    Pi: np.ndarray | None = None       #: regulator: x -> Pi [w; z] in steady state
+    Gamma: np.ndarray | None = None    #: regulator: u -> Gamma [w; z] + ... in steady state
+
+
+def tracking_law(system: LinearSystem, mode: str = "lq",
+                 design: TrackingDesign | None = None) -> TrackingLaw:
+    """The gain of ``mode`` ('lq' or 'regulator') on the plant state [x; w; z]."""
+    if mode not in TRACKING_MODES:
+        raise ModelError(f"unknown tracking mode {mode!r}; expected one of {', '.join(TRACKING_MODES)}")
+    design = design if design is not None else lq_tracking_design(system)
+    if mode == "lq":
+        return TrackingLaw(mode, design.gain_on_state(), design)
+    n, r, l_ = system.n, system.r, system.l
+    p = system.p
+    Pi_w, Ga_w = solve_regulator_equations(system.A, system.B1, system.C, system.K, system.B2,
+                                           np.zeros((p, r)), exosystem="K (disturbance)")
+    Pi_z, Ga_z = solve_regulator_equations(system.A, system.B1, system.C, system.F, system.Bz,
+                                           system.H, exosystem="F (reference)")
+    Pi = np.hstack([Pi_w, Pi_z])
+    Gamma = np.hstack([Ga_w, Ga_z])
+    Ks = np.hstack([design.Kx, -(Gamma + design.Kx @ Pi)])
+    assert Ks.shape == (system.m, n + r + l_)
+    return TrackingLaw(mode, Ks, design, Pi, Gamma)

@@ -1,0 +1,254 @@
+"""N vehicles on a communication graph, stacked into the paper's system (eq. 1-6).
+
+Vehicle i (1..N) with model (A_ii, B1i, B2i, C_i) from :mod:`plant_model.vehicles` runs the
+consensus protocol of eq. 1 on top of its own dynamics, with a coupling matrix Gamma on
+the state (identity by default) and formation offsets delta_i (state space) / d_i (output):
+
+    x_i' = A_ii x_i + B1i u_i + B2i w_i + m_i
+           + Gamma [ sum_j a_ij ((x_j - delta_j) - (x_i - delta_i)) + a_i0 (x_0 - (x_i - delta_i)) ]
+    y_i  = C_i x_i + n_i,      target of vehicle i: H_l z_l + d_i
+
+where x_0 = T_i z_l is the leader's state in the vehicle's state space
+(:func:`plant_model.vehicles.leader_state_map`). Stacked (L the in-degree Laplacian,
+G = diag(a_i0), :mod:`plant_model.graph`):
+
+    A  = blkdiag(A_ii) - (L + G) kron Gamma
+    Bz = [ (G kron Gamma) blkdiag(T_i) ,  ((L + G) kron Gamma) delta ]   acting on z = [z_l; c]
+    H  = [ 1_N kron H_l ,  d ]                                           (c == 1 carries the offsets)
+    B1, B2, C, K, Q, R and the noise intensities block diagonal per vehicle
+
+The constant state c (F entry 0, no noise, c(0) = 1) is appended to the leader's state
+only when some offset is non-zero. The leader z_l' = F_l z_l (+ m_z) is shared by all
+vehicles. Each vehicle's disturbance is its own exosystem: an ocean current as a
+first-order Gauss-Markov process per axis (w' = -w / tau + m_w, stationary standard
+deviation sigma in m/s, intensity 2 sigma^2 / tau), or K_i, W_w,i given explicitly.
+
+The fleet is described by a JSON-ready ``spec`` (built by the scenario loader, shipped in
+the FMUs' resources and rebuilt from their parameters):
+
+    {"vehicles": [{"model", "params", "x0", "offset", "current" | "disturbance",
+                   "W_x", "V_y", "V_ybar", "Q", "R"}, ...],
+     "graph": {"edges": [[j, i, a_ij], ...], "pinning": [[i, a_i0], ...], "coupling"},
+     "leader": {"kind", "F", "H", "z0", "W_z"},
+     "noise_convention": "intensity" | "per_sample"}
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+from scipy.linalg import block_diag
+
+from .graph import CommunicationGraph, communication_graph
+from .linalg_checks import ModelError, as_matrix, as_vector
+from .system import LinearSystem
+from .vehicles import VehicleModel, leader_state_map, make_vehicle, state_offset
+
+__all__ = ["FleetInfo", "fleet_vehicles", "fleet_graph", "fleet_system", "fleet_info",
+           "disturbance_of", "resolve_fleet_spec"]
+
+
+def fleet_vehicles(spec: Mapping[str, Any]) -> list[VehicleModel]:
+    """The vehicle models of the spec, checked to share one state dimension."""
+    vehicles = spec.get("vehicles") or []
+    if not vehicles:
+        raise ModelError("the fleet has no vehicles")
+    models = [make_vehicle(v.get("model", "remus100"), v.get("params", {}), f"vehicle {i}")
+              for i, v in enumerate(vehicles, start=1)]
+    p, s = models[0].p, models[0].s
+    for i, mdl in enumerate(models[1:], start=2):
+        if mdl.p != p or mdl.s != s:
+            raise ModelError(
+                f"vehicle {i}: model {mdl.name} has {mdl.p} states and {mdl.s} outputs, "
+                f"vehicle 1 has {p} and {s}; vehicles coupled on a graph must share both")
+    return models
+
+
+def fleet_graph(spec: Mapping[str, Any]) -> CommunicationGraph:
+    """The communication graph of the spec (validated: weights, self-loops, reachability)."""
+    g = spec.get("graph", {})
+    return communication_graph(len(spec["vehicles"]), g.get("edges", []), g.get("pinning", []))
+
+
+def _square(name: str, value: Any, size: int) -> np.ndarray:
+    if np.ndim(value) == 0:
+        return float(value) * np.eye(size)
+    return as_matrix(name, value, (size, size))
+
+
+def disturbance_of(vehicle: Mapping[str, Any], r: int, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(K_i, W_w,i, w0_i) of one vehicle: a Gauss-Markov current or explicit matrices."""
+    if "current" in vehicle and "disturbance" in vehicle:
+        raise ModelError(f"{where}: give either 'current' or 'disturbance', not both")
+    if "disturbance" in vehicle:
+        d = vehicle["disturbance"]
+        K = as_matrix(f"{where} disturbance K", d["K"], (r, r))
+        W = _square(f"{where} disturbance W_w", d.get("W_w", 0.0), r)
+        w0 = as_vector(f"{where} disturbance w0", d.get("w0", np.zeros(r)), r)
+        return K, W, w0
+    c = vehicle.get("current", {})
+    tau = float(c.get("time_constant", 600.0))
+    sigma = float(c.get("sigma", 0.0))
+    if not (np.isfinite(tau) and tau > 0):
+        raise ModelError(f"{where}: current time_constant = {tau} must be a positive number of seconds")
+    if not (np.isfinite(sigma) and sigma >= 0):
+        raise ModelError(f"{where}: current sigma = {sigma} must be a non-negative speed in m/s")
+    w0 = as_vector(f"{where} current w0", c.get("w0", np.zeros(r)), r)
+    return -np.eye(r) / tau, (2.0 * sigma ** 2 / tau) * np.eye(r), w0
+
+
+def _offsets(spec: Mapping[str, Any], models: list[VehicleModel]) -> tuple[np.ndarray, np.ndarray]:
+    """(d, delta): output-space offsets (N, s) and state-space offsets (N, p)."""
+    s = models[0].s
+    d = np.zeros((len(models), s))
+    delta = np.zeros((len(models), models[0].p))
+    for i, (v, mdl) in enumerate(zip(spec["vehicles"], models)):
+        d[i] = as_vector(f"vehicle {i + 1} offset", v.get("offset", np.zeros(s)), s)
+        delta[i] = state_offset(mdl, d[i])
+    return d, delta
+
+
+def fleet_system(spec: Mapping[str, Any]) -> LinearSystem:
+    """The stacked :class:`LinearSystem` of the fleet (see the module docstring)."""
+    models = fleet_vehicles(spec)
+    graph = fleet_graph(spec)
+    N, p = len(models), models[0].p
+    leader = spec["leader"]
+    F_l = as_matrix("leader F", leader["F"])
+    l0 = F_l.shape[0]
+    F_l = as_matrix("leader F", F_l, (l0, l0))
+    H_l = as_matrix("leader H", leader["H"], (models[0].s, l0))
+    z0_l = as_vector("leader z0", leader.get("z0", np.zeros(l0)), l0)
+    coupling = spec.get("graph", {}).get("coupling")
+    Gam = np.eye(p) if coupling is None else as_matrix("graph coupling", coupling, (p, p))
+    LG = graph.consensus_matrix()
+    Gp = graph.pinning_matrix()
+    d, delta = _offsets(spec, models)
+    has_c = bool(np.any(d != 0.0) or np.any(delta != 0.0))
+    l_ = l0 + (1 if has_c else 0)
+
+    A = block_diag(*[mdl.A for mdl in models]) - np.kron(LG, Gam)
+    Ts = [leader_state_map(mdl, H_l, F_l) for mdl in models]
+    Bz = np.zeros((N * p, l_))
+    Bz[:, :l0] = np.kron(Gp, Gam) @ np.vstack(Ts)
+    if has_c:
+        Bz[:, l0] = np.kron(LG, Gam) @ delta.reshape(-1)
+    F = np.zeros((l_, l_))
+    F[:l0, :l0] = F_l
+    H = np.zeros((N * models[0].s, l_))
+    H[:, :l0] = np.kron(np.ones((N, 1)), H_l)
+    if has_c:
+        H[:, l0] = d.reshape(-1)
+    z0 = np.concatenate([z0_l, [1.0]]) if has_c else z0_l
+    W_z = np.zeros((l_, l_))
+    W_z[:l0, :l0] = _square("leader W_z", leader.get("W_z", 0.0), l0)
+
+    Ks, Ws, w0s, x0s = [], [], [], []
+    for i, (v, mdl) in enumerate(zip(spec["vehicles"], models), start=1):
+        K, W, w0 = disturbance_of(v, mdl.r, f"vehicle {i}")
+        Ks.append(K)
+        Ws.append(W)
+        w0s.append(w0)
+        x0 = v.get("x0")
+        x0s.append(Ts[i - 1] @ z0_l + delta[i - 1] if x0 is None
+                   else as_vector(f"vehicle {i} x0", x0, p))
+
+    def per_vehicle(key: str, size: Any, default: float) -> np.ndarray:
+        return block_diag(*[_square(f"vehicle {i} {key}", v.get(key, default), size(mdl))
+                            for i, (v, mdl) in enumerate(zip(spec["vehicles"], models), start=1)])
+
+    mapping = {
+        "A": A, "B1": block_diag(*[mdl.B1 for mdl in models]),
+        "B2": block_diag(*[mdl.B2 for mdl in models]), "Bz": Bz,
+        "C": block_diag(*[mdl.C for mdl in models]),
+        "F": F, "H": H, "K": block_diag(*Ks),
+        "x0": np.concatenate(x0s), "w0": np.concatenate(w0s), "z0": z0,
+        "Q": per_vehicle("Q", lambda m: m.s, 1.0), "R": per_vehicle("R", lambda m: m.q, 1.0),
+        "W_x": per_vehicle("W_x", lambda m: m.p, 0.0), "W_w": block_diag(*Ws), "W_z": W_z,
+        "V_y": per_vehicle("V_y", lambda m: m.s, 0.0),
+        "V_ybar": per_vehicle("V_ybar", lambda m: m.s, 0.0),
+        "noise_convention": spec.get("noise_convention", "intensity"),
+    }
+    return LinearSystem.from_mapping(mapping)
+
+
+_MODEL_KEYS = {"remus100": ("mass", "added_mass", "time_constant", "drag_coefficient",
+                            "cruise_speed"),
+               "generic": ("A", "B1", "B2", "C")}
+
+
+def resolve_fleet_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
+    """A copy of ``spec`` with every default made explicit (model parameters, x0, current,
+    coupling), so that an FMU can expose all of them as parameters with their values."""
+    import copy
+    new = copy.deepcopy(dict(spec))
+    models = fleet_vehicles(new)
+    system = fleet_system(new)
+    p = models[0].p
+    for i, (v, mdl) in enumerate(zip(new["vehicles"], models)):
+        v["params"] = {k: (np.asarray(mdl.parameters[k]).tolist() if k in mdl.parameters
+                           else getattr(mdl, k).tolist())
+                       for k in _MODEL_KEYS.get(mdl.name, ())}
+        v["x0"] = system.x0[i * p:(i + 1) * p].tolist()
+        v["offset"] = list(np.asarray(v.get("offset", np.zeros(mdl.s)), dtype=float))
+        if "disturbance" not in v:
+            K, W, w0 = disturbance_of(v, mdl.r, f"vehicle {i + 1}")
+            cur = v.setdefault("current", {})
+            cur["time_constant"] = float(-1.0 / K[0, 0])
+            cur.setdefault("sigma", 0.0)
+            cur["w0"] = w0.tolist()
+    g = new.setdefault("graph", {})
+    if g.get("coupling") is None:
+        g["coupling"] = np.eye(p).tolist()
+    g["edges"] = [[int(j), int(i), float(a)] for j, i, a in g.get("edges", [])]
+    g["pinning"] = [[int(i), float(a)] for i, a in (g.get("pinning", {}).items()
+                    if isinstance(g.get("pinning"), Mapping) else g.get("pinning", []))]
+    return new
+
+
+@dataclass(frozen=True)
+class FleetInfo:
+    """Where each vehicle's quantities sit in the stacked vectors (0-based indices)."""
+
+    N: int
+    p: int                        #: states per vehicle
+    q: int                        #: inputs per vehicle
+    s: int                        #: outputs per vehicle
+    r: int                        #: disturbance states per vehicle
+    models: tuple[str, ...]
+    position_index: np.ndarray | None   #: (N, 3) columns of x holding north, east, down
+    leader_output: np.ndarray     #: (s, l) leader output (position) = leader_output @ z
+    offsets: np.ndarray           #: (N, s) formation offsets d_i
+    edges: tuple[tuple[int, int], ...]  #: (j, i), 1-based: vehicle i hears vehicle j
+    pinned: tuple[int, ...]       #: 1-based vehicles that hear the leader
+    output_names: tuple[str, ...]
+    input_names: tuple[str, ...]
+
+    def vehicle_slice(self, i: int, per: int) -> slice:
+        """Slice of vehicle i (1-based) in a stacked vector with ``per`` entries per vehicle."""
+        return slice((i - 1) * per, i * per)
+
+
+def fleet_info(spec: Mapping[str, Any], system: LinearSystem | None = None) -> FleetInfo:
+    """Layout of the stacked vectors of ``spec`` (positions, offsets, leader output)."""
+    models = fleet_vehicles(spec)
+    graph = fleet_graph(spec)
+    system = system if system is not None else fleet_system(spec)
+    N, p = len(models), models[0].p
+    pos = None
+    if all(mdl.position_states is not None for mdl in models):
+        pos = np.array([[i * p + k for k in mdl.position_states] for i, mdl in enumerate(models)])
+    d, _ = _offsets(spec, models)
+    s = models[0].s
+    l0 = np.asarray(spec["leader"]["F"], dtype=float).shape[0]
+    leader_out = np.zeros((s, system.l))
+    leader_out[:, :l0] = np.asarray(spec["leader"]["H"], dtype=float)
+    return FleetInfo(
+        N=N, p=p, q=models[0].q, s=s, r=models[0].r,
+        models=tuple(mdl.name for mdl in models), position_index=pos,
+        leader_output=leader_out,
+        offsets=d, edges=tuple((int(j), int(i)) for j, i, _ in graph.edges),
+        pinned=tuple(int(i) for i, _ in graph.pinning),
+        output_names=models[0].output_names, input_names=models[0].input_names,
+    )

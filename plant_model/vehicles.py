@@ -1,0 +1,428 @@
+"""Vehicle model library: the linear per-vehicle model (A_ii, B1i, B2i, C_i) of paper eq. 1-2.
+
+Every vehicle i of the formation is a linear time-invariant model
+
+    x_i' = A x_i + B1 u_i + B2 w_i,      y_i = C x_i
+
+(the coupling terms sum_j A_ij x_j of eq. 1 come from the communication graph, see
+:mod:`plant_model.graph`). Two models are provided.
+
+``remus100`` -- translational dynamics of a REMUS 100 torpedo AUV in the NED frame
+(north, east, down), one decoupled axis a in (n, e, d):
+
+    n_a' = v_a                                              (m/s)
+    M_a v_a' = -D_a (v_a - w_a) + tau_a                     (N)
+
+with state x = [n, e, d, v_n, v_e, v_d] (m, m/s), input tau = [X_n, X_e, X_d] (force in
+N, NED axes), disturbance w = ocean-current velocity [v_cn, v_ce, v_cd] (m/s) and output
+y = [n, e, d] (m). Hence the velocity rows of B1 are 1/M_a (1/kg) and of B2 are D_a/M_a
+(1/s), and A has -D_a/M_a (1/s) on the velocity diagonal.
+
+    M_a = m + added mass                      (kg)
+    D_a = M_a / T_a + 0.5 rho Cd A_f U_c      (kg/s; the drag term on n and e only)
+
+The horizontal axes (n, e) both use the *surge* added mass and surge time constant: a
+torpedo AUV whose heading autopilot points it along its velocity moves through the water
+in surge whichever NED direction it goes. The down axis uses the heave values. The drag
+term is the secant linearization of the quadratic parasitic drag 0.5 rho Cd A_f |U| U
+through U = 0 and the cruise speed U_c: it equals the nonlinear drag exactly at 0 and at
+U_c, and overestimates it in between (underestimates above U_c).
+
+Numbers (:func:`remus100_parameters`, as in Fossen's Python Vehicle Simulator
+``remus100.py``, Fossen 2021, Section 8.4.2): the hull is a prolate spheroid with
+semi-axes a = L/2 = 0.8 m and b = diam/2 = 0.095 m, so m = 4/3 pi rho a b^2 = 31.03 kg
+(the real vehicle weighs 31.9 kg; the spheroid value is what the MSS model uses). Lamb's
+k-factors give the added mass: e = sqrt(1 - (b/a)^2),
+
+    alpha0 = 2 (1 - e^2)/e^3 (0.5 ln((1+e)/(1-e)) - e)
+    beta0  = 1/e^2 - (1 - e^2)/(2 e^3) ln((1+e)/(1-e))
+    k1 = alpha0/(2 - alpha0),  k2 = beta0/(2 - beta0)
+
+added mass surge m k1 = 0.839 kg, sway = heave = m k2 = 29.44 kg. (Fossen's Python code
+divides by the logarithm in beta0 instead of multiplying, which gives k2 = 1.026 > 1;
+Lamb's formula above gives k2 = 0.949, and satisfies alpha0 + 2 beta0 = 2.) Low-speed
+linear damping time constants T_surge = T_sway = T_heave = 20 s; parasitic drag
+coefficient Cd = 0.42 (Allen et al. 2000) on the frontal area A_f = pi b^2 = 0.02835 m^2;
+sea water rho = 1026 kg/m^3.
+
+Assumptions and range of validity of ``remus100``:
+
+* inner heading, depth and speed autopilots and the actuators (rudder, stern planes,
+  propeller: 1 s time constants in the MSS model) are much faster than the formation
+  loop, so the force tau is what the formation controller commands;
+* small roll and pitch; no restoring forces (neutral buoyancy, W = B);
+* speeds up to the REMUS maximum of 2.5 m/s; the damping is exact only at 0 and at the
+  cruise speed, so keep speed variations around ``cruise_speed`` small;
+* axes decoupled (no Coriolis, lift or cross-flow terms).
+
+``generic`` -- any matrices A (p x p), B1 (p x q), B2 (p x r), C (s x p), unitless.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .linalg_checks import ModelError, as_matrix, as_vector
+
+__all__ = [
+    "REMUS100_MAX_SPEED",
+    "VEHICLE_MODELS",
+    "VehicleModel",
+    "generic",
+    "leader_state_map",
+    "make_vehicle",
+    "remus100",
+    "remus100_parameters",
+    "state_offset",
+]
+
+#: Names accepted by :func:`make_vehicle`.
+VEHICLE_MODELS = ("remus100", "generic")
+
+#: Maximum speed of the REMUS 100 (m/s, propeller at 1525 rpm in zero current).
+REMUS100_MAX_SPEED = 2.5
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class VehicleModel:
+    """One vehicle's linear model x' = A x + B1 u + B2 w, y = C x (paper's A_ii etc.).
+
+    Build it with :func:`remus100`, :func:`generic` or :func:`make_vehicle`. The matrices
+    are stored read-only. ``position_states`` are the indices in x of north, east, down
+    (m), or None when the model has no NED position.
+    """
+
+    name: str
+    A: np.ndarray
+    B1: np.ndarray
+    B2: np.ndarray
+    C: np.ndarray
+    state_names: tuple[str, ...]
+    state_units: tuple[str, ...]
+    input_names: tuple[str, ...]
+    input_units: tuple[str, ...]
+    disturbance_names: tuple[str, ...]
+    disturbance_units: tuple[str, ...]
+    output_names: tuple[str, ...]
+    output_units: tuple[str, ...]
+    position_states: tuple[int, int, int] | None
+    parameters: dict
+
+    def __post_init__(self) -> None:
+        A = as_matrix("A", self.A)
+        p = A.shape[0]
+        A = as_matrix("A", A, (p, p))
+        B1 = as_matrix("B1", self.B1, (p, None))
+        B2 = as_matrix("B2", self.B2, (p, None))
+        C = as_matrix("C", self.C, (None, p))
+        for attr, val in (("A", A), ("B1", B1), ("B2", B2), ("C", C)):
+            object.__setattr__(self, attr, _readonly(val))
+        for names, units, size, what in (
+            ("state_names", "state_units", p, "states"),
+            ("input_names", "input_units", B1.shape[1], "inputs"),
+            ("disturbance_names", "disturbance_units", B2.shape[1], "disturbances"),
+            ("output_names", "output_units", C.shape[0], "outputs"),
+        ):
+            for attr in (names, units):
+                val = tuple(str(v) for v in getattr(self, attr))
+                if len(val) != size:
+                    raise ModelError(
+                        f"{self.name}: {attr} has {len(val)} entries but the model has "
+                        f"{size} {what}"
+                    )
+                object.__setattr__(self, attr, val)
+        if self.position_states is not None:
+            ps = tuple(int(i) for i in self.position_states)
+            if len(ps) != 3 or any(not 0 <= i < p for i in ps):
+                raise ModelError(
+                    f"{self.name}: position_states {self.position_states!r} must be 3 "
+                    f"state indices in 0..{p - 1}"
+                )
+            object.__setattr__(self, "position_states", ps)
+
+    @property
+    def p(self) -> int:
+        """Number of states."""
+        return self.A.shape[0]
+
+    @property
+    def q(self) -> int:
+        """Number of control inputs."""
+        return self.B1.shape[1]
+
+    @property
+    def r(self) -> int:
+        """Number of disturbance inputs."""
+        return self.B2.shape[1]
+
+    @property
+    def s(self) -> int:
+        """Number of tracked / measured outputs."""
+        return self.C.shape[0]
+
+
+# ------------------------------------------------------------------------------------
+# argument checks
+def _number(name: str, value: Any) -> float:
+    if isinstance(value, bool):
+        raise ModelError(f"{name}: expected a number, got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ModelError(f"{name}: not a number: {value!r}") from None
+    if not math.isfinite(x):
+        raise ModelError(f"{name} = {x} is not finite")
+    return x
+
+
+def _positive(name: str, value: Any, unit: str) -> float:
+    x = _number(name, value)
+    if x <= 0.0:
+        raise ModelError(f"{name} = {x:g} {unit} must be positive")
+    return x
+
+
+def _nonnegative(name: str, value: Any, unit: str) -> float:
+    x = _number(name, value)
+    if x < 0.0:
+        raise ModelError(f"{name} = {x:g} {unit} must not be negative")
+    return x
+
+
+def _triple(name: str, value: Any, unit: str, *, strict: bool) -> list[float]:
+    is_list = isinstance(value, (Sequence, np.ndarray)) and not isinstance(value, (str, bytes))
+    if not is_list or len(value) != 3:
+        raise ModelError(
+            f"{name}: expected a list of 3 numbers [surge, sway, heave] ({unit}), got {value!r}"
+        )
+    check = _positive if strict else _nonnegative
+    return [check(f"{name}[{k + 1}]", v, unit) for k, v in enumerate(value)]
+
+
+# ------------------------------------------------------------------------------------
+# REMUS 100
+def remus100_parameters(rho: float = 1026.0, length: float = 1.6, diameter: float = 0.19,
+                        drag_coefficient: float = 0.42) -> dict[str, Any]:
+    """Physical parameters of the REMUS 100 from its hull dimensions (SI units).
+
+    Prolate spheroid hull of semi-axes a = length/2, b = diameter/2 (m) in water of density
+    ``rho`` (kg/m^3): mass m = 4/3 pi rho a b^2 (kg; 31.03 kg for the defaults, the real
+    vehicle is 31.9 kg), added mass [m k1, m k2, m k2] (kg) from Lamb's k-factors (see the
+    module docstring), low-speed damping time constants [20, 20, 20] s, parasitic drag
+    coefficient ``drag_coefficient`` (Allen et al. 2000) on frontal area pi b^2 (m^2).
+
+    Returns a dict with keys mass, added_mass [surge, sway, heave], time_constant [surge,
+    sway, heave], drag_coefficient, frontal_area, rho, length, diameter.
+    """
+    rho = _positive("rho", rho, "kg/m^3")
+    length = _positive("length", length, "m")
+    diameter = _positive("diameter", diameter, "m")
+    drag_coefficient = _nonnegative("drag_coefficient", drag_coefficient, "")
+    a = length / 2.0
+    b = diameter / 2.0
+    if b >= a:
+        raise ModelError(
+            f"diameter = {diameter:g} m must be smaller than length = {length:g} m "
+            "(the hull is a prolate spheroid)"
+        )
+    m = 4.0 / 3.0 * math.pi * rho * a * b * b
+    e = math.sqrt(1.0 - (b / a) ** 2)
+    log_term = math.log((1.0 + e) / (1.0 - e))
+    alpha0 = 2.0 * (1.0 - e * e) / e**3 * (0.5 * log_term - e)
+    beta0 = 1.0 / e**2 - (1.0 - e * e) / (2.0 * e**3) * log_term
+    k1 = alpha0 / (2.0 - alpha0)
+    k2 = beta0 / (2.0 - beta0)
+    return {
+        "mass": m,
+        "added_mass": [m * k1, m * k2, m * k2],
+        "time_constant": [20.0, 20.0, 20.0],
+        "drag_coefficient": drag_coefficient,
+        "frontal_area": math.pi * b * b,
+        "rho": rho,
+        "length": length,
+        "diameter": diameter,
+    }
+
+
+def remus100(mass: float | None = None, added_mass: Sequence[float] | None = None,
+             time_constant: Sequence[float] | None = None,
+             drag_coefficient: float | None = None,
+             cruise_speed: float = 0.0) -> VehicleModel:
+    """The REMUS 100 linear translational model in NED (see the module docstring).
+
+    Arguments (None = the published default of :func:`remus100_parameters`):
+    ``mass`` rigid-body mass (kg), ``added_mass`` [surge, sway, heave] (kg),
+    ``time_constant`` [surge, sway, heave] low-speed damping time constants (s),
+    ``drag_coefficient`` parasitic drag coefficient Cd on the frontal area, and
+    ``cruise_speed`` (m/s, 0..2.5) where the quadratic drag is linearized.
+
+    The north and east axes use the surge added mass and time constant; the down axis the
+    heave ones (the sway values are kept in ``parameters`` but unused).
+    """
+    base = remus100_parameters()
+    m = base["mass"] if mass is None else _positive("mass", mass, "kg")
+    ma = base["added_mass"] if added_mass is None else _triple(
+        "added_mass", added_mass, "kg", strict=False)
+    tc = base["time_constant"] if time_constant is None else _triple(
+        "time_constant", time_constant, "s", strict=True)
+    cd = base["drag_coefficient"] if drag_coefficient is None else _nonnegative(
+        "drag_coefficient", drag_coefficient, "")
+    uc = _nonnegative("cruise_speed", cruise_speed, "m/s")
+    if uc > REMUS100_MAX_SPEED:
+        raise ModelError(
+            f"cruise_speed = {uc:g} m/s is above the REMUS 100 maximum speed of "
+            f"{REMUS100_MAX_SPEED:g} m/s"
+        )
+    rho, area = base["rho"], base["frontal_area"]
+    drag = 0.5 * rho * cd * area * uc          # secant slope of 0.5 rho Cd A |U| U (kg/s)
+    M = np.array([m + ma[0], m + ma[0], m + ma[2]])
+    D = np.array([M[0] / tc[0] + drag, M[1] / tc[0] + drag, M[2] / tc[2]])
+    Z = np.zeros((3, 3))
+    A = np.block([[Z, np.eye(3)], [Z, np.diag(-D / M)]])
+    B1 = np.vstack([Z, np.diag(1.0 / M)])
+    B2 = np.vstack([Z, np.diag(D / M)])
+    C = np.hstack([np.eye(3), Z])
+    params = {
+        "mass": m,
+        "added_mass": list(ma),
+        "time_constant": list(tc),
+        "drag_coefficient": cd,
+        "frontal_area": area,
+        "rho": rho,
+        "length": base["length"],
+        "diameter": base["diameter"],
+        "cruise_speed": uc,
+        "total_mass": M.tolist(),
+        "damping": D.tolist(),
+    }
+    return VehicleModel(
+        name="remus100", A=A, B1=B1, B2=B2, C=C,
+        state_names=("n", "e", "d", "v_n", "v_e", "v_d"),
+        state_units=("m", "m", "m", "m/s", "m/s", "m/s"),
+        input_names=("X_n", "X_e", "X_d"), input_units=("N", "N", "N"),
+        disturbance_names=("v_cn", "v_ce", "v_cd"), disturbance_units=("m/s",) * 3,
+        output_names=("n", "e", "d"), output_units=("m", "m", "m"),
+        position_states=(0, 1, 2), parameters=params,
+    )
+
+
+# ------------------------------------------------------------------------------------
+# generic
+def generic(A: Any, B1: Any, B2: Any, C: Any) -> VehicleModel:
+    """Any linear model: A (p x p), B1 (p x q), B2 (p x r), C (s x p); no units."""
+    A = as_matrix("A", A)
+    p = A.shape[0]
+    A = as_matrix("A", A, (p, p))
+    B1 = as_matrix("B1", B1, (p, None))
+    B2 = as_matrix("B2", B2, (p, None))
+    C = as_matrix("C", C, (None, p))
+
+    def names(prefix: str, k: int) -> tuple[str, ...]:
+        return tuple(f"{prefix}{i + 1}" for i in range(k))
+
+    q, r, s = B1.shape[1], B2.shape[1], C.shape[0]
+    return VehicleModel(
+        name="generic", A=A, B1=B1, B2=B2, C=C,
+        state_names=names("x", p), state_units=("",) * p,
+        input_names=names("u", q), input_units=("",) * q,
+        disturbance_names=names("w", r), disturbance_units=("",) * r,
+        output_names=names("y", s), output_units=("",) * s,
+        position_states=None,
+        parameters={"A": A.tolist(), "B1": B1.tolist(), "B2": B2.tolist(), "C": C.tolist()},
+    )
+
+
+_REMUS_KEYS = ("mass", "added_mass", "time_constant", "drag_coefficient", "cruise_speed")
+_GENERIC_KEYS = ("A", "B1", "B2", "C")
+
+
+def make_vehicle(model: str, params: Mapping[str, Any], where: str) -> VehicleModel:
+    """Build a vehicle model by name from a parameter mapping (e.g. a scenario table).
+
+    ``model`` is one of :data:`VEHICLE_MODELS`; ``params`` holds the keyword arguments of
+    :func:`remus100` (all optional) or of :func:`generic` (all required). ``where`` (e.g.
+    "vehicle 3") prefixes every error message.
+    """
+    if model not in VEHICLE_MODELS:
+        raise ModelError(
+            f"{where}: unknown vehicle model {model!r}; known models: {', '.join(VEHICLE_MODELS)}"
+        )
+    if not isinstance(params, Mapping):
+        raise ModelError(f"{where}: the {model} parameters must be a table, got {params!r}")
+    accepted = _REMUS_KEYS if model == "remus100" else _GENERIC_KEYS
+    unknown = sorted(str(k) for k in params if k not in accepted)
+    if unknown:
+        raise ModelError(
+            f"{where}: unknown {model} parameter(s) {', '.join(unknown)}; "
+            f"accepted: {', '.join(accepted)}"
+        )
+    try:
+        if model == "remus100":
+            return remus100(**dict(params))
+        missing = [k for k in _GENERIC_KEYS if k not in params]
+        if missing:
+            raise ModelError(f"missing generic matrices: {', '.join(missing)}")
+        return generic(**dict(params))
+    except ModelError as exc:
+        raise ModelError(f"{where}: {exc}") from None
+
+
+# ------------------------------------------------------------------------------------
+# leader and formation in the vehicle's state space
+def leader_state_map(model: VehicleModel, H_leader: Any, F_leader: Any) -> np.ndarray:
+    """T (p x l) with x_0 = T z: the virtual leader's state in the vehicle's state space.
+
+    The leader's exosystem is z' = F z with position H z. For ``remus100`` (output =
+    NED position, velocity states = position derivative) T = [H; H F]: position and
+    velocity of the leader path, so C T = H exactly; H must have 3 rows (n, e, d in m).
+    For ``generic`` T = pinv(C) H, the least-squares state with output H z (exact,
+    C T = H, when C has full row rank); H must have s rows.
+    """
+    F = as_matrix("leader F", F_leader)
+    l_ = F.shape[0]
+    F = as_matrix("leader F", F, (l_, l_))
+    if model.name == "remus100":
+        H = as_matrix("leader H", H_leader)
+        if H.shape[0] != 3:
+            raise ModelError(
+                f"leader H: wrong shape {H.shape[0]}x{H.shape[1]}, expected 3x{l_} "
+                "(a remus100 vehicle tracks the leader's north, east, down position)"
+            )
+        H = as_matrix("leader H", H, (3, l_))
+        return np.vstack([H, H @ F])
+    if model.name == "generic":
+        H = as_matrix("leader H", H_leader)
+        if H.shape[0] != model.s:
+            raise ModelError(
+                f"leader H: wrong shape {H.shape[0]}x{H.shape[1]}, expected {model.s}x{l_} "
+                f"(one row per vehicle output; the vehicle has {model.s})"
+            )
+        H = as_matrix("leader H", H, (model.s, l_))
+        return np.linalg.pinv(model.C) @ H
+    raise ModelError(f"leader_state_map: unknown vehicle model {model.name!r}")
+
+
+def state_offset(model: VehicleModel, offset: Any) -> np.ndarray:
+    """The formation offset delta_i (p,) in the vehicle's state space.
+
+    ``offset`` is the desired output offset d from the leader (for ``remus100`` the NED
+    position offset in m, giving delta = [d; 0, 0, 0]: same velocity as the leader). For
+    ``generic`` delta = pinv(C) d (least squares; C delta = d when C has full row rank).
+    """
+    if model.name == "remus100":
+        d = as_vector("formation offset", offset, 3)
+        return np.concatenate([d, np.zeros(3)])
+    if model.name == "generic":
+        d = as_vector("formation offset", offset, model.s)
+        return np.linalg.pinv(model.C) @ d
+    raise ModelError(f"state_offset: unknown vehicle model {model.name!r}")
