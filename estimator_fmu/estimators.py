@@ -87,6 +87,9 @@ class LinearEstimator:
     Bu: np.ndarray
     q0: np.ndarray
     uses_truth: bool
+    #: Kalman form (L, M): est = q + L (meas - M q), meas = mvec[:2p]; the same map as
+    #: Ce q + Dm mvec with Ce = I - L M, evaluated with fewer flops when 2p < n + r + l
+    gain: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         self.reset()
@@ -96,6 +99,9 @@ class LinearEstimator:
 
     def estimate(self, mvec: np.ndarray) -> np.ndarray:
         """est[k] from the current q[k] and the measurement vector mvec[k]."""
+        if self.gain is not None:
+            L, M = self.gain
+            return self.q + L @ (mvec[:M.shape[0]] - M @ self.q)
         return self.Ce @ self.q + self.Dm @ mvec
 
     def update(self, est: np.ndarray, u: np.ndarray) -> None:
@@ -135,7 +141,8 @@ def make_estimator(system: LinearSystem, model: DiscreteModel, mode: str) -> Lin
         Dm = np.zeros((ns, nm))
         Dm[:, :2 * p] = L
         return LinearEstimator(mode, Ce, Dm, model.Ad.copy(), model.Bd.copy(),
-                               system.initial_state(), uses_truth=False)
+                               system.initial_state(), uses_truth=False,
+                               gain=(L, model.M.copy()))
     if mode == "classical":
         for name, M, cols in (("C", system.C, n), ("H", system.H, l_)):
             rank = np.linalg.matrix_rank(M)

@@ -21,7 +21,7 @@ from .reference import run_monolithic
 from .scenario import Scenario
 from .workflow import build, scenario_config
 
-__all__ = ["benchmark"]
+__all__ = ["benchmark", "benchmark_fleet"]
 
 
 def _fmi_call_costs(fmus: dict[str, Path], cfg: dict[str, Any], reps: int = 20000) -> dict[str, float]:
@@ -95,3 +95,83 @@ def benchmark(sc: Scenario, mode: str = "kalman", seed: int = 0) -> dict[str, An
         "loadavg": list(os.getloadavg()),
         "cpus": os.cpu_count(),
     }
+
+
+def _model_description_bytes(fmu: Path) -> int:
+    import zipfile
+    with zipfile.ZipFile(fmu) as z:
+        return z.getinfo("modelDescription.xml").file_size
+
+
+def _instantiate_times(fmus: dict[str, Path], cfg: dict[str, Any]) -> dict[str, float]:
+    """Seconds to instantiate + initialize each FMU (extraction excluded)."""
+    ex = _Extracted(fmus)
+    out: dict[str, float] = {}
+    try:
+        for key in ("plant", "estimator", "controller"):
+            t = time.perf_counter()
+            inst = FmuInstance(key, fmus[key], ex.dirs[key], f"bench_{key}")
+            inst.initialize(fmu_parameters(key, cfg), T=cfg["T"])
+            out[key] = time.perf_counter() - t
+            inst.close()
+    finally:
+        ex.cleanup()
+    return out
+
+
+def benchmark_fleet(N: int, *, T: float = 300.0, mode: str = "kalman", tracking: str = "regulator",
+                    seed: int = 0) -> dict[str, Any]:
+    """Figures for a generated grid fleet of N REMUS 100 vehicles (orchestrator.fleet_generator):
+    design and filter-gain time, FMU build time and modelDescription size, instantiate +
+    initialize time, and the co-simulation loop against the monolithic loop (same process)."""
+    from controller_fmu.regulator import tracking_law
+    from estimator_fmu.estimators import make_estimator
+    from plant_model.discretization import discretize
+
+    from .fleet_generator import grid_fleet
+    from .scenario import scenario_from_dict
+
+    sc = scenario_from_dict(grid_fleet(N, T=T), f"generated grid fleet N = {N}")
+    sc = sc.with_run(estimator=mode, tracking=tracking)
+    t = time.perf_counter()
+    tracking_law(sc.system, tracking)
+    design_s = time.perf_counter() - t
+    t = time.perf_counter()
+    model = discretize(sc.system, sc.h)
+    sampling_s = time.perf_counter() - t
+    t = time.perf_counter()
+    make_estimator(sc.system, model, mode)
+    filter_s = time.perf_counter() - t
+    cfg = scenario_config(sc)
+    with tempfile.TemporaryDirectory(prefix="auv_bench_") as tmp:
+        t = time.perf_counter()
+        fmus = build(sc, Path(tmp) / "fmus")
+        build_s = time.perf_counter() - t
+        md_bytes = {k: _model_description_bytes(p) for k, p in fmus.items()}
+        n_vars = {k: sum(1 for _ in _variables(p)) for k, p in fmus.items()}
+        init_s = _instantiate_times(fmus, cfg)
+        res = run_cosimulation(fmus, cfg, mode=mode, seed=seed, steps=sc.steps, tracking=tracking)
+        calls = _fmi_call_costs(fmus, cfg, reps=2000)
+    timing: dict[str, float] = {}
+    ref = run_monolithic(sc.system, sc.h, mode, seed, sc.steps, tracking, timing=timing)
+    err = max(float(np.max(np.abs(ref[k] - res.traces[k]))) for k in ref)
+    d = sc.system.dims
+    return {
+        "N": N, "steps": sc.steps, "h": sc.h, "T": sc.T, "mode": mode, "tracking": tracking,
+        "dims": d, "state_size": d["n"] + d["r"] + d["l"],
+        "design_s": design_s, "sampling_s": sampling_s, "filter_gain_s": filter_s,
+        "build_s": build_s, "model_description_bytes": md_bytes, "variables": n_vars,
+        "instantiate_initialize_s": init_s,
+        "cosim_loop_s": res.loop_s, "cosim_us_per_step": res.loop_s / sc.steps * 1e6,
+        "monolithic_loop_s": timing["loop_s"], "monolithic_setup_s": timing["setup_s"],
+        "monolithic_us_per_step": timing["loop_s"] / sc.steps * 1e6,
+        "ratio_loop": res.loop_s / timing["loop_s"],
+        "fmi_overhead_us_per_step": (res.loop_s - timing["loop_s"]) / sc.steps * 1e6,
+        "fmi_calls": calls, "max_abs_difference": err,
+        "loadavg": list(os.getloadavg()), "cpus": os.cpu_count(),
+    }
+
+
+def _variables(fmu: Path):
+    from fmpy import read_model_description
+    return read_model_description(str(fmu)).modelVariables

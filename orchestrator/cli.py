@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
+from controller_fmu.regulator import TRACKING_MODES
 from estimator_fmu.estimators import ESTIMATOR_MODES
 from plant_model.linalg_checks import ModelError
 
@@ -54,7 +55,8 @@ def _positive(text: str) -> float:
 def _scenario(args: argparse.Namespace) -> Scenario:
     sc = load_scenario(args.scenario)
     return sc.with_run(T=getattr(args, "T", None), h=getattr(args, "h", None),
-                       seed=getattr(args, "seed", None), estimator=getattr(args, "estimator", None))
+                       seed=getattr(args, "seed", None), estimator=getattr(args, "estimator", None),
+                       tracking=getattr(args, "tracking", None))
 
 
 def _print_summary(summary: dict) -> None:
@@ -66,9 +68,15 @@ def _print_summary(summary: dict) -> None:
     for name, m in summary["methods"].items():
         c = m["cost_rate"]
         pred = "n/a" if c["predicted"] is None else f"{c['predicted']:.4g}"
-        rms = ", ".join(
-            f"{a:.3g}/{'n/a' if b is None else format(b, '.3g')}"
-            for a, b in zip(m["rms_e"]["mean"], m["rms_e"]["predicted"] or [None] * len(m["rms_e"]["mean"])))
+        sim_e, pred_e = m["rms_e"]["mean"], m["rms_e"]["predicted"]
+        if len(sim_e) <= 4:
+            rms = ", ".join(
+                f"{a:.3g}/{'n/a' if b is None else format(b, '.3g')}"
+                for a, b in zip(sim_e, pred_e or [None] * len(sim_e)))
+        else:       # a fleet: the worst component, and the noise-free (steady) error
+            steady = m.get("steady_error", {}).get("max_rms_e_without_noise_predicted")
+            rms = (f"max {max(sim_e):.3g}/{'n/a' if not pred_e else format(max(pred_e), '.3g')}"
+                   + ("" if steady is None else f"; steady error (noise-free RMS) {steady:.3g}"))
         print(f"{name:>10s} {c['mean']:12.4g} {c['std']:9.2g} {pred:>10s}   {rms}")
     print(f"wrote {summary['rrd']['path']} (open it with: rerun {summary['rrd']['path']}) and "
           f"{Path(summary['rrd']['path']).parent / 'summary.json'}; wall time {summary['wall_s']:.1f} s")
@@ -99,8 +107,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from .workflow import simulate
     sc = _scenario(args)
     out = Path(args.out or f"out/{sc.name}_compare")
-    _print_summary(simulate(sc, list(ESTIMATOR_MODES), args.seeds, out, progress=not args.quiet,
-                            log=(lambda s: None) if args.quiet else print))
+    what = args.what or ("tracking" if sc.fleet is not None else "estimators")
+    modes, trackings = ((list(ESTIMATOR_MODES), None) if what == "estimators"
+                        else (None, list(TRACKING_MODES)))
+    _print_summary(simulate(sc, modes, args.seeds, out, progress=not args.quiet,
+                            log=(lambda s: None) if args.quiet else print, trackings=trackings))
     return 0
 
 
@@ -169,6 +180,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("build", help="build the three FMUs (default into fmus/)")
     common(sp)
     sp.add_argument("--out", default=str(ROOT / "fmus"), help="output folder (default: fmus/)")
+    sp.add_argument("--tracking", choices=TRACKING_MODES,
+                    help="the controller FMU's default tracking law (default: scenario's)")
     sp.set_defaults(func=cmd_build)
 
     sp = sub.add_parser("run", help="co-simulate one estimator mode, write .rrd and summary.json")
@@ -179,8 +192,15 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
     sp.set_defaults(func=cmd_run)
 
-    sp = sub.add_parser("compare", help="the three estimator modes on the same noise and seeds")
+    sp.add_argument("--tracking", choices=TRACKING_MODES,
+                    help="tracking law: lq (the paper) or regulator (default: scenario's)")
+
+    sp = sub.add_parser("compare", help="the three estimator modes (or, for a fleet, the two "
+                                        "tracking laws) on the same noise and seeds")
     common(sp)
+    sp.add_argument("--what", choices=("estimators", "tracking"),
+                    help="compare the estimator modes (default for a single system) or the "
+                         "tracking laws lq and regulator (default for a fleet)")
     sp.add_argument("--seeds", type=parse_seeds, default=list(range(10)),
                     help="seeds: '0-9' (default), '1,4,7' or one seed")
     sp.add_argument("--out", help="output folder (default: out/<scenario>_compare)")
@@ -196,6 +216,7 @@ def build_parser() -> argparse.ArgumentParser:
     common(sp)
     sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="estimator mode (default: kalman)")
     sp.add_argument("--seed", type=int, help="noise seed")
+    sp.add_argument("--tracking", choices=TRACKING_MODES, help="tracking law")
     sp.add_argument("--json", action="store_true", help="print the figures as JSON")
     sp.set_defaults(func=cmd_bench)
     return p

@@ -60,10 +60,15 @@ def is_fleet_scenario(data: dict[str, Any]) -> bool:
 
 
 def _rows(section: str, key: str, value: Any, count: int, width: int | None) -> list[list[float]]:
-    arr = np.asarray(value, dtype=float) if not isinstance(value, str) else None
+    want = f"{count} rows" + (f" of {width}" if width else "")
+    try:
+        arr = np.asarray(value, dtype=float) if not isinstance(value, str) else None
+    except (TypeError, ValueError):
+        # ragged rows or non-numbers: numpy's own message names neither section nor key
+        raise _Err(section, f"{key} must have one row per vehicle ({want}) of numbers; "
+                            f"got {value!r}") from None
     if arr is None or arr.ndim != 2 or arr.shape[0] != count or (width and arr.shape[1] != width):
         got = "a string" if arr is None else f"shape {arr.shape}"
-        want = f"{count} rows" + (f" of {width}" if width else "")
         raise _Err(section, f"{key} must have one row per vehicle ({want}); got {got}")
     if not np.all(np.isfinite(arr)):
         raise _Err(section, f"{key} has non-finite entries")

@@ -168,13 +168,15 @@ class _Extracted:
 
 
 def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str, seed: int,
-                     steps: int, progress: Any = False) -> RunResult:
+                     steps: int, progress: Any = False, tracking: str | None = None) -> RunResult:
     """Run the three FMUs for ``steps`` communication steps of ``config['h']``.
 
-    ``progress``: False, True (a progress bar shown after one second), or a shared
-    bar object with ``update(n)``.
+    ``mode``: the estimator mode; ``tracking``: the controller's law ('lq' or 'regulator',
+    default the configuration's). ``progress``: False, True (a progress bar shown after one
+    second), or a shared bar object with ``update(n)``.
     """
-    cfg = dict(config, mode=mode, seed=int(seed))
+    cfg = dict(config, mode=mode, seed=int(seed),
+               tracking=tracking or config.get("tracking", "lq"))
     h = float(cfg["h"])
     d = cfg["dims"]
     n, m, r, p, l_ = d["n"], d["m"], d["r"], d["p"], d["l"]

@@ -10,6 +10,12 @@ step eta = [v; n; n_z] with covariance W = blkdiag(Qd, Rd), independent of X[k]:
 Stationary covariance: Sigma = Phi Sigma Phi' + Gam W Gam' (scipy's
 ``solve_discrete_lyapunov``), so E[e e'] = E Sigma_ss E', E[u u'] = Gx Sigma Gx' +
 Geta W Geta', and the cost rate J/T = tr(Q E[e e']) + tr(R E[u u']) at the sample instants.
+
+A planned leader path (reference states without noise, known to the estimator) never
+settles: its states and their exact estimates are deterministic and are left out of the
+Lyapunov equation (their deviation from the mean is zero). Their effect is the mean
+motion X_mean[k] = Phi^k X(0); with a statistics window [k0, K) the prediction adds the
+window average of e_mean' Q e_mean + u_mean' R u_mean, and E[e e'] = Cov + mean mean'.
 """
 from __future__ import annotations
 
@@ -22,7 +28,7 @@ from estimator_fmu.estimators import LinearEstimator
 from plant_model.discretization import DiscreteModel
 from plant_model.system import LinearSystem
 
-__all__ = ["Prediction", "closed_loop", "predict_stationary"]
+__all__ = ["Prediction", "closed_loop", "deterministic_states", "predict_stationary"]
 
 
 @dataclass(frozen=True)
@@ -35,6 +41,9 @@ class Prediction:
     spectral_radius: float
     settling_time: float          #: 5 time constants of the slowest closed-loop mode (s)
     reason: str | None = None     #: why there is no stationary prediction
+    #: with a window: RMS over the window of the noise-free error (the steady-state error
+    #: the law leaves on a persistent reference), per component
+    rms_e_mean: list[float] | None = None
 
 
 def closed_loop(model: DiscreteModel, est: LinearEstimator, Ks: np.ndarray):
@@ -61,24 +70,70 @@ def closed_loop(model: DiscreteModel, est: LinearEstimator, Ks: np.ndarray):
     return Phi, Gam, Gx, Geta
 
 
+def deterministic_states(system: LinearSystem, model: DiscreteModel,
+                         est: LinearEstimator) -> np.ndarray:
+    """Mask over the closed-loop state [s; q] of the planned-path reference states and
+    (for the Kalman estimator, whose q is a copy of s) their exact estimates."""
+    ns = model.ns
+    known = np.zeros(ns, dtype=bool)
+    known[system.n + system.r:] = system.known_reference_mask()
+    nq = est.q0.shape[0]
+    q_known = known.copy() if nq == ns else np.zeros(nq, dtype=bool)
+    return np.concatenate([known, q_known])
+
+
 def predict_stationary(system: LinearSystem, model: DiscreteModel, est: LinearEstimator,
-                       Ks: np.ndarray) -> Prediction:
-    """Stationary RMS of each e and u component and the cost rate of the closed loop."""
+                       Ks: np.ndarray, window: tuple[int, int] | None = None,
+                       x0: np.ndarray | None = None) -> Prediction:
+    """RMS of each e and u component and the cost rate of the closed loop.
+
+    Without ``window``: the stationary (noise-driven) part only. With ``window`` = (k0, K)
+    the mean motion from the initial state over samples k0..K-1 is added (needed when the
+    reference is a planned path that never settles).
+    """
     Phi, Gam, Gx, Geta = closed_loop(model, est, Ks)
+    D = deterministic_states(system, model, est)
+    R = ~D
+    PhiR = Phi[np.ix_(R, R)]
+    # settling: every mode when all decay; else the noise-driven modes (a planned path
+    # never settles, its mean motion is accounted for through ``window``)
     rho = float(np.max(np.abs(np.linalg.eigvals(Phi)))) if Phi.size else 0.0
+    if rho >= 1.0:
+        rho = float(np.max(np.abs(np.linalg.eigvals(PhiR)))) if PhiR.size else 0.0
     if rho >= 1.0:
         return Prediction(None, None, None, rho, float("inf"),
                           reason=f"the closed loop (with its exosystems) is not stationary: "
                                  f"spectral radius {rho:.6g} >= 1")
     tau = -model.h / np.log(rho) if rho > 0 else model.h
     W = block_diag(model.Qd, model.Rd)
-    Sigma = solve_discrete_lyapunov(Phi, Gam @ W @ Gam.T)
+    Sigma = np.zeros_like(Phi)
+    GR = Gam[R]
+    Sigma[np.ix_(R, R)] = solve_discrete_lyapunov(PhiR, GR @ W @ GR.T)
     ns = model.ns
     See = model.E @ Sigma[:ns, :ns] @ model.E.T
     Suu = Gx @ Sigma @ Gx.T + Geta @ W @ Geta.T
+    if window is not None:
+        k0, K = window
+        X = np.concatenate([system.initial_state(), est.q0]) if x0 is None else x0.copy()
+        Eb = np.zeros((model.E.shape[0], Phi.shape[0]))
+        Eb[:, :ns] = model.E
+        ee = np.zeros_like(See)
+        uu = np.zeros_like(Suu)
+        for k in range(K):
+            if k >= k0:
+                e, u = Eb @ X, Gx @ X
+                ee += np.outer(e, e)
+                uu += np.outer(u, u)
+            X = Phi @ X
+        See = See + ee / max(K - k0, 1)
+        Suu = Suu + uu / max(K - k0, 1)
+        rms_e_mean = np.sqrt(np.diag(ee) / max(K - k0, 1)).tolist()
+    else:
+        rms_e_mean = None
     cost = float(np.trace(system.Q @ See) + np.trace(system.R @ Suu))
     return Prediction(
         rms_e=np.sqrt(np.clip(np.diag(See), 0, None)).tolist(),
         rms_u=np.sqrt(np.clip(np.diag(Suu), 0, None)).tolist(),
         cost_rate=cost, spectral_radius=rho, settling_time=float(5 * tau),
+        rms_e_mean=rms_e_mean,
     )

@@ -1,7 +1,11 @@
 """Write simulation traces to a Rerun .rrd file (rerun-sdk 0.41) and read them back.
 
-Layout of the file written by :func:`write_rrd` (components are 1-based, ``{m}`` is the
-method name, e.g. ``kalman``, ``classical``, ``ideal``):
+Two layouts: the per-component ("paper") layout below, written when no ``fleet`` is given,
+and the compact per-vehicle fleet layout further down, written *instead* when a
+:class:`FleetLayout` is given.
+
+Paper layout (no ``fleet``; components are 1-based, ``{m}`` is the method name, e.g.
+``kalman``, ``classical``, ``ideal``):
 
 ====================================  ==================  =================================
 entity path                           trace               series name
@@ -27,49 +31,79 @@ The file embeds a default blueprint: a grid of time-series views ``error-i``, ``
 ``control-i``, ``disturbance-i``, ``reference-i`` whose origins are ``/error/i`` etc., so each
 view overlays every method (and the true/estimate pair) of that component.
 
+Decimation (``stride``, both layouts)
+-------------------------------------
+Only the steps k = 0, stride, 2*stride, ... (k < steps) are recorded; the time columns still
+hold the true step index k and k * round(h * 1e9) ns, so a reader sees the true times.  The
+last step is recorded only if it falls on the stride.  ``stride=1`` (default) records every
+step.
+
 Fleet of N vehicles (``write_rrd(..., fleet=FleetLayout(...))``)
 -----------------------------------------------------------------
-Everything above is still written; in addition (vehicles ``i``/``j`` are 1-based, ``{name}``
-one of ``error_names`` / ``control_names``, ``L`` = ``leader_output``, ``p_i(k)`` =
-``x[k, position_index[i-1]]``, the vehicle's north, east, down position in m):
+The paper layout above is *not* written (at N = 20 it is hundreds of one-scalar series, and
+most of the file).  Instead every vehicle gets a few multi-component entities: one
+``send_columns`` per entity whose ``rr.Scalars`` rows hold all components of that vehicle
+(row k = the k-th recorded step), and a static ``rr.SeriesLines`` with one name and colour
+per component, so the viewer draws each component as its own line.  Vehicles ``i`` / ``j``
+are 1-based, ``{m}`` is the method, ``E`` = ``error_index[i-1]``, ``C`` = ``control_index[i-1]``,
+``S`` = ``state_index[i-1]``, ``D`` = ``disturbance_index[i-1]``, ``L`` = ``leader_output``,
+``p_i(k)`` = ``x[k, position_index[i-1]]``, the vehicle's north, east, down position in m:
 
-=====================================  ===============  ==========================================
-entity path                            archetype        content per sample
-=====================================  ===============  ==========================================
-``vehicles/{i}/error/{name}/{m}``      Scalars          ``e[:, error_index[i-1, c]]``, series
-                                                        ``{m} {name}``
-``vehicles/{i}/control/{name}/{m}``    Scalars          ``u[:, control_index[i-1, c]]``, series
-                                                        ``{m} {name}``
-``world``, ``world/{m}``               ViewCoordinates  static ``FRD``: x north, y east, z down
-``world/{m}/vehicles``                 Points3D         N points ``p_1(k) .. p_N(k)``, labels
-                                                        ``"1" .. "N"``, radius 1 m
-``world/{m}/leader``                   Points3D         1 point ``L @ z[k]``, label ``leader``
-``world/{m}/targets``                  Points3D         N points ``L @ z[k] + offsets[i-1]``
-``world/{m}/edges``                    LineStrips3D     one segment ``[p_j(k), p_i(k)]`` per edge
-                                                        ``(j, i)`` (in ``edges`` order), then one
-                                                        ``[L @ z[k], p_i(k)]`` per pinned ``i``
-``world/{m}/trails``                   LineStrips3D     N segments ``[p_i(k'), p_i(k)]``, written
-                                                        only every ``trail_sample_seconds``
-                                                        (k' the previous trail sample)
-=====================================  ===============  ==========================================
+=======================================  ===============  ========================================
+entity path                              archetype        content per recorded step k
+=======================================  ===============  ========================================
+``vehicles/{i}/error/{m}``               Scalars          ``e[k, E]``; lines ``{m} {error name}``
+``vehicles/{i}/control/{m}``             Scalars          ``u[k, C]``; lines ``{m} {control name}``
+``vehicles/{i}/state/{m}/true``          Scalars          ``x[k, S]``; lines ``{m} {state name}``
+``vehicles/{i}/state/{m}/estimate``      Scalars          ``xhat[k, S]``; lines
+                                                          ``{m} {state name} estimate``
+``vehicles/{i}/current/{m}/true``        Scalars          ``w[k, D]``; lines ``{m} {disturbance
+                                                          name}`` (only if ``disturbance_index``)
+``vehicles/{i}/current/{m}/estimate``    Scalars          ``what[k, D]``; lines ``... estimate``
+``leader/{m}``                           Scalars          ``L @ z[k]`` (3 values); lines
+                                                          ``{m} leader north|east|down``
+``world``, ``world/{m}``                 ViewCoordinates  static ``FRD``: x north, y east, z down
+``world/{m}/vehicles``                   Points3D         N points ``p_1(k) .. p_N(k)``, labels
+                                                          ``"1" .. "N"``, radius 1 m
+``world/{m}/leader``                     Points3D         1 point ``L @ z[k]``, label ``leader``
+``world/{m}/targets``                    Points3D         N points ``L @ z[k] + offsets[i-1]``
+``world/{m}/edges``                      LineStrips3D     one segment ``[p_j(k), p_i(k)]`` per edge
+                                                          ``(j, i)`` (in ``edges`` order), then one
+                                                          ``[L @ z[k], p_i(k)]`` per pinned ``i``;
+                                                          only every ``scene_stride`` steps
+``world/{m}/trails``                     LineStrips3D     N segments ``[p_i(k'), p_i(k)]``, only
+                                                          every trail stride steps (k' the
+                                                          previous trail sample)
+=======================================  ===============  ========================================
 
-The per-vehicle series take the method's colour for the first component and darker / lighter
-shades of it for the others, so the components of one method stay apart inside one view.
-All 3D entities are sent with ``send_columns`` (one partition per sample) on both timelines;
-styles (colours, radii, labels) are static.  Rerun stores 3D positions as float32, so what is
-read back equals the float64 positions cast to float32.  The trails are decimated to one
-segment per vehicle every ``trail_sample_seconds`` (default 0.5 s, never finer than h) to keep
-the file small; the 3D view shows them through a per-entity visible time range
+Colours: component c of a method takes shade c of the method colour (the colour itself, then
+darker / lighter shades), estimates a lighter version of the same shade, so the components of
+one method stay apart inside one view.  ``read_rrd_series`` / ``read_rrd_scalars`` read the
+(rows, k) values back; ``read_rrd_series_lines`` the per-component names and colours.
+
+3D scene.  All 3D entities are sent with ``send_columns`` (one partition per sample) on both
+timelines; styles (colours, radii, labels) are static.  Rerun stores 3D positions as float32,
+so what is read back equals the float64 positions cast to float32.  ``vehicles``, ``leader``
+and ``targets`` are written at every recorded step.  The slow, bulky parts are decimated:
+
+* trails: one segment per vehicle every *trail stride* =
+  stride * max(1, round(trail_sample_seconds / (stride * h))) steps (default
+  ``trail_sample_seconds`` 0.5 s), plus the last recorded step;
+* edges: every ``scene_stride`` steps (default: the trail stride; a multiple of ``stride``),
+  plus the last recorded step.  Between two edge samples the viewer shows the latest one, so
+  the edges may lag the vehicle points by up to ``scene_stride`` steps.
+
+The 3D view shows the trails through a per-entity visible time range
 ``[cursor - trail_seconds, cursor]`` on both ``sim_time`` and ``step`` (the other 3D entities
 show the latest sample at the cursor), so the trail follows the time cursor.
 
 Default blueprint with a fleet: ``Horizontal[left, right]``.  Left: the 3D view ``fleet {m}``
 (origin ``/world/{m}``) of the first method, or ``Tabs`` of one such view per method (first
 active).  Right: views ``vehicle i error`` (origin ``/vehicles/i/error``) and ``vehicle i
-control`` (origin ``/vehicles/i/control``) in a two-column ``Grid`` for N <= 8, or, for N > 8,
-``Tabs`` of such grids, one tab ``vehicles a-b`` per group of 4 vehicles.  The per-component
-grid of the no-fleet layout is left out (at N = 20 it would hold hundreds of views); its
-entities are still in the file.
+control`` (origin ``/vehicles/i/control``), each overlaying every method, in a two-column
+``Grid`` for N <= 8, or, for N > 8, ``Tabs`` of such grids, one tab ``vehicles a-b`` per group
+of 4 vehicles.  State, current and leader entities are in the file but not in the default
+views (drag them into a view in the viewer).
 """
 from __future__ import annotations
 
@@ -96,6 +130,8 @@ __all__ = [
     "read_rrd_line_strips",
     "read_rrd_points",
     "read_rrd_scalars",
+    "read_rrd_series",
+    "read_rrd_series_lines",
     "read_rrd_series_styles",
     "read_rrd_visible_time_ranges",
     "rrd_has_blueprint",
@@ -146,6 +182,8 @@ _PALETTE: tuple[tuple[int, int, int], ...] = (
 _STEP = "step"
 _SIM_TIME = "sim_time"
 _SCALARS_COLUMN = "Scalars:scalars"
+#: Names of the three NED position components (leader series, default state names).
+_POSITION_NAMES: tuple[str, ...] = ("north", "east", "down")
 
 
 def _lighter(rgb: tuple[int, int, int], amount: float = 0.5) -> tuple[int, int, int]:
@@ -196,6 +234,17 @@ class FleetLayout:
     edges: tuple[tuple[int, int], ...]
     #: 1-based vehicles that hear the leader.
     pinned: tuple[int, ...]
+    #: (N, p) int: columns of x (and xhat) belonging to vehicle i, in the order of
+    #: ``state_names`` (the position columns and the vehicle's other states).  None: the
+    #: ``position_index`` columns, named ``state_names`` or ("north", "east", "down").
+    state_index: np.ndarray | None = None
+    #: p labels of the state components, e.g. ("north", "east", "down", "u", "v", "w").
+    state_names: tuple[str, ...] | None = None
+    #: (N, r) int: columns of w (and what) belonging to vehicle i, in the order of
+    #: ``disturbance_names`` (e.g. the vehicle's current states).  None: no current entities.
+    disturbance_index: np.ndarray | None = None
+    #: r labels of the disturbance components, e.g. ("n", "e", "d").
+    disturbance_names: tuple[str, ...] | None = None
 
     @property
     def n_vehicles(self) -> int:
@@ -217,6 +266,10 @@ class _Fleet:
     offsets: np.ndarray          # (N, 3) float64
     edges: np.ndarray            # (E, 2) int64, 0-based (j, i)
     pinned: np.ndarray           # (P,) int64, 0-based
+    state_index: np.ndarray      # (N, p) int64
+    state_names: tuple[str, ...]
+    disturbance_index: np.ndarray | None  # (N, r) int64, or None: no current entities
+    disturbance_names: tuple[str, ...]
 
 
 def _index_array(value: object, field: str, cols: int | None) -> np.ndarray:
@@ -279,15 +332,35 @@ def _validate_fleet(fleet: FleetLayout, clean: dict[str, dict[str, np.ndarray]])
         raise ValueError("write_rrd: fleet.position_index has no rows: the fleet has no vehicles")
     err = _index_array(fleet.error_index, "error_index", None)
     ctl = _index_array(fleet.control_index, "control_index", None)
-    for arr, field in ((err, "error_index"), (ctl, "control_index")):
-        if arr.shape[0] != n:
+    sta = pos if fleet.state_index is None else _index_array(fleet.state_index, "state_index", None)
+    dis = None if fleet.disturbance_index is None else _index_array(
+        fleet.disturbance_index, "disturbance_index", None)
+    for arr, field in ((err, "error_index"), (ctl, "control_index"), (sta, "state_index"),
+                       (dis, "disturbance_index")):
+        if arr is not None and arr.shape[0] != n:
             raise ValueError(f"write_rrd: fleet.{field} has {arr.shape[0]} rows, but fleet.position_index "
                              f"has {n} (one row per vehicle)")
     _check_columns(pos, "position_index", clean, "x")
     _check_columns(err, "error_index", clean, "e")
     _check_columns(ctl, "control_index", clean, "u")
+    if fleet.state_index is not None:
+        _check_columns(sta, "state_index", clean, "x")
+    _check_columns(sta, "state_index" if fleet.state_index is not None else "position_index", clean, "xhat")
     error_names = _check_names(fleet.error_names, "error_names", err.shape[1], "error_index")
     control_names = _check_names(fleet.control_names, "control_names", ctl.shape[1], "control_index")
+    if fleet.state_index is None and fleet.state_names is None:
+        state_names: tuple[str, ...] = _POSITION_NAMES
+    else:
+        state_names = _check_names(fleet.state_names, "state_names", sta.shape[1],
+                                   "state_index" if fleet.state_index is not None else "position_index")
+    disturbance_names: tuple[str, ...] = ()
+    if dis is not None:
+        _check_columns(dis, "disturbance_index", clean, "w")
+        _check_columns(dis, "disturbance_index", clean, "what")
+        disturbance_names = _check_names(fleet.disturbance_names, "disturbance_names", dis.shape[1],
+                                         "disturbance_index")
+    elif fleet.disturbance_names is not None:
+        raise ValueError("write_rrd: fleet.disturbance_names is given without fleet.disturbance_index")
 
     try:
         lead = np.asarray(fleet.leader_output, dtype=np.float64)
@@ -322,6 +395,8 @@ def _validate_fleet(fleet: FleetLayout, clean: dict[str, dict[str, np.ndarray]])
         leader_output=lead.copy(), offsets=offsets.copy(),
         edges=np.asarray(edges, dtype=np.int64).reshape(-1, 2),
         pinned=np.asarray(pinned, dtype=np.int64),
+        state_index=sta, state_names=state_names,
+        disturbance_index=dis, disturbance_names=disturbance_names,
     )
 
 
@@ -460,21 +535,47 @@ def _fleet_blueprint(methods: list[str], n: int, trail_ns: int, trail_steps: int
     )
 
 
+def _send_block(rec: rr.RecordingStream, entity: str, values: np.ndarray, names: list[str],
+                colors: list[tuple[int, int, int]], indexes: list[rr.TimeColumn]) -> int:
+    """One multi-component series entity: static SeriesLines (one name/colour per column of
+    ``values``) and one ``send_columns`` whose rows hold all k components.  Returns k."""
+    rec.log(entity, rr.SeriesLines(colors=colors, names=names), static=True)
+    rec.send_columns(entity, indexes=indexes,
+                     columns=rr.Scalars.columns(scalars=np.ascontiguousarray(values, dtype=np.float64)))
+    return values.shape[1]
+
+
 def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray], fleet: _Fleet,
-                       base: tuple[int, int, int], indexes: list[rr.TimeColumn]) -> int:
-    """Per-vehicle error and control series of one run; returns the number of series."""
+                       base: tuple[int, int, int], stride: int, indexes: list[rr.TimeColumn]) -> int:
+    """Per-vehicle multi-component series and the leader series of one run (recorded steps
+    only); returns the number of scalar lines (components) written."""
+    rec_traces = {key: traces[key][::stride] for key in ("e", "u", "x", "xhat", "w", "what", "z")}
+
+    def shades(count: int, estimate: bool = False) -> list[tuple[int, int, int]]:
+        return [_lighter(_shade(base, c)) if estimate else _shade(base, c) for c in range(count)]
+
+    groups: list[tuple[str, str, np.ndarray, tuple[str, ...], str, bool]] = [
+        ("e", "error/{m}", fleet.error_index, fleet.error_names, "", False),
+        ("u", "control/{m}", fleet.control_index, fleet.control_names, "", False),
+        ("x", "state/{m}/true", fleet.state_index, fleet.state_names, "", False),
+        ("xhat", "state/{m}/estimate", fleet.state_index, fleet.state_names, " estimate", True),
+    ]
+    if fleet.disturbance_index is not None:
+        groups += [
+            ("w", "current/{m}/true", fleet.disturbance_index, fleet.disturbance_names, "", False),
+            ("what", "current/{m}/estimate", fleet.disturbance_index, fleet.disturbance_names, " estimate", True),
+        ]
     signals = 0
-    for key, group, index, names in (("e", "error", fleet.error_index, fleet.error_names),
-                                     ("u", "control", fleet.control_index, fleet.control_names)):
-        arr = traces[key]
-        for c, name in enumerate(names):
-            style = rr.SeriesLines(colors=[_shade(base, c)], names=[f"{method} {name}"])
-            for i in range(1, fleet.n + 1):
-                entity = f"vehicles/{i}/{group}/{name}/{method}"
-                rec.log(entity, style, static=True)
-                rec.send_columns(entity, indexes=indexes, columns=rr.Scalars.columns(
-                    scalars=np.ascontiguousarray(arr[:, index[i - 1, c]])))
-                signals += 1
+    for key, template, index, names, suffix, is_estimate in groups:
+        arr = rec_traces[key]
+        line_names = [f"{method} {name}{suffix}" for name in names]
+        colors = shades(len(names), is_estimate)
+        for i in range(1, fleet.n + 1):
+            signals += _send_block(rec, f"vehicles/{i}/{template.format(m=method)}", arr[:, index[i - 1]],
+                                   line_names, colors, indexes)
+    leader = rec_traces["z"] @ fleet.leader_output.T  # (rows, 3)
+    signals += _send_block(rec, f"leader/{method}", leader, [f"{method} leader {c}" for c in _POSITION_NAMES],
+                           shades(3), indexes)
     return signals
 
 
@@ -483,64 +584,84 @@ def _time_columns(k: np.ndarray, h_ns: int) -> list[rr.TimeColumn]:
             rr.TimeColumn(_SIM_TIME, duration=(k * h_ns).astype("timedelta64[ns]"))]
 
 
+def _sample_steps(steps: int, every: int, last: int) -> np.ndarray:
+    """Steps 0, every, 2*every, ... (< steps), then ``last`` if it is not among them."""
+    ks = np.arange(0, steps, every, dtype=np.int64)
+    if ks[-1] != last:
+        ks = np.append(ks, last)
+    return ks
+
+
 def _send_fleet_world(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray], fleet: _Fleet,
-                      indexes: list[rr.TimeColumn], h_ns: int, trail_stride: int) -> None:
+                      h_ns: int, stride: int, scene_stride: int, trail_stride: int) -> None:
     """The 3D scene of one run under ``world/{method}``: one partition per sample, no per-step logs."""
     n, steps = fleet.n, traces["x"].shape[0]
     root = f"world/{method}"
     colors = _vehicle_colors(n)
-    pos = traces["x"][:, fleet.position_index]                        # (steps, N, 3) float64
-    leader = traces["z"] @ fleet.leader_output.T                      # (steps, 3)
-    targets = leader[:, None, :] + fleet.offsets[None, :, :]          # (steps, N, 3)
+    ks = np.arange(0, steps, stride, dtype=np.int64)                 # recorded steps
+    rows = ks.size
+    indexes = _time_columns(ks, h_ns)
+    pos_all = traces["x"][:, fleet.position_index]                    # (steps, N, 3) float64
+    lead_all = traces["z"] @ fleet.leader_output.T                    # (steps, 3)
+    pos, leader = pos_all[ks], lead_all[ks]
+    targets = leader[:, None, :] + fleet.offsets[None, :, :]          # (rows, N, 3)
 
     rec.log(root, rr.ViewCoordinates.FRD, static=True)
     rec.log(f"{root}/vehicles", rr.Points3D.from_fields(
         radii=[1.0], colors=colors, labels=[str(i) for i in range(1, n + 1)], show_labels=True), static=True)
     rec.send_columns(f"{root}/vehicles", indexes=indexes, columns=rr.Points3D.columns(
-        positions=pos.reshape(steps * n, 3).astype(np.float32)).partition(np.full(steps, n)))
+        positions=pos.reshape(rows * n, 3).astype(np.float32)).partition(np.full(rows, n)))
 
     rec.log(f"{root}/leader", rr.Points3D.from_fields(
         radii=[1.5], colors=[(255, 215, 0)], labels=["leader"], show_labels=True), static=True)
     rec.send_columns(f"{root}/leader", indexes=indexes, columns=rr.Points3D.columns(
-        positions=leader.astype(np.float32)).partition(np.ones(steps, dtype=np.int64)))
+        positions=leader.astype(np.float32)).partition(np.ones(rows, dtype=np.int64)))
 
     rec.log(f"{root}/targets", rr.Points3D.from_fields(
         radii=[0.5], colors=[tuple(_lighter(tuple(int(v) for v in c), 0.6)) for c in colors],
         show_labels=False), static=True)
     rec.send_columns(f"{root}/targets", indexes=indexes, columns=rr.Points3D.columns(
-        positions=targets.reshape(steps * n, 3).astype(np.float32)).partition(np.full(steps, n)))
+        positions=targets.reshape(rows * n, 3).astype(np.float32)).partition(np.full(rows, n)))
 
     n_edges, n_pinned = fleet.edges.shape[0], fleet.pinned.shape[0]
     n_seg = n_edges + n_pinned
     if n_seg:
-        seg = np.empty((steps, n_seg, 2, 3), dtype=np.float32)
-        seg[:, :n_edges, 0] = pos[:, fleet.edges[:, 0]]
-        seg[:, :n_edges, 1] = pos[:, fleet.edges[:, 1]]
-        seg[:, n_edges:, 0] = leader[:, None, :]
-        seg[:, n_edges:, 1] = pos[:, fleet.pinned]
+        es = _sample_steps(steps, scene_stride, int(ks[-1]))
+        e_rows = es.size
+        seg = np.empty((e_rows, n_seg, 2, 3), dtype=np.float32)
+        seg[:, :n_edges, 0] = pos_all[es][:, fleet.edges[:, 0]]
+        seg[:, :n_edges, 1] = pos_all[es][:, fleet.edges[:, 1]]
+        seg[:, n_edges:, 0] = lead_all[es][:, None, :]
+        seg[:, n_edges:, 1] = pos_all[es][:, fleet.pinned]
         rec.log(f"{root}/edges", rr.LineStrips3D.from_fields(
             radii=[0.15], colors=[(160, 160, 160)] * n_edges + [(255, 215, 0)] * n_pinned), static=True)
-        rec.send_columns(f"{root}/edges", indexes=indexes, columns=rr.LineStrips3D.columns(
-            strips=seg.reshape(steps * n_seg, 2, 3)).partition(np.full(steps, n_seg)))
+        rec.send_columns(f"{root}/edges", indexes=_time_columns(es, h_ns), columns=rr.LineStrips3D.columns(
+            strips=seg.reshape(e_rows * n_seg, 2, 3)).partition(np.full(e_rows, n_seg)))
 
     # Trails: one segment per vehicle from the previous trail sample to this one.
-    ks = np.arange(0, steps, trail_stride, dtype=np.int64)
-    if ks[-1] != steps - 1:
-        ks = np.append(ks, steps - 1)
-    if ks.size >= 2:
-        rows = ks.size - 1
-        seg = np.empty((rows, n, 2, 3), dtype=np.float32)
-        seg[:, :, 0] = pos[ks[:-1]]
-        seg[:, :, 1] = pos[ks[1:]]
+    ts = _sample_steps(steps, trail_stride, int(ks[-1]))
+    if ts.size >= 2:
+        t_rows = ts.size - 1
+        seg = np.empty((t_rows, n, 2, 3), dtype=np.float32)
+        seg[:, :, 0] = pos_all[ts[:-1]]
+        seg[:, :, 1] = pos_all[ts[1:]]
         rec.log(f"{root}/trails", rr.LineStrips3D.from_fields(radii=[0.2]), static=True)
-        rec.send_columns(f"{root}/trails", indexes=_time_columns(ks[1:], h_ns), columns=rr.LineStrips3D.columns(
-            strips=seg.reshape(rows * n, 2, 3), colors=np.tile(colors, (rows, 1))).partition(np.full(rows, n)))
+        rec.send_columns(f"{root}/trails", indexes=_time_columns(ts[1:], h_ns), columns=rr.LineStrips3D.columns(
+            strips=seg.reshape(t_rows * n, 2, 3), colors=np.tile(colors, (t_rows, 1))).partition(np.full(t_rows, n)))
+
+
+def _positive_int(value: object, name: str) -> int:
+    """A positive integer (Python or numpy int, not bool), or ValueError naming ``name``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or int(value) < 1:
+        raise ValueError(f"write_rrd: {name} must be a positive integer number of steps, got {value!r}")
+    return int(value)
 
 
 def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float, *,
               recording_name: str, application_id: str = "auv-cosim",
               fleet: FleetLayout | None = None, trail_seconds: float = 60.0,
-              trail_sample_seconds: float = 0.5) -> dict[str, float]:
+              trail_sample_seconds: float = 0.5, stride: int = 1,
+              scene_stride: int | None = None) -> dict[str, float]:
     """Write the traces of one or more runs to a Rerun .rrd file with a default blueprint.
 
     Parameters
@@ -561,35 +682,48 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
         Rerun application id (the default blueprint applies to this id).
     fleet:
         If given, the traces are those of a fleet of N vehicles laid out as described by the
-        :class:`FleetLayout`; per-vehicle error/control series and a 3D scene per run are
-        written in addition, and the default blueprint becomes the fleet layout (see the
-        module docstring).  Checked against the traces of every run.
+        :class:`FleetLayout`; the compact per-vehicle layout and a 3D scene per run are
+        written *instead of* the per-component layout, and the default blueprint becomes the
+        fleet layout (see the module docstring).  Checked against the traces of every run.
     trail_seconds:
         Length (s, > 0) of the vehicle trails in the 3D view: the trail entity is shown over
         the visible time range [cursor - trail_seconds, cursor].  Only used with ``fleet``.
     trail_sample_seconds:
         Spacing (s, > 0) of the trail samples: one trail segment per vehicle every
-        max(1, round(trail_sample_seconds / h)) steps (plus the last step).  Only used with
-        ``fleet``.
+        stride * max(1, round(trail_sample_seconds / (stride * h))) steps (plus the last
+        recorded step).  Only used with ``fleet``.
+    stride:
+        Record only every stride-th step (k = 0, stride, 2*stride, ...), a positive int.  The
+        time columns keep the true step index and sim_time.  Default 1: every step.
+    scene_stride:
+        Steps between two samples of the 3D edges (``world/{m}/edges``), a positive multiple
+        of ``stride``; default (None) the trail stride.  Only used with ``fleet``.
 
     Returns
     -------
     dict with ``rrd_s`` (wall-clock seconds spent writing, validation excluded),
-    ``signals`` (number of scalar series written, an int, per-vehicle series included) and
+    ``signals`` (number of scalar series written, an int: one per entity in the paper layout,
+    one per component, i.e. per line, of each multi-component entity in the fleet layout) and
     ``bytes`` (file size in bytes, an int).
 
     Raises
     ------
     ValueError
         If ``runs`` is empty, a run misses a trace key, a trace is not 2-D, step counts
-        differ, a method name is not a valid entity path part, or ``h`` is not positive;
-        or if ``fleet`` does not fit the traces (an index out of range, a wrong shape, an edge
-        or pinned vehicle that does not exist, ...) or ``trail_seconds`` /
-        ``trail_sample_seconds`` is not positive.  Nothing is written then.
+        differ, a method name is not a valid entity path part, ``h`` is not positive or
+        ``stride`` is not a positive integer; or if ``fleet`` does not fit the traces (an
+        index out of range, a wrong shape, an edge or pinned vehicle that does not exist,
+        ...), ``trail_seconds`` / ``trail_sample_seconds`` is not positive or
+        ``scene_stride`` is not a positive multiple of ``stride``.  Nothing is written then.
     RuntimeError
         If Rerun logging is disabled (e.g. ``RERUN=off``), since the file would be empty.
     """
     clean, steps, h_ns = _validate(runs, h)
+    stride = _positive_int(stride, "stride")
+    if scene_stride is not None:
+        scene_stride = _positive_int(scene_stride, "scene_stride")
+        if scene_stride % stride:
+            raise ValueError(f"write_rrd: scene_stride = {scene_stride} must be a multiple of stride = {stride}")
     path = Path(path)
     methods = list(clean)
     colors = method_color(methods)
@@ -601,7 +735,9 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
         trail_ns, sample_ns = (_positive_ns(v, name) for v, name in (
             (trail_seconds, "trail_seconds"), (trail_sample_seconds, "trail_sample_seconds")))
         trail_steps = -(-trail_ns // h_ns)  # ceil: the step range covers at least trail_seconds
-        trail_stride = max(1, round(sample_ns / h_ns))
+        trail_stride = stride * max(1, round(sample_ns / (stride * h_ns)))
+        if scene_stride is None:
+            scene_stride = trail_stride
         blueprint = _fleet_blueprint(methods, fleet_v.n, trail_ns, trail_steps)
 
     t0 = time.perf_counter()
@@ -615,28 +751,29 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
         rec.save(path, default_blueprint=blueprint)
         rec.send_recording_name(recording_name)
 
-        indexes = _time_columns(np.arange(steps, dtype=np.int64), h_ns)
-        if fleet_v is not None:
+        indexes = _time_columns(np.arange(0, steps, stride, dtype=np.int64), h_ns)
+        if fleet_v is None:
+            for method in methods:
+                base = colors[method]
+                light = _lighter(base)
+                for key, template, suffix, is_estimate in _SERIES:
+                    arr = clean[method][key]
+                    style = rr.SeriesLines(colors=[light if is_estimate else base],
+                                           names=[f"{method}{suffix}"])
+                    for i in range(1, arr.shape[1] + 1):
+                        entity = template.format(i=i, m=method)
+                        rec.log(entity, style, static=True)
+                        rec.send_columns(
+                            entity,
+                            indexes=indexes,
+                            columns=rr.Scalars.columns(scalars=np.ascontiguousarray(arr[::stride, i - 1])),
+                        )
+                        signals += 1
+        else:
             rec.log("world", rr.ViewCoordinates.FRD, static=True)
-        for method in methods:
-            base = colors[method]
-            light = _lighter(base)
-            for key, template, suffix, is_estimate in _SERIES:
-                arr = clean[method][key]
-                style = rr.SeriesLines(colors=[light if is_estimate else base],
-                                       names=[f"{method}{suffix}"])
-                for i in range(1, arr.shape[1] + 1):
-                    entity = template.format(i=i, m=method)
-                    rec.log(entity, style, static=True)
-                    rec.send_columns(
-                        entity,
-                        indexes=indexes,
-                        columns=rr.Scalars.columns(scalars=np.ascontiguousarray(arr[:, i - 1])),
-                    )
-                    signals += 1
-            if fleet_v is not None:
-                signals += _send_fleet_series(rec, method, clean[method], fleet_v, base, indexes)
-                _send_fleet_world(rec, method, clean[method], fleet_v, indexes, h_ns, trail_stride)
+            for method in methods:
+                signals += _send_fleet_series(rec, method, clean[method], fleet_v, colors[method], stride, indexes)
+                _send_fleet_world(rec, method, clean[method], fleet_v, h_ns, stride, scene_stride, trail_stride)
         rec.flush()
     finally:
         # Dropping the file sink finishes the file (footer + manifest) before returning.
@@ -656,12 +793,36 @@ def _int64_index(column: pa.Array | pa.ChunkedArray) -> np.ndarray:
     return np.asarray(column.to_numpy(zero_copy_only=False), dtype=np.int64)
 
 
+def _scalar_rows(scal: pa.Array, what: str) -> np.ndarray:
+    """A ``Scalars:scalars`` list column whose rows all hold k values as a (rows, k) float64 array."""
+    k = _uniform(_lengths(scal), f"{what}: scalars per row")
+    values = np.asarray(scal.flatten().to_numpy(zero_copy_only=False), dtype=np.float64)
+    if values.size != len(scal) * k:  # null rows
+        raise ValueError(f"{what}: has empty (null) rows")
+    return values.reshape(len(scal), k)
+
+
+def _merge_rows(pieces: list[tuple[np.ndarray, np.ndarray, np.ndarray]], what: str
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Concatenate (step, sim_time, values (rows, k)) pieces and sort them by step."""
+    _uniform(np.asarray([p[2].shape[1] for p in pieces]), f"{what}: scalars per row")
+    step = np.concatenate([p[0] for p in pieces])
+    sim_time = np.concatenate([p[1] for p in pieces])
+    values = np.concatenate([p[2] for p in pieces])
+    order = np.argsort(step, kind="stable")
+    return step[order], sim_time[order], values[order]
+
+
 def read_rrd_scalars(path: str | Path) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Read every scalar series of the recording in a .rrd file, without a viewer.
 
     Returns entity path (no leading slash, e.g. ``error/1/kalman``) -> (step as int64,
-    sim_time as int64 nanoseconds, values as float64), sorted by step.  Static data
-    (series styles, recording properties) is skipped.
+    sim_time as int64 nanoseconds, values as float64), sorted by step.  Values are 1-D
+    (rows,) for entities with one scalar per row (the paper layout) and (rows, k) for the
+    multi-component entities of the fleet layout (e.g. ``vehicles/1/error/kalman``) with
+    k > 1; :func:`read_rrd_series` always returns (rows, k).  Static data (series styles,
+    recording properties) is skipped.  Raises ValueError if an entity's rows hold different
+    numbers of scalars.
     """
     parts: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
     for chunk in RrdReader(path).stream():
@@ -674,22 +835,29 @@ def read_rrd_scalars(path: str | Path) -> dict[str, tuple[np.ndarray, np.ndarray
         entity = chunk.entity_path.lstrip("/")
         if _STEP not in names or _SIM_TIME not in names:
             raise ValueError(f"{path}: scalar chunk of {entity!r} lacks the step/sim_time timelines")
-        scal = batch.column(_SCALARS_COLUMN)
-        lengths = np.asarray(scal.value_lengths().fill_null(0).to_numpy(zero_copy_only=False))
-        if not np.all(lengths == 1):
-            raise ValueError(f"{path}: {entity!r} has rows with other than one scalar")
-        values = np.asarray(scal.flatten().to_numpy(zero_copy_only=False), dtype=np.float64)
+        values = _scalar_rows(batch.column(_SCALARS_COLUMN), f"{path}: {entity!r}")
         parts.setdefault(entity, []).append(
             (_int64_index(batch.column(_STEP)), _int64_index(batch.column(_SIM_TIME)), values))
 
     out: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     for entity, pieces in parts.items():
-        step = np.concatenate([p[0] for p in pieces])
-        sim_time = np.concatenate([p[1] for p in pieces])
-        values = np.concatenate([p[2] for p in pieces])
-        order = np.argsort(step, kind="stable")
-        out[entity] = (step[order], sim_time[order], values[order])
+        step, sim_time, values = _merge_rows(pieces, f"{path}: {entity!r}")
+        out[entity] = (step, sim_time, values[:, 0] if values.shape[1] == 1 else values)
     return out
+
+
+def read_rrd_series(path: str | Path, entity: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Read the scalar series of one entity (e.g. ``vehicles/2/state/kalman/true``).
+
+    Returns (step as int64, sim_time as int64 nanoseconds, values as float64 of shape
+    (rows, k)), sorted by step; column c is component c (the c-th series line).  Raises
+    KeyError if the entity has no scalars and ValueError if rows hold different numbers.
+    """
+    step, sim_time, cols = _entity_rows(path, entity, _SCALARS_COLUMN)
+    values = [_scalar_rows(col, f"{path}: {entity!r}") for col in cols]
+    offsets = np.cumsum([0] + [len(v) for v in values])
+    return _merge_rows([(step[a:b], sim_time[a:b], v) for a, b, v in zip(offsets[:-1], offsets[1:], values)],
+                       f"{path}: {entity!r}")
 
 
 def _entity_rows(path: str | Path, entity: str, column: str) -> tuple[np.ndarray, np.ndarray, list[pa.Array]]:
@@ -767,9 +935,15 @@ def read_rrd_line_strips(path: str | Path, entity: str) -> tuple[np.ndarray, np.
     return step[order], sim_time[order], strips[order]
 
 
-def read_rrd_series_styles(path: str | Path) -> dict[str, tuple[str, tuple[int, int, int, int]]]:
-    """Static series styles of a .rrd: entity path -> (series name, RGBA colour 0-255)."""
-    out: dict[str, tuple[str, tuple[int, int, int, int]]] = {}
+def _unpack_rgba(packed: int) -> tuple[int, int, int, int]:
+    packed = int(packed)  # 0xRRGGBBAA
+    return ((packed >> 24) & 0xFF, (packed >> 16) & 0xFF, (packed >> 8) & 0xFF, packed & 0xFF)
+
+
+def read_rrd_series_lines(path: str | Path) -> dict[str, tuple[tuple[str, ...], tuple[tuple[int, int, int, int], ...]]]:
+    """Static series styles of a .rrd, every line: entity path -> (series names, RGBA colours
+    0-255), one name and colour per component (one of each in the paper layout)."""
+    out: dict[str, tuple[tuple[str, ...], tuple[tuple[int, int, int, int], ...]]] = {}
     for chunk in RrdReader(path).stream():
         if not chunk.is_static:
             continue
@@ -778,11 +952,15 @@ def read_rrd_series_styles(path: str | Path) -> dict[str, tuple[str, tuple[int, 
         if "SeriesLines:names" not in names or "SeriesLines:colors" not in names:
             continue
         entity = chunk.entity_path.lstrip("/")
-        name = batch.column("SeriesLines:names").to_pylist()[-1][0]
-        packed = int(batch.column("SeriesLines:colors").to_pylist()[-1][0])  # 0xRRGGBBAA
-        rgba = ((packed >> 24) & 0xFF, (packed >> 16) & 0xFF, (packed >> 8) & 0xFF, packed & 0xFF)
-        out[entity] = (name, rgba)
+        out[entity] = (tuple(batch.column("SeriesLines:names").to_pylist()[-1]),
+                       tuple(_unpack_rgba(c) for c in batch.column("SeriesLines:colors").to_pylist()[-1]))
     return out
+
+
+def read_rrd_series_styles(path: str | Path) -> dict[str, tuple[str, tuple[int, int, int, int]]]:
+    """Static series styles of a .rrd: entity path -> (series name, RGBA colour 0-255) of the
+    first line of each entity (see :func:`read_rrd_series_lines` for every line)."""
+    return {entity: (names[0], colors[0]) for entity, (names, colors) in read_rrd_series_lines(path).items()}
 
 
 def read_rrd_blueprint_views(path: str | Path) -> dict[str, tuple[str, str]]:

@@ -21,8 +21,15 @@ __all__ = ["run_monolithic"]
 
 
 def run_monolithic(system: LinearSystem, h: float, mode: str, seed: int,
-                   steps: int, tracking: str = "lq") -> dict[str, np.ndarray]:
-    """Traces (row k = sample k) of the closed loop: y, ybar, x, w, z, e, xhat, what, zhat, u."""
+                   steps: int, tracking: str = "lq",
+                   timing: dict[str, float] | None = None) -> dict[str, np.ndarray]:
+    """Traces (row k = sample k) of the closed loop: y, ybar, x, w, z, e, xhat, what, zhat, u.
+
+    ``timing``, if given, receives ``setup_s`` (design, sampling, filter gains) and
+    ``loop_s`` (the noise draws and the time-stepping loop).
+    """
+    import time
+    t_setup = time.perf_counter()
     model = discretize(system, h)
     Ks = tracking_law(system, tracking).Ks
     n, r, l_, p, m = system.n, system.r, system.l, system.p, system.m
@@ -30,7 +37,6 @@ def run_monolithic(system: LinearSystem, h: float, mode: str, seed: int,
     C, H = system.C, system.H
     Kx, Kw, Kz = Ks[:, :n], Ks[:, n:nxw], Ks[:, nxw:]
     Ad, Bd = model.Ad, model.Bd
-    noise = NoiseStream.all_rows(model, seed, steps)
     if mode == "kalman":
         # one gain L on s = [x; w; z] from [y; ybar]; planned-path reference states
         # (no noise) are propagated, not filtered; the filter splits into [x; w] from y
@@ -58,6 +64,8 @@ def run_monolithic(system: LinearSystem, h: float, mode: str, seed: int,
            (("y", p), ("ybar", p), ("x", n), ("w", r), ("z", l_), ("e", p),
             ("xhat", n), ("what", r), ("zhat", l_), ("u", m))}
     s = system.initial_state()
+    t_loop = time.perf_counter()
+    noise = NoiseStream.all_rows(model, seed, steps)   # timed with the loop, as in the plant
     for k in range(steps):
         v, nm = noise[k, :ns], noise[k, ns:]
         x, w, z = s[:n], s[n:nxw], s[nxw:]
@@ -80,4 +88,7 @@ def run_monolithic(system: LinearSystem, h: float, mode: str, seed: int,
             pred = Ad @ filt + Bd @ u
         elif mode == "classical":
             what_ol = AK @ what_ol
+    if timing is not None:
+        timing["setup_s"] = t_loop - t_setup
+        timing["loop_s"] = time.perf_counter() - t_loop
     return out

@@ -113,7 +113,10 @@ def _fleet_scenario(data: dict[str, Any], where: str) -> Scenario:
         spec, sim = fleet_spec_from_dict(data)
     except ValueError as exc:
         section = getattr(exc, "section", "")
-        raise ScenarioError(f"{where}: {f'[{section}] ' if section else ''}{exc}") from None
+        msg = str(exc)
+        if section and msg.startswith(f"{section}: "):
+            msg = msg[len(section) + 2:]
+        raise ScenarioError(f"{where}: {f'[{section}] ' if section else ''}{msg}") from None
     for key in ("T", "h"):
         if key not in sim:
             raise ScenarioError(f"{where}: missing key(s) in [simulation]: {key}")
@@ -127,7 +130,10 @@ def _fleet_scenario(data: dict[str, Any], where: str) -> Scenario:
         spec = resolve_fleet_spec(spec)
     except ModelError as exc:
         section = section_of_model_error(str(exc))
-        raise ScenarioError(f"{where}: {f'[{section}] ' if section else ''}{exc}") from None
+        msg = str(exc)
+        if section and msg.startswith(f"{section}: "):
+            msg = msg[len(section) + 2:]
+        raise ScenarioError(f"{where}: {f'[{section}] ' if section else ''}{msg}") from None
     return Scenario(name=str(data.get("name", Path(where).stem)),
                     description=str(data.get("description", "")), system=system,
                     T=float(sim["T"]), h=float(sim["h"]), seed=int(seed), estimator=estimator,

@@ -32,6 +32,7 @@ def trace_stats(traces: dict[str, np.ndarray], Q: np.ndarray, R: np.ndarray,
     e, u = traces["e"][k0:], traces["u"][k0:]
     cost = np.einsum("ki,ij,kj->k", e, Q, e) + np.einsum("ki,ij,kj->k", u, R, u)
     return {"rms_e": np.sqrt(np.mean(e * e, axis=0)).tolist(),
+            "mean_e": np.mean(e, axis=0).tolist(),
             "rms_u": np.sqrt(np.mean(u * u, axis=0)).tolist(),
             "cost_rate": float(np.mean(cost))}
 
@@ -48,6 +49,15 @@ def method_summary(per_seed: list[dict[str, Any]], prediction: Any) -> dict[str,
     for key, pred in (("rms_e", prediction.rms_e), ("rms_u", prediction.rms_u)):
         mean, std = _mean_std([s[key] for s in per_seed])
         out[key] = {"mean": mean, "std": std, "predicted": pred}
+    mean, std = _mean_std([s["mean_e"] for s in per_seed])
+    out["steady_error"] = {
+        "time_mean_e": mean,                       #: bias of e over the window (sim)
+        "max_abs_time_mean_e": float(np.max(np.abs(mean))),
+        "rms_e_without_noise_predicted": getattr(prediction, "rms_e_mean", None),
+        "max_rms_e_without_noise_predicted": (
+            None if getattr(prediction, "rms_e_mean", None) is None
+            else float(np.max(prediction.rms_e_mean))),
+    }
     costs = [s["cost_rate"] for s in per_seed]
     out["cost_rate"] = {
         "mean": float(np.mean(costs)),

@@ -8,7 +8,6 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from controller_fmu.design import lq_tracking_design
 from estimator_fmu.estimators import make_estimator
 from plant_model.discretization import discretize
 from .fmu_build import build_fmus, fmu_config, variables_markdown
@@ -17,7 +16,8 @@ from .prediction import predict_stationary
 from .scenario import Scenario
 from .summary import method_summary, stats_window, trace_stats, versions
 
-__all__ = ["scenario_config", "build", "simulate", "write_fmu_readme"]
+__all__ = ["scenario_config", "build", "simulate", "write_fmu_readme", "method_list",
+           "fleet_layout"]
 
 FMU_README_HEAD = """# FMUs
 
@@ -64,13 +64,57 @@ def build(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
     return build_fmus(scenario_config(sc), Path(out_dir))
 
 
-def simulate(sc: Scenario, modes: Sequence[str], seeds: Sequence[int], out_dir: Path | str,
-             *, progress: bool = True, log: Callable[[str], None] = print) -> dict[str, Any]:
-    """Co-simulate each mode on each seed; write ``<out>/<scenario>.rrd`` and summary.json.
+def method_list(sc: Scenario, estimators: Sequence[str] | None = None,
+                trackings: Sequence[str] | None = None) -> list[tuple[str, str, str]]:
+    """(name, estimator, tracking) of each method to run: names are the estimator when
+    only estimators vary, the tracking law when only the law varies, else both."""
+    est = list(estimators or [sc.estimator])
+    trk = list(trackings or [sc.tracking])
+    out = []
+    for e in est:
+        for t in trk:
+            name = e if len(trk) == 1 else t if len(est) == 1 else f"{e}-{t}"
+            out.append((name, e, t))
+    return out
 
-    The .rrd holds the traces of the first seed of every mode (same noise for all
-    modes); the summary holds statistics over all seeds and the Lyapunov predictions.
+
+def fleet_layout(sc: Scenario):
+    """The recording layout of a fleet scenario (None for a single stacked system or a
+    fleet without NED positions)."""
+    from plant_model.fleet import fleet_info
+
+    from .recording import FleetLayout
+    if sc.fleet is None:
+        return None
+    info = fleet_info(sc.fleet, sc.system)
+    if info.position_index is None:
+        return None
+    N = info.N
+
+    def block(per: int) -> np.ndarray:
+        return np.arange(N * per).reshape(N, per)
+
+    return FleetLayout(
+        position_index=info.position_index, error_index=block(info.s),
+        control_index=block(info.q), error_names=info.output_names,
+        control_names=info.input_names, leader_output=info.leader_output,
+        offsets=info.offsets, edges=info.edges, pinned=info.pinned,
+    )
+
+
+def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], out_dir: Path | str,
+             *, progress: bool = True, log: Callable[[str], None] = print,
+             trackings: Sequence[str] | None = None) -> dict[str, Any]:
+    """Co-simulate each method (estimator ``modes`` x tracking laws ``trackings``, each
+    default the scenario's) on each seed; write ``<out>/<scenario>.rrd`` and summary.json.
+
+    The .rrd holds the traces of the first seed of every method (same noise for all
+    methods); the summary holds statistics over all seeds, the predictions (Lyapunov
+    equation of the sampled closed loop plus, for a planned leader path, its mean motion)
+    and the steady-state tracking error of each method.
     """
+    from controller_fmu.regulator import tracking_law
+
     from .recording import write_rrd
 
     t0 = time.perf_counter()
@@ -78,9 +122,10 @@ def simulate(sc: Scenario, modes: Sequence[str], seeds: Sequence[int], out_dir: 
     out.mkdir(parents=True, exist_ok=True)
     cfg = scenario_config(sc)
     fmus = build_fmus(cfg, out / "fmus")
-    design = lq_tracking_design(sc.system)
+    methods_run = method_list(sc, modes, trackings)
     model = discretize(sc.system, sc.h)
-    Ks = design.gain_on_state()
+    laws = {t: tracking_law(sc.system, t) for t in {t for _, _, t in methods_run}}
+    design = next(iter(laws.values())).design
     methods: dict[str, Any] = {}
     rrd_runs: dict[str, dict[str, np.ndarray]] = {}
     loop_us: list[float] = []
@@ -88,29 +133,38 @@ def simulate(sc: Scenario, modes: Sequence[str], seeds: Sequence[int], out_dir: 
     bar = None
     if progress:
         from tqdm import tqdm
-        bar = tqdm(total=len(modes) * len(seeds) * sc.steps, unit="step", delay=1.0,
+        bar = tqdm(total=len(methods_run) * len(seeds) * sc.steps, unit="step", delay=1.0,
                    leave=False, unit_scale=True)
         log = bar.write
-    for mode in modes:
-        pred = predict_stationary(sc.system, model, make_estimator(sc.system, model, mode), Ks)
-        k0 = stats_window(sc.T, sc.h, pred.settling_time)
+    for name, mode, tracking in methods_run:
+        Ks = laws[tracking].Ks
+        est = make_estimator(sc.system, model, mode)
+        pred0 = predict_stationary(sc.system, model, est, Ks)
+        k0 = stats_window(sc.T, sc.h, pred0.settling_time)
         window = (k0 * sc.h, sc.T)
+        pred = pred0
+        if pred0.cost_rate is not None and sc.fleet is not None:
+            pred = predict_stationary(sc.system, model, est, Ks, window=(k0, sc.steps))
         per_seed = []
         for seed in seeds:
             res = run_cosimulation(fmus, cfg, mode=mode, seed=seed, steps=sc.steps,
-                                   progress=bar)
+                                   progress=bar, tracking=tracking)
             loop_us.append(res.loop_s / sc.steps * 1e6)
             per_seed.append(trace_stats(res.traces, sc.system.Q, sc.system.R, k0))
-            if mode not in rrd_runs:
-                rrd_runs[mode] = res.traces
-            log(f"{mode:>9s} seed {seed}: cost rate {per_seed[-1]['cost_rate']:.4g} "
+            if name not in rrd_runs:
+                rrd_runs[name] = res.traces
+            log(f"{name:>9s} seed {seed}: cost rate {per_seed[-1]['cost_rate']:.4g} "
                 f"(predicted {pred.cost_rate if pred.cost_rate is None else round(pred.cost_rate, 4)}), "
                 f"{res.loop_s:.2f} s")
-        methods[mode] = method_summary(per_seed, pred)
+        methods[name] = method_summary(per_seed, pred)
+        methods[name]["estimator"] = mode
+        methods[name]["tracking"] = tracking
     if bar is not None:
         bar.close()
     rrd_path = out / f"{sc.name}.rrd"
-    rrd_info = write_rrd(rrd_path, rrd_runs, sc.h, recording_name=f"{sc.name} ({', '.join(modes)})")
+    rrd_info = write_rrd(rrd_path, rrd_runs, sc.h,
+                         recording_name=f"{sc.name} ({', '.join(rrd_runs)})",
+                         fleet=fleet_layout(sc))
     summary = {
         "scenario": sc.name,
         "source": sc.source,
@@ -132,5 +186,9 @@ def simulate(sc: Scenario, modes: Sequence[str], seeds: Sequence[int], out_dir: 
         "wall_s": time.perf_counter() - t0,
         "versions": versions(),
     }
+    if sc.fleet is not None:
+        summary["design"].pop("Kx")
+        summary["design"].pop("Kz")
+        summary["design"].pop("Kw")
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary

@@ -21,20 +21,27 @@ from .linalg_checks import psd_factor
 __all__ = ["NoiseStream", "Plant", "plant_output_layout"]
 
 
-def _noise_factor(model: DiscreteModel) -> np.ndarray:
-    """L with L L' = blkdiag(Qd, Rd)."""
-    d = model.noise_dim
-    L = np.zeros((d, d))
-    L[:model.ns, :model.ns] = psd_factor(model.Qd)
-    L[model.ns:, model.ns:] = psd_factor(model.Rd)
-    return L
+def _noise_factors(model: DiscreteModel) -> tuple[np.ndarray, np.ndarray]:
+    """Transposed factors (Lq', Lr') with Lq Lq' = Qd and Lr Lr' = Rd."""
+    return psd_factor(model.Qd).T.copy(), psd_factor(model.Rd).T.copy()
+
+
+def _colour(xi: np.ndarray, factors: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Rows xi L' for standard normal rows xi, L = blkdiag(Lq, Lr) (block by block)."""
+    LqT, LrT = factors
+    ns = LqT.shape[0]
+    out = np.empty_like(xi)
+    np.matmul(xi[:, :ns], LqT, out=out[:, :ns])
+    np.matmul(xi[:, ns:], LrT, out=out[:, ns:])
+    return out
 
 
 class NoiseStream:
     """Rows [v[k]; n[k]; n_z[k]] for k = 0, 1, ..., drawn lazily in blocks."""
 
     def __init__(self, model: DiscreteModel, seed: int, block: int = 2048):
-        self._LT = _noise_factor(model).T.copy()
+        self._factors = _noise_factors(model)
+        self._dim = model.noise_dim
         self._rng = np.random.default_rng(int(seed))
         self._block = int(block)
         self._buf = np.empty((0, model.noise_dim))
@@ -44,11 +51,11 @@ class NoiseStream:
     def all_rows(model: DiscreteModel, seed: int, steps: int) -> np.ndarray:
         """The first ``steps`` rows at once (same values as drawing them one by one)."""
         rng = np.random.default_rng(int(seed))
-        return rng.standard_normal((steps, model.noise_dim)) @ _noise_factor(model).T
+        return _colour(rng.standard_normal((steps, model.noise_dim)), _noise_factors(model))
 
     def next_row(self) -> np.ndarray:
         if self._i >= self._buf.shape[0]:
-            self._buf = self._rng.standard_normal((self._block, self._LT.shape[0])) @ self._LT
+            self._buf = _colour(self._rng.standard_normal((self._block, self._dim)), self._factors)
             self._i = 0
         row = self._buf[self._i]
         self._i += 1
@@ -73,8 +80,7 @@ class Plant:
         self.model = model
         self.seed = int(seed)
         ns, p = model.ns, model.p
-        # one matrix gives every output: [M; I; E] s
-        self._O = np.vstack([model.M, np.eye(ns), model.E])
+        self._M, self._E = model.M, model.E
         self._Ad, self._Bd = model.Ad, model.Bd
         self._ns, self._2p = ns, 2 * p
         self.reset(s0)
@@ -87,9 +93,8 @@ class Plant:
         self._refresh()
 
     def _refresh(self) -> None:
-        out = self._O @ self.s
-        out[:self._2p] += self._row[self._ns:]
-        self.output = out
+        s = self.s
+        self.output = np.concatenate([self._M @ s + self._row[self._ns:], s, self._E @ s])
 
     def step(self, u: np.ndarray) -> None:
         """Advance one step with u held constant: s <- Ad s + Bd u + v[k]."""

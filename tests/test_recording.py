@@ -17,6 +17,8 @@ from orchestrator.recording import (
     read_rrd_line_strips,
     read_rrd_points,
     read_rrd_scalars,
+    read_rrd_series,
+    read_rrd_series_lines,
     read_rrd_series_styles,
     read_rrd_visible_time_ranges,
     rrd_has_blueprint,
@@ -254,16 +256,19 @@ FLEET_STEPS = 263          # not a multiple of the trail stride: the last step c
 FLEET_H = 0.1
 FLEET_H_NS = 100_000_000
 TRAIL_S = 5.0              # 50 steps
-TRAIL_SAMPLE_S = 0.5       # stride 5 steps
+TRAIL_SAMPLE_S = 0.5       # 5 steps
 FLEET_METHODS = ("kalman", "classical")
-FLEET_DIMS = {"x": 6 * N_VEH, "w": 2, "z": 2, "e": 3 * N_VEH, "u": 3 * N_VEH,
-              "xhat": 6 * N_VEH, "what": 2, "zhat": 2, "y": 4, "ybar": 2}
+FLEET_DIMS = {"x": 6 * N_VEH, "w": 3 * N_VEH, "z": 2, "e": 3 * N_VEH, "u": 3 * N_VEH,
+              "xhat": 6 * N_VEH, "what": 3 * N_VEH, "zhat": 2, "y": 4, "ybar": 2}
 EDGES = ((1, 2), (2, 3), (3, 1), (1, 3))
 PINNED = (1, 3)
+STATE_NAMES = ("north", "east", "down", "u", "v", "r")
+CURRENT_NAMES = ("n", "e", "d")
 
 
 def make_fleet(n=N_VEH, edges=EDGES, pinned=PINNED, **changes):
-    """Positions in columns 0..2 of each vehicle's 6-block of x; 3 errors and 3 controls per vehicle."""
+    """Vehicle i owns the 6-block of x (positions first), 3 errors, 3 controls, and the current
+    components i-1, i-1+n, i-1+2n of w (interleaved, to exercise the index arrays)."""
     fields = {
         "position_index": np.arange(6 * n).reshape(n, 6)[:, :3],
         "error_index": np.arange(3 * n).reshape(n, 3),
@@ -274,6 +279,10 @@ def make_fleet(n=N_VEH, edges=EDGES, pinned=PINNED, **changes):
         "offsets": np.array([[10.0 * i, -5.0 * i, 1.0 + i] for i in range(n)]),
         "edges": edges,
         "pinned": pinned,
+        "state_index": np.arange(6 * n).reshape(n, 6),
+        "state_names": STATE_NAMES,
+        "disturbance_index": np.arange(3 * n).reshape(3, n).T,
+        "disturbance_names": CURRENT_NAMES,
     }
     fields.update(changes)
     return FleetLayout(**fields)
@@ -283,9 +292,10 @@ def make_fleet_runs(methods=FLEET_METHODS, steps=FLEET_STEPS, n=N_VEH, seed=99):
     """Vehicles drifting around a moving leader (metres, non-round values), random other traces."""
     rng = np.random.default_rng(seed)
     t = np.arange(steps)[:, None] * FLEET_H
+    dims = dict(FLEET_DIMS, x=6 * n, w=3 * n, xhat=6 * n, what=3 * n)
     runs = {}
     for m in methods:
-        traces = {k: rng.standard_normal((steps, d)) for k, d in FLEET_DIMS.items() if k not in ("x", "e", "u")}
+        traces = {k: rng.standard_normal((steps, d)) for k, d in dims.items() if k not in ("x", "e", "u")}
         traces["e"] = rng.standard_normal((steps, 3 * n))
         traces["u"] = rng.standard_normal((steps, 3 * n)) * 100.0
         traces["z"] = np.hstack([3.0 * t + 0.1, 500.0 + 0.5 * np.sin(t)])
@@ -298,14 +308,30 @@ def make_fleet_runs(methods=FLEET_METHODS, steps=FLEET_STEPS, n=N_VEH, seed=99):
     return runs
 
 
-@pytest.fixture(scope="module")
-def fleet_written(tmp_path_factory):
+def recorded_steps(stride, steps=FLEET_STEPS):
+    return np.arange(0, steps, stride)
+
+
+def sampled_steps(every, stride, steps=FLEET_STEPS):
+    """Steps of a decimated 3D entity: multiples of ``every``, then the last recorded step."""
+    last = (steps - 1) // stride * stride
+    ks = np.arange(0, steps, every)
+    return ks if ks[-1] == last else np.append(ks, last)
+
+
+def trail_stride(stride):
+    return stride * max(1, round(TRAIL_SAMPLE_S / (stride * FLEET_H)))
+
+
+@pytest.fixture(scope="module", params=[1, 3], ids=["stride1", "stride3"])
+def fleet_written(request, tmp_path_factory):
+    stride = request.param
     runs = make_fleet_runs()
     fleet = make_fleet()
-    path = tmp_path_factory.mktemp("rrd") / "fleet.rrd"
+    path = tmp_path_factory.mktemp("rrd") / f"fleet_stride{stride}.rrd"
     info = write_rrd(path, runs, FLEET_H, recording_name="fleet round trip", fleet=fleet,
-                     trail_seconds=TRAIL_S, trail_sample_seconds=TRAIL_SAMPLE_S)
-    return path, runs, fleet, info
+                     trail_seconds=TRAIL_S, trail_sample_seconds=TRAIL_SAMPLE_S, stride=stride)
+    return path, runs, fleet, info, stride
 
 
 def positions(run, fleet):
@@ -316,18 +342,104 @@ def leader_position(run, fleet):
     return run["z"] @ fleet.leader_output.T  # (steps, 3)
 
 
+def expected_fleet_series(runs, fleet, stride):
+    """Entity -> (rows, k) values of the fleet layout at the recorded steps."""
+    ks = recorded_steps(stride)
+    out = {}
+    for m, run in runs.items():
+        for i in range(1, fleet.n_vehicles + 1):
+            out[f"vehicles/{i}/error/{m}"] = run["e"][ks][:, fleet.error_index[i - 1]]
+            out[f"vehicles/{i}/control/{m}"] = run["u"][ks][:, fleet.control_index[i - 1]]
+            out[f"vehicles/{i}/state/{m}/true"] = run["x"][ks][:, fleet.state_index[i - 1]]
+            out[f"vehicles/{i}/state/{m}/estimate"] = run["xhat"][ks][:, fleet.state_index[i - 1]]
+            out[f"vehicles/{i}/current/{m}/true"] = run["w"][ks][:, fleet.disturbance_index[i - 1]]
+            out[f"vehicles/{i}/current/{m}/estimate"] = run["what"][ks][:, fleet.disturbance_index[i - 1]]
+        out[f"leader/{m}"] = leader_position(run, fleet)[ks]
+    return out
+
+
+def test_fleet_per_vehicle_series_round_trip(fleet_written):
+    path, runs, fleet, info, stride = fleet_written
+    ks = recorded_steps(stride)
+    expected = expected_fleet_series(runs, fleet, stride)
+    for entity, values in expected.items():
+        step, sim_time, read = read_rrd_series(path, entity)
+        assert step.dtype == np.int64 and sim_time.dtype == np.int64 and read.dtype == np.float64
+        assert np.array_equal(step, ks) and np.array_equal(sim_time, ks * FLEET_H_NS), entity
+        assert read.shape == values.shape == (ks.size, values.shape[1]), entity
+        assert np.array_equal(read, values), entity
+    # spot checks against the definitions, column by column
+    s = ks.size - 1
+    k = ks[s]
+    step, _, read = read_rrd_series(path, "/vehicles/2/error/kalman")
+    assert np.array_equal(read[:, 1], runs["kalman"]["e"][ks, 4])
+    step, _, read = read_rrd_series(path, "vehicles/3/control/classical")
+    assert np.array_equal(read[:, 2], runs["classical"]["u"][ks, 8])
+    _, _, read = read_rrd_series(path, "vehicles/2/state/kalman/estimate")
+    assert np.array_equal(read[s], runs["kalman"]["xhat"][k, 6:12])
+    _, _, read = read_rrd_series(path, "vehicles/2/current/classical/true")
+    assert np.array_equal(read[s], runs["classical"]["w"][k, [1, 4, 7]])
+    # read_rrd_scalars sees the same (rows, k) arrays, and nothing else: no per-component layout
+    got = read_rrd_scalars(path)
+    assert set(got) == set(expected)
+    for entity, values in expected.items():
+        assert np.array_equal(got[entity][0], ks) and np.array_equal(got[entity][2], values), entity
+    assert info["signals"] == sum(v.shape[1] for v in expected.values()) == len(FLEET_METHODS) * (
+        N_VEH * (3 + 3 + 6 + 6 + 3 + 3) + 3)
+    assert set(info) == {"rrd_s", "signals", "bytes"} and info["bytes"] == path.stat().st_size
+
+
+def test_fleet_has_no_per_component_layout(fleet_written):
+    path, _, _, _, _ = fleet_written
+    entities = set(read_rrd_scalars(path))
+    assert not any(e.startswith(tuple(f"{root}/" for root in (
+        "error", "state", "control", "disturbance", "reference", "measurement"))) for e in entities)
+    assert set(read_rrd_series_lines(path)) == entities
+    with pytest.raises(KeyError):
+        read_rrd_series(path, "error/1/kalman")
+
+
+def test_fleet_series_lines(fleet_written):
+    path, _, fleet, _, _ = fleet_written
+    lines = read_rrd_series_lines(path)
+    colors = method_color(list(FLEET_METHODS))
+    for m in FLEET_METHODS:
+        base = colors[m] + (255,)
+        for i in (1, N_VEH):
+            names, rgba = lines[f"vehicles/{i}/error/{m}"]
+            assert names == tuple(f"{m} {c}" for c in fleet.error_names)
+            assert rgba[0] == base and len(set(rgba)) == len(rgba) == 3  # distinct shades
+            names, rgba = lines[f"vehicles/{i}/control/{m}"]
+            assert names == tuple(f"{m} {c}" for c in fleet.control_names) and rgba[0] == base
+            true_names, true_rgba = lines[f"vehicles/{i}/state/{m}/true"]
+            est_names, est_rgba = lines[f"vehicles/{i}/state/{m}/estimate"]
+            assert true_names == tuple(f"{m} {c}" for c in STATE_NAMES)
+            assert est_names == tuple(f"{m} {c} estimate" for c in STATE_NAMES)
+            assert len(set(true_rgba)) == 6
+            for t, e in zip(true_rgba, est_rgba):  # estimates: lighter shade of the same colour
+                assert all(b >= a for a, b in zip(t[:3], e[:3])) and sum(e[:3]) > sum(t[:3])
+            assert lines[f"vehicles/{i}/current/{m}/true"][0] == tuple(f"{m} {c}" for c in CURRENT_NAMES)
+            assert lines[f"vehicles/{i}/current/{m}/estimate"][0] == tuple(
+                f"{m} {c} estimate" for c in CURRENT_NAMES)
+        assert lines[f"leader/{m}"][0] == (f"{m} leader north", f"{m} leader east", f"{m} leader down")
+    # the first-line view of the same styles
+    styles = read_rrd_series_styles(path)
+    assert styles["vehicles/1/error/kalman"] == ("kalman north", colors["kalman"] + (255,))
+
+
 def test_fleet_vehicle_positions_round_trip(fleet_written):
-    path, runs, fleet, _ = fleet_written
-    k = np.arange(FLEET_STEPS)
+    path, runs, fleet, _, stride = fleet_written
+    ks = recorded_steps(stride)
     for m in FLEET_METHODS:
         step, sim_time, pts = read_rrd_points(path, f"world/{m}/vehicles")
-        assert np.array_equal(step, k) and np.array_equal(sim_time, k * FLEET_H_NS)
-        assert pts.dtype == np.float32 and pts.shape == (FLEET_STEPS, N_VEH, 3)
-        want = positions(runs[m], fleet).astype(np.float32)  # Rerun positions are float32
+        assert np.array_equal(step, ks) and np.array_equal(sim_time, ks * FLEET_H_NS)
+        assert pts.dtype == np.float32 and pts.shape == (ks.size, N_VEH, 3)
+        want = positions(runs[m], fleet)[ks].astype(np.float32)  # Rerun positions are float32
         assert np.array_equal(pts, want)
-        for s in (0, 1, 77, 150, FLEET_STEPS - 1):
+        for s in (0, 1, 77, ks.size - 1):
             for i in range(N_VEH):
-                assert np.array_equal(pts[s, i], runs[m]["x"][s, [6 * i, 6 * i + 1, 6 * i + 2]].astype(np.float32))
+                assert np.array_equal(pts[s, i],
+                                      runs[m]["x"][ks[s], [6 * i, 6 * i + 1, 6 * i + 2]].astype(np.float32))
     # the two methods are kept apart
     a = read_rrd_points(path, "/world/kalman/vehicles")[2]
     b = read_rrd_points(path, "world/classical/vehicles")[2]
@@ -335,42 +447,60 @@ def test_fleet_vehicle_positions_round_trip(fleet_written):
 
 
 def test_fleet_leader_and_targets(fleet_written):
-    path, runs, fleet, _ = fleet_written
+    path, runs, fleet, _, stride = fleet_written
+    ks = recorded_steps(stride)
     for m in FLEET_METHODS:
-        lead = leader_position(runs[m], fleet)
+        lead = leader_position(runs[m], fleet)[ks]
         step, _, got_lead = read_rrd_points(path, f"world/{m}/leader")
-        assert np.array_equal(step, np.arange(FLEET_STEPS))
-        assert got_lead.shape == (FLEET_STEPS, 1, 3)
+        assert np.array_equal(step, ks)
+        assert got_lead.shape == (ks.size, 1, 3)
         assert np.array_equal(got_lead[:, 0], lead.astype(np.float32))
         _, _, got_targets = read_rrd_points(path, f"world/{m}/targets")
         want = (lead[:, None, :] + fleet.offsets[None, :, :]).astype(np.float32)
         assert np.array_equal(got_targets, want)
-        # spot check against the definition, vehicle by vehicle
-        for s in (0, 100, FLEET_STEPS - 1):
+        for s in (0, 50, ks.size - 1):
             for i in range(N_VEH):
                 np.testing.assert_allclose(got_targets[s, i], lead[s] + fleet.offsets[i], rtol=1e-6)
 
 
-def test_fleet_edges_join_the_vehicles(fleet_written):
-    path, _, _, _ = fleet_written
+def check_edges(path, runs, fleet, es):
     for m in FLEET_METHODS:
-        step, _, strips = read_rrd_line_strips(path, f"world/{m}/edges")
-        _, _, veh = read_rrd_points(path, f"world/{m}/vehicles")
-        _, _, lead = read_rrd_points(path, f"world/{m}/leader")
-        assert np.array_equal(step, np.arange(FLEET_STEPS))
-        assert strips.shape == (FLEET_STEPS, len(EDGES) + len(PINNED), 2, 3)
-        for e, (j, i) in enumerate(EDGES):  # from vehicle j to vehicle i
+        step, sim_time, strips = read_rrd_line_strips(path, f"world/{m}/edges")
+        veh = positions(runs[m], fleet)[es].astype(np.float32)
+        lead = leader_position(runs[m], fleet)[es].astype(np.float32)
+        assert np.array_equal(step, es) and np.array_equal(sim_time, es * FLEET_H_NS)
+        assert strips.shape == (es.size, len(fleet.edges) + len(fleet.pinned), 2, 3)
+        for e, (j, i) in enumerate(fleet.edges):  # from vehicle j to vehicle i
             assert np.array_equal(strips[:, e, 0], veh[:, j - 1]), (j, i)
             assert np.array_equal(strips[:, e, 1], veh[:, i - 1]), (j, i)
-        for p, i in enumerate(PINNED):      # from the leader to the pinned vehicle
-            assert np.array_equal(strips[:, len(EDGES) + p, 0], lead[:, 0])
-            assert np.array_equal(strips[:, len(EDGES) + p, 1], veh[:, i - 1])
+        for p, i in enumerate(fleet.pinned):      # from the leader to the pinned vehicle
+            assert np.array_equal(strips[:, len(fleet.edges) + p, 0], lead)
+            assert np.array_equal(strips[:, len(fleet.edges) + p, 1], veh[:, i - 1])
+
+
+def test_fleet_edges_join_the_vehicles_at_the_trail_rate(fleet_written):
+    path, runs, fleet, _, stride = fleet_written
+    es = sampled_steps(trail_stride(stride), stride)   # default scene_stride: the trail stride
+    assert set(es) <= set(recorded_steps(stride))      # edges sit on recorded vehicle samples
+    check_edges(path, runs, fleet, es)
+
+
+@pytest.mark.parametrize("stride, scene_stride", [(1, 1), (1, 7), (2, 8)])
+def test_fleet_scene_stride(tmp_path, stride, scene_stride):
+    runs = make_fleet_runs()
+    fleet = make_fleet()
+    path = tmp_path / "scene.rrd"
+    write_rrd(path, runs, FLEET_H, recording_name="scene", fleet=fleet, stride=stride, scene_stride=scene_stride)
+    check_edges(path, runs, fleet, sampled_steps(scene_stride, stride))
+    step, _, _ = read_rrd_points(path, "world/kalman/vehicles")
+    assert np.array_equal(step, recorded_steps(stride))
 
 
 def test_fleet_trails_are_decimated_segments(fleet_written):
-    path, runs, fleet, _ = fleet_written
-    stride = round(TRAIL_SAMPLE_S / FLEET_H)
-    ks = np.append(np.arange(0, FLEET_STEPS, stride), FLEET_STEPS - 1)  # 263 is not on the stride
+    path, runs, fleet, _, stride = fleet_written
+    ks = sampled_steps(trail_stride(stride), stride)
+    if stride == 1:  # the historical case: every 5 steps, then the last step 262
+        assert np.array_equal(ks, np.append(np.arange(0, FLEET_STEPS, 5), FLEET_STEPS - 1))
     for m in FLEET_METHODS:
         step, sim_time, strips = read_rrd_line_strips(path, f"world/{m}/trails")
         assert np.array_equal(step, ks[1:]) and np.array_equal(sim_time, ks[1:] * FLEET_H_NS)
@@ -381,48 +511,21 @@ def test_fleet_trails_are_decimated_segments(fleet_written):
         assert np.array_equal(strips[1:, :, 0], strips[:-1, :, 1])  # one connected trail per vehicle
 
 
-def test_fleet_per_vehicle_series(fleet_written):
-    path, runs, fleet, info = fleet_written
-    got = read_rrd_scalars(path)
-    k = np.arange(FLEET_STEPS)
-    expected = {}
-    for m in FLEET_METHODS:
-        for i in range(1, N_VEH + 1):
-            for c, name in enumerate(fleet.error_names):
-                expected[f"vehicles/{i}/error/{name}/{m}"] = runs[m]["e"][:, fleet.error_index[i - 1, c]]
-            for c, name in enumerate(fleet.control_names):
-                expected[f"vehicles/{i}/control/{name}/{m}"] = runs[m]["u"][:, fleet.control_index[i - 1, c]]
-    for entity, values in expected.items():
-        step, sim_time, read = got[entity]
-        assert np.array_equal(step, k) and np.array_equal(sim_time, k * FLEET_H_NS), entity
-        assert np.array_equal(read, values), entity
-    assert np.array_equal(got["vehicles/2/error/east/kalman"][2], runs["kalman"]["e"][:, 4])
-    assert np.array_equal(got["vehicles/3/control/X_d/classical"][2], runs["classical"]["u"][:, 8])
-    # in addition to, not instead of, the per-component series
-    base = expected_series(runs)
-    assert set(got) == set(base) | set(expected)
-    for entity, values in base.items():
-        assert np.array_equal(got[entity][2], values), entity
-    assert info["signals"] == len(base) + len(expected)
-    assert set(info) == {"rrd_s", "signals", "bytes"} and info["bytes"] == path.stat().st_size
-
-
-def test_fleet_series_styles(fleet_written):
-    path, _, fleet, _ = fleet_written
-    styles = read_rrd_series_styles(path)
-    colors = method_color(list(FLEET_METHODS))
-    for m in FLEET_METHODS:
-        shades = set()
-        for i in (1, N_VEH):
-            for group, names in (("error", fleet.error_names), ("control", fleet.control_names)):
-                for c, name in enumerate(names):
-                    series, rgba = styles[f"vehicles/{i}/{group}/{name}/{m}"]
-                    assert series == f"{m} {name}"
-                    if c == 0:
-                        assert rgba == colors[m] + (255,)
-                    shades.add((group, c, rgba))
-        # components of one method get distinct shades of the method colour
-        assert len({rgba for g, c, rgba in shades if g == "error"}) == len(fleet.error_names)
+def test_fleet_default_state_and_no_current(tmp_path):
+    """Without state_index the state entities hold the positions; without disturbance_index no current."""
+    runs = make_fleet_runs(methods=("ideal",), steps=40)
+    fleet = make_fleet(state_index=None, state_names=None, disturbance_index=None, disturbance_names=None)
+    path = tmp_path / "defaults.rrd"
+    info = write_rrd(path, runs, FLEET_H, recording_name="defaults", fleet=fleet, stride=4)
+    ks = recorded_steps(4, steps=40)
+    step, _, read = read_rrd_series(path, "vehicles/3/state/ideal/true")
+    assert np.array_equal(step, ks) and np.array_equal(read, runs["ideal"]["x"][ks][:, [12, 13, 14]])
+    _, _, read = read_rrd_series(path, "vehicles/3/state/ideal/estimate")
+    assert np.array_equal(read, runs["ideal"]["xhat"][ks][:, [12, 13, 14]])
+    lines = read_rrd_series_lines(path)
+    assert lines["vehicles/1/state/ideal/true"][0] == ("ideal north", "ideal east", "ideal down")
+    assert not any("/current/" in e for e in lines)
+    assert info["signals"] == N_VEH * (3 + 3 + 3 + 3) + 3
 
 
 def _static_component(path, entity, column):
@@ -435,7 +538,7 @@ def _static_component(path, entity, column):
 
 
 def test_fleet_world_is_ned_and_labelled(fleet_written):
-    path, _, _, _ = fleet_written
+    path, _, _, _, _ = fleet_written
     frd = [5, 3, 2]  # ViewDir Forward, Right, Down: x north, y east, z down
     assert _static_component(path, "world", "ViewCoordinates:xyz") == [frd]
     for m in FLEET_METHODS:
@@ -452,7 +555,7 @@ def _views(node):
 
 
 def test_fleet_blueprint_layout(fleet_written):
-    path, _, _, _ = fleet_written
+    path, _, _, _, _ = fleet_written
     tree = read_rrd_blueprint_tree(path)
     assert tree["kind"] == "Horizontal" and len(tree["contents"]) == 2
     left, right = tree["contents"]
@@ -460,11 +563,17 @@ def test_fleet_blueprint_layout(fleet_written):
     assert left["kind"] == "Tabs"
     assert [(v["class"], v["name"], v["origin"]) for v in left["contents"]] == [
         ("3D", f"fleet {m}", f"/world/{m}") for m in FLEET_METHODS]
-    # right: per-vehicle error and control views in a 2-column grid (N <= 8)
+    # right: per-vehicle error and control views in a 2-column grid (N <= 8); their origins are
+    # the parents of the per-method entities, so each view overlays every method
     assert right["kind"] == "Grid"
     assert [(v["class"], v["name"], v["origin"]) for v in right["contents"]] == [
         ("TimeSeries", f"vehicle {i} {g}", f"/vehicles/{i}/{g}")
         for i in range(1, N_VEH + 1) for g in ("error", "control")]
+    entities = set(read_rrd_scalars(path))
+    for i in range(1, N_VEH + 1):
+        for g in ("error", "control"):
+            assert {e for e in entities if e.startswith(f"vehicles/{i}/{g}/")} == {
+                f"vehicles/{i}/{g}/{m}" for m in FLEET_METHODS}
     # read_rrd_blueprint_views lists them too, and the per-component grid is left out
     views = read_rrd_blueprint_views(path)
     assert views["fleet kalman"] == ("3D", "/world/kalman")
@@ -474,7 +583,7 @@ def test_fleet_blueprint_layout(fleet_written):
 
 
 def test_fleet_trail_visible_time_range(fleet_written):
-    path, _, _, _ = fleet_written
+    path, _, _, _, _ = fleet_written
     ranges = read_rrd_visible_time_ranges(path)
     want = {
         "sim_time": (("cursor_relative", -round(TRAIL_S * 1e9)), ("cursor_relative", 0)),
@@ -503,8 +612,10 @@ def test_fleet_many_vehicles_use_tabs(tmp_path):
         "sim_time": (("cursor_relative", -60_000_000_000), ("cursor_relative", 0)),
         "step": (("cursor_relative", -600), ("cursor_relative", 0)),
     }
-    _, _, edges = read_rrd_line_strips(path, "world/ideal/edges")
-    assert edges.shape == (12, n, 2, 3)
+    step, _, edges = read_rrd_line_strips(path, "world/ideal/edges")
+    assert np.array_equal(step, [0, 5, 10, 11]) and edges.shape == (4, n, 2, 3)
+    _, _, read = read_rrd_series(path, "vehicles/10/current/ideal/estimate")
+    assert np.array_equal(read, runs["ideal"]["what"][:, [9, 19, 29]])
 
 
 def test_no_fleet_file_has_no_fleet_entities(written):
@@ -514,7 +625,52 @@ def test_no_fleet_file_has_no_fleet_entities(written):
     assert tree["kind"] == "Grid" and all(v["class"] == "TimeSeries" for v in _views(tree))
     with pytest.raises(KeyError):
         read_rrd_points(path, "world/kalman/vehicles")
-    assert not any(e.startswith("vehicles/") for e in read_rrd_scalars(path))
+    assert not any(e.startswith(("vehicles/", "leader/")) for e in read_rrd_scalars(path))
+
+
+def test_paper_layout_with_stride(tmp_path):
+    """stride also decimates the per-component layout; times stay the true ones."""
+    runs = make_runs(steps=101)
+    path = tmp_path / "strided.rrd"
+    info = write_rrd(path, runs, H, recording_name="strided", stride=7)
+    ks = np.arange(0, 101, 7)
+    got = read_rrd_scalars(path)
+    expected = expected_series(runs)
+    assert set(got) == set(expected) and info["signals"] == len(expected)
+    for entity, values in expected.items():
+        step, sim_time, read = got[entity]
+        assert np.array_equal(step, ks) and np.array_equal(sim_time, ks * H_NS), entity
+        assert np.array_equal(read, values[ks]), entity
+    step, _, read = read_rrd_series(path, "state/3/kalman/estimate")
+    assert read.shape == (ks.size, 1) and np.array_equal(read[:, 0], runs["kalman"]["xhat"][ks, 2])
+
+
+@pytest.mark.parametrize("stride", [0, -1, 1.5, 2.0, True, "2", None])
+@pytest.mark.parametrize("with_fleet", [False, True])
+def test_bad_stride_raises(tmp_path, stride, with_fleet):
+    kwargs = {"fleet": make_fleet()} if with_fleet else {}
+    runs = make_fleet_runs(methods=("kalman",), steps=10)
+    with pytest.raises(ValueError, match="stride must be a positive integer"):
+        write_rrd(tmp_path / "bad.rrd", runs, FLEET_H, recording_name="bad", stride=stride, **kwargs)
+    assert not (tmp_path / "bad.rrd").exists()
+
+
+@pytest.mark.parametrize("stride, scene_stride, pattern", [
+    (1, 0, "scene_stride must be a positive integer"),
+    (1, 2.5, "scene_stride must be a positive integer"),
+    (3, 4, r"scene_stride = 4 must be a multiple of stride = 3"),
+])
+def test_bad_scene_stride_raises(tmp_path, stride, scene_stride, pattern):
+    runs = make_fleet_runs(methods=("kalman",), steps=10)
+    with pytest.raises(ValueError, match=pattern):
+        write_rrd(tmp_path / "bad.rrd", runs, FLEET_H, recording_name="bad", fleet=make_fleet(),
+                  stride=stride, scene_stride=scene_stride)
+
+
+def test_numpy_integer_stride_is_accepted(tmp_path):
+    runs = make_fleet_runs(methods=("kalman",), steps=10)
+    write_rrd(tmp_path / "ok.rrd", runs, FLEET_H, recording_name="ok", fleet=make_fleet(), stride=np.int64(3))
+    assert np.array_equal(read_rrd_series(tmp_path / "ok.rrd", "leader/kalman")[0], [0, 3, 6, 9])
 
 
 @pytest.mark.parametrize("changes, pattern", [
@@ -535,6 +691,15 @@ def test_no_fleet_file_has_no_fleet_entities(written):
     ({"edges": ((1, 2, 3),)}, r"edges\[0\].*not a pair"),
     ({"edges": ((2, 2),)}, r"edges\[0\] = \(2, 2\) is a self-loop"),
     ({"pinned": (1, 7)}, r"pinned\[1\] names vehicle 7"),
+    ({"state_index": np.arange(18).reshape(3, 6) + 1}, r"state_index\[2, 5\] = 18 .*'x'"),
+    ({"state_index": np.arange(12).reshape(2, 6)}, r"state_index has 2 rows"),
+    ({"state_index": np.arange(18.0).reshape(3, 6)}, r"state_index must be an integer"),
+    ({"state_names": STATE_NAMES[:5]}, r"state_names has 5 labels.*state_index has 6"),
+    ({"state_names": None}, r"state_names must be a tuple of strings"),
+    ({"state_index": None}, r"state_names has 6 labels.*position_index has 3"),
+    ({"disturbance_index": np.arange(9).reshape(3, 3) + 1}, r"disturbance_index\[2, 2\] = 9 .*'w'"),
+    ({"disturbance_names": ("n", "n", "d")}, r"disturbance_names labels must be distinct"),
+    ({"disturbance_index": None}, r"disturbance_names is given without fleet.disturbance_index"),
 ])
 def test_bad_fleet_layout_raises(tmp_path, changes, pattern):
     runs = make_fleet_runs(methods=("kalman",), steps=10)
@@ -547,6 +712,14 @@ def test_fleet_checked_against_every_run(tmp_path):
     runs = make_fleet_runs(methods=("kalman", "classical"), steps=10)
     runs["classical"]["u"] = runs["classical"]["u"][:, :8]
     with pytest.raises(ValueError, match=r"control_index\[2, 2\] = 8 .*'classical' trace 'u'"):
+        write_rrd(tmp_path / "bad.rrd", runs, FLEET_H, recording_name="bad", fleet=make_fleet())
+    runs = make_fleet_runs(methods=("kalman", "classical"), steps=10)
+    runs["kalman"]["xhat"] = runs["kalman"]["xhat"][:, :17]
+    with pytest.raises(ValueError, match=r"state_index\[2, 5\] = 17 .*'kalman' trace 'xhat'"):
+        write_rrd(tmp_path / "bad.rrd", runs, FLEET_H, recording_name="bad", fleet=make_fleet())
+    runs = make_fleet_runs(methods=("kalman", "classical"), steps=10)
+    runs["classical"]["what"] = runs["classical"]["what"][:, :8]
+    with pytest.raises(ValueError, match=r"disturbance_index\[2, 2\] = 8 .*'classical' trace 'what'"):
         write_rrd(tmp_path / "bad.rrd", runs, FLEET_H, recording_name="bad", fleet=make_fleet())
 
 

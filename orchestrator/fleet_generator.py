@@ -1,0 +1,91 @@
+"""Generated fleets: N REMUS 100 vehicles in a grid formation behind a leader.
+
+Used by the benchmark (N = 1, 5, 20, 50) and to write the built-in ``formation-20``
+scenario. Vehicles are placed row by row, ``columns`` per row, rows 10 m apart behind the
+leader and columns 10 m apart across; the front-centre vehicle hears the leader; every
+other vehicle hears the vehicle in front of it (weight 1) and its neighbour towards the
+centre of its row (weight 0.5), so information flows from the leader outwards and
+backwards and every vehicle has a path from the leader.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+__all__ = ["grid_fleet", "scenario_toml"]
+
+#: the second-order consensus coupling of formation-4: acceleration from relative
+#: position (0.02 1/s^2) and relative velocity (0.2 1/s)
+SECOND_ORDER_COUPLING = [[0.0] * 6, [0.0] * 6, [0.0] * 6,
+                         [0.02, 0.0, 0.0, 0.2, 0.0, 0.0],
+                         [0.0, 0.02, 0.0, 0.0, 0.2, 0.0],
+                         [0.0, 0.0, 0.02, 0.0, 0.0, 0.2]]
+
+
+def grid_fleet(N: int, *, columns: int = 5, spacing: float = 10.0, T: float = 300.0,
+               h: float = 0.01, name: str | None = None) -> dict[str, Any]:
+    """A fleet scenario mapping (as parsed from TOML) of N vehicles in a grid."""
+    if N < 1:
+        raise ValueError(f"N = {N} must be at least 1")
+    cols = min(columns, N)
+    centre = (cols - 1) // 2
+    index = {}
+    offsets, positions = [], []
+    for k in range(N):
+        row, col = divmod(k, cols)
+        index[(row, col)] = k + 1
+        off = [-spacing * row + 0.0, spacing * (col - centre) + 0.0, 0.0]
+        offsets.append(off)
+        # launched off formation by a few metres (deterministic)
+        positions.append([round(off[0] + 3.0 * math.sin(1.7 * k) - 5.0, 3),
+                          round(off[1] + 3.0 * math.cos(1.3 * k), 3),
+                          round(20.0 + 1.5 * math.sin(0.9 * k), 3)])
+    edges = []
+    for (row, col), i in index.items():
+        if row > 0 and (row - 1, col) in index:
+            edges.append([index[(row - 1, col)], i, 1.0])
+        if col != centre:
+            towards = col - 1 if col > centre else col + 1
+            if (row, towards) in index:
+                edges.append([index[(row, towards)], i, 0.5 if row > 0 else 1.0])
+    leader = index[(0, centre)]
+    return {
+        "name": name or f"grid-{N}",
+        "description": f"{N} REMUS 100 AUVs in a {cols}-wide grid behind a leader on a circle",
+        "simulation": {"T": T, "h": h, "seed": 0, "estimator": "kalman", "tracking": "regulator"},
+        "leader": {"path": "circle", "radius": 150.0, "speed": 1.5, "center": [150.0, 0.0, 20.0],
+                   "clockwise": True, "start_angle_deg": 180.0, "noise": 0.0},
+        "vehicles": {"count": N, "model": "remus100", "params": {"cruise_speed": 1.5},
+                     "offsets": offsets, "positions": positions},
+        "graph": {"edges": edges, "pinning": [[leader, 1.0]], "coupling": SECOND_ORDER_COUPLING},
+        "current": {"time_constant": 30.0, "sigma": 0.1, "w0": [0.1, -0.05, 0.0]},
+        "noise": {"convention": "intensity", "process": 1e-4, "position": 0.25, "reference": 0.0},
+        "cost": {"Q": 1.0, "R": 0.01},
+    }
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return f'"{v}"'
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + " }"
+    if v and isinstance(v[0], list):
+        return "[\n" + "".join(f"  {_toml_value(x)},\n" for x in v) + "]"
+    return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+
+
+def scenario_toml(data: dict[str, Any], header: str = "") -> str:
+    """The TOML text of a scenario mapping (top-level keys, then one table per section)."""
+    lines = [header.rstrip()] if header else []
+    for k, v in data.items():
+        if not isinstance(v, dict):
+            lines.append(f"{k} = {_toml_value(v)}")
+    for section, table in data.items():
+        if isinstance(table, dict):
+            lines.append(f"\n[{section}]")
+            lines += [f"{k} = {_toml_value(v)}" for k, v in table.items()]
+    return "\n".join(lines) + "\n"
