@@ -142,8 +142,44 @@ def cmd_validate(args: argparse.Namespace) -> int:
     return 1 if bad else 0
 
 
+def _fleet_sizes(text: str) -> list[int]:
+    try:
+        sizes = [int(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--fleet {text!r}: expected sizes like '1,5,20,50'") from None
+    if not sizes or any(n < 1 for n in sizes):
+        raise argparse.ArgumentTypeError(f"--fleet {text!r}: sizes must be positive")
+    return sizes
+
+
+def cmd_bench_fleet(args: argparse.Namespace) -> int:
+    from .bench import benchmark_fleet
+    rows = []
+    print(f"{'N':>3s} {'states':>6s} {'design s':>9s} {'filter s':>9s} {'build s':>8s} "
+          f"{'mD kB (p/e/c)':>18s} {'init s (p/e/c)':>18s} {'cosim us':>9s} {'mono us':>8s} "
+          f"{'ratio':>6s} {'FMI us':>7s} {'max diff':>9s}")
+    for N in args.fleet:
+        r = benchmark_fleet(N, T=args.T or 300.0, mode=args.estimator or "kalman",
+                            tracking=args.tracking or "regulator", seed=args.seed or 0)
+        rows.append(r)
+        md = "/".join(f"{r['model_description_bytes'][k] / 1e3:.0f}" for k in ("plant", "estimator", "controller"))
+        it = "/".join(f"{r['instantiate_initialize_s'][k]:.2f}" for k in ("plant", "estimator", "controller"))
+        print(f"{N:3d} {r['state_size']:6d} {r['design_s']:9.3f} {r['filter_gain_s']:9.3f} "
+              f"{r['build_s']:8.2f} {md:>18s} {it:>18s} {r['cosim_us_per_step']:9.1f} "
+              f"{r['monolithic_us_per_step']:8.1f} {r['ratio_loop']:6.2f} "
+              f"{r['fmi_overhead_us_per_step']:7.1f} {r['max_abs_difference']:9.1e}", flush=True)
+    r = rows[-1]
+    print(f"({r['steps']} steps of {r['h']} s each; load average {r['loadavg'][0]:.2f} on {r['cpus']} CPUs; "
+          f"'FMI us' = co-simulation minus monolithic loop per step)")
+    if args.json:
+        print(json.dumps(rows, indent=2))
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from .bench import benchmark
+    if args.fleet:
+        return cmd_bench_fleet(args)
     sc = _scenario(args)
     r = benchmark(sc, mode=sc.estimator, seed=sc.seed)
     if args.json:
@@ -217,6 +253,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="estimator mode (default: kalman)")
     sp.add_argument("--seed", type=int, help="noise seed")
     sp.add_argument("--tracking", choices=TRACKING_MODES, help="tracking law")
+    sp.add_argument("--fleet", type=_fleet_sizes,
+                    help="benchmark generated grid fleets of these sizes instead, e.g. 1,5,20,50 "
+                         "(REMUS 100 vehicles, circle leader; --T sets the simulated time, default 300 s)")
     sp.add_argument("--json", action="store_true", help="print the figures as JSON")
     sp.set_defaults(func=cmd_bench)
     return p

@@ -17,7 +17,7 @@ from .scenario import Scenario
 from .summary import method_summary, stats_window, trace_stats, versions
 
 __all__ = ["scenario_config", "build", "simulate", "write_fmu_readme", "method_list",
-           "fleet_layout"]
+           "fleet_layout", "record_stride"]
 
 FMU_README_HEAD = """# FMUs
 
@@ -94,17 +94,33 @@ def fleet_layout(sc: Scenario):
     def block(per: int) -> np.ndarray:
         return np.arange(N * per).reshape(N, per)
 
+    from plant_model.fleet import fleet_vehicles
+    model = fleet_vehicles(sc.fleet)[0]
     return FleetLayout(
         position_index=info.position_index, error_index=block(info.s),
         control_index=block(info.q), error_names=info.output_names,
         control_names=info.input_names, leader_output=info.leader_output,
         offsets=info.offsets, edges=info.edges, pinned=info.pinned,
+        state_index=block(info.p), state_names=model.state_names,
+        disturbance_index=block(info.r), disturbance_names=model.disturbance_names,
     )
+
+
+def record_stride(sc: Scenario, record_hz: float | None = None) -> int:
+    """Steps between recorded samples: every step for a single system; for a fleet about
+    ``record_hz`` samples per second (default 20 Hz), which keeps .rrd files of large
+    fleets to tens of megabytes (every step is still simulated and summarised)."""
+    if record_hz is None:
+        if sc.fleet is None:
+            return 1
+        record_hz = 20.0
+    return max(1, int(round(1.0 / (record_hz * sc.h))))
 
 
 def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], out_dir: Path | str,
              *, progress: bool = True, log: Callable[[str], None] = print,
-             trackings: Sequence[str] | None = None) -> dict[str, Any]:
+             trackings: Sequence[str] | None = None,
+             record_hz: float | None = None) -> dict[str, Any]:
     """Co-simulate each method (estimator ``modes`` x tracking laws ``trackings``, each
     default the scenario's) on each seed; write ``<out>/<scenario>.rrd`` and summary.json.
 
@@ -162,9 +178,10 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     if bar is not None:
         bar.close()
     rrd_path = out / f"{sc.name}.rrd"
+    stride = record_stride(sc, record_hz)
     rrd_info = write_rrd(rrd_path, rrd_runs, sc.h,
                          recording_name=f"{sc.name} ({', '.join(rrd_runs)})",
-                         fleet=fleet_layout(sc))
+                         fleet=fleet_layout(sc), stride=stride)
     summary = {
         "scenario": sc.name,
         "source": sc.source,
@@ -180,7 +197,8 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
             "residuals": design.residuals,
             "Kx": design.Kx.tolist(), "Kz": design.Kz.tolist(), "Kw": design.Kw.tolist(),
         },
-        "rrd": {"path": str(rrd_path), "traces_of_seed": int(seeds[0]), **rrd_info},
+        "rrd": {"path": str(rrd_path), "traces_of_seed": int(seeds[0]),
+                "recorded_every_steps": stride, **rrd_info},
         "timing": {"cosim_loop_us_per_step_mean": float(np.mean(loop_us))},
         "fmus": {k: {"path": str(v), "bytes": v.stat().st_size} for k, v in fmus.items()},
         "wall_s": time.perf_counter() - t0,

@@ -1,0 +1,43 @@
+"""The generated grid fleets and the built-in formation-20 scenario."""
+from __future__ import annotations
+
+import tomllib
+
+import numpy as np
+import pytest
+
+from orchestrator.fleet_generator import grid_fleet, scenario_toml
+from orchestrator.scenario import SCENARIO_DIR, load_scenario, scenario_from_dict
+from plant_model.fleet import fleet_graph
+
+
+def test_formation_20_file_matches_the_generator():
+    shipped = tomllib.loads((SCENARIO_DIR / "formation-20.toml").read_text())
+    assert shipped == tomllib.loads(scenario_toml(grid_fleet(20, name="formation-20")))
+
+
+@pytest.mark.parametrize("N", [1, 2, 5, 7, 20, 50])
+def test_every_generated_vehicle_hears_the_leader_through_the_graph(N):
+    sc = scenario_from_dict(grid_fleet(N), f"grid {N}")
+    g = fleet_graph(sc.fleet)
+    assert len(g.pinning) == 1
+    # L + G of a graph where every vehicle has a path from the leader is nonsingular
+    # with eigenvalues in the open right half-plane
+    assert np.min(np.linalg.eigvals(g.consensus_matrix()).real) > 0
+    assert sc.system.dims == {"n": 6 * N, "m": 3 * N, "r": 3 * N, "p": 3 * N,
+                              "l": sc.system.l}
+
+
+def test_grid_offsets_are_distinct_and_the_front_centre_is_pinned():
+    d = grid_fleet(20)
+    offsets = np.array(d["vehicles"]["offsets"])
+    assert len({tuple(o) for o in offsets.tolist()}) == 20
+    (pinned, _), = d["graph"]["pinning"]
+    assert offsets[pinned - 1].tolist() == [0.0, 0.0, 0.0]
+
+
+def test_formation_20_loads_with_20_remus_vehicles():
+    sc = load_scenario("formation-20")
+    assert len(sc.fleet["vehicles"]) == 20
+    assert {v["model"] for v in sc.fleet["vehicles"]} == {"remus100"}
+    assert sc.tracking == "regulator"
