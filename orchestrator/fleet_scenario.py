@@ -10,7 +10,8 @@ A fleet scenario file has these sections (SI units, NED frame; vehicles are numb
     [vehicles]   count, model ("remus100" | "generic"), params (model parameters for all),
                  offsets (count x 3, NED m: target = leader + offset), positions (count x 3,
                  initial NED positions; default: at the targets) or x0 (count x p),
-                 overrides = [{vehicle = i, model, params, ...}, ...]  (per-vehicle changes)
+                 overrides = [{vehicle = i, model, params, offset, position, x0, current,
+                 noise = {process, position, reference}, cost = {Q, R}}, ...] (per vehicle)
     [graph]      edges = [[j, i, a_ij], ...] (vehicle i hears vehicle j), pinning = [[i, a_i0]],
                  coupling (p x p matrix on the vehicle state; identity by default)
     [current]    time_constant (s), sigma (m/s), w0 (m/s): an ocean current per vehicle as a
@@ -43,7 +44,8 @@ FLEET_SCHEMA: dict[str, set[str]] = {
     "noise": {"convention", "process", "position", "reference"},
     "cost": {"Q", "R"},
 }
-_OVERRIDE_KEYS = {"vehicle", "model", "params", "offset", "position", "x0", "current"}
+_OVERRIDE_KEYS = {"vehicle", "model", "params", "offset", "position", "x0", "current", "noise",
+                  "cost"}
 
 
 class _Err(ValueError):
@@ -125,7 +127,7 @@ def fleet_spec_from_dict(data: dict[str, Any]) -> tuple[dict[str, Any], dict[str
         target = vehicles[i - 1]
         if "model" in ov and ov["model"] != target["model"]:
             target["params"] = {}
-        for key in ("model", "current", "x0", "offset", "position"):
+        for key in ("model", "current", "x0", "offset", "position", "noise", "cost"):
             if key in ov:
                 target[key] = ov[key]
         target["params"].update(ov.get("params", {}))
@@ -175,12 +177,17 @@ def fleet_spec_from_dict(data: dict[str, Any]) -> tuple[dict[str, Any], dict[str
             v["current"] = cur
     noise = data.get("noise", {})
     cost = data.get("cost", {})
-    for v in vehicles:
-        v["W_x"] = noise.get("process", 0.0)
-        v["V_y"] = noise.get("position", 0.0)
-        v["V_ybar"] = noise.get("reference", 0.0)
-        v["Q"] = cost.get("Q", 1.0)
-        v["R"] = cost.get("R", 1.0)
+    for i, v in enumerate(vehicles, start=1):
+        own_noise, own_cost = v.pop("noise", {}), v.pop("cost", {})
+        bad = sorted(set(own_noise) - {"process", "position", "reference"})
+        bad += sorted(set(own_cost) - FLEET_SCHEMA["cost"])
+        if bad:
+            raise _Err("vehicles", f"overrides for vehicle {i}: unknown noise/cost key(s) {', '.join(bad)}")
+        v["W_x"] = own_noise.get("process", noise.get("process", 0.0))
+        v["V_y"] = own_noise.get("position", noise.get("position", 0.0))
+        v["V_ybar"] = own_noise.get("reference", noise.get("reference", 0.0))
+        v["Q"] = own_cost.get("Q", cost.get("Q", 1.0))
+        v["R"] = own_cost.get("R", cost.get("R", 1.0))
     graph = data["graph"]
     spec = {
         "vehicles": vehicles,

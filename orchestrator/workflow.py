@@ -30,7 +30,16 @@ exitInitializationMode.
 
 Importing them needs: a Python 3.11+ interpreter with numpy and scipy in the host process
 (fmpy and libcosimpy run the FMU in their own interpreter; a non-Python host must preload
-libpython). `needsExecutionTool="true"` says so.
+libpython). `needsExecutionTool="true"` says so. FMUs built for a fleet scenario
+(`formation-4`, `formation-20`, ...) also need networkx (the communication graph).
+
+Fleet FMUs do not expose the stacked matrices (they grow as (N p)^2) but the quantities
+a user changes: `vehicle[i].mass`, `vehicle[i].added_mass[k]`, `vehicle[i].offset[k]`,
+`vehicle[i].x0[k]`, `vehicle[i].current.time_constant`, `vehicle[i].current.sigma`,
+`vehicle[i].W_x`, `vehicle[i].V_y`, `vehicle[i].Q`, `vehicle[i].R`, `a[i,j]` (weight of the
+edge j -> i, only for edges that exist), `a0[i]` (pinning), `coupling[a,b]`, `leader.F`,
+`leader.H`, `leader.z0`, `leader.W_z`; each FMU exposes only what its mathematics reads.
+The controller's String parameter `tracking` chooses `lq` (the paper) or `regulator`.
 
 Conventions: FMI structured names (`A[1,2]` is row 1, column 2), SI units where a
 quantity has one (the paper's example is dimensionless apart from time), every variable

@@ -361,3 +361,22 @@ def test_paper_as_a_fleet_co_simulates_like_the_paper(tmp_path):
     worst = max(float(np.max(np.abs(res.traces[k] - ref[k]))) for k in ref)
     assert worst < 1e-9, worst
     assert np.std(ref["e"][:, 0]) > 0.1
+
+
+def test_per_vehicle_noise_and_cost_overrides(tmp_path):
+    """[[vehicles.overrides]] noise and cost change only that vehicle's blocks."""
+    from plant_model.fleet import fleet_system
+    text = (SCENARIO_DIR / "formation-4.toml").read_text().replace(
+        "[graph]", "overrides = [{ vehicle = 3, noise = { position = 4.0 }, cost = { R = 0.5 } }]\n\n[graph]", 1)
+    path = tmp_path / "f4_override.toml"
+    path.write_text(text)
+    sc = load_scenario(path)
+    V = np.diag(sc.system.V_y).reshape(4, 3)
+    R = np.diag(sc.system.R).reshape(4, 3)
+    assert V[2].tolist() == [4.0] * 3 and V[[0, 1, 3]].ravel().tolist() == [0.25] * 9
+    assert R[2].tolist() == [0.5] * 3 and R[[0, 1, 3]].ravel().tolist() == [0.01] * 9
+    np.testing.assert_array_equal(fleet_system(sc.fleet).V_y, sc.system.V_y)
+    bad = tmp_path / "f4_bad.toml"
+    bad.write_text(text.replace("position = 4.0", "positon = 4.0"))
+    with pytest.raises(ScenarioError, match="vehicle 3.*positon"):
+        load_scenario(bad)
