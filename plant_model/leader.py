@@ -29,7 +29,8 @@ from typing import Any
 import numpy as np
 from scipy.linalg import expm
 
-from .linalg_checks import ModelError, as_matrix, as_vector
+from .linalg_checks import (ModelError, as_matrix, as_nonnegative, as_number, as_positive,
+                            as_vector)
 
 __all__ = [
     "LEADER_PATHS",
@@ -112,32 +113,6 @@ class LeaderPath:
 
 # ------------------------------------------------------------------------------------
 # argument checks
-def _number(name: str, value: Any) -> float:
-    if isinstance(value, bool):
-        raise ModelError(f"{name}: expected a number, got {value!r}")
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ModelError(f"{name}: not a number: {value!r}") from None
-    if not math.isfinite(x):
-        raise ModelError(f"{name} = {x} is not finite")
-    return x
-
-
-def _positive(name: str, value: Any, unit: str) -> float:
-    x = _number(name, value)
-    if x <= 0.0:
-        raise ModelError(f"{name} = {x:g} {unit} must be positive")
-    return x
-
-
-def _nonnegative(name: str, value: Any, unit: str) -> float:
-    x = _number(name, value)
-    if x < 0.0:
-        raise ModelError(f"{name} = {x:g} {unit} must not be negative")
-    return x
-
-
 def _point(name: str, value: Any) -> np.ndarray:
     if isinstance(value, (str, bytes)):
         raise ModelError(f"{name}: expected [north, east, down] in m, got {value!r}")
@@ -154,9 +129,9 @@ def straight(speed: float, heading_deg: float = 0.0, start: Any = (0.0, 0.0, 0.0
     ``climb_rate`` down-velocity (m/s, positive = descending). State z = [n, e, d, v_n,
     v_e, v_d]; position(t) = start + [speed cos psi, speed sin psi, climb_rate] t.
     """
-    v = _nonnegative("speed", speed, "m/s")
-    psi = math.radians(_number("heading_deg", heading_deg))
-    vd = _number("climb_rate", climb_rate)
+    v = as_nonnegative("speed", speed, "m/s")
+    psi = math.radians(as_number("heading_deg", heading_deg))
+    vd = as_number("climb_rate", climb_rate)
     p0 = _point("start", start)
     Z, I3 = np.zeros((3, 3)), np.eye(3)
     F = np.block([[Z, I3], [Z, Z]])
@@ -178,12 +153,12 @@ def circle(radius: float, speed: float, center: Any = (0.0, 0.0, 0.0), clockwise
     ``start_angle_deg`` measured from north toward east (0 = due north of the center);
     theta' = +speed/R when ``clockwise`` (seen from above), -speed/R otherwise.
     """
-    R = _positive("radius", radius, "m")
-    v = _nonnegative("speed", speed, "m/s")
+    R = as_positive("radius", radius, "m")
+    v = as_nonnegative("speed", speed, "m/s")
     c = _point("center", center)
     if not isinstance(clockwise, (bool, np.bool_)):
         raise ModelError(f"clockwise: expected true or false, got {clockwise!r}")
-    th0 = math.radians(_number("start_angle_deg", start_angle_deg))
+    th0 = math.radians(as_number("start_angle_deg", start_angle_deg))
     omega = (v / R) if clockwise else -(v / R)
     F = np.zeros((5, 5))
     F[3, 4] = -omega
@@ -250,16 +225,16 @@ def lawnmower(leg_length: float, spacing: float, speed: float, harmonics: int = 
     along a leg is not constant (at mid-leg it is (4/pi) speed (1 - 1/3 + 1/5 ...), h
     terms: 1.27, 0.85, 1.10 times speed for h = 1, 2, 3).
     """
-    L = _positive("leg_length", leg_length, "m")
-    sp = _number("spacing", spacing)
-    v = _positive("speed", speed, "m/s")
+    L = as_positive("leg_length", leg_length, "m")
+    sp = as_number("spacing", spacing)
+    v = as_positive("speed", speed, "m/s")
     if isinstance(harmonics, bool) or not isinstance(harmonics, (int, np.integer)):
         raise ModelError(f"harmonics: expected a whole number >= 1, got {harmonics!r}")
     h = int(harmonics)
     if h < 1:
         raise ModelError(f"harmonics = {h} must be at least 1")
     p0 = _point("start", start)
-    d = p0[2] if depth is None else _number("depth", depth)
+    d = p0[2] if depth is None else as_number("depth", depth)
     T = L / v
     w0 = math.pi / T
     l_ = 4 + 4 * h

@@ -5,13 +5,17 @@ problem, so that a scenario loader, a CLI and an FMU slave can all report it as 
 """
 from __future__ import annotations
 
-from typing import Sequence
+import math
+from typing import Any, Sequence
 
 import numpy as np
 
 __all__ = [
     "ModelError",
     "as_matrix",
+    "as_nonnegative",
+    "as_number",
+    "as_positive",
     "as_vector",
     "check_symmetric_psd",
     "check_symmetric_pd",
@@ -146,3 +150,32 @@ def unobservable_modes(A: np.ndarray, C: np.ndarray, *, only_unstable: bool = Tr
                        continuous: bool = True) -> list[complex]:
     """Eigenvalues lambda of A where rank [A - lambda I; C] < n (PBH test)."""
     return uncontrollable_modes(A.T, C.T, only_unstable=only_unstable, continuous=continuous)
+
+
+def as_number(name: str, value: Any) -> float:
+    """A finite float, or a :class:`ModelError` naming ``name``."""
+    if isinstance(value, bool):
+        raise ModelError(f"{name}: expected a number, got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ModelError(f"{name}: not a number: {value!r}") from None
+    if not math.isfinite(x):
+        raise ModelError(f"{name} = {x} is not finite")
+    return x
+
+
+def as_positive(name: str, value: Any, unit: str) -> float:
+    """A finite float > 0 (``unit`` only for the message)."""
+    x = as_number(name, value)
+    if x <= 0.0:
+        raise ModelError(f"{name} = {x:g} {unit} must be positive")
+    return x
+
+
+def as_nonnegative(name: str, value: Any, unit: str) -> float:
+    """A finite float >= 0 (``unit`` only for the message)."""
+    x = as_number(name, value)
+    if x < 0.0:
+        raise ModelError(f"{name} = {x:g} {unit} must not be negative")
+    return x

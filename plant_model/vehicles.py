@@ -66,7 +66,8 @@ from typing import Any
 
 import numpy as np
 
-from .linalg_checks import ModelError, as_matrix, as_vector
+from .linalg_checks import (ModelError, as_matrix, as_nonnegative, as_positive,
+                            as_vector)
 
 __all__ = [
     "REMUS100_MAX_SPEED",
@@ -173,39 +174,13 @@ class VehicleModel:
 
 # ------------------------------------------------------------------------------------
 # argument checks
-def _number(name: str, value: Any) -> float:
-    if isinstance(value, bool):
-        raise ModelError(f"{name}: expected a number, got {value!r}")
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ModelError(f"{name}: not a number: {value!r}") from None
-    if not math.isfinite(x):
-        raise ModelError(f"{name} = {x} is not finite")
-    return x
-
-
-def _positive(name: str, value: Any, unit: str) -> float:
-    x = _number(name, value)
-    if x <= 0.0:
-        raise ModelError(f"{name} = {x:g} {unit} must be positive")
-    return x
-
-
-def _nonnegative(name: str, value: Any, unit: str) -> float:
-    x = _number(name, value)
-    if x < 0.0:
-        raise ModelError(f"{name} = {x:g} {unit} must not be negative")
-    return x
-
-
 def _triple(name: str, value: Any, unit: str, *, strict: bool) -> list[float]:
     is_list = isinstance(value, (Sequence, np.ndarray)) and not isinstance(value, (str, bytes))
     if not is_list or len(value) != 3:
         raise ModelError(
             f"{name}: expected a list of 3 numbers [surge, sway, heave] ({unit}), got {value!r}"
         )
-    check = _positive if strict else _nonnegative
+    check = as_positive if strict else as_nonnegative
     return [check(f"{name}[{k + 1}]", v, unit) for k, v in enumerate(value)]
 
 
@@ -224,10 +199,10 @@ def remus100_parameters(rho: float = 1026.0, length: float = 1.6, diameter: floa
     Returns a dict with keys mass, added_mass [surge, sway, heave], time_constant [surge,
     sway, heave], drag_coefficient, frontal_area, rho, length, diameter.
     """
-    rho = _positive("rho", rho, "kg/m^3")
-    length = _positive("length", length, "m")
-    diameter = _positive("diameter", diameter, "m")
-    drag_coefficient = _nonnegative("drag_coefficient", drag_coefficient, "")
+    rho = as_positive("rho", rho, "kg/m^3")
+    length = as_positive("length", length, "m")
+    diameter = as_positive("diameter", diameter, "m")
+    drag_coefficient = as_nonnegative("drag_coefficient", drag_coefficient, "")
     a = length / 2.0
     b = diameter / 2.0
     if b >= a:
@@ -270,14 +245,14 @@ def remus100(mass: float | None = None, added_mass: Sequence[float] | None = Non
     heave ones (the sway values are kept in ``parameters`` but unused).
     """
     base = remus100_parameters()
-    m = base["mass"] if mass is None else _positive("mass", mass, "kg")
+    m = base["mass"] if mass is None else as_positive("mass", mass, "kg")
     ma = base["added_mass"] if added_mass is None else _triple(
         "added_mass", added_mass, "kg", strict=False)
     tc = base["time_constant"] if time_constant is None else _triple(
         "time_constant", time_constant, "s", strict=True)
-    cd = base["drag_coefficient"] if drag_coefficient is None else _nonnegative(
+    cd = base["drag_coefficient"] if drag_coefficient is None else as_nonnegative(
         "drag_coefficient", drag_coefficient, "")
-    uc = _nonnegative("cruise_speed", cruise_speed, "m/s")
+    uc = as_nonnegative("cruise_speed", cruise_speed, "m/s")
     if uc > REMUS100_MAX_SPEED:
         raise ModelError(
             f"cruise_speed = {uc:g} m/s is above the REMUS 100 maximum speed of "
