@@ -4,7 +4,8 @@ Solves the paper's design (eq. 13-15, corrected) in exitInitializationMode from 
 parameters the host set, then u = -(Kx xhat + Kw what + Kz zhat) on demand (direct
 feedthrough from the estimates); with tracking = 'regulator' the feedforward comes from the
 output-regulation equations instead (controller_fmu.regulator). Static law: any
-communication step works.
+communication step works. FMU state: the gain matrix (restored as is, the design is not
+solved again), plus what the base class saves (parameters, buffers, flags).
 """
 import numpy as np
 
@@ -58,3 +59,16 @@ class AuvController(Fmi2Slave):
 
     def advance(self, step):
         pass
+
+    restores_math_from_state = True       # the state carries the gain: no design on restore
+
+    def model_state(self):
+        return {"gain": -self._negK}       # u = -gain [xhat; what; zhat] (a new array)
+
+    def restore_model_state(self, state):
+        gain = state["gain"]
+        shape = (self._out.size, self._in.size)
+        if not isinstance(gain, np.ndarray) or gain.dtype.kind != "f" or gain.shape != shape:
+            raise ValueError(f"the controller gain in the state must be a real array of shape "
+                             f"{shape}, got {getattr(gain, 'shape', type(gain).__name__)}")
+        self._negK = -gain

@@ -2,6 +2,7 @@
 
 Inputs y, ybar (and the truth x, w, z, read only in mode 'ideal'), then u; outputs the
 estimate xhat, what, zhat of sample k, which already includes y[k] (direct feedthrough).
+FMU state: the estimator's q (LinearEstimator.get_state), plus what the base class saves.
 """
 from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
 from fmu_common.interface import ArraySpec
@@ -64,3 +65,9 @@ class AuvEstimator(Fmi2Slave):
     def advance(self, step):
         est = self._outputs_view(self._out)
         self.estimator.update(est, self._u)
+
+    def model_state(self):
+        return self.estimator.get_state()
+
+    def restore_model_state(self, state):
+        self.estimator.set_state(state)

@@ -108,6 +108,21 @@ class LinearEstimator:
         """q[k+1] = Aq est[k] + Bu u[k]."""
         self.q = self.Aq @ est + self.Bu @ u
 
+    def get_state(self) -> dict:
+        """What evolves: the internal state q (a copy); the mode for checking."""
+        return {"mode": self.mode, "q": self.q.copy()}
+
+    def set_state(self, state: dict) -> None:
+        """Restore a :meth:`get_state` result (validated first: on error nothing changes)."""
+        if state["mode"] != self.mode:
+            raise ValueError(f"the estimator state is of mode {state['mode']!r}, "
+                             f"this estimator is {self.mode!r}")
+        q = np.asarray(state["q"])
+        if q.dtype.kind not in "fiu" or q.shape != self.q0.shape:
+            raise ValueError(f"estimator state q must be a real array of shape {self.q0.shape}, "
+                             f"got {q.dtype} of shape {q.shape}")
+        self.q = np.array(q, dtype=float)
+
 
 def _one_based(idx: np.ndarray) -> str:
     return "[" + ",".join(str(i + 1) for i in idx) + "]"

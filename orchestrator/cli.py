@@ -91,6 +91,12 @@ def cmd_build(args: argparse.Namespace) -> int:
         write_fmu_readme(sc, out / "README.md")
     for k, p in paths.items():
         print(f"{k:>10s}: {p} ({p.stat().st_size} bytes)")
+    if not args.no_crosscheck:
+        from .crosscheck import write_crosscheck
+        from .workflow import scenario_config
+        written = write_crosscheck(paths, scenario_config(sc), out / "crosscheck")
+        print(f"cross-check references (<Model>_in.csv, _ref.csv, _ref.opt) for "
+              f"{', '.join(written)} in {out / 'crosscheck'}")
     return 0
 
 
@@ -218,6 +224,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out", default=str(ROOT / "fmus"), help="output folder (default: fmus/)")
     sp.add_argument("--tracking", choices=TRACKING_MODES,
                     help="the controller FMU's default tracking law (default: scenario's)")
+    sp.add_argument("--no-crosscheck", action="store_true",
+                    help="skip the FMI cross-check reference files (500 steps of the closed loop)")
     sp.set_defaults(func=cmd_build)
 
     sp = sub.add_parser("run", help="co-simulate one estimator mode, write .rrd and summary.json")

@@ -181,6 +181,10 @@ def build_fmu(kind: FmuKind, config: dict[str, Any], out_dir: Path) -> Path:
                 script_root / script.name, dest=out_dir,
                 project_files=[*staged, cfg_path],
                 canHandleVariableCommunicationStepSize=kind.variable_step,
+                # FMU state: the slaves save and restore everything that evolves and
+                # serialize it with a self-describing header (fmu_common.slave_base)
+                canGetAndSetFMUstate=True,
+                canSerializeFMUstate=True,
             )
         finally:
             sys.modules.pop(script.stem, None)

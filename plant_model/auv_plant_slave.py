@@ -2,6 +2,8 @@
 
 Inputs u; outputs y, ybar (noisy measurements) and the truth x, w, z, e = H z - C x.
 No output depends directly on u (the plant is strictly proper when sampled).
+FMU state: the plant's s, k, current noise row and noise stream (Plant.get_state), plus
+what the base class saves (parameters, buffers, flags).
 """
 from fmu_common.interface import ArraySpec
 from fmu_common.slave_base import ArraySlave as Fmi2Slave  # pythonfmu's loader looks for "class X(Fmi2Slave):"
@@ -55,3 +57,9 @@ class AuvPlant(Fmi2Slave):
 
     def advance(self, step):
         self.plant.step(self._u)
+
+    def model_state(self):
+        return self.plant.get_state()
+
+    def restore_model_state(self, state):
+        self.plant.set_state(state)

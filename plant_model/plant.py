@@ -10,6 +10,11 @@ Every random number comes from one ``numpy.random.Generator(PCG64(seed))``: per 
 standard normal vector xi[k] of length ns + 2p, drawn in blocks of rows (a block of
 rows is the same stream as row-by-row draws), and [v[k]; n[k]; n_z[k]] = L xi[k] with
 L = blkdiag(chol-like factors of Qd and Rd). The same seed gives the same traces.
+
+``get_state()`` / ``set_state(state)`` (on :class:`Plant` and :class:`NoiseStream`) capture and
+restore everything that evolves, as plain Python / numpy values: the sampled state s, the
+step counter k, the current noise row, the generator's bit-generator state and the rows of
+the current block not yet used. A restored plant draws exactly the same noise afterwards.
 """
 from __future__ import annotations
 
@@ -19,6 +24,21 @@ from .discretization import DiscreteModel
 from .linalg_checks import psd_factor
 
 __all__ = ["NoiseStream", "Plant", "plant_output_layout"]
+
+
+def _float_array(value, shape: tuple[int, ...], what: str) -> np.ndarray:
+    """A float copy of ``value`` with exactly ``shape`` (ValueError naming ``what`` if not)."""
+    arr = np.asarray(value)
+    if arr.dtype.kind not in "fiu" or arr.shape != shape:
+        raise ValueError(f"{what} must be a real array of shape {shape}, "
+                         f"got {arr.dtype} of shape {arr.shape}")
+    return np.array(arr, dtype=float)
+
+
+def _count(value, what: str) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise ValueError(f"{what} must be a non-negative integer, got {value!r}")
+    return int(value)
 
 
 def _noise_factors(model: DiscreteModel) -> tuple[np.ndarray, np.ndarray]:
@@ -61,6 +81,35 @@ class NoiseStream:
         self._i += 1
         return row
 
+    def get_state(self) -> dict:
+        """Everything that evolves, as plain values (copies).
+
+        ``pending`` holds the coloured rows of the current block not yet returned: after
+        :meth:`set_state` they come first, then new blocks from ``bit_generator``.
+        """
+        return {"bit_generator": self._rng.bit_generator.state,   # a fresh dict of ints
+                "pending": self._buf[self._i:].copy(),
+                "block": self._block, "dim": self._dim}
+
+    def set_state(self, state: dict) -> None:
+        """Restore a :meth:`get_state` result (validated first: on error nothing changes)."""
+        if _count(state["dim"], "noise dim") != self._dim:
+            raise ValueError(f"the noise state has rows of {state['dim']} values, this stream "
+                             f"draws {self._dim}")
+        block = _count(state["block"], "noise block size")
+        if block < 1:
+            raise ValueError("noise block size must be at least 1")
+        pending = np.asarray(state["pending"])
+        if pending.ndim != 2:
+            raise ValueError(f"pending noise rows must be a 2-d array, got shape {pending.shape}")
+        pending = _float_array(pending, (pending.shape[0], self._dim), "pending noise rows")
+        rng = np.random.Generator(type(self._rng.bit_generator)())
+        try:
+            rng.bit_generator.state = state["bit_generator"]
+        except (TypeError, ValueError, KeyError) as exc:
+            raise ValueError(f"invalid noise generator state: {exc}") from None
+        self._rng, self._block, self._buf, self._i = rng, block, pending, 0
+
 
 def plant_output_layout(model: DiscreteModel) -> dict[str, slice]:
     """Slices of the plant's output vector [y, ybar, x, w, z, e]."""
@@ -95,6 +144,23 @@ class Plant:
     def _refresh(self) -> None:
         s = self.s
         self.output = np.concatenate([self._M @ s + self._row[self._ns:], s, self._E @ s])
+
+    def get_state(self) -> dict:
+        """Everything that evolves (copies): k, s, the current noise row, the noise stream."""
+        return {"k": self.k, "seed": self.seed, "s": self.s.copy(), "row": self._row.copy(),
+                "noise": self._noise.get_state()}
+
+    def set_state(self, state: dict) -> None:
+        """Restore a :meth:`get_state` result (validated first: on error nothing changes)."""
+        if int(state["seed"]) != self.seed:
+            raise ValueError(f"the plant state was drawn with seed {state['seed']}, "
+                             f"this plant has seed {self.seed}")
+        k = _count(state["k"], "step counter k")
+        s = _float_array(state["s"], (self._ns,), "plant state s")
+        row = _float_array(state["row"], (self.model.noise_dim,), "noise row")
+        self._noise.set_state(state["noise"])
+        self.k, self.s, self._row = k, s, row
+        self._refresh()
 
     def step(self, u: np.ndarray) -> None:
         """Advance one step with u held constant: s <- Ad s + Bd u + v[k]."""
