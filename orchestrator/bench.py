@@ -21,7 +21,7 @@ from .reference import run_monolithic
 from .scenario import Scenario
 from .workflow import build, scenario_config
 
-__all__ = ["benchmark", "benchmark_fleet"]
+__all__ = ["benchmark", "benchmark_fleet", "benchmark_libcosim"]
 
 
 def _fmi_call_costs(fmus: dict[str, Path], cfg: dict[str, Any], reps: int = 20000) -> dict[str, float]:
@@ -175,3 +175,71 @@ def benchmark_fleet(N: int, *, T: float = 300.0, mode: str = "kalman", tracking:
 def _variables(fmu: Path):
     from fmpy import read_model_description
     return read_model_description(str(fmu)).modelVariables
+
+
+def benchmark_libcosim(sc: Scenario, steps: int | None = None, *, mode: str | None = None,
+                       seed: int | None = None, repeats: int = 3,
+                       check: bool = True) -> dict[str, Any]:
+    """Our fmpy master against libcosim (Open Simulation Platform, through libcosimpy) on
+    the same FMUs, in one process.
+
+    Exports the scenario (orchestrator.osp_export.export_osp: the FMUs, OspSystemStructure.xml)
+    once, then times ``repeats`` rounds, each running, in turn, our master with the
+    Gauss-Seidel loop, our master with the Jacobi loop (libcosim's algorithm) and libcosim
+    without observers, for ``steps`` steps (default the scenario's). Reported: the median
+    and every round's microseconds per step of the stepping loop (initialization left out
+    on both sides), and their ratios. ``check``: one more libcosim run with observers on
+    every signal, compared with our Jacobi run (``libcosim_vs_jacobi_max_abs``, 0.0 when
+    the traces are bit-identical).
+    """
+    import statistics
+
+    from .osp_export import SIMULATORS, export_osp, libcosim_version, quiet_libcosim, run_libcosim
+
+    quiet_libcosim()
+    if mode is not None or seed is not None:
+        sc = sc.with_run(estimator=mode, seed=seed)
+    steps = int(steps or sc.steps)
+    cfg = scenario_config(sc)
+    rounds: dict[str, list[float]] = {"ours_gauss_seidel": [], "ours_jacobi": [], "libcosim": []}
+    out: dict[str, Any] = {"scenario": sc.name, "mode": sc.estimator, "seed": sc.seed,
+                           "steps": steps, "h": sc.h, "repeats": repeats}
+    with tempfile.TemporaryDirectory(prefix="auv_bench_osp_") as tmp:
+        t = time.perf_counter()
+        paths = export_osp(sc, Path(tmp))
+        out["export_s"] = time.perf_counter() - t
+        fmus = {k: paths[k] for k in SIMULATORS}
+        # warm-up (imports, first-call costs) outside the timed rounds
+        run_cosimulation(fmus, cfg, mode=sc.estimator, seed=sc.seed, steps=min(steps, 500))
+        run_libcosim(paths["system"], cfg, min(steps, 500), record=False)
+        jac = None
+        for _ in range(max(1, repeats)):
+            res = run_cosimulation(fmus, cfg, mode=sc.estimator, seed=sc.seed, steps=steps)
+            rounds["ours_gauss_seidel"].append(res.loop_s / steps * 1e6)
+            jac = run_cosimulation(fmus, cfg, mode=sc.estimator, seed=sc.seed, steps=steps,
+                                   coupling="jacobi")
+            rounds["ours_jacobi"].append(jac.loop_s / steps * 1e6)
+            lc = run_libcosim(paths["system"], cfg, steps, record=False)
+            rounds["libcosim"].append(lc["loop_s"] / lc["loop_steps"] * 1e6)
+            out["libcosim_setup_s"] = lc["setup_s"]
+            out["libcosim_init_and_first_step_s"] = lc["init_s"]
+        if check:
+            rec = run_libcosim(paths["system"], cfg, steps, record=True)
+            out["libcosim_with_observers_us_per_step"] = rec["loop_s"] / rec["loop_steps"] * 1e6
+            diff = max(float(np.max(np.abs(rec["traces"][k] - jac.traces[k])))
+                       for k in rec["traces"])
+            out["libcosim_vs_jacobi_max_abs"] = diff
+            out["libcosim_vs_jacobi_bit_identical"] = all(
+                np.array_equal(rec["traces"][k], jac.traces[k]) for k in rec["traces"])
+    med = {k: statistics.median(v) for k, v in rounds.items()}
+    out.update({
+        "ours_gauss_seidel_us_per_step": med["ours_gauss_seidel"],
+        "ours_jacobi_us_per_step": med["ours_jacobi"],
+        "libcosim_us_per_step": med["libcosim"],
+        "speedup_gauss_seidel_vs_libcosim": med["libcosim"] / med["ours_gauss_seidel"],
+        "speedup_jacobi_vs_libcosim": med["libcosim"] / med["ours_jacobi"],
+        "rounds_us_per_step": rounds,
+        "versions": libcosim_version(),
+        "loadavg": list(os.getloadavg()), "cpus": os.cpu_count(),
+    })
+    return out

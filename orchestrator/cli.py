@@ -16,6 +16,7 @@ from estimator_fmu.estimators import ESTIMATOR_MODES
 from plant_model.linalg_checks import ModelError
 
 from .master import CosimError
+from .osp_export import ExportError
 from .scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -118,6 +119,22 @@ def cmd_compare(args: argparse.Namespace) -> int:
                         else (None, list(TRACKING_MODES)))
     _print_summary(simulate(sc, modes, args.seeds, out, progress=not args.quiet,
                             log=(lambda s: None) if args.quiet else print, trackings=trackings))
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    sc = _scenario(args)
+    out = Path(args.out or f"out/{sc.name}_{args.format}")
+    if args.format == "osp":
+        from .osp_export import export_osp
+        paths = export_osp(sc, out)
+        print(f"OSP system for scenario {sc.name} in {out}: {paths['system'].name}, "
+              + ", ".join(p.name for k, p in paths.items() if k != "system"))
+        print(f"run it with libcosim: cosim run {paths['system']}  (or libcosimpy)")
+    else:
+        from .ssp_export import export_ssp
+        path = export_ssp(sc, out / f"{sc.name}.ssp")
+        print(f"SSP archive for scenario {sc.name}: {path} (fmpy: simulate_ssp('{path}'))")
     return 0
 
 
@@ -251,6 +268,16 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
     sp.set_defaults(func=cmd_compare)
 
+    sp = sub.add_parser("export", help="the FMUs and a system file for other tools: an OSP "
+                                       "system (libcosim) or an SSP archive (fmpy, SSP tools)")
+    sp.add_argument("format", choices=("osp", "ssp"))
+    common(sp)
+    sp.add_argument("--tracking", choices=TRACKING_MODES, help="the controller's tracking law")
+    sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="the estimator's mode")
+    sp.add_argument("--seed", type=int, help="noise seed written as the plant's initial value")
+    sp.add_argument("--out", help="output folder (default: out/<scenario>_<format>)")
+    sp.set_defaults(func=cmd_export)
+
     sp = sub.add_parser("validate", help="fmpy validate the FMUs (built afresh, or given)")
     common(sp, run=False)
     sp.add_argument("fmus", nargs="*", help=".fmu files to validate instead of building")
@@ -276,7 +303,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"--seed {args.seed}: seeds must be non-negative")
     try:
         return args.func(args)
-    except (ScenarioError, ModelError, CosimError) as exc:
+    except (ScenarioError, ModelError, CosimError, ExportError) as exc:
         print(f"auv-cosim {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

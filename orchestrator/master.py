@@ -1,9 +1,24 @@
 """Fixed-step co-simulation master on fmpy for the plant, estimator and controller FMUs.
 
-Within macro step k (t = k h, never accumulated), the exact discrete-time loop:
+Within macro step k (t = k h, never accumulated), the exact discrete-time loop
+(``coupling="gauss-seidel"``, the default):
 
     plant  -> y[k], ybar[k] (+ truth)  -> estimator -> xhat, what, zhat
            -> controller -> u[k] -> plant and estimator -> all three doStep(t, h)
+
+``coupling="jacobi"`` does what libcosim's fixed-step algorithm (Open Simulation
+Platform) does: every FMU's inputs are set to the other FMUs' outputs read at the
+previous communication point, then all three step, then all outputs are read:
+
+    set inputs from the outputs read at t_k -> all three doStep(t_k, h) -> read outputs (t_k+1)
+
+The plant has no direct feedthrough, so the estimator still gets y[k] in step k; but the
+estimate it outputs at t_k+1 is computed from its state at k+1 and the inputs it still
+holds (y[k]), and reaches the controller in step k+1, whose u reaches the plant in step
+k+2: the measurement-to-control path gains latency (see orchestrator/osp_export.py and
+tests/test_osp_export.py for the agreement with libcosim). Row k of a Jacobi trace holds
+the outputs read at t_k, i.e. the values transferred into step k (u[k] is the control
+the plant holds over [t_k, t_k+1)).
 
 The master resolves value references once, calls the FMI functions of each shared
 library directly (ctypes, no per-call wrappers), batches each get/set into one call per
@@ -30,10 +45,12 @@ from fmu_common.interface import element_names
 from .fmu_build import FMU_KINDS, interface_of
 
 __all__ = ["CosimError", "FmuInstance", "RunResult", "run_cosimulation", "PLANT_OUTPUTS",
-           "ESTIMATOR_OUTPUTS", "signal_names", "signal_size"]
+           "ESTIMATOR_OUTPUTS", "COUPLINGS", "signal_names", "signal_size"]
 
 PLANT_OUTPUTS = ("y", "ybar", "x", "w", "z", "e")
 ESTIMATOR_OUTPUTS = ("xhat", "what", "zhat")
+#: how the master couples the FMUs within a step (see the module docstring)
+COUPLINGS = ("gauss-seidel", "jacobi")
 _STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
 
 
@@ -168,13 +185,18 @@ class _Extracted:
 
 
 def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str, seed: int,
-                     steps: int, progress: Any = False, tracking: str | None = None) -> RunResult:
+                     steps: int, progress: Any = False, tracking: str | None = None,
+                     coupling: str = "gauss-seidel") -> RunResult:
     """Run the three FMUs for ``steps`` communication steps of ``config['h']``.
 
     ``mode``: the estimator mode; ``tracking``: the controller's law ('lq' or 'regulator',
     default the configuration's). ``progress``: False, True (a progress bar shown after one
-    second), or a shared bar object with ``update(n)``.
+    second), or a shared bar object with ``update(n)``. ``coupling``: 'gauss-seidel' (the
+    exact discrete-time loop, default) or 'jacobi' (what libcosim does: every FMU sees the
+    other FMUs' outputs of the previous communication point; module docstring).
     """
+    if coupling not in COUPLINGS:
+        raise ValueError(f"coupling {coupling!r} is not one of {', '.join(COUPLINGS)}")
     cfg = dict(config, mode=mode, seed=int(seed),
                tracking=tracking or config.get("tracking", "lq"))
     h = float(cfg["h"])
@@ -190,7 +212,8 @@ def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str
             inst[key].initialize(fmu_parameters(key, cfg), T=steps * h)
         P, E, C = inst["plant"], inst["estimator"], inst["controller"]
         p_out = signal_names(PLANT_OUTPUTS, d)
-        e_meas = p_out[:2 * p + (ns if mode == "ideal" else 0)]
+        # Jacobi sets every input, as libcosim does (the truth is read only in 'ideal')
+        e_meas = p_out[:2 * p + (ns if mode == "ideal" or coupling == "jacobi" else 0)]
         e_out = signal_names(ESTIMATOR_OUTPUTS, d)      # also the controller's inputs
         u_names = element_names("u", (m,))
         vr_p_out, vr_p_u = P.vrs(p_out), P.vrs(u_names)
@@ -200,8 +223,9 @@ def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str
         rec_e = np.zeros((steps, len(e_out)))
         rec_u = np.zeros((steps, m))
         t_loop = time.perf_counter()
-        _loop(P, E, C, rec_p, rec_e, rec_u, vr_p_out, vr_p_u, vr_e_in, vr_e_u, vr_e_out,
-              vr_c_in, vr_c_out, h, progress)
+        loop = _loop if coupling == "gauss-seidel" else _loop_jacobi
+        loop(P, E, C, rec_p, rec_e, rec_u, vr_p_out, vr_p_u, vr_e_in, vr_e_u, vr_e_out,
+             vr_c_in, vr_c_out, h, progress)
         loop_s = time.perf_counter() - t_loop
     finally:
         for fmu in inst.values():
@@ -216,7 +240,7 @@ def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str
             i += k
     traces["u"] = rec_u
     return RunResult(mode=mode, seed=int(seed), h=h, traces=traces,
-                     wall_s=time.perf_counter() - t0, loop_s=loop_s)
+                     wall_s=time.perf_counter() - t0, loop_s=loop_s, coupling=coupling)
 
 
 def signal_size(name: str, d: dict[str, int]) -> int:
@@ -285,6 +309,76 @@ def _loop(P, E, C, rec_p, rec_e, rec_u, vr_p_out, vr_p_u, vr_e_in, vr_e_u, vr_e_
             st = stepC(cc, t, h, 1)
             if st:
                 raise C.fail(f"fmi2DoStep at t = {t} s", st)
+        if bar is not None:
+            bar.update(min(chunk, steps - k0))
+    if progress is True:
+        bar.close()
+
+
+def _loop_jacobi(P, E, C, rec_p, rec_e, rec_u, vr_p_out, vr_p_u, vr_e_in, vr_e_u, vr_e_out,
+                 vr_c_in, vr_c_out, h, progress) -> None:
+    """libcosim's fixed-step coupling: inputs of step k are the outputs read at t_k (after
+    step k - 1, or after initialization); all FMUs step; outputs are read at t_k+1.
+    Row k of the traces is what was read at t_k."""
+    steps = rec_u.shape[0]
+    cp, ce, cc = P.component, E.component, C.component
+    getP, setP, stepP = P.get_real, P.set_real, P.do_step
+    getE, setE, stepE = E.get_real, E.set_real, E.do_step
+    getC, setC, stepC = C.get_real, C.set_real, C.do_step
+    nPo, nPu, nEi, nEu, nEo, nCi, nCo = (len(vr_p_out), len(vr_p_u), len(vr_e_in),
+                                         len(vr_e_u), len(vr_e_out), len(vr_c_in), len(vr_c_out))
+    aPo, aPu, aEi, aEu, aEo, aCi, aCo = (ctypes.addressof(v) for v in
+                                         (vr_p_out, vr_p_u, vr_e_in, vr_e_u, vr_e_out, vr_c_in, vr_c_out))
+    bp, be, bu = (a.ctypes.data for a in (rec_p, rec_e, rec_u))
+    sp, se, su = (a.strides[0] for a in (rec_p, rec_e, rec_u))
+    bar = None
+    if progress is True:
+        from tqdm import tqdm
+        bar = tqdm(total=steps, unit="step", delay=1.0, leave=False)
+    elif progress:
+        bar = progress
+
+    def read(k: int, t: float) -> None:
+        st = getP(cp, aPo, nPo, bp + k * sp)
+        if st:
+            raise P.fail(f"fmi2GetReal at t = {t} s", st)
+        st = getE(ce, aEo, nEo, be + k * se)
+        if st:
+            raise E.fail(f"fmi2GetReal at t = {t} s", st)
+        st = getC(cc, aCo, nCo, bu + k * su)
+        if st:
+            raise C.fail(f"fmi2GetReal at t = {t} s", st)
+
+    if steps:
+        read(0, 0.0)
+    chunk = 2000
+    for k0 in range(0, steps, chunk):
+        for k in range(k0, min(k0 + chunk, steps)):
+            rp, re_, ru = bp + k * sp, be + k * se, bu + k * su
+            t = k * h
+            st = setP(cp, aPu, nPu, ru)
+            if st:
+                raise P.fail(f"fmi2SetReal at t = {t} s", st)
+            st = setE(ce, aEi, nEi, rp)
+            if st:
+                raise E.fail(f"fmi2SetReal (measurements) at t = {t} s", st)
+            st = setE(ce, aEu, nEu, ru)
+            if st:
+                raise E.fail(f"fmi2SetReal (u) at t = {t} s", st)
+            st = setC(cc, aCi, nCi, re_)
+            if st:
+                raise C.fail(f"fmi2SetReal at t = {t} s", st)
+            st = stepP(cp, t, h, 1)
+            if st:
+                raise P.fail(f"fmi2DoStep at t = {t} s", st)
+            st = stepE(ce, t, h, 1)
+            if st:
+                raise E.fail(f"fmi2DoStep at t = {t} s", st)
+            st = stepC(cc, t, h, 1)
+            if st:
+                raise C.fail(f"fmi2DoStep at t = {t} s", st)
+            if k + 1 < steps:
+                read(k + 1, (k + 1) * h)
         if bar is not None:
             bar.update(min(chunk, steps - k0))
     if progress is True:
