@@ -21,7 +21,7 @@ from .reference import run_monolithic
 from .scenario import Scenario
 from .workflow import build, scenario_config
 
-__all__ = ["benchmark", "benchmark_fleet", "benchmark_libcosim"]
+__all__ = ["benchmark", "benchmark_fleet", "benchmark_libcosim", "benchmark_tools"]
 
 
 def _fmi_call_costs(fmus: dict[str, Path], cfg: dict[str, Any], reps: int = 20000) -> dict[str, float]:
@@ -242,4 +242,52 @@ def benchmark_libcosim(sc: Scenario, steps: int | None = None, *, mode: str | No
         "versions": libcosim_version(),
         "loadavg": list(os.getloadavg()), "cpus": os.cpu_count(),
     })
+    return out
+
+
+def _simulate_ssp_us_per_step(ssp: Path, h: float, steps: int) -> float:
+    """Microseconds per step of fmpy's simulate_ssp loop (its instantiation and freeing
+    left out: fmpy's own instantiate/free functions are wrapped to mark the loop)."""
+    import fmpy.ssp.simulation as fmpy_ssp
+
+    from .ssp_export import fmpy_parameter_set
+    marks: dict[str, float] = {}
+    inst, free = fmpy_ssp.instantiate_fmu, fmpy_ssp.free_fmu
+
+    def timed_instantiate(*a: Any, **kw: Any) -> None:
+        inst(*a, **kw)
+        marks["start"] = time.perf_counter()
+
+    def timed_free(component: Any) -> None:
+        marks.setdefault("end", time.perf_counter())
+        free(component)
+
+    fmpy_ssp.instantiate_fmu, fmpy_ssp.free_fmu = timed_instantiate, timed_free
+    try:
+        rows = len(fmpy_ssp.simulate_ssp(str(ssp), stop_time=steps * h, step_size=h,
+                                         parameter_set=fmpy_parameter_set(ssp)))
+    finally:
+        fmpy_ssp.instantiate_fmu, fmpy_ssp.free_fmu = inst, free
+    return (marks["end"] - marks["start"]) / rows * 1e6
+
+
+def benchmark_tools(sc: Scenario, steps: int = 5000, repeats: int = 3) -> dict[str, Any]:
+    """Microseconds per step of the same FMUs in our orchestrator (Gauss-Seidel and
+    Jacobi), libcosim through libcosimpy, and fmpy's simulate_ssp, in one run (medians of
+    ``repeats`` alternating rounds; loops only, initialization left out everywhere)."""
+    import statistics
+
+    from .osp_export import SIMULATORS, export_osp
+    from .ssp_export import export_ssp
+
+    out = benchmark_libcosim(sc, steps, repeats=repeats, check=False)
+    with tempfile.TemporaryDirectory(prefix="auv_bench_tools_") as tmp:
+        paths = export_osp(sc, Path(tmp) / "osp")
+        ssp = export_ssp(sc, Path(tmp) / "system.ssp", fmus={k: paths[k] for k in SIMULATORS})
+        _simulate_ssp_us_per_step(ssp, sc.h, min(steps, 500))          # warm-up
+        rounds = [_simulate_ssp_us_per_step(ssp, sc.h, steps) for _ in range(max(1, repeats))]
+    out["simulate_ssp_us_per_step"] = statistics.median(rounds)
+    out["rounds_us_per_step"]["simulate_ssp"] = rounds
+    out["speedup_gauss_seidel_vs_simulate_ssp"] = (out["simulate_ssp_us_per_step"]
+                                                   / out["ours_gauss_seidel_us_per_step"])
     return out

@@ -199,10 +199,32 @@ def cmd_bench_fleet(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_tools(args: argparse.Namespace) -> int:
+    from .bench import benchmark_tools
+    sc = _scenario(args)
+    steps = int(round((args.T or 50.0) / sc.h))
+    r = benchmark_tools(sc, steps)
+    if args.json:
+        print(json.dumps(r, indent=2))
+        return 0
+    print(f"scenario {r['scenario']}, estimator {r['mode']}, {r['steps']} steps of {r['h']} s, "
+          f"median of {r['repeats']} rounds; load average {r['loadavg'][0]:.2f} on {r['cpus']} CPUs")
+    print(f"  ours, Gauss-Seidel        {r['ours_gauss_seidel_us_per_step']:8.1f} us/step")
+    print(f"  ours, Jacobi              {r['ours_jacobi_us_per_step']:8.1f} us/step")
+    print(f"  libcosim (libcosimpy)     {r['libcosim_us_per_step']:8.1f} us/step   "
+          f"ours {r['speedup_gauss_seidel_vs_libcosim']:.1f}x faster (target 5x)")
+    print(f"  fmpy simulate_ssp         {r['simulate_ssp_us_per_step']:8.1f} us/step   "
+          f"ours {r['speedup_gauss_seidel_vs_simulate_ssp']:.1f}x faster")
+    print(f"  ({', '.join(f'{k} {v}' for k, v in r['versions'].items())})")
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from .bench import benchmark
     if args.fleet:
         return cmd_bench_fleet(args)
+    if args.tools:
+        return cmd_bench_tools(args)
     sc = _scenario(args)
     r = benchmark(sc, mode=sc.estimator, seed=sc.seed)
     if args.json:
@@ -291,6 +313,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--fleet", type=_fleet_sizes,
                     help="benchmark generated grid fleets of these sizes instead, e.g. 1,5,20,50 "
                          "(REMUS 100 vehicles, circle leader; --T sets the simulated time, default 300 s)")
+    sp.add_argument("--tools", action="store_true",
+                    help="the same FMUs in our orchestrator, libcosim (libcosimpy) and fmpy's "
+                         "simulate_ssp (--T sets the simulated time, default 50 s)")
     sp.add_argument("--json", action="store_true", help="print the figures as JSON")
     sp.set_defaults(func=cmd_bench)
     return p
