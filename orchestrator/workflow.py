@@ -28,10 +28,19 @@ sets in initialization mode is used: the plant discretizes, the estimator design
 filters and the controller solves its Riccati and Sylvester equations in
 exitInitializationMode.
 
-Importing them needs: a Python 3.11+ interpreter with numpy and scipy in the host process
-(fmpy and libcosimpy run the FMU in their own interpreter; a non-Python host must preload
-libpython). `needsExecutionTool="true"` says so. FMUs built for a fleet scenario
-(`formation-4`, `formation-20`, ...) also need networkx (the communication graph).
+Importing them needs a Python interpreter in the host process: pythonfmu's binary embeds
+the host's Python (fmpy and libcosimpy run the FMU in their own interpreter; a non-Python
+host must load libpython, see the README), so each FMU declares
+`needsExecutionTool="true"`. What each FMU's code imports from that Python:
+
+| FMU | needs |
+|---|---|
+| `AuvPlant` | Python 3.11+, numpy, scipy (matrix exponential, Van Loan); networkx for fleet FMUs |
+| `AuvEstimator` | Python 3.11+, numpy, scipy (discrete Riccati equation); networkx for fleet FMUs |
+| `AuvController` | Python 3.11+, numpy, scipy (continuous Riccati and Sylvester equations); networkx for fleet FMUs |
+
+pythonfmu itself and this project's modules travel inside each FMU (`resources/`).
+All three support fmi2Get/SetFMUstate and fmi2Serialize/DeSerializeFMUstate.
 
 Fleet FMUs do not expose the stacked matrices (they grow as (N p)^2) but the quantities
 a user changes: `vehicle[i].mass`, `vehicle[i].added_mass[k]`, `vehicle[i].offset[k]`,
