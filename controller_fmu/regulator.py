@@ -41,6 +41,16 @@ def _fmt(z: complex) -> str:
     return f"{z.real:.6g}" if abs(z.imag) < 1e-12 else f"{z.real:.6g}{z.imag:+.6g}j"
 
 
+def _pencil(A: np.ndarray, B1: np.ndarray, C: np.ndarray, lam: complex) -> np.ndarray:
+    """[[A - lam I, B1], [C, 0]] (complex)."""
+    n, m = B1.shape
+    Mk = np.zeros((n + C.shape[0], n + m), dtype=complex)
+    Mk[:n, :n] = A - lam * np.eye(n)
+    Mk[:n, n:] = B1
+    Mk[n:, :n] = C
+    return Mk
+
+
 def solve_regulator_equations(A: np.ndarray, B1: np.ndarray, C: np.ndarray, S: np.ndarray,
                               Pv: np.ndarray, Hv: np.ndarray, *,
                               exosystem: str = "S") -> tuple[np.ndarray, np.ndarray]:
@@ -71,13 +81,10 @@ def solve_regulator_equations(A: np.ndarray, B1: np.ndarray, C: np.ndarray, S: n
     for k in range(nv):
         lam = T[k, k]
         key = (round(lam.real, 12), round(lam.imag, 12))
-        Mk = np.zeros((n + p, n + m), dtype=complex)
-        Mk[:n, :n] = A - lam * np.eye(n)
-        Mk[:n, n:] = B1
-        Mk[n:, :n] = C
         rhs = np.concatenate([Pi_t[:, :k] @ T[:k, k] - PvU[:, k], HvU[:, k]])
         if m == p:
             if key not in factors:
+                Mk = _pencil(A, B1, C, lam)
                 sv = np.linalg.svd(Mk, compute_uv=False)
                 if sv[-1] <= 1e-10 * max(sv[0], scale):
                     raise ModelError(
@@ -87,6 +94,7 @@ def solve_regulator_equations(A: np.ndarray, B1: np.ndarray, C: np.ndarray, S: n
                 factors[key] = lu_factor(Mk)
             sol = lu_solve(factors[key], rhs)
         else:
+            Mk = _pencil(A, B1, C, lam)
             sol = np.linalg.lstsq(Mk, rhs, rcond=None)[0]
             res = np.linalg.norm(Mk @ sol - rhs)
             if res > 1e-8 * (1.0 + np.linalg.norm(rhs)):

@@ -45,10 +45,17 @@ from fmu_common.interface import element_names
 from .fmu_build import FMU_KINDS, interface_of
 
 __all__ = ["CosimError", "FmuInstance", "RunResult", "run_cosimulation", "PLANT_OUTPUTS",
-           "ESTIMATOR_OUTPUTS", "COUPLINGS", "signal_names", "signal_size"]
+           "ESTIMATOR_OUTPUTS", "LOOP_CONNECTIONS", "COUPLINGS", "signal_names", "signal_size"]
 
 PLANT_OUTPUTS = ("y", "ybar", "x", "w", "z", "e")
 ESTIMATOR_OUTPUTS = ("xhat", "what", "zhat")
+#: the closed loop's wiring, (source FMU, vector signal, destination FMU), the same
+#: variable name at both ends; the system files written for other tools follow it
+LOOP_CONNECTIONS: tuple[tuple[str, str, str], ...] = (
+    *(("plant", s, "estimator") for s in PLANT_OUTPUTS if s != "e"),
+    *(("estimator", s, "controller") for s in ESTIMATOR_OUTPUTS),
+    ("controller", "u", "plant"), ("controller", "u", "estimator"),
+)
 #: how the master couples the FMUs within a step (see the module docstring)
 COUPLINGS = ("gauss-seidel", "jacobi")
 _STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]

@@ -38,14 +38,14 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 from lxml import etree
 
 from fmu_common.interface import UNIT_DEFINITIONS, element_names
 from .fmu_build import FMU_KINDS, interface_of
-from .master import ESTIMATOR_OUTPUTS, PLANT_OUTPUTS, fmu_parameters, signal_size
+from .master import ESTIMATOR_OUTPUTS, LOOP_CONNECTIONS, PLANT_OUTPUTS, fmu_parameters, signal_size
 from .scenario import Scenario
 
 __all__ = ["ExportError", "Connection", "VariableInfo", "SCHEMA_DIR", "OSP_SYSTEM_NS",
@@ -62,9 +62,6 @@ _SCHEMA_FILES = {"OspSystemStructure": "OspSystemStructure.xsd",
 
 #: simulator (instance) name in the system -> key of orchestrator.fmu_build.FMU_KINDS
 SIMULATORS = ("plant", "estimator", "controller")
-
-#: the plant outputs the estimator reads (all its measurement inputs)
-MEASUREMENTS = ("y", "ybar", "x", "w", "z")
 
 #: OSP-IS typed variable group for a quantity of this unit (at most 3 variables each)
 TYPED_GROUP_OF_UNIT = {"m": "LinearDisplacement", "m/s": "LinearVelocity", "N": "Force",
@@ -156,18 +153,9 @@ def check_connections(variables: Mapping[str, Mapping[str, VariableInfo]],
 
 def system_connections(dims: Mapping[str, int]) -> list[Connection]:
     """The closed loop's connections, one per scalar, for the dimensions ``dims``."""
-    out: list[Connection] = []
-
-    def link(src: str, tgt: str, signals: Iterable[str]) -> None:
-        for s in signals:
-            for name in element_names(s, (signal_size(s, dims),)):
-                out.append(Connection((src, name), (tgt, name)))
-
-    link("plant", "estimator", MEASUREMENTS)
-    link("estimator", "controller", ESTIMATOR_OUTPUTS)
-    link("controller", "plant", ("u",))
-    link("controller", "estimator", ("u",))
-    return out
+    return [Connection((src, name), (tgt, name))
+            for src, signal, tgt in LOOP_CONNECTIONS
+            for name in element_names(signal, (signal_size(signal, dims),))]
 
 
 def fmu_variables(fmu: Path | str) -> dict[str, VariableInfo]:

@@ -117,14 +117,22 @@ def predict_stationary(system: LinearSystem, model: DiscreteModel, est: LinearEs
         X = np.concatenate([system.initial_state(), est.q0]) if x0 is None else x0.copy()
         Eb = np.zeros((model.E.shape[0], Phi.shape[0]))
         Eb[:, :ns] = model.E
+        for _ in range(k0):
+            X = Phi @ X
+        # mean states of the window, a block of rows at a time: sum of e e' = E' (X' X) E
         ee = np.zeros_like(See)
         uu = np.zeros_like(Suu)
-        for k in range(K):
-            if k >= k0:
-                e, u = Eb @ X, Gx @ X
-                ee += np.outer(e, e)
-                uu += np.outer(u, u)
-            X = Phi @ X
+        rows = np.empty((min(1024, max(K - k0, 1)), X.size))
+        k = k0
+        while k < K:
+            b = min(rows.shape[0], K - k)
+            for j in range(b):
+                rows[j] = X
+                X = Phi @ X
+            e, u = rows[:b] @ Eb.T, rows[:b] @ Gx.T
+            ee += e.T @ e
+            uu += u.T @ u
+            k += b
         See = See + ee / max(K - k0, 1)
         Suu = Suu + uu / max(K - k0, 1)
         rms_e_mean = np.sqrt(np.diag(ee) / max(K - k0, 1)).tolist()

@@ -108,15 +108,18 @@ def _check_run(T: float, h: float, estimator: str, where: str, tracking: str = "
         )
 
 
+def _in_section(where: str, section: str, msg: str) -> ScenarioError:
+    """``<file>: [section] message``, without repeating a "section: " the message has."""
+    if section and msg.startswith(f"{section}: "):
+        msg = msg[len(section) + 2:]
+    return ScenarioError(f"{where}: {f'[{section}] ' if section else ''}{msg}")
+
+
 def _fleet_scenario(data: dict[str, Any], where: str) -> Scenario:
     try:
         spec, sim = fleet_spec_from_dict(data)
     except ValueError as exc:
-        section = getattr(exc, "section", "")
-        msg = str(exc)
-        if section and msg.startswith(f"{section}: "):
-            msg = msg[len(section) + 2:]
-        raise ScenarioError(f"{where}: {f'[{section}] ' if section else ''}{msg}") from None
+        raise _in_section(where, getattr(exc, "section", ""), str(exc)) from None
     for key in ("T", "h"):
         if key not in sim:
             raise ScenarioError(f"{where}: missing key(s) in [simulation]: {key}")
@@ -129,11 +132,7 @@ def _fleet_scenario(data: dict[str, Any], where: str) -> Scenario:
         system = fleet_system(spec)
         spec = resolve_fleet_spec(spec)
     except ModelError as exc:
-        section = section_of_model_error(str(exc))
-        msg = str(exc)
-        if section and msg.startswith(f"{section}: "):
-            msg = msg[len(section) + 2:]
-        raise ScenarioError(f"{where}: {f'[{section}] ' if section else ''}{msg}") from None
+        raise _in_section(where, section_of_model_error(str(exc)), str(exc)) from None
     return Scenario(name=str(data.get("name", Path(where).stem)),
                     description=str(data.get("description", "")), system=system,
                     T=float(sim["T"]), h=float(sim["h"]), seed=int(seed), estimator=estimator,
@@ -210,7 +209,7 @@ def scenario_from_dict(data: dict[str, Any], where: str = "scenario") -> Scenari
         # a ModelError message starts with the name of the offending entry: add its section
         key = re.match(r"\w+", str(exc))
         section = section_of.get(key.group(0)) if key else None
-        raise ScenarioError(f"{where}: {f'[{section}] ' if section else ''}{exc}") from None
+        raise _in_section(where, section or "", str(exc)) from None
     return Scenario(name=str(data.get("name", Path(where).stem)),
                     description=str(data.get("description", "")), system=system,
                     T=float(T), h=float(h), seed=int(seed), estimator=estimator, source=where,

@@ -48,7 +48,7 @@ from lxml import etree
 from fmu_common.interface import element_names
 
 from .fmu_build import FMU_KINDS
-from .master import fmu_parameters, signal_size
+from .master import LOOP_CONNECTIONS, fmu_parameters, signal_size
 from .scenario import Scenario
 from .workflow import build, scenario_config
 
@@ -65,13 +65,7 @@ _NSMAP_SSV = {"ssv": SSV_NS, "ssc": SSC_NS}
 #: component order in the SSD (also our master's evaluation order)
 COMPONENTS = ("plant", "estimator", "controller")
 #: (source component, signal, destination component): vector signals, same name both ends
-SIGNAL_CONNECTIONS: tuple[tuple[str, str, str], ...] = (
-    ("plant", "y", "estimator"), ("plant", "ybar", "estimator"),
-    ("plant", "x", "estimator"), ("plant", "w", "estimator"), ("plant", "z", "estimator"),
-    ("estimator", "xhat", "controller"), ("estimator", "what", "controller"),
-    ("estimator", "zhat", "controller"),
-    ("controller", "u", "plant"), ("controller", "u", "estimator"),
-)
+SIGNAL_CONNECTIONS: tuple[tuple[str, str, str], ...] = LOOP_CONNECTIONS
 #: unconnected outputs declared as connectors so that an SSP tool records them
 OBSERVED_OUTPUTS: tuple[tuple[str, str], ...] = (("plant", "e"),)
 

@@ -112,15 +112,13 @@ def fleet_layout(sc: Scenario):
     def block(per: int) -> np.ndarray:
         return np.arange(N * per).reshape(N, per)
 
-    from plant_model.fleet import fleet_vehicles
-    model = fleet_vehicles(sc.fleet)[0]
     return FleetLayout(
         position_index=info.position_index, error_index=block(info.s),
         control_index=block(info.q), error_names=info.output_names,
         control_names=info.input_names, leader_output=info.leader_output,
         offsets=info.offsets, edges=info.edges, pinned=info.pinned,
-        state_index=block(info.p), state_names=model.state_names,
-        disturbance_index=block(info.r), disturbance_names=model.disturbance_names,
+        state_index=block(info.p), state_names=info.state_names,
+        disturbance_index=block(info.r), disturbance_names=info.disturbance_names,
     )
 
 

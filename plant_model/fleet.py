@@ -201,9 +201,9 @@ def resolve_fleet_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
     g = new.setdefault("graph", {})
     if g.get("coupling") is None:
         g["coupling"] = np.eye(p).tolist()
-    g["edges"] = [[int(j), int(i), float(a)] for j, i, a in g.get("edges", [])]
-    g["pinning"] = [[int(i), float(a)] for i, a in (g.get("pinning", {}).items()
-                    if isinstance(g.get("pinning"), Mapping) else g.get("pinning", []))]
+    graph = fleet_graph(new)            # the validated, normalised edges and pins
+    g["edges"] = [[j, i, a] for j, i, a in graph.edges]
+    g["pinning"] = [[i, a] for i, a in graph.pinning]
     return new
 
 
@@ -224,10 +224,8 @@ class FleetInfo:
     pinned: tuple[int, ...]       #: 1-based vehicles that hear the leader
     output_names: tuple[str, ...]
     input_names: tuple[str, ...]
-
-    def vehicle_slice(self, i: int, per: int) -> slice:
-        """Slice of vehicle i (1-based) in a stacked vector with ``per`` entries per vehicle."""
-        return slice((i - 1) * per, i * per)
+    state_names: tuple[str, ...]
+    disturbance_names: tuple[str, ...]
 
 
 def fleet_info(spec: Mapping[str, Any], system: LinearSystem | None = None) -> FleetInfo:
@@ -251,4 +249,5 @@ def fleet_info(spec: Mapping[str, Any], system: LinearSystem | None = None) -> F
         offsets=d, edges=tuple((int(j), int(i)) for j, i, _ in graph.edges),
         pinned=tuple(int(i) for i, _ in graph.pinning),
         output_names=models[0].output_names, input_names=models[0].input_names,
+        state_names=models[0].state_names, disturbance_names=models[0].disturbance_names,
     )

@@ -123,15 +123,28 @@ def plant_output_layout(model: DiscreteModel) -> dict[str, slice]:
 
 
 class Plant:
-    """Sampled plant; ``output`` is the vector [y, ybar, x, w, z, e] at the current k."""
+    """Sampled plant; ``output`` is the vector [y, ybar, x, w, z, e] at the current k.
 
-    def __init__(self, model: DiscreteModel, s0: np.ndarray, seed: int):
+    ``out``: an array of 3 p + n + r + l floats to hold ``output`` (updated in place at
+    every step; the FMU slave passes its own output buffer, so nothing is copied).
+    """
+
+    def __init__(self, model: DiscreteModel, s0: np.ndarray, seed: int,
+                 out: np.ndarray | None = None):
         self.model = model
         self.seed = int(seed)
         ns, p = model.ns, model.p
         self._M, self._E = model.M, model.E
         self._Ad, self._Bd = model.Ad, model.Bd
         self._ns, self._2p = ns, 2 * p
+        size = 3 * p + ns
+        if out is None:
+            out = np.empty(size)
+        elif out.shape != (size,):
+            raise ValueError(f"plant output buffer has shape {out.shape}, expected ({size},)")
+        self.output = out
+        # views of output: [M s + noise; s; E s]
+        self._o_meas, self._o_s, self._o_e = out[:2 * p], out[2 * p:2 * p + ns], out[2 * p + ns:]
         self.reset(s0)
 
     def reset(self, s0: np.ndarray) -> None:
@@ -143,7 +156,10 @@ class Plant:
 
     def _refresh(self) -> None:
         s = self.s
-        self.output = np.concatenate([self._M @ s + self._row[self._ns:], s, self._E @ s])
+        np.matmul(self._M, s, out=self._o_meas)
+        self._o_meas += self._row[self._ns:]
+        self._o_s[:] = s
+        np.matmul(self._E, s, out=self._o_e)
 
     def get_state(self) -> dict:
         """Everything that evolves (copies): k, s, the current noise row, the noise stream."""
