@@ -12,7 +12,7 @@ import numpy as np
 from controller_fmu.regulator import TRACKING_MODES, tracking_law
 from fmu_common.interface import ArraySpec
 from fmu_common.slave_base import ArraySlave as Fmi2Slave  # pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.system_parameters import model_parameter_specs, system_from_parameters
+from plant_model.parameters import model_parameter_specs, system_from_parameters
 
 CONTROLLER_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "Q", "R")
 ESTIMATES = ("xhat", "what", "zhat")
@@ -55,7 +55,7 @@ class AuvController(Fmi2Slave):
                  f"relative residuals {self.design.residuals}")
 
     def compute_outputs(self):
-        np.dot(self._negK, self._in, out=self._out)
+        self._negK.dot(self._in, out=self._out)     # ndarray.dot: np.dot's gemv, less dispatch
 
     def advance(self, step):
         pass

@@ -7,8 +7,8 @@ FMU state: the estimator's q (LinearEstimator.get_state), plus what the base cla
 from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
 from fmu_common.interface import ArraySpec
 from fmu_common.slave_base import ArraySlave as Fmi2Slave  # pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.system_parameters import model_parameter_specs, system_from_parameters
 from plant_model.discretization import discretize
+from plant_model.parameters import model_parameter_specs, system_from_parameters
 
 ESTIMATOR_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "x0", "w0", "z0",
                         "W_x", "W_w", "W_z", "V_y", "V_ybar")
@@ -60,11 +60,10 @@ class AuvEstimator(Fmi2Slave):
         self._u = self.io["u"]
 
     def compute_outputs(self):
-        self._out[:] = self.estimator.estimate(self._mvec)
+        self.estimator.estimate(self._mvec, out=self._out)
 
     def advance(self, step):
-        est = self._outputs_view(self._out)
-        self.estimator.update(est, self._u)
+        self.estimator.update(self._outputs_view(self._out), self._u)
 
     def model_state(self):
         return self.estimator.get_state()

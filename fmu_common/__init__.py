@@ -1,5 +1,4 @@
 """FMI 2.0 plumbing shared by the project's pythonfmu slaves (no mathematics here)."""
 from .interface import UNIT_DEFINITIONS, ArraySpec, element_names, expand
-from .system_parameters import system_parameter_specs
 
-__all__ = ["UNIT_DEFINITIONS", "ArraySpec", "element_names", "expand", "system_parameter_specs"]
+__all__ = ["UNIT_DEFINITIONS", "ArraySpec", "element_names", "expand"]

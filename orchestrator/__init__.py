@@ -1,12 +1,28 @@
 """Orchestrator: scenarios, FMU build, the fmpy co-simulation master, Rerun traces, CLI.
 
-Importing it sets OPENBLAS_NUM_THREADS / OMP_NUM_THREADS / MKL_NUM_THREADS to 1 unless the
-user set them: every co-simulation step is a handful of small matrix-vector products, for
-which one BLAS thread is faster than several (on a shared 2-core machine eigenvalue
-problems of a 20-vehicle fleet ran 12x faster with one thread). Set the variables to
-override. It only takes effect if numpy was not imported before.
+One BLAS thread. Every co-simulation step is a handful of small matrix-vector products,
+for which one BLAS thread is faster than several (on a shared 2-core machine eigenvalue
+problems of a 20-vehicle fleet ran 12x faster with one thread), and the thread count
+changes the last bits of a result: the same seed gives the same traces only with the same
+count. Importing this package sets OPENBLAS_NUM_THREADS / OMP_NUM_THREADS /
+MKL_NUM_THREADS to 1 unless the user set them, and applies OPENBLAS_NUM_THREADS (or 1) to
+the BLAS libraries already loaded (numpy's and scipy's, through threadpoolctl), so it
+holds whatever was imported before.
 """
 import os as _os
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     _os.environ.setdefault(_var, "1")
+
+
+def _limit_blas_threads() -> None:
+    import scipy.linalg  # noqa: F401 - loads scipy's own BLAS so that the limit reaches it
+    from threadpoolctl import threadpool_limits
+    try:
+        n = max(1, int(_os.environ["OPENBLAS_NUM_THREADS"]))
+    except ValueError:
+        n = 1
+    threadpool_limits(limits=n, user_api="blas")
+
+
+_limit_blas_threads()

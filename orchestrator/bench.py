@@ -15,11 +15,13 @@ from typing import Any
 import numpy as np
 
 from fmu_common.interface import element_names
-from .master import (PLANT_OUTPUTS, FmuInstance, _Extracted, fmu_parameters, run_cosimulation,
-                     signal_names)
-from .reference import run_monolithic
+
+from .analysis.reference import run_monolithic
+from .cosim.instance import Extracted, FmuInstance
+from .cosim.master import run_cosimulation
+from .cosim.system import closed_loop_system
 from .scenario import Scenario
-from .workflow import build, scenario_config
+from .workflow import build, scenario_config, scenario_system
 
 __all__ = ["benchmark", "benchmark_fleet", "benchmark_libcosim", "benchmark_tools"]
 
@@ -27,12 +29,13 @@ __all__ = ["benchmark", "benchmark_fleet", "benchmark_libcosim", "benchmark_tool
 def _fmi_call_costs(fmus: dict[str, Path], cfg: dict[str, Any], reps: int = 20000) -> dict[str, float]:
     """Microseconds per raw FMI call on initialized instances (batched get/set)."""
     d = cfg["dims"]
-    ex = _Extracted(fmus)
+    plant = closed_loop_system(cfg).component("plant")
+    ex = Extracted(fmus)
     out: dict[str, float] = {}
     try:
         P = FmuInstance("plant", fmus["plant"], ex.dirs["plant"], "bench_plant")
-        P.initialize(fmu_parameters("plant", cfg), T=cfg["T"])
-        names = signal_names(PLANT_OUTPUTS, d)
+        P.initialize(dict(plant.parameters), T=cfg["T"])
+        names = [n for spec in plant.arrays("output") for n in element_names(spec.name, spec.shape)]
         vr = P.vrs(names)
         buf = (ctypes.c_double * len(names))()
         u_vr = P.vrs(element_names("u", (d["m"],)))
@@ -72,7 +75,8 @@ def benchmark(sc: Scenario, mode: str = "kalman", seed: int = 0) -> dict[str, An
         cosim_run_s = time.perf_counter() - t
         rrd = write_rrd(Path(tmp) / "bench.rrd", {mode: res.traces}, sc.h, recording_name="bench")
         t = time.perf_counter()
-        ref = run_monolithic(sc.system, sc.h, mode, seed, sc.steps)
+        timing: dict[str, float] = {}
+        ref = run_monolithic(sc.system, sc.h, mode, seed, sc.steps, timing=timing)
         mono_s = time.perf_counter() - t
         calls = _fmi_call_costs(fmus, cfg)
     err = max(float(np.max(np.abs(ref[k] - res.traces[k]))) for k in ref)
@@ -87,6 +91,8 @@ def benchmark(sc: Scenario, mode: str = "kalman", seed: int = 0) -> dict[str, An
         "monolithic_s": mono_s,
         "ratio_cosim_to_monolithic": cosim_total / mono_s,
         "ratio_loop_only": res.loop_s / mono_s,
+        "monolithic_loop_s": timing["loop_s"],
+        "ratio_loop_to_reference_loop": res.loop_s / timing["loop_s"],
         "rrd_fraction_of_run": rrd["rrd_s"] / cosim_total,
         "cosim_us_per_step": res.loop_s / sc.steps * 1e6,
         "monolithic_us_per_step": mono_s / sc.steps * 1e6,
@@ -105,14 +111,14 @@ def _model_description_bytes(fmu: Path) -> int:
 
 def _instantiate_times(fmus: dict[str, Path], cfg: dict[str, Any]) -> dict[str, float]:
     """Seconds to instantiate + initialize each FMU (extraction excluded)."""
-    ex = _Extracted(fmus)
+    ex = Extracted(fmus)
     out: dict[str, float] = {}
     try:
-        for key in ("plant", "estimator", "controller"):
+        for comp in closed_loop_system(cfg).components:
             t = time.perf_counter()
-            inst = FmuInstance(key, fmus[key], ex.dirs[key], f"bench_{key}")
-            inst.initialize(fmu_parameters(key, cfg), T=cfg["T"])
-            out[key] = time.perf_counter() - t
+            inst = FmuInstance(comp.name, fmus[comp.fmu], ex.dirs[comp.fmu], f"bench_{comp.name}")
+            inst.initialize(dict(comp.parameters), T=cfg["T"])
+            out[comp.name] = time.perf_counter() - t
             inst.close()
     finally:
         ex.cleanup()
@@ -121,15 +127,15 @@ def _instantiate_times(fmus: dict[str, Path], cfg: dict[str, Any]) -> dict[str, 
 
 def benchmark_fleet(N: int, *, T: float = 300.0, mode: str = "kalman", tracking: str = "regulator",
                     seed: int = 0) -> dict[str, Any]:
-    """Figures for a generated grid fleet of N REMUS 100 vehicles (orchestrator.fleet_generator):
+    """Figures for a generated grid fleet of N REMUS 100 vehicles (orchestrator.scenario.generator):
     design and filter-gain time, FMU build time and modelDescription size, instantiate +
     initialize time, and the co-simulation loop against the monolithic loop (same process)."""
     from controller_fmu.regulator import tracking_law
     from estimator_fmu.estimators import make_estimator
     from plant_model.discretization import discretize
 
-    from .fleet_generator import grid_fleet
     from .scenario import scenario_from_dict
+    from .scenario.generator import grid_fleet
 
     sc = scenario_from_dict(grid_fleet(N, T=T), f"generated grid fleet N = {N}")
     sc = sc.with_run(estimator=mode, tracking=tracking)
@@ -183,7 +189,7 @@ def benchmark_libcosim(sc: Scenario, steps: int | None = None, *, mode: str | No
     """Our fmpy master against libcosim (Open Simulation Platform, through libcosimpy) on
     the same FMUs, in one process.
 
-    Exports the scenario (orchestrator.osp_export.export_osp: the FMUs, OspSystemStructure.xml)
+    Exports the scenario (orchestrator.interop.osp.export_osp: the FMUs, OspSystemStructure.xml)
     once, then times ``repeats`` rounds, each running, in turn, our master with the
     Gauss-Seidel loop, our master with the Jacobi loop (libcosim's algorithm) and libcosim
     without observers, for ``steps`` steps (default the scenario's). Reported: the median
@@ -194,13 +200,15 @@ def benchmark_libcosim(sc: Scenario, steps: int | None = None, *, mode: str | No
     """
     import statistics
 
-    from .osp_export import SIMULATORS, export_osp, libcosim_version, quiet_libcosim, run_libcosim
+    from .interop.libcosim import libcosim_version, quiet_libcosim, run_libcosim
+    from .interop.osp import export_osp
 
     quiet_libcosim()
     if mode is not None or seed is not None:
         sc = sc.with_run(estimator=mode, seed=seed)
     steps = int(steps or sc.steps)
     cfg = scenario_config(sc)
+    system = scenario_system(sc)
     rounds: dict[str, list[float]] = {"ours_gauss_seidel": [], "ours_jacobi": [], "libcosim": []}
     out: dict[str, Any] = {"scenario": sc.name, "mode": sc.estimator, "seed": sc.seed,
                            "steps": steps, "h": sc.h, "repeats": repeats}
@@ -208,10 +216,10 @@ def benchmark_libcosim(sc: Scenario, steps: int | None = None, *, mode: str | No
         t = time.perf_counter()
         paths = export_osp(sc, Path(tmp))
         out["export_s"] = time.perf_counter() - t
-        fmus = {k: paths[k] for k in SIMULATORS}
+        fmus = {c.fmu: paths[c.fmu] for c in system.components}
         # warm-up (imports, first-call costs) outside the timed rounds
         run_cosimulation(fmus, cfg, mode=sc.estimator, seed=sc.seed, steps=min(steps, 500))
-        run_libcosim(paths["system"], cfg, min(steps, 500), record=False)
+        run_libcosim(paths["system"], system, min(steps, 500), record=False)
         jac = None
         for _ in range(max(1, repeats)):
             res = run_cosimulation(fmus, cfg, mode=sc.estimator, seed=sc.seed, steps=steps)
@@ -219,12 +227,12 @@ def benchmark_libcosim(sc: Scenario, steps: int | None = None, *, mode: str | No
             jac = run_cosimulation(fmus, cfg, mode=sc.estimator, seed=sc.seed, steps=steps,
                                    coupling="jacobi")
             rounds["ours_jacobi"].append(jac.loop_s / steps * 1e6)
-            lc = run_libcosim(paths["system"], cfg, steps, record=False)
+            lc = run_libcosim(paths["system"], system, steps, record=False)
             rounds["libcosim"].append(lc["loop_s"] / lc["loop_steps"] * 1e6)
             out["libcosim_setup_s"] = lc["setup_s"]
             out["libcosim_init_and_first_step_s"] = lc["init_s"]
         if check:
-            rec = run_libcosim(paths["system"], cfg, steps, record=True)
+            rec = run_libcosim(paths["system"], system, steps, record=True)
             out["libcosim_with_observers_us_per_step"] = rec["loop_s"] / rec["loop_steps"] * 1e6
             diff = max(float(np.max(np.abs(rec["traces"][k] - jac.traces[k])))
                        for k in rec["traces"])
@@ -250,7 +258,7 @@ def _simulate_ssp_us_per_step(ssp: Path, h: float, steps: int) -> float:
     left out: fmpy's own instantiate/free functions are wrapped to mark the loop)."""
     import fmpy.ssp.simulation as fmpy_ssp
 
-    from .ssp_export import fmpy_parameter_set
+    from .interop.ssp import fmpy_parameter_set
     marks: dict[str, float] = {}
     inst, free = fmpy_ssp.instantiate_fmu, fmpy_ssp.free_fmu
 
@@ -277,13 +285,13 @@ def benchmark_tools(sc: Scenario, steps: int = 5000, repeats: int = 3) -> dict[s
     ``repeats`` alternating rounds; loops only, initialization left out everywhere)."""
     import statistics
 
-    from .osp_export import SIMULATORS, export_osp
-    from .ssp_export import export_ssp
+    from .interop.osp import export_osp
+    from .interop.ssp import export_ssp
 
     out = benchmark_libcosim(sc, steps, repeats=repeats, check=False)
     with tempfile.TemporaryDirectory(prefix="auv_bench_tools_") as tmp:
         paths = export_osp(sc, Path(tmp) / "osp")
-        ssp = export_ssp(sc, Path(tmp) / "system.ssp", fmus={k: paths[k] for k in SIMULATORS})
+        ssp = export_ssp(sc, Path(tmp) / "system.ssp", fmus={c.fmu: paths[c.fmu] for c in scenario_system(sc).components})
         _simulate_ssp_us_per_step(ssp, sc.h, min(steps, 500))          # warm-up
         rounds = [_simulate_ssp_us_per_step(ssp, sc.h, steps) for _ in range(max(1, repeats))]
     out["simulate_ssp_us_per_step"] = statistics.median(rounds)

@@ -10,13 +10,14 @@ import numpy as np
 
 from estimator_fmu.estimators import make_estimator
 from plant_model.discretization import discretize
-from .fmu_build import build_fmus, fmu_config, variables_markdown
-from .master import run_cosimulation
-from .prediction import predict_stationary
+from .analysis.prediction import predict_stationary
+from .analysis.summary import method_summary, stats_window, trace_stats, versions
+from .cosim.build import build_fmus, fmu_config, variables_markdown
+from .cosim.master import run_cosimulation
+from .cosim.system import SystemDescription, closed_loop_system
 from .scenario import Scenario
-from .summary import method_summary, stats_window, trace_stats, versions
 
-__all__ = ["scenario_config", "build", "simulate", "write_fmu_readme", "method_list",
+__all__ = ["scenario_config", "scenario_system", "build", "simulate", "write_fmu_readme", "method_list",
            "fleet_layout", "record_stride"]
 
 FMU_README_HEAD = """# FMUs
@@ -71,6 +72,12 @@ def scenario_config(sc: Scenario) -> dict[str, Any]:
     """FMU configuration (dimensions, start values, h, T, seed, mode) of a scenario."""
     return fmu_config(sc.system.to_mapping(), sc.system.dims, sc.h, sc.T, sc.seed, sc.estimator,
                       sc.tracking, sc.fleet)
+
+
+def scenario_system(sc: Scenario) -> SystemDescription:
+    """The system description of a scenario with its run settings (seed, estimator mode,
+    tracking law): what the master runs and the exports write."""
+    return closed_loop_system(scenario_config(sc), name=sc.name)
 
 
 def write_fmu_readme(sc: Scenario, path: Path) -> None:

@@ -7,8 +7,8 @@ what the base class saves (parameters, buffers, flags).
 """
 from fmu_common.interface import ArraySpec
 from fmu_common.slave_base import ArraySlave as Fmi2Slave  # pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.system_parameters import model_parameter_specs, system_from_parameters
 from plant_model.discretization import discretize
+from plant_model.parameters import model_parameter_specs, system_from_parameters
 from plant_model.plant import Plant
 
 PLANT_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "x0", "w0", "z0",

@@ -72,3 +72,21 @@ def scalar_mapping_factory():
 def make_scalar():
     """Factory: ``make_scalar(**changes)`` -> validated 1x1 LinearSystem."""
     return lambda **changes: LinearSystem.from_mapping(scalar_mapping(**changes))
+
+
+@pytest.fixture(scope="session")
+def built_scenario(tmp_path_factory):
+    """Factory: ``built_scenario(name)`` -> (FMU paths, configuration) of a built-in
+    scenario's three FMUs, built once per test session."""
+    from orchestrator.scenario import load_scenario
+    from orchestrator.workflow import build, scenario_config
+
+    cache: dict[str, tuple] = {}
+
+    def get(name: str = "paper"):
+        if name not in cache:
+            sc = load_scenario(name)
+            cache[name] = (build(sc, tmp_path_factory.mktemp(f"fmus_{name}")), scenario_config(sc))
+        return cache[name]
+
+    return get

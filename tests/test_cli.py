@@ -11,7 +11,7 @@ import pytest
 
 from orchestrator.cli import main, parse_seeds
 from orchestrator.recording import read_rrd_scalars
-from orchestrator.reference import run_monolithic
+from orchestrator.analysis.reference import run_monolithic
 from orchestrator.scenario import SCENARIO_DIR, load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -127,7 +127,7 @@ def test_build_writes_fmus_and_variable_tables(tmp_path, capsys):
 
 def test_committed_fmu_readme_matches_the_generator():
     from orchestrator.workflow import FMU_README_HEAD, scenario_config
-    from orchestrator.fmu_build import variables_markdown
+    from orchestrator.cosim.build import variables_markdown
     sc = load_scenario("paper")
     expected = FMU_README_HEAD.format(scenario=sc.name) + variables_markdown(scenario_config(sc))
     assert (ROOT / "fmus" / "README.md").read_text() == expected

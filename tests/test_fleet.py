@@ -18,9 +18,9 @@ import pytest
 from scipy.linalg import block_diag, solve_sylvester
 
 from controller_fmu.regulator import tracking_law
-from orchestrator.fleet_scenario import fleet_spec_from_dict
-from orchestrator.master import run_cosimulation
-from orchestrator.reference import run_monolithic
+from orchestrator.scenario.fleet import fleet_spec_from_dict
+from orchestrator.cosim.master import run_cosimulation
+from orchestrator.analysis.reference import run_monolithic
 from orchestrator.scenario import SCENARIO_DIR, load_scenario
 from orchestrator.workflow import build, scenario_config
 from plant_model.fleet import fleet_info, fleet_system, resolve_fleet_spec

@@ -6,7 +6,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from orchestrator.fleet_generator import grid_fleet, scenario_toml
+from orchestrator.scenario.generator import grid_fleet, scenario_toml
 from orchestrator.scenario import SCENARIO_DIR, load_scenario, scenario_from_dict
 from plant_model.fleet import fleet_graph
 

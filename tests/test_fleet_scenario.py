@@ -13,14 +13,10 @@ import numpy as np
 import pytest
 
 from controller_fmu.regulator import tracking_law
-from orchestrator.master import (
-    CosimError,
-    FmuInstance,
-    _Extracted,
-    fmu_parameters,
-    run_cosimulation,
-)
-from orchestrator.reference import run_monolithic
+from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
+from orchestrator.cosim.master import run_cosimulation
+from support.loop import fmu_parameters
+from orchestrator.analysis.reference import run_monolithic
 from orchestrator.scenario import SCENARIO_DIR, ScenarioError, load_scenario
 from orchestrator.workflow import build, scenario_config
 from plant_model.linalg_checks import ModelError
@@ -238,7 +234,7 @@ def test_controller_fmu_reports_the_missing_regulator_as_an_fmi_error(tmp_path):
     sc = _load_text(tmp_path, ZERO_AT_LEADER, "zero")
     fmus = build(sc, tmp_path / "fmus")
     cfg = scenario_config(sc)
-    ex = _Extracted({"controller": fmus["controller"]})
+    ex = Extracted({"controller": fmus["controller"]})
     try:
         params = fmu_parameters("controller", cfg)
         assert params["tracking"] == "regulator"

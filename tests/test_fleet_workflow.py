@@ -10,11 +10,11 @@ import pytest
 from controller_fmu.regulator import tracking_law
 from estimator_fmu.estimators import make_estimator
 from orchestrator.cli import main
-from orchestrator.prediction import predict_stationary
+from orchestrator.analysis.prediction import predict_stationary
 from orchestrator.recording import read_rrd_points, read_rrd_series
-from orchestrator.reference import run_monolithic
+from orchestrator.analysis.reference import run_monolithic
 from orchestrator.scenario import load_scenario
-from orchestrator.summary import stats_window, trace_stats
+from orchestrator.analysis.summary import stats_window, trace_stats
 from plant_model.discretization import discretize
 
 pytestmark = pytest.mark.slow

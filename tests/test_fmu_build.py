@@ -7,7 +7,7 @@ import pytest
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from orchestrator.fmu_build import FMU_KINDS, fmu_config
+from orchestrator.cosim.build import FMU_KINDS, fmu_config
 from orchestrator.scenario import load_scenario
 from orchestrator.workflow import build, scenario_config
 
@@ -66,7 +66,7 @@ def test_start_values_come_from_the_scenario(tmp_path):
     sc = load_scenario("paper")
     changed = sc.system.with_changes(x0=[1.5, -2.0])
     cfg = fmu_config(changed.to_mapping(), changed.dims, 0.02, 10.0, 7, "classical")
-    from orchestrator.fmu_build import build_fmus
+    from orchestrator.cosim.build import build_fmus
     paths = build_fmus(cfg, tmp_path)
     md = read_model_description(str(paths["plant"]))
     starts = {v.name: v.start for v in md.modelVariables}

@@ -19,9 +19,9 @@ from numpy.testing import assert_array_equal
 
 from fmu_common.interface import element_names
 from fmu_common.slave_base import STATE_MAGIC, decode_state
-from orchestrator.fmu_build import FMU_KINDS, build_fmu
-from orchestrator.master import (ESTIMATOR_OUTPUTS, PLANT_OUTPUTS, FmuInstance, _Extracted,
-                                 fmu_parameters, signal_names)
+from orchestrator.cosim.build import FMU_KINDS, build_fmu
+from orchestrator.cosim.instance import Extracted, FmuInstance
+from support.loop import fmu_parameters, output_names
 from orchestrator.scenario import load_scenario
 from orchestrator.workflow import build, scenario_config
 
@@ -48,7 +48,7 @@ def fmus(paper, tmp_path_factory):
 def hosts(fmus):
     """Instances made by a test are freed and their files removed at the end of the module."""
     with ExitStack() as stack:
-        ex = _Extracted(fmus)
+        ex = Extracted(fmus)
         stack.callback(ex.cleanup)
         count = [0]
 
@@ -114,8 +114,8 @@ class Loop:
     def __init__(self, P: FmuInstance, E: FmuInstance, C: FmuInstance, config):
         d = config["dims"]
         self.P, self.E, self.C, self.h = P, E, C, float(config["h"])
-        p_out = signal_names(PLANT_OUTPUTS, d)
-        e_out = signal_names(ESTIMATOR_OUTPUTS, d)
+        p_out = output_names("plant", config)
+        e_out = output_names("estimator", config)
         u = element_names("u", (d["m"],))
         self.vr = {"p_out": P.vrs(p_out), "p_u": P.vrs(u), "e_in": E.vrs(p_out[:2 * d["p"]]),
                    "e_u": E.vrs(u), "e_out": E.vrs(e_out), "c_in": C.vrs(e_out),
@@ -232,7 +232,7 @@ def test_plant_state_across_a_noise_block_boundary(hosts, cfg, k):
     P = hosts("plant", cfg)
     h = float(cfg["h"])
     vr_u = P.vrs(element_names("u", (2,)))
-    names = signal_names(PLANT_OUTPUTS, cfg["dims"])
+    names = output_names("plant", cfg)
     vr_y = P.vrs(names)
     m = 200
     u_seq = np.column_stack([np.sin(0.01 * np.arange(k + m)), np.cos(0.013 * np.arange(k + m))])
@@ -368,7 +368,7 @@ def test_state_of_an_fmu_built_for_another_scenario_is_refused(hosts, cfg, tmp_p
     """The formation-4 plant (other variables and sizes) into the paper's plant."""
     f4 = scenario_config(load_scenario("formation-4"))
     path = build_fmu(FMU_KINDS["plant"], f4, tmp_path / "f4")
-    ex = _Extracted({"plant": path})
+    ex = Extracted({"plant": path})
     other = FmuInstance("plant", path, ex.dirs["plant"], "f4_plant")
     try:
         other.initialize(fmu_parameters("plant", f4), T=1.0)
@@ -386,7 +386,7 @@ def test_state_of_another_build_with_the_same_interface_restores_with_a_warning(
         hosts, cfg, tmp_path):
     """pythonfmu gives every build a new GUID; the same interface restores, with a warning."""
     path = build_fmu(FMU_KINDS["plant"], cfg, tmp_path / "again")
-    ex = _Extracted({"plant": path})
+    ex = Extracted({"plant": path})
     other = FmuInstance("plant", path, ex.dirs["plant"], "plant_rebuilt")
     try:
         other.initialize(fmu_parameters("plant", cfg), T=1.0)

@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 
 from estimator_fmu.estimators import ESTIMATOR_MODES
-from orchestrator.master import CosimError, FmuInstance, _Extracted, fmu_parameters, run_cosimulation
-from orchestrator.reference import run_monolithic
+from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
+from orchestrator.cosim.master import run_cosimulation
+from support.loop import fmu_parameters
+from orchestrator.analysis.reference import run_monolithic
 from orchestrator.scenario import load_scenario
 from orchestrator.workflow import build, scenario_config
 
@@ -71,7 +73,7 @@ def test_parameters_set_by_the_host_are_used(paper, fmus):
 @contextmanager
 def _instance(fmus, key, tag):
     """A real instance of one FMU, terminated, freed and unzipped files removed after."""
-    ex = _Extracted({key: fmus[key]})
+    ex = Extracted({key: fmus[key]})
     inst = FmuInstance(key, fmus[key], ex.dirs[key], f"{key}_{tag}")
     try:
         yield inst

@@ -7,26 +7,28 @@ traces must be bit-identical (tolerance 0).
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from lxml import etree
 
 from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
 from controller_fmu.regulator import tracking_law
-from orchestrator import osp_export
-from orchestrator.fmu_build import FMU_KINDS, interface_of
-from orchestrator.master import fmu_parameters, run_cosimulation
-from orchestrator.osp_export import (OSP_MD_NS, OSP_SYSTEM_NS, SIMULATORS, Connection,
-                                     ExportError, VariableInfo, check_connections,
-                                     export_osp, jacobi_closed_loop, system_connections,
-                                     validate_osp_file)
+from orchestrator.cosim.build import FMU_KINDS, interface_of
+from orchestrator.analysis.jacobi import jacobi_closed_loop
+from orchestrator.cosim.master import run_cosimulation
+from orchestrator.interop.common import ExportError
+from orchestrator.interop.osp import OSP_MD_NS, OSP_SYSTEM_NS, export_osp, validate_osp_file
+from support.loop import fmu_parameters
 from orchestrator.scenario import load_scenario
-from orchestrator.workflow import scenario_config
+from orchestrator.workflow import scenario_config, scenario_system
 from fmu_common.interface import element_names
 from plant_model.discretization import discretize
 from plant_model.plant import NoiseStream
 
 SYS = f"{{{OSP_SYSTEM_NS}}}"
+SIMULATORS = ("plant", "estimator", "controller")
 MD = f"{{{OSP_MD_NS}}}"
 
 
@@ -40,96 +42,14 @@ def exported(paper, tmp_path_factory):
     return export_osp(paper, tmp_path_factory.mktemp("osp_paper"))
 
 
-def _planned(sc) -> dict[str, dict[str, VariableInfo]]:
-    cfg = scenario_config(sc)
-    return {key: {name: VariableInfo(spec.causality, spec.type)
-                  for spec in interface_of(FMU_KINDS[key], cfg)
-                  for name in element_names(spec.name, spec.shape)}
-            for key in SIMULATORS}
-
-
-# ------------------------------------------------------------------ connection checks
-
-def test_the_paper_loop_connects(paper):
-    conns = system_connections(paper.system.dims)
-    check_connections(_planned(paper), conns)
-    d = paper.system.dims
-    assert len(conns) == 2 * d["p"] + 2 * (d["n"] + d["r"] + d["l"]) + 2 * d["m"]
-    assert Connection(("controller", "u[2]"), ("estimator", "u[2]")) in conns
-
-
-def _refused(variables, conns, *fragments):
-    with pytest.raises(ExportError) as exc:
-        check_connections(variables, conns)
-    msg = str(exc.value)
-    assert msg.startswith("export refused: "), msg
-    for f in fragments:
-        assert f in msg, msg
-    return msg
-
-
-def test_refuses_a_variable_the_fmu_lacks(paper):
-    conns = system_connections(paper.system.dims) + [
-        Connection(("plant", "y[3]"), ("estimator", "y[3]"))]
-    _refused(_planned(paper), conns, "'plant' has no variable 'y[3]'")
-    conns = system_connections(paper.system.dims)
-    conns[0] = Connection(("plant", "y[1]"), ("estimator", "yy[1]"))
-    _refused(_planned(paper), conns, "'estimator' has no variable 'yy[1]'")
-
-
-def test_refuses_an_unknown_simulator(paper):
-    conns = system_connections(paper.system.dims) + [
-        Connection(("plant", "e[1]"), ("logger", "e[1]"))]
-    _refused(_planned(paper), conns, "no simulator 'logger'")
-
-
-def test_refuses_two_outputs(paper):
-    conns = system_connections(paper.system.dims) + [
-        Connection(("plant", "e[1]"), ("controller", "u[1]"))]
-    _refused(_planned(paper), conns, "connects two outputs", "plant.e[1]", "controller.u[1]")
-
-
-def test_refuses_two_inputs(paper):
-    conns = system_connections(paper.system.dims) + [
-        Connection(("plant", "u[1]"), ("estimator", "u[1]"))]
-    _refused(_planned(paper), conns, "connects two inputs", "plant.u[1]", "estimator.u[1]")
-
-
-def test_refuses_an_unconnected_input(paper):
-    conns = [c for c in system_connections(paper.system.dims)
-             if c.target != ("controller", "zhat[2]")]
-    _refused(_planned(paper), conns, "input controller.zhat[2] is not connected")
-    # the truth inputs of the estimator must be connected too (read only in 'ideal')
-    conns = [c for c in system_connections(paper.system.dims) if c.target != ("estimator", "w[1]")]
-    _refused(_planned(paper), conns, "input estimator.w[1] is not connected")
-
-
-def test_refuses_an_input_fed_twice(paper):
-    conns = system_connections(paper.system.dims) + [
-        Connection(("plant", "e[1]"), ("controller", "xhat[1]"))]
-    _refused(_planned(paper), conns, "input controller.xhat[1] is fed twice")
-
-
-def test_refuses_a_parameter_or_type_mismatch():
-    variables = {"a": {"out": VariableInfo("output", "Real"), "k": VariableInfo("parameter", "Real"),
-                       "n": VariableInfo("output", "Integer")},
-                 "b": {"in": VariableInfo("input", "Real")}}
-    _refused(variables, [Connection(("a", "out"), ("a", "k"))],
-             "target a.k is a parameter, not an input")
-    _refused(variables, [Connection(("a", "k"), ("b", "in"))],
-             "source a.k is a parameter, not an output")
-    _refused(variables, [Connection(("a", "n"), ("b", "in"))],
-             "connects a Integer output to a Real input")
-    check_connections(variables, [Connection(("a", "out"), ("b", "in"))])
-
-
-def test_export_refuses_before_building_or_writing(paper, tmp_path, monkeypatch):
-    good = osp_export.system_connections
-    monkeypatch.setattr(osp_export, "system_connections",
-                        lambda dims: [c for c in good(dims) if c.target != ("plant", "u[1]")])
+def test_export_refuses_before_building_or_writing(paper, tmp_path):
+    system = scenario_system(paper)
+    cut = replace(system, connections=tuple(
+        c for c in system.connections if (c.target, c.input) != ("plant", "u")))
     out = tmp_path / "refused"
-    with pytest.raises(ExportError, match=r"export refused: input plant\.u\[1\] is not connected"):
-        export_osp(paper, out)
+    with pytest.raises(ExportError, match=r"export refused: input plant\.u\[1\] is not connected; "
+                                          r"input plant\.u\[2\] is not connected"):
+        export_osp(paper, out, system=cut)
     assert not out.exists() or not any(out.iterdir())
 
 
@@ -146,6 +66,7 @@ def test_paper_export_is_schema_valid_and_complete(paper, exported):
     cfg = scenario_config(paper)
     sims = root.find(SYS + "Simulators").findall(SYS + "Simulator")
     assert [s.get("name") for s in sims] == list(SIMULATORS)
+    assert [s.get("name") for s in sims] == scenario_system(paper).names
     for sim in sims:
         key = sim.get("name")
         assert (exported["system"].parent / sim.get("source")) == exported[key]
@@ -171,7 +92,7 @@ def test_paper_export_is_schema_valid_and_complete(paper, exported):
     assert kinds[("controller", "tracking")] == "String"
     conns = root.find(SYS + "Connections").findall(SYS + "VariableConnection")
     pairs = [tuple((v.get("simulator"), v.get("name")) for v in c) for c in conns]
-    assert pairs == [(c.source, c.target) for c in system_connections(paper.system.dims)]
+    assert pairs == [(c.source, c.target) for c in scenario_system(paper).scalar_connections()]
 
 
 def test_model_descriptions_declare_groups_and_units(paper, exported):
@@ -269,14 +190,15 @@ def test_jacobi_closed_loop_model_reproduces_the_jacobi_run(paper, exported, mod
 @pytest.fixture(scope="module")
 def libcosim():
     pytest.importorskip("libcosimpy")
-    osp_export.quiet_libcosim()
-    return osp_export
+    from orchestrator.interop import libcosim as lc
+    lc.quiet_libcosim()
+    return lc
 
 
 def test_libcosim_runs_the_export_like_our_jacobi_master(paper, exported, libcosim):
     steps = 3000
     cfg = scenario_config(paper)
-    lc = libcosim.run_libcosim(exported["system"], cfg, steps)
+    lc = libcosim.run_libcosim(exported["system"], scenario_system(paper), steps)
     fmus = {k: exported[k] for k in SIMULATORS}
     jac = run_cosimulation(fmus, cfg, mode=paper.estimator, seed=paper.seed, steps=steps,
                            coupling="jacobi")
@@ -305,7 +227,7 @@ def test_libcosim_applies_integer_and_string_initial_values(paper, exported, lib
     assert validate_osp_file(tmp_path / "OspSystemStructure.xml") == []
     steps = 500
     cfg = scenario_config(paper)
-    lc = libcosim.run_libcosim(tmp_path / "OspSystemStructure.xml", cfg, steps)
+    lc = libcosim.run_libcosim(tmp_path / "OspSystemStructure.xml", scenario_system(paper), steps)
     fmus = {k: exported[k] for k in SIMULATORS}
     jac = run_cosimulation(fmus, cfg, mode="classical", seed=7, steps=steps, coupling="jacobi")
     for key, arr in lc["traces"].items():
@@ -317,7 +239,7 @@ def test_libcosim_runs_a_fleet_export_like_our_jacobi_master(libcosim, tmp_path)
     paths = export_osp(sc, tmp_path)
     steps = 1000
     cfg = scenario_config(sc)
-    lc = libcosim.run_libcosim(paths["system"], cfg, steps)
+    lc = libcosim.run_libcosim(paths["system"], scenario_system(sc), steps)
     jac = run_cosimulation({k: paths[k] for k in SIMULATORS}, cfg, mode=sc.estimator,
                            seed=sc.seed, steps=steps, tracking=sc.tracking, coupling="jacobi")
     for key, arr in lc["traces"].items():

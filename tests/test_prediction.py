@@ -1,4 +1,4 @@
-"""orchestrator.prediction: stationary RMS and cost rate, against hand formulas and
+"""orchestrator.analysis.prediction: stationary RMS and cost rate, against hand formulas and
 long Monte-Carlo runs of the same closed loop (Plant + estimator + LQ gains)."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 
 from controller_fmu.design import lq_tracking_design
 from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
-from orchestrator.prediction import closed_loop, predict_stationary
+from orchestrator.analysis.prediction import closed_loop, predict_stationary
 from plant_model.discretization import discretize
 from plant_model.plant import Plant, plant_output_layout
 from plant_model.system import LinearSystem

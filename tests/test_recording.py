@@ -12,17 +12,19 @@ from orchestrator.recording import (
     TRACE_KEYS,
     FleetLayout,
     method_color,
-    read_rrd_blueprint_tree,
-    read_rrd_blueprint_views,
     read_rrd_line_strips,
     read_rrd_points,
     read_rrd_scalars,
     read_rrd_series,
     read_rrd_series_lines,
+    write_rrd,
+)
+from support.rrd_readback import (
+    read_rrd_blueprint_tree,
+    read_rrd_blueprint_views,
     read_rrd_series_styles,
     read_rrd_visible_time_ranges,
     rrd_has_blueprint,
-    write_rrd,
 )
 
 H = 0.01

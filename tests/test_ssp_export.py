@@ -9,9 +9,11 @@ the *old* inputs. :func:`loop_reference` writes that loop out in numpy next to o
 master's exact Gauss-Seidel loop; the same function with ``coupling='gauss-seidel'``
 reproduces our orchestrator, with ``coupling='fmpy'`` reproduces simulate_ssp, both to
 rounding. fmpy also ignores the archive's ParameterBindings unless they are passed as its
-``parameter_set`` (``orchestrator.ssp_export.fmpy_parameter_set``).
+``parameter_set`` (``orchestrator.interop.ssp.fmpy_parameter_set``).
 """
 from __future__ import annotations
+
+from dataclasses import replace
 
 import zipfile
 from pathlib import Path
@@ -22,22 +24,13 @@ from lxml import etree
 
 from controller_fmu.regulator import tracking_law
 from estimator_fmu.estimators import make_estimator
-from orchestrator import ssp_export
-from orchestrator.master import fmu_parameters, run_cosimulation
+from orchestrator.cosim.master import run_cosimulation
+from orchestrator.cosim.system import Connection
+from orchestrator.interop.common import ExportError
+from orchestrator.interop.ssp import SSC_NS, SSD_NS, SSV_NS, export_ssp, fmpy_parameter_set
 from orchestrator.scenario import load_scenario
-from orchestrator.ssp_export import (
-    SSC_NS,
-    SSD_NS,
-    SSV_NS,
-    Connection,
-    SspExportError,
-    Variable,
-    check_connections,
-    export_ssp,
-    fmpy_parameter_set,
-    scalar_connections,
-)
-from orchestrator.workflow import scenario_config
+from orchestrator.workflow import scenario_config, scenario_system
+from support.loop import fmu_parameters
 from plant_model.discretization import discretize
 from plant_model.plant import NoiseStream
 
@@ -215,47 +208,14 @@ def test_parameter_sets_hold_the_scenario_values(paper_ssp, paper):
             if p.name == "mode"] == ["kalman"]
 
 
-# ------------------------------------------------------------------ connection check
-def _vars() -> dict[str, dict[str, Variable]]:
-    R = "Real"
-    return {"a": {"out[1]": Variable("output", R), "k": Variable("parameter", R),
-                  "n": Variable("output", "Integer")},
-            "b": {"in[1]": Variable("input", R), "out[1]": Variable("output", R)}}
-
-
-def test_check_accepts_a_consistent_set():
-    check_connections(_vars(), [Connection("a", "out[1]", "b", "in[1]")])
-
-
-@pytest.mark.parametrize("conns, match", [
-    ([Connection("a", "out[1]", "b", "in[1]"), Connection("a", "out[2]", "b", "in[1]")],
-     r"a has no variable 'out\[2\]'"),
-    ([Connection("a", "out[1]", "b", "in[1]"), Connection("a", "out[1]", "b", "out[1]")],
-     r"b\.out\[1\] is an output, two outputs connected"),
-    ([Connection("a", "out[1]", "b", "in[1]"), Connection("b", "out[1]", "b", "in[1]")],
-     r"input b\.in\[1\] is driven by 2 outputs \(a\.out\[1\], b\.out\[1\]\)"),
-    ([], r"b: input\(s\) not connected: in\[1\]"),
-    ([Connection("a", "k", "b", "in[1]")], r"a\.k is an parameter, the start must be an output"),
-    ([Connection("a", "n", "b", "in[1]")], r"types differ \(Integer -> Real\)"),
-    ([Connection("a", "out[1]", "c", "in[1]")], r"no component named 'c'"),
-])
-def test_check_names_the_problem(conns, match):
-    with pytest.raises(SspExportError, match=match):
-        check_connections(_vars(), conns)
-
-
-def test_export_refuses_a_connection_to_a_missing_variable(monkeypatch, paper, tmp_path):
-    monkeypatch.setattr(ssp_export, "SIGNAL_CONNECTIONS",
-                        ssp_export.SIGNAL_CONNECTIONS + (("plant", "y", "controller"),))
-    with pytest.raises(SspExportError,
+# ------------------------------------------------------------------ wiring refused
+def test_export_refuses_a_connection_to_a_missing_variable(paper, tmp_path):
+    system = scenario_system(paper)
+    bad = replace(system, connections=system.connections + (Connection("plant", "y", "controller", "y"),))
+    with pytest.raises(ExportError,
                        match=r"controller \(AuvController\.fmu\) has no variable 'y\[1\]'"):
-        export_ssp(paper, tmp_path / "bad.ssp")
+        export_ssp(paper, tmp_path / "bad.ssp", system=bad)
     assert not list(tmp_path.iterdir())                 # nothing written
-
-
-def test_scalar_connections_count(paper):
-    d = paper.system.dims
-    assert len(scalar_connections(d)) == 2 * d["p"] + 2 * (d["n"] + d["r"] + d["l"]) + 2 * d["m"]
 
 
 # ------------------------------------------------------------------ runs
@@ -339,7 +299,7 @@ def test_string_parameters_fmpy_cannot_set_are_checked(paper_ssp, tmp_path):
     assert "plant.seed" in names and "estimator.h" in names and "controller.Q[1,1]" in names
     assert not {"plant.noise_convention", "estimator.mode", "controller.tracking"} & names
     bad = _with_parameter(paper_ssp, tmp_path / "ideal.ssp", "estimator", "mode", "String", "ideal")
-    with pytest.raises(SspExportError, match=r"estimator\.mode = 'ideal' is a String.*'kalman'"):
+    with pytest.raises(ExportError, match=r"estimator\.mode = 'ideal' is a String.*'kalman'"):
         fmpy_parameter_set(bad)
     assert len(fmpy_parameter_set(bad, strings="drop").parameters) == len(ps.parameters)
 

@@ -38,7 +38,7 @@ import numpy as np
 import pytest
 
 from controller_fmu.design import lq_tracking_design
-from orchestrator.fmu_build import FMU_KINDS, build_fmu
+from orchestrator.cosim.build import FMU_KINDS, build_fmu
 from orchestrator.scenario import load_scenario
 from orchestrator.workflow import scenario_config
 

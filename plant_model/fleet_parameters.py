@@ -27,7 +27,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from .interface import ArraySpec
+from fmu_common.interface import ArraySpec
 
 __all__ = ["fleet_parameter_specs", "fleet_spec_from_parameters"]
 

@@ -1,11 +1,17 @@
-"""The model parameters the three FMUs share: names, shapes, descriptions, start values."""
+"""The model parameters the three FMUs share: names, shapes, descriptions, start values.
+
+Domain knowledge (what the system matrices mean), expressed as FMI interface tables
+(:class:`fmu_common.interface.ArraySpec`); fleets use :mod:`plant_model.fleet_parameters`.
+"""
 from __future__ import annotations
 
 from typing import Any, Iterable
 
 import numpy as np
 
-from .interface import ArraySpec
+from fmu_common.interface import ArraySpec
+
+from .system import LinearSystem
 
 __all__ = ["PARAMETER_DOCS", "system_parameter_specs", "system_mapping_from_parameters",
            "model_parameter_specs", "system_from_parameters"]
@@ -55,7 +61,7 @@ def system_mapping_from_parameters(par: dict[str, Any], names: Iterable[str]) ->
 
 def model_parameter_specs(config: dict[str, Any], kind: str, names: Iterable[str]) -> list[ArraySpec]:
     """The model parameters of an FMU of ``kind``: the fleet interface
-    (:mod:`fmu_common.fleet_parameters`) when the FMU was built for a fleet, else the
+    (:mod:`plant_model.fleet_parameters`) when the FMU was built for a fleet, else the
     system matrices ``names``."""
     if config.get("fleet") is not None:
         from .fleet_parameters import fleet_parameter_specs
@@ -66,10 +72,8 @@ def model_parameter_specs(config: dict[str, Any], kind: str, names: Iterable[str
 def system_from_parameters(config: dict[str, Any], kind: str, par: dict[str, Any],
                            names: Iterable[str], noise_convention: str | None = None):
     """The LinearSystem described by the parameter values ``par`` (see model_parameter_specs)."""
-    from plant_model.system import LinearSystem
     if config.get("fleet") is not None:
-        from plant_model.fleet import fleet_system
-
+        from .fleet import fleet_system        # lazily: it brings in networkx
         from .fleet_parameters import fleet_spec_from_parameters
         spec = fleet_spec_from_parameters(config["fleet"], kind, par)
         if noise_convention is not None:

@@ -1,6 +1,6 @@
 """Scenarios: TOML files describing the system, the noise, the cost and the run.
 
-A scenario is either the name of a built-in file in ``orchestrator/scenarios/`` (``paper``
+A scenario is either the name of a built-in file in ``orchestrator/scenario/builtin/`` (``paper``
 is the default) or a path to a ``.toml`` file. Sections and keys::
 
     name, description
@@ -14,7 +14,7 @@ is the default) or a path to a ``.toml`` file. Sections and keys::
 
 A number where a square matrix is expected means that number times the identity.
 A file with a ``[leader]`` or ``[graph]`` section describes a fleet of N vehicles on a
-communication graph instead (:mod:`orchestrator.fleet_scenario`).
+communication graph instead (:mod:`orchestrator.scenario.fleet`).
 Every problem is reported as a :class:`ScenarioError` naming the file, section and key.
 """
 from __future__ import annotations
@@ -32,11 +32,11 @@ from plant_model.fleet import fleet_system, resolve_fleet_spec
 from plant_model.linalg_checks import ModelError
 from plant_model.system import LinearSystem
 
-from .fleet_scenario import fleet_spec_from_dict, is_fleet_scenario, section_of_model_error
+from .fleet import fleet_spec_from_dict, is_fleet_scenario, section_of_model_error
 
 __all__ = ["Scenario", "ScenarioError", "load_scenario", "builtin_scenarios", "SCENARIO_DIR"]
 
-SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
+SCENARIO_DIR = Path(__file__).resolve().parent / "builtin"
 
 _SCHEMA: dict[str, dict[str, bool]] = {   # section -> key -> required
     "simulation": {"T": True, "h": True, "seed": False, "estimator": False, "tracking": False},

@@ -26,7 +26,7 @@ from fmu_common.interface import UNIT_DEFINITIONS, ArraySpec, expand
 __all__ = ["FMU_KINDS", "FmuKind", "build_fmus", "fmu_config", "interface_of",
            "patch_model_description", "variables_markdown"]
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parent.parent.parent
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ reads back to the same double, so values round-trip exactly), time in seconds an
 increasing, no comments. For 500 steps of the paper scenario the files are 23 to 160 kB,
 under the rules' 1 MB.
 
-Timing in the loop (orchestrator.master): at step k, t = k h, the master reads the plant's
+Timing in the loop (orchestrator.cosim.master): at step k, t = k h, the master reads the plant's
 outputs (they depend on no input), sets y[k], ybar[k] (and the truth x, w, z in mode
 ``ideal``) on the estimator and reads its estimate of sample k (direct feedthrough), sets it
 on the controller and reads u[k] (direct feedthrough), sets u[k] on plant and estimator,
@@ -104,11 +104,10 @@ from fmpy import read_model_description, simulate_fmu
 from fmpy.simulation import Input
 from fmpy.util import read_csv, read_ref_opt_file
 
-from .fmu_build import FMU_KINDS
-from .master import fmu_parameters, run_cosimulation
+from ..cosim.master import run_system
+from ..cosim.system import SystemDescription, closed_loop_system
 
 __all__ = [
-    "CONNECTED_INPUTS",
     "EPS_FRACTION",
     "LAYOUTS",
     "REL_TOL",
@@ -128,13 +127,6 @@ EPS_FRACTION = 1e-3
 #: Input layouts: eps before each sample (default) or a repeated time stamp at each sample.
 LAYOUTS = ("ramp", "repeat")
 
-#: Inputs the master connects, per FMU (the estimator's truth inputs only in mode 'ideal').
-CONNECTED_INPUTS: dict[str, tuple[str, ...]] = {
-    "plant": ("u",),
-    "estimator": ("y", "ybar", "u"),
-    "controller": ("xhat", "what", "zhat"),
-}
-_TRUTH = ("x", "w", "z")
 _NAME = re.compile(r"^([A-Za-z_]\w*)\[(\d+)\]$")
 
 
@@ -207,14 +199,17 @@ def _different_start_values(md, parameters: dict[str, Any]) -> dict[str, Any]:
 
 def write_crosscheck(fmus: dict[str, Path], config: dict, out_dir: Path, *, steps: int = 500,
                      seed: int | None = None, mode: str | None = None,
-                     layout: str = "ramp") -> dict[str, dict[str, Path]]:
+                     layout: str = "ramp",
+                     system: SystemDescription | None = None) -> dict[str, dict[str, Path]]:
     """Run the closed loop once for ``steps`` steps and write each FMU's cross-check files.
 
-    ``fmus``: the plant, estimator and controller FMUs built for ``config``
-    (orchestrator.workflow.build); ``seed`` and ``mode`` default to the configuration's
-    (the FMUs' start values); ``layout``: input file layout, ``ramp`` (default) or
-    ``repeat`` (see the module docstring). Returns, per FMU kind, the paths ``fmu``,
-    ``in``, ``ref``, ``opt``, ``readme``.
+    ``fmus``: the FMUs built for ``config`` (orchestrator.workflow.build), by FMU key;
+    ``system``: the co-simulation (default: the paper's loop,
+    :func:`orchestrator.cosim.system.closed_loop_system`, with ``seed`` and ``mode``,
+    which default to the configuration's, the FMUs' start values); ``layout``: input file
+    layout, ``ramp`` (default) or ``repeat`` (see the module docstring). One reference per
+    component. Returns, per component, the paths ``fmu``, ``in``, ``ref``, ``opt``,
+    ``readme``.
     """
     if steps < 2:
         raise ValueError("steps must be at least 2 (StopTime must exceed StartTime)")
@@ -223,18 +218,21 @@ def write_crosscheck(fmus: dict[str, Path], config: dict, out_dir: Path, *, step
     seed = int(config["seed"] if seed is None else seed)
     mode = str(config["mode"] if mode is None else mode)
     tracking = str(config.get("tracking", "lq"))
-    cfg = dict(config, mode=mode, seed=seed, tracking=tracking)
-    h = float(config["h"])
+    if system is None:
+        system = closed_loop_system(dict(config, mode=mode, seed=seed, tracking=tracking))
+    h = float(system.h)
     out = Path(out_dir)
     t0 = time.perf_counter()
-    res = run_cosimulation(fmus, config, mode=mode, seed=seed, steps=steps, tracking=tracking)
+    traces, _, _ = run_system(system, fmus, steps, instance_suffix=f"_{mode}_{seed}")
     loop_s = time.perf_counter() - t0
-    traces = res.traces
     t = np.arange(steps) * h
     eps = EPS_FRACTION * h if layout == "ramp" else 0.0
-    connected = dict(CONNECTED_INPUTS)
-    if mode == "ideal":
-        connected["estimator"] = connected["estimator"] + _TRUTH
+    trace_of = system.trace_names()
+    #: (component, input scalar) -> (trace, column) of the output feeding it in the run
+    fed: dict[tuple[str, str], tuple[str, int]] = {}
+    for c in system.scalar_connections(active_only=True):
+        base, i = _split(c.source[1])
+        fed[c.target] = (trace_of[(c.source[0], base)], i)
     manifest: dict[str, Any] = {
         "h": h, "steps": steps, "seed": seed, "mode": mode, "tracking": tracking,
         "StartTime": 0.0, "StopTime": float(t[-1]), "StepSize": h, "RelTol": REL_TOL,
@@ -246,31 +244,30 @@ def write_crosscheck(fmus: dict[str, Path], config: dict, out_dir: Path, *, step
         "cosimulation_s": loop_s, "fmus": {},
     }
     paths: dict[str, dict[str, Path]] = {}
-    for key, kind in FMU_KINDS.items():
-        model = kind.model
-        md = read_model_description(str(fmus[key]))
-        d = out / model
+    for comp in system.components:
+        key, model = comp.name, comp.model
+        md = read_model_description(str(fmus[comp.fmu]))
+        d = out / model if len(system.components) == len({c.fmu for c in system.components}) \
+            else out / key
         d.mkdir(parents=True, exist_ok=True)
         fmu_copy = d / f"{model}.fmu"
-        if Path(fmus[key]).resolve() != fmu_copy.resolve():
-            shutil.copyfile(fmus[key], fmu_copy)
+        if Path(fmus[comp.fmu]).resolve() != fmu_copy.resolve():
+            shutil.copyfile(fmus[comp.fmu], fmu_copy)
         inputs = [v for v in md.modelVariables if v.causality == "input"]
         outputs = [v for v in md.modelVariables if v.causality == "output"]
         in_vals = np.empty((steps, len(inputs)))
         held: list[str] = []
         for j, var in enumerate(inputs):
-            base, i = _split(var.name)
-            if base in connected[key]:
-                in_vals[:, j] = traces[base][:, i]
+            src = fed.get((key, var.name))
+            if src is not None:
+                in_vals[:, j] = traces[src[0]][:, src[1]]
             else:
                 in_vals[:, j] = _start_value(var)
                 held.append(var.name)
         out_vals = np.empty((steps, len(outputs)))
         for j, var in enumerate(outputs):
             base, i = _split(var.name)
-            if base not in traces:
-                raise KeyError(f"{model}: output {var.name} is not a signal of the loop")
-            out_vals[:, j] = traces[base][:, i]
+            out_vals[:, j] = traces[trace_of[(key, base)]][:, i]
         p = {"fmu": fmu_copy, "in": d / f"{model}_in.csv", "ref": d / f"{model}_ref.csv",
              "opt": d / f"{model}_ref.opt", "readme": d / "ReadMe.md"}
         ti, vi = hold_rows(t, in_vals, eps)
@@ -279,7 +276,7 @@ def write_crosscheck(fmus: dict[str, Path], config: dict, out_dir: Path, *, step
         p["opt"].write_text(f"StartTime, {_fmt(0.0)}\nStopTime, {_fmt(t[-1])}\n"
                             f"StepSize, {_fmt(h)}\nRelTol, {_fmt(REL_TOL)}\n"
                             f"OutputIntervalLength, {_fmt(h)}\n")
-        start_values = _different_start_values(md, fmu_parameters(key, cfg))
+        start_values = _different_start_values(md, dict(comp.parameters))
         deps = {u.variable.name: u.dependencies or [] for u in md.outputs}
         feedthrough = [v.name for v in outputs
                        if any(dv.causality == "input" for dv in deps.get(v.name, []))]
@@ -303,9 +300,9 @@ def _readme(model, key, md, steps, h, seed, mode, tracking, start_values, held, 
     lines = [
         f"# {model}: cross-check reference ({key})", "",
         f"{md.description or ''}", "",
-        f"Generated by `orchestrator.crosscheck.write_crosscheck` from one closed-loop "
+        f"Generated by `orchestrator.interop.crosscheck.write_crosscheck` from one closed-loop "
         f"co-simulation of plant, estimator and controller (fmpy master, "
-        f"`orchestrator.master.run_cosimulation`): {steps} samples, h = {h} s, "
+        f"`orchestrator.cosim.master.run_system`): {steps} samples, h = {h} s, "
         f"seed {seed}, estimator mode `{mode}`, tracking law `{tracking}`.", "",
         f"Parameters: start values of this FMU's modelDescription.xml (the scenario it was "
         f"built for). Start values to set before replaying: {sv}.", "",
@@ -331,7 +328,7 @@ def _readme(model, key, md, steps, h, seed, mode, tracking, start_values, held, 
             f"inputs of the same instant. Sample them after setting the inputs of the "
             f"communication point. fmpy's `simulate_fmu` samples after `fmi2DoStep` and before "
             f"setting the next inputs (the left limit); replay with the `step_finished` callback "
-            f"`orchestrator.crosscheck.sample_after_inputs` (or `orchestrator.crosscheck.replay`), "
+            f"`orchestrator.interop.crosscheck.sample_after_inputs` (or `orchestrator.interop.crosscheck.replay`), "
             f"which sets the inputs of the new communication point and samples again.", ""]
     else:
         lines += ["No output depends directly on an input: `fmpy.simulate_fmu(fmu, "

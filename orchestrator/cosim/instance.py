@@ -1,0 +1,118 @@
+"""One FMU instance on fmpy, with its message log and raw FMI entry points for the hot loop.
+
+:class:`FmuInstance` calls each FMI function of the FMU's shared library directly (ctypes
+function objects with fixed argument types, no per-call wrappers); :class:`Extracted`
+unzips each FMU file once for all its instances.
+"""
+from __future__ import annotations
+
+import ctypes
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any, Callable
+
+from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException, calloc, free
+from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
+
+__all__ = ["CosimError", "Extracted", "FmuInstance", "STATUS"]
+
+#: fmi2Status names by value
+STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
+
+
+class CosimError(RuntimeError):
+    """An FMU refused a call; the message names the FMU, the call and what it logged."""
+
+
+class FmuInstance:
+    """One FMU instance with a message log and raw FMI entry points for the hot loop."""
+
+    def __init__(self, label: str, path: Path, unzip_dir: str, instance_name: str,
+                 model_description: Any = None) -> None:
+        self.label = label
+        self.md = model_description or read_model_description(str(path))
+        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
+        self.types = {v.name: v.type for v in self.md.modelVariables}
+        self.messages: list[tuple[str, str]] = []
+        self.slave = FMU2Slave(guid=self.md.guid, unzipDirectory=unzip_dir,
+                               modelIdentifier=self.md.coSimulation.modelIdentifier,
+                               instanceName=instance_name)
+        self._callbacks = fmi2CallbackFunctions()
+        self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
+        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        try:
+            from fmpy.logging import addLoggerProxy
+            addLoggerProxy(ctypes.byref(self._callbacks))
+        except Exception:  # pragma: no cover - message formatting only
+            pass
+        self.slave.instantiate(callbacks=self._callbacks, loggingOn=True)
+        dll = self.slave.dll
+        self.component = self.slave.component
+
+        def raw(name: str, argtypes: list) -> Callable[..., int]:
+            f = dll[name]                       # a fresh function object of our own
+            f.argtypes = argtypes
+            f.restype = ctypes.c_int
+            return f
+
+        vp, sz = ctypes.c_void_p, ctypes.c_size_t
+        self.get_real = raw("fmi2GetReal", [vp, vp, sz, vp])
+        self.set_real = raw("fmi2SetReal", [vp, vp, sz, vp])
+        self.do_step = raw("fmi2DoStep", [vp, ctypes.c_double, ctypes.c_double, ctypes.c_int])
+
+    def _log(self, env, instance, status, category, message) -> None:
+        text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
+        self.messages.append((STATUS[status] if 0 <= status < 6 else str(status), text))
+
+    def errors(self) -> str:
+        bad = [m for s, m in self.messages if s in ("Error", "Fatal", "Discard", "Warning")]
+        return "; ".join(bad) if bad else "(the FMU logged no message)"
+
+    def vrs(self, names: list[str]) -> ctypes.Array:
+        arr = (ctypes.c_uint * len(names))(*[self.vr[n] for n in names])
+        return arr
+
+    def fail(self, call: str, status: int) -> CosimError:
+        return CosimError(f"{self.label} FMU: {call} returned {STATUS[status] if 0 <= status < 6 else status}: "
+                          f"{self.errors()}")
+
+    def initialize(self, parameters: dict[str, Any], T: float) -> None:
+        s = self.slave
+        try:
+            s.setupExperiment(startTime=0.0, stopTime=T)
+            s.enterInitializationMode()
+            reals = [(self.vr[k], float(v)) for k, v in parameters.items() if self.types[k] == "Real"]
+            ints = [(self.vr[k], int(v)) for k, v in parameters.items() if self.types[k] == "Integer"]
+            strs = [(self.vr[k], str(v)) for k, v in parameters.items() if self.types[k] == "String"]
+            if reals:
+                s.setReal(*map(list, zip(*reals)))
+            if ints:
+                s.setInteger(*map(list, zip(*ints)))
+            if strs:
+                s.setString(*map(list, zip(*strs)))
+            s.exitInitializationMode()
+        except FMICallException as exc:
+            raise CosimError(f"{self.label} FMU: initialization failed ({exc}): {self.errors()}") from None
+
+    def close(self) -> None:
+        try:
+            self.slave.terminate()
+        except FMICallException:
+            pass
+        self.slave.freeInstance()
+
+
+
+class Extracted:
+    """FMUs unzipped once per master, removed at the end."""
+
+    def __init__(self, fmus: dict[str, Path]) -> None:
+        self.root = Path(tempfile.mkdtemp(prefix="auv_cosim_"))
+        self.dirs = {k: extract(str(p), unzipdir=str(self.root / k)) for k, p in fmus.items()}
+
+    def cleanup(self) -> None:
+        shutil.rmtree(self.root, ignore_errors=True)

@@ -1,0 +1,295 @@
+"""Fixed-step co-simulation master on fmpy, driven by a :class:`SystemDescription`.
+
+Within macro step k (t = k h, never accumulated), ``coupling="gauss-seidel"`` (the
+default) reads the components' outputs in the order their declared direct feedthrough
+requires (:func:`orchestrator.cosim.system.evaluation_order`) and sets each output on the
+inputs it feeds as soon as it is read, then steps every FMU. For the paper's loop that is
+the exact discrete-time loop::
+
+    plant -> y[k], ybar[k] (+ truth) -> estimator -> xhat, what, zhat
+          -> controller -> u[k] -> plant and estimator -> all three doStep(t, h)
+
+``coupling="jacobi"`` is the same loop with another order of operations, what libcosim's
+fixed-step algorithm (Open Simulation Platform) and fmpy's ``simulate_ssp`` do: every input
+is set from the outputs read at the previous communication point, all FMUs step, then all
+outputs are read::
+
+    set inputs from the outputs read at t_k -> all doStep(t_k, h) -> read outputs (t_k+1)
+
+Row k of a Jacobi trace holds the outputs read at t_k, i.e. the values transferred into
+step k. A measurement-to-control path through two feedthrough FMUs gains two steps of
+latency this way (see orchestrator/analysis/jacobi.py for its prediction).
+
+The plan is resolved once: value references, one batched fmi2GetReal per run of
+consecutive outputs of a component, one batched fmi2SetReal per run of consecutive
+outputs feeding one component; the FMUs read and write the trace arrays in place (row k
+of a component's trace is the buffer fmi2GetReal fills and the buffer its consumers'
+inputs are set from). A connection that carries nothing in the run (the truth signals
+outside mode ``ideal``) is not in the plan.
+"""
+from __future__ import annotations
+
+import ctypes
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+from fmpy import read_model_description
+
+from fmu_common.interface import element_names
+
+from .checks import connection_problems, fmu_variables
+from .instance import CosimError, Extracted, FmuInstance
+from .system import SystemDescription, closed_loop_system, evaluation_order
+
+__all__ = ["COUPLINGS", "CosimError", "RunResult", "StepPlan", "plan_steps", "run_system",
+           "run_cosimulation"]
+
+#: how the master couples the FMUs within a step (see the module docstring)
+COUPLINGS = ("gauss-seidel", "jacobi")
+_DOUBLE = 8
+
+
+@dataclass
+class RunResult:
+    """Traces of one co-simulation (row k = sample k, t = k h), keyed by
+    :meth:`SystemDescription.trace_names` (the output's name, e.g. ``y``, ``u``)."""
+
+    mode: str
+    seed: int
+    h: float
+    traces: dict[str, np.ndarray]
+    wall_s: float
+    loop_s: float
+    coupling: str = "gauss-seidel"
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def steps(self) -> int:
+        return next(iter(self.traces.values())).shape[0]
+
+    @property
+    def t(self) -> np.ndarray:
+        return np.arange(self.steps) * self.h
+
+
+@dataclass
+class StepPlan:
+    """What one macro step does, resolved to raw FMI calls.
+
+    ``exchange``: (function, component pointer, value-reference array address, count,
+    buffer address of row 0, row stride, instance, call label) for the get/set calls
+    before the steps; ``stepping``: (fmi2DoStep, component pointer, instance);
+    ``after``: get calls after the steps, into the next row (Jacobi only)."""
+
+    exchange: list[tuple]
+    stepping: list[tuple]
+    after: list[tuple]
+    order: list[str]                    #: the evaluation order, for reports
+
+
+def _runs(cols: list[int]) -> list[tuple[int, int]]:
+    """Index ranges [a, b) of consecutive runs in the positions of ``cols``."""
+    runs, start = [], 0
+    for i in range(1, len(cols) + 1):
+        if i == len(cols) or cols[i] != cols[i - 1] + 1:
+            runs.append((start, i))
+            start = i
+    return runs
+
+
+def plan_steps(system: SystemDescription, inst: Mapping[str, FmuInstance],
+               rec: Mapping[str, np.ndarray], coupling: str) -> StepPlan:
+    """Resolve the system's active connections into batched FMI calls on ``inst``
+    writing and reading the trace arrays ``rec`` (component -> (steps, outputs))."""
+    keep: list[Any] = []                # ctypes arrays the plan points into
+
+    def vr_array(fmu: FmuInstance, names: list[str]) -> int:
+        arr = fmu.vrs(names)
+        keep.append(arr)
+        return ctypes.addressof(arr)
+
+    cols: dict[str, dict[str, list[int]]] = {}      # component -> output array -> columns
+    names: dict[str, list[str]] = {}                # component -> output scalar names
+    for comp in system.components:
+        cols[comp.name], names[comp.name], i = {}, [], 0
+        for spec in comp.arrays("output"):
+            scal = element_names(spec.name, spec.shape)
+            cols[comp.name][spec.name] = list(range(i, i + len(scal)))
+            names[comp.name] += scal
+            i += len(scal)
+
+    def get_ops(comp: str, columns: list[int]) -> list[tuple]:
+        fmu, buf = inst[comp], rec[comp]
+        ops = []
+        for a, b in _runs(columns):
+            c0 = columns[a]
+            ops.append((fmu.get_real, fmu.component,
+                        vr_array(fmu, names[comp][c0:c0 + b - a]), b - a,
+                        buf.ctypes.data + c0 * _DOUBLE, buf.strides[0], fmu, "fmi2GetReal"))
+        return ops
+
+    active = system.active_connections()
+
+    def set_ops(source: str, outputs: set[str]) -> list[tuple]:
+        """Sets fed by these outputs of ``source``: per target, runs of consecutive columns."""
+        per_target: dict[str, list[tuple[int, str, str]]] = {}
+        for c in active:
+            if c.source != source or c.output not in outputs:
+                continue
+            tgt = system.component(c.target)
+            dst = element_names(c.input, tgt.array(c.input).shape)
+            src_cols = cols[source][c.output]
+            if len(dst) != len(src_cols):
+                raise CosimError(f"connection {c}: {len(src_cols)} elements feed {len(dst)}")
+            per_target.setdefault(c.target, []).extend(
+                (col, name, c.input) for col, name in zip(src_cols, dst))
+        ops = []
+        buf = rec[source]
+        for target, items in per_target.items():
+            items.sort()
+            fmu = inst[target]
+            columns = [col for col, _, _ in items]
+            for a, b in _runs(columns):
+                ins = ", ".join(dict.fromkeys(arr for _, _, arr in items[a:b]))
+                ops.append((fmu.set_real, fmu.component,
+                            vr_array(fmu, [n for _, n, _ in items[a:b]]), b - a,
+                            buf.ctypes.data + columns[a] * _DOUBLE, buf.strides[0], fmu,
+                            f"fmi2SetReal ({ins} from {source})"))
+        return ops
+
+    stepping = [(inst[c].do_step, inst[c].component, inst[c]) for c in system.names]
+    if coupling == "gauss-seidel":
+        order = evaluation_order(system)
+        exchange: list[tuple] = []
+        i = 0
+        while i < len(order):                   # consecutive outputs of one component
+            j = i
+            while j < len(order) and order[j][0] == order[i][0]:
+                j += 1
+            comp = order[i][0]
+            group = [o for _, o in order[i:j]]
+            exchange += get_ops(comp, sorted(col for o in group for col in cols[comp][o]))
+            exchange += set_ops(comp, set(group))
+            i = j
+        plan = StepPlan(exchange, stepping, [], [f"{c}.{o}" for c, o in order])
+    else:
+        sets = [op for comp in system.names for op in set_ops(comp, set(cols[comp]))]
+        gets = [op for comp in system.names for op in get_ops(
+            comp, [c for cs in cols[comp].values() for c in cs])]
+        plan = StepPlan(sets, stepping, gets, system.names)
+    plan.keep = keep                            # type: ignore[attr-defined]
+    return plan
+
+
+def _step_loop(plan: StepPlan, steps: int, h: float, bar: Any) -> None:
+    """Run ``steps`` macro steps of the plan (t = k h)."""
+    exchange, stepping, after = plan.exchange, plan.stepping, plan.after
+    if after:                                   # Jacobi: the outputs at t = 0 first
+        for fn, c, vr, n, base, stride, who, what in after:
+            st = fn(c, vr, n, base)
+            if st:
+                raise who.fail(f"{what} at t = 0.0 s", st)
+    chunk = 2000
+    for k0 in range(0, steps, chunk):
+        for k in range(k0, min(k0 + chunk, steps)):
+            t = k * h
+            for fn, c, vr, n, base, stride, who, what in exchange:
+                st = fn(c, vr, n, base + k * stride)
+                if st:
+                    raise who.fail(f"{what} at t = {t} s", st)
+            for fn, c, who in stepping:
+                st = fn(c, t, h, 1)
+                if st:
+                    raise who.fail(f"fmi2DoStep at t = {t} s", st)
+            if after and k + 1 < steps:
+                k1 = k + 1
+                for fn, c, vr, n, base, stride, who, what in after:
+                    st = fn(c, vr, n, base + k1 * stride)
+                    if st:
+                        raise who.fail(f"{what} at t = {k1 * h} s", st)
+        if bar is not None:
+            bar.update(min(chunk, steps - k0))
+
+
+def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, *,
+               coupling: str = "gauss-seidel", progress: Any = False,
+               instance_suffix: str = "") -> tuple[dict[str, np.ndarray], float, dict[str, Any]]:
+    """Co-simulate ``system`` for ``steps`` communication steps of ``system.h``.
+
+    ``fmus``: FMU key (``Component.fmu``) -> .fmu path. Returns (traces keyed by
+    :meth:`SystemDescription.trace_names`, seconds in the step loop, info with the
+    evaluation order). ``progress``: False, True (a progress bar shown after one second)
+    or a shared bar object with ``update(n)``.
+    """
+    if coupling not in COUPLINGS:
+        raise ValueError(f"coupling {coupling!r} is not one of {', '.join(COUPLINGS)}")
+    h = float(system.h)
+    used = {c.fmu for c in system.components}
+    missing = sorted(used - set(fmus))
+    if missing:
+        raise CosimError(f"system {system.name!r}: no FMU given for {', '.join(missing)}")
+    ex = Extracted({k: fmus[k] for k in used})
+    inst: dict[str, FmuInstance] = {}
+    bar = None
+    try:
+        mds = {k: read_model_description(str(fmus[k])) for k in used}
+        problems = connection_problems(
+            {c.name: fmu_variables(mds[c.fmu]) for c in system.components},
+            system.scalar_connections(),
+            fmu_names={c.name: Path(fmus[c.fmu]).name for c in system.components})
+        if problems:
+            raise CosimError(f"system {system.name!r} does not match its FMUs: "
+                             + "; ".join(problems))
+        for comp in system.components:
+            inst[comp.name] = FmuInstance(comp.name, fmus[comp.fmu], ex.dirs[comp.fmu],
+                                          f"{comp.name}{instance_suffix}", mds[comp.fmu])
+            inst[comp.name].initialize(dict(comp.parameters), T=steps * h)
+        rec = {c.name: np.zeros((steps, sum(s.size for s in c.arrays("output"))))
+               for c in system.components}
+        plan = plan_steps(system, inst, rec, coupling)
+        if progress is True:
+            from tqdm import tqdm
+            bar = tqdm(total=steps, unit="step", delay=1.0, leave=False)
+        elif progress:
+            bar = progress                      # a shared bar (an object with update(n))
+        t_loop = time.perf_counter()
+        _step_loop(plan, steps, h, bar)
+        loop_s = time.perf_counter() - t_loop
+    finally:
+        if progress is True and bar is not None:
+            bar.close()
+        for fmu in inst.values():
+            fmu.close()
+        ex.cleanup()
+    names = system.trace_names()
+    traces: dict[str, np.ndarray] = {}
+    for comp in system.components:
+        i = 0
+        for spec in comp.arrays("output"):
+            traces[names[(comp.name, spec.name)]] = rec[comp.name][:, i:i + spec.size]
+            i += spec.size
+    return traces, loop_s, {"order": plan.order}
+
+
+def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str, seed: int,
+                     steps: int, progress: Any = False, tracking: str | None = None,
+                     coupling: str = "gauss-seidel") -> RunResult:
+    """Run the paper's loop (:func:`closed_loop_system`) of the three FMUs built for
+    ``config`` for ``steps`` steps of ``config['h']``.
+
+    ``mode``: the estimator mode; ``tracking``: the controller's law ('lq' or 'regulator',
+    default the configuration's); ``coupling``: 'gauss-seidel' (the exact discrete-time
+    loop, default) or 'jacobi' (what libcosim does; module docstring).
+    """
+    t0 = time.perf_counter()
+    cfg = dict(config, mode=mode, seed=int(seed),
+               tracking=tracking or config.get("tracking", "lq"))
+    system = closed_loop_system(cfg)
+    traces, loop_s, info = run_system(system, fmus, steps, coupling=coupling,
+                                      progress=progress, instance_suffix=f"_{mode}_{seed}")
+    return RunResult(mode=mode, seed=int(seed), h=system.h, traces=traces,
+                     wall_s=time.perf_counter() - t0, loop_s=loop_s, coupling=coupling,
+                     info=info)

@@ -1,0 +1,162 @@
+"""What goes where in a recording: trace keys, entity paths and series names of the paper
+layout, the blueprint view groups, the :class:`FleetLayout` of a fleet, method and vehicle colours.
+
+The entity paths themselves are tabulated in the package docstring (:mod:`orchestrator.recording`).
+"""
+from __future__ import annotations
+
+import colorsys
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["TRACE_KEYS", "VIEW_GROUPS", "FleetLayout", "method_color"]
+
+#: Trace keys every run must provide (each an array of shape (steps, dim)).
+TRACE_KEYS: tuple[str, ...] = ("x", "w", "z", "e", "u", "xhat", "what", "zhat", "y", "ybar")
+
+# (trace key, entity path template, series-name suffix, is an estimate)
+_SERIES: tuple[tuple[str, str, str, bool], ...] = (
+    ("e", "error/{i}/{m}", "", False),
+    ("x", "state/{i}/{m}/true", "", False),
+    ("xhat", "state/{i}/{m}/estimate", " estimate", True),
+    ("u", "control/{i}/{m}", "", False),
+    ("w", "disturbance/{i}/{m}/true", "", False),
+    ("what", "disturbance/{i}/{m}/estimate", " estimate", True),
+    ("z", "reference/{i}/{m}/true", "", False),
+    ("zhat", "reference/{i}/{m}/estimate", " estimate", True),
+    ("y", "measurement/y/{i}/{m}", " y", False),
+    ("ybar", "measurement/ybar/{i}/{m}", " ybar", False),
+)
+
+#: Blueprint view groups: (view name prefix == entity root, trace keys whose dims count).
+VIEW_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("error", ("e",)),
+    ("state", ("x", "xhat")),
+    ("control", ("u",)),
+    ("disturbance", ("w", "what")),
+    ("reference", ("z", "zhat")),
+)
+
+_FIXED_COLORS: dict[str, tuple[int, int, int]] = {
+    "kalman": (31, 119, 180),    # blue
+    "classical": (255, 127, 14),  # orange
+    "ideal": (44, 160, 44),       # green
+}
+_PALETTE: tuple[tuple[int, int, int], ...] = (
+    (214, 39, 40),    # red
+    (148, 103, 189),  # purple
+    (140, 86, 75),    # brown
+    (227, 119, 194),  # pink
+    (127, 127, 127),  # grey
+    (188, 189, 34),   # olive
+    (23, 190, 207),   # cyan
+)
+
+_STEP = "step"
+_SIM_TIME = "sim_time"
+_SCALARS_COLUMN = "Scalars:scalars"
+#: Names of the three NED position components (leader series, default state names).
+_POSITION_NAMES: tuple[str, ...] = ("north", "east", "down")
+
+
+def _lighter(rgb: tuple[int, int, int], amount: float = 0.5) -> tuple[int, int, int]:
+    """Blend an RGB colour towards white by ``amount`` (0: unchanged, 1: white)."""
+    return tuple(round(c + (255 - c) * amount) for c in rgb)  # type: ignore[return-value]
+
+
+def method_color(methods: list[str] | tuple[str, ...]) -> dict[str, tuple[int, int, int]]:
+    """Colour (RGB 0-255) per method: fixed for kalman/classical/ideal, palette otherwise.
+
+    Unknown names take palette colours in the order they appear in ``methods``.
+    """
+    colors: dict[str, tuple[int, int, int]] = {}
+    n_unknown = 0
+    for m in methods:
+        if m in _FIXED_COLORS:
+            colors[m] = _FIXED_COLORS[m]
+        else:
+            colors[m] = _PALETTE[n_unknown % len(_PALETTE)]
+            n_unknown += 1
+    return colors
+
+
+@dataclass(frozen=True, eq=False)
+class FleetLayout:
+    """Where the N vehicles of a fleet live in the traces, for the fleet entities and views.
+
+    Vehicle i (1-based) is row i-1 of every array.  Arrays may be given as lists; they are
+    checked against the traces (and copied) by :func:`write_rrd`, which raises ValueError
+    naming the field at fault.  ``eq=False``: layouts compare by identity (numpy fields).
+    """
+
+    #: (N, 3) int: columns of x holding the north, east, down position (m, NED) of vehicle i.
+    position_index: np.ndarray
+    #: (N, s) int: columns of e belonging to vehicle i, in the order of ``error_names``.
+    error_index: np.ndarray
+    #: (N, q) int: columns of u belonging to vehicle i, in the order of ``control_names``.
+    control_index: np.ndarray
+    #: s labels of the error components, e.g. ("north", "east", "down").
+    error_names: tuple[str, ...]
+    #: q labels of the control components, e.g. ("X_n", "X_e", "X_d").
+    control_names: tuple[str, ...]
+    #: (3, l): leader position (NED, m) = leader_output @ z[k].
+    leader_output: np.ndarray
+    #: (N, 3): formation offset of vehicle i; its target is leader position + offset.
+    offsets: np.ndarray
+    #: Communication edges (j, i), 1-based: vehicle i hears vehicle j.
+    edges: tuple[tuple[int, int], ...]
+    #: 1-based vehicles that hear the leader.
+    pinned: tuple[int, ...]
+    #: (N, p) int: columns of x (and xhat) belonging to vehicle i, in the order of
+    #: ``state_names`` (the position columns and the vehicle's other states).  None: the
+    #: ``position_index`` columns, named ``state_names`` or ("north", "east", "down").
+    state_index: np.ndarray | None = None
+    #: p labels of the state components, e.g. ("north", "east", "down", "u", "v", "w").
+    state_names: tuple[str, ...] | None = None
+    #: (N, r) int: columns of w (and what) belonging to vehicle i, in the order of
+    #: ``disturbance_names`` (e.g. the vehicle's current states).  None: no current entities.
+    disturbance_index: np.ndarray | None = None
+    #: r labels of the disturbance components, e.g. ("n", "e", "d").
+    disturbance_names: tuple[str, ...] | None = None
+
+    @property
+    def n_vehicles(self) -> int:
+        """Number of vehicles N (rows of ``position_index``)."""
+        return int(np.shape(self.position_index)[0])
+
+
+@dataclass(frozen=True)
+class _Fleet:
+    """A FleetLayout after validation: numpy arrays of fixed dtype, 0-based edge ends."""
+
+    n: int
+    position_index: np.ndarray   # (N, 3) int64
+    error_index: np.ndarray      # (N, s) int64
+    control_index: np.ndarray    # (N, q) int64
+    error_names: tuple[str, ...]
+    control_names: tuple[str, ...]
+    leader_output: np.ndarray    # (3, l) float64
+    offsets: np.ndarray          # (N, 3) float64
+    edges: np.ndarray            # (E, 2) int64, 0-based (j, i)
+    pinned: np.ndarray           # (P,) int64, 0-based
+    state_index: np.ndarray      # (N, p) int64
+    state_names: tuple[str, ...]
+    disturbance_index: np.ndarray | None  # (N, r) int64, or None: no current entities
+    disturbance_names: tuple[str, ...]
+
+
+def _shade(rgb: tuple[int, int, int], k: int) -> tuple[int, int, int]:
+    """Shade k of a colour: 0 the colour itself, then alternately darker and lighter."""
+    if k == 0:
+        return rgb
+    amount = min(0.25 + 0.1 * ((k + 1) // 2), 0.7)
+    if k % 2:  # darker: blend towards black
+        return tuple(round(c * (1.0 - amount)) for c in rgb)  # type: ignore[return-value]
+    return _lighter(rgb, amount)
+
+
+def _vehicle_colors(n: int) -> np.ndarray:
+    """(n, 3) uint8: one hue per vehicle, evenly spread round the colour wheel."""
+    rgb = [colorsys.hsv_to_rgb(i / n, 0.75, 0.95) for i in range(n)]
+    return np.round(np.asarray(rgb) * 255.0).astype(np.uint8).reshape(n, 3)

@@ -1,0 +1,268 @@
+"""Write the traces of one or more runs to a Rerun .rrd file: :func:`write_rrd` and the
+``send_columns`` writers of the per-vehicle series and the 3D scene of a fleet."""
+from __future__ import annotations
+
+import time
+import uuid
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+
+from .blueprint import _blueprint, _fleet_blueprint
+from .layout import (
+    _POSITION_NAMES,
+    _SERIES,
+    _SIM_TIME,
+    _STEP,
+    FleetLayout,
+    _Fleet,
+    _lighter,
+    _shade,
+    _vehicle_colors,
+    method_color,
+)
+from .validation import _positive_int, _positive_ns, _validate, _validate_fleet
+
+__all__ = ["write_rrd"]
+
+
+def _send_block(rec: rr.RecordingStream, entity: str, values: np.ndarray, names: list[str],
+                colors: list[tuple[int, int, int]], indexes: list[rr.TimeColumn]) -> int:
+    """One multi-component series entity: static SeriesLines (one name/colour per column of
+    ``values``) and one ``send_columns`` whose rows hold all k components.  Returns k."""
+    rec.log(entity, rr.SeriesLines(colors=colors, names=names), static=True)
+    rec.send_columns(entity, indexes=indexes,
+                     columns=rr.Scalars.columns(scalars=np.ascontiguousarray(values, dtype=np.float64)))
+    return values.shape[1]
+
+
+def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray], fleet: _Fleet,
+                       base: tuple[int, int, int], stride: int, indexes: list[rr.TimeColumn]) -> int:
+    """Per-vehicle multi-component series and the leader series of one run (recorded steps
+    only); returns the number of scalar lines (components) written."""
+    rec_traces = {key: traces[key][::stride] for key in ("e", "u", "x", "xhat", "w", "what", "z")}
+
+    def shades(count: int, estimate: bool = False) -> list[tuple[int, int, int]]:
+        return [_lighter(_shade(base, c)) if estimate else _shade(base, c) for c in range(count)]
+
+    groups: list[tuple[str, str, np.ndarray, tuple[str, ...], str, bool]] = [
+        ("e", "error/{m}", fleet.error_index, fleet.error_names, "", False),
+        ("u", "control/{m}", fleet.control_index, fleet.control_names, "", False),
+        ("x", "state/{m}/true", fleet.state_index, fleet.state_names, "", False),
+        ("xhat", "state/{m}/estimate", fleet.state_index, fleet.state_names, " estimate", True),
+    ]
+    if fleet.disturbance_index is not None:
+        groups += [
+            ("w", "current/{m}/true", fleet.disturbance_index, fleet.disturbance_names, "", False),
+            ("what", "current/{m}/estimate", fleet.disturbance_index, fleet.disturbance_names, " estimate", True),
+        ]
+    signals = 0
+    for key, template, index, names, suffix, is_estimate in groups:
+        arr = rec_traces[key]
+        line_names = [f"{method} {name}{suffix}" for name in names]
+        colors = shades(len(names), is_estimate)
+        for i in range(1, fleet.n + 1):
+            signals += _send_block(rec, f"vehicles/{i}/{template.format(m=method)}", arr[:, index[i - 1]],
+                                   line_names, colors, indexes)
+    leader = rec_traces["z"] @ fleet.leader_output.T  # (rows, 3)
+    signals += _send_block(rec, f"leader/{method}", leader, [f"{method} leader {c}" for c in _POSITION_NAMES],
+                           shades(3), indexes)
+    return signals
+
+
+def _time_columns(k: np.ndarray, h_ns: int) -> list[rr.TimeColumn]:
+    return [rr.TimeColumn(_STEP, sequence=k),
+            rr.TimeColumn(_SIM_TIME, duration=(k * h_ns).astype("timedelta64[ns]"))]
+
+
+def _sample_steps(steps: int, every: int, last: int) -> np.ndarray:
+    """Steps 0, every, 2*every, ... (< steps), then ``last`` if it is not among them."""
+    ks = np.arange(0, steps, every, dtype=np.int64)
+    if ks[-1] != last:
+        ks = np.append(ks, last)
+    return ks
+
+
+def _send_fleet_world(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray], fleet: _Fleet,
+                      h_ns: int, stride: int, scene_stride: int, trail_stride: int) -> None:
+    """The 3D scene of one run under ``world/{method}``: one partition per sample, no per-step logs."""
+    n, steps = fleet.n, traces["x"].shape[0]
+    root = f"world/{method}"
+    colors = _vehicle_colors(n)
+    ks = np.arange(0, steps, stride, dtype=np.int64)                 # recorded steps
+    rows = ks.size
+    indexes = _time_columns(ks, h_ns)
+    pos_all = traces["x"][:, fleet.position_index]                    # (steps, N, 3) float64
+    lead_all = traces["z"] @ fleet.leader_output.T                    # (steps, 3)
+    pos, leader = pos_all[ks], lead_all[ks]
+    targets = leader[:, None, :] + fleet.offsets[None, :, :]          # (rows, N, 3)
+
+    rec.log(root, rr.ViewCoordinates.FRD, static=True)
+    rec.log(f"{root}/vehicles", rr.Points3D.from_fields(
+        radii=[1.0], colors=colors, labels=[str(i) for i in range(1, n + 1)], show_labels=True), static=True)
+    rec.send_columns(f"{root}/vehicles", indexes=indexes, columns=rr.Points3D.columns(
+        positions=pos.reshape(rows * n, 3).astype(np.float32)).partition(np.full(rows, n)))
+
+    rec.log(f"{root}/leader", rr.Points3D.from_fields(
+        radii=[1.5], colors=[(255, 215, 0)], labels=["leader"], show_labels=True), static=True)
+    rec.send_columns(f"{root}/leader", indexes=indexes, columns=rr.Points3D.columns(
+        positions=leader.astype(np.float32)).partition(np.ones(rows, dtype=np.int64)))
+
+    rec.log(f"{root}/targets", rr.Points3D.from_fields(
+        radii=[0.5], colors=[tuple(_lighter(tuple(int(v) for v in c), 0.6)) for c in colors],
+        show_labels=False), static=True)
+    rec.send_columns(f"{root}/targets", indexes=indexes, columns=rr.Points3D.columns(
+        positions=targets.reshape(rows * n, 3).astype(np.float32)).partition(np.full(rows, n)))
+
+    n_edges, n_pinned = fleet.edges.shape[0], fleet.pinned.shape[0]
+    n_seg = n_edges + n_pinned
+    if n_seg:
+        es = _sample_steps(steps, scene_stride, int(ks[-1]))
+        e_rows = es.size
+        seg = np.empty((e_rows, n_seg, 2, 3), dtype=np.float32)
+        seg[:, :n_edges, 0] = pos_all[es][:, fleet.edges[:, 0]]
+        seg[:, :n_edges, 1] = pos_all[es][:, fleet.edges[:, 1]]
+        seg[:, n_edges:, 0] = lead_all[es][:, None, :]
+        seg[:, n_edges:, 1] = pos_all[es][:, fleet.pinned]
+        rec.log(f"{root}/edges", rr.LineStrips3D.from_fields(
+            radii=[0.15], colors=[(160, 160, 160)] * n_edges + [(255, 215, 0)] * n_pinned), static=True)
+        rec.send_columns(f"{root}/edges", indexes=_time_columns(es, h_ns), columns=rr.LineStrips3D.columns(
+            strips=seg.reshape(e_rows * n_seg, 2, 3)).partition(np.full(e_rows, n_seg)))
+
+    # Trails: one segment per vehicle from the previous trail sample to this one.
+    ts = _sample_steps(steps, trail_stride, int(ks[-1]))
+    if ts.size >= 2:
+        t_rows = ts.size - 1
+        seg = np.empty((t_rows, n, 2, 3), dtype=np.float32)
+        seg[:, :, 0] = pos_all[ts[:-1]]
+        seg[:, :, 1] = pos_all[ts[1:]]
+        rec.log(f"{root}/trails", rr.LineStrips3D.from_fields(radii=[0.2]), static=True)
+        rec.send_columns(f"{root}/trails", indexes=_time_columns(ts[1:], h_ns), columns=rr.LineStrips3D.columns(
+            strips=seg.reshape(t_rows * n, 2, 3), colors=np.tile(colors, (t_rows, 1))).partition(np.full(t_rows, n)))
+
+
+def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float, *,
+              recording_name: str, application_id: str = "auv-cosim",
+              fleet: FleetLayout | None = None, trail_seconds: float = 60.0,
+              trail_sample_seconds: float = 0.5, stride: int = 1,
+              scene_stride: int | None = None) -> dict[str, float]:
+    """Write the traces of one or more runs to a Rerun .rrd file with a default blueprint.
+
+    Parameters
+    ----------
+    path:
+        Output .rrd file (overwritten).
+    runs:
+        Method name -> traces; each trace (keys :data:`TRACE_KEYS`) a float array of shape
+        (steps, dim) in the simulation's own units (states, errors, references in the plant's
+        units; controls in the actuator's units).  Row k is sample k, at time k*h seconds.
+        All traces of all runs must have the same number of steps; dims may differ per key.
+        Extra keys are ignored.
+    h:
+        Sampling period in seconds (> 0); stored as round(h * 1e9) integer nanoseconds.
+    recording_name:
+        Human-readable recording name shown by the viewer.
+    application_id:
+        Rerun application id (the default blueprint applies to this id).
+    fleet:
+        If given, the traces are those of a fleet of N vehicles laid out as described by the
+        :class:`FleetLayout`; the compact per-vehicle layout and a 3D scene per run are
+        written *instead of* the per-component layout, and the default blueprint becomes the
+        fleet layout (see the module docstring).  Checked against the traces of every run.
+    trail_seconds:
+        Length (s, > 0) of the vehicle trails in the 3D view: the trail entity is shown over
+        the visible time range [cursor - trail_seconds, cursor].  Only used with ``fleet``.
+    trail_sample_seconds:
+        Spacing (s, > 0) of the trail samples: one trail segment per vehicle every
+        stride * max(1, round(trail_sample_seconds / (stride * h))) steps (plus the last
+        recorded step).  Only used with ``fleet``.
+    stride:
+        Record only every stride-th step (k = 0, stride, 2*stride, ...), a positive int.  The
+        time columns keep the true step index and sim_time.  Default 1: every step.
+    scene_stride:
+        Steps between two samples of the 3D edges (``world/{m}/edges``), a positive multiple
+        of ``stride``; default (None) the trail stride.  Only used with ``fleet``.
+
+    Returns
+    -------
+    dict with ``rrd_s`` (wall-clock seconds spent writing, validation excluded),
+    ``signals`` (number of scalar series written, an int: one per entity in the paper layout,
+    one per component, i.e. per line, of each multi-component entity in the fleet layout) and
+    ``bytes`` (file size in bytes, an int).
+
+    Raises
+    ------
+    ValueError
+        If ``runs`` is empty, a run misses a trace key, a trace is not 2-D, step counts
+        differ, a method name is not a valid entity path part, ``h`` is not positive or
+        ``stride`` is not a positive integer; or if ``fleet`` does not fit the traces (an
+        index out of range, a wrong shape, an edge or pinned vehicle that does not exist,
+        ...), ``trail_seconds`` / ``trail_sample_seconds`` is not positive or
+        ``scene_stride`` is not a positive multiple of ``stride``.  Nothing is written then.
+    RuntimeError
+        If Rerun logging is disabled (e.g. ``RERUN=off``), since the file would be empty.
+    """
+    clean, steps, h_ns = _validate(runs, h)
+    stride = _positive_int(stride, "stride")
+    if scene_stride is not None:
+        scene_stride = _positive_int(scene_stride, "scene_stride")
+        if scene_stride % stride:
+            raise ValueError(f"write_rrd: scene_stride = {scene_stride} must be a multiple of stride = {stride}")
+    path = Path(path)
+    methods = list(clean)
+    colors = method_color(methods)
+    fleet_v: _Fleet | None = None
+    if fleet is None:
+        blueprint = _blueprint(clean)
+    else:
+        fleet_v = _validate_fleet(fleet, clean)
+        trail_ns, sample_ns = (_positive_ns(v, name) for v, name in (
+            (trail_seconds, "trail_seconds"), (trail_sample_seconds, "trail_sample_seconds")))
+        trail_steps = -(-trail_ns // h_ns)  # ceil: the step range covers at least trail_seconds
+        trail_stride = stride * max(1, round(sample_ns / (stride * h_ns)))
+        if scene_stride is None:
+            scene_stride = trail_stride
+        blueprint = _fleet_blueprint(methods, fleet_v.n, trail_ns, trail_steps)
+
+    t0 = time.perf_counter()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rec = rr.RecordingStream(application_id, recording_id=uuid.uuid4())
+    if not rec.is_enabled():
+        raise RuntimeError("write_rrd: Rerun logging is disabled (RERUN env var?); refusing to "
+                           "write an empty .rrd")
+    signals = 0
+    try:
+        rec.save(path, default_blueprint=blueprint)
+        rec.send_recording_name(recording_name)
+
+        indexes = _time_columns(np.arange(0, steps, stride, dtype=np.int64), h_ns)
+        if fleet_v is None:
+            for method in methods:
+                base = colors[method]
+                light = _lighter(base)
+                for key, template, suffix, is_estimate in _SERIES:
+                    arr = clean[method][key]
+                    style = rr.SeriesLines(colors=[light if is_estimate else base],
+                                           names=[f"{method}{suffix}"])
+                    for i in range(1, arr.shape[1] + 1):
+                        entity = template.format(i=i, m=method)
+                        rec.log(entity, style, static=True)
+                        rec.send_columns(
+                            entity,
+                            indexes=indexes,
+                            columns=rr.Scalars.columns(scalars=np.ascontiguousarray(arr[::stride, i - 1])),
+                        )
+                        signals += 1
+        else:
+            rec.log("world", rr.ViewCoordinates.FRD, static=True)
+            for method in methods:
+                signals += _send_fleet_series(rec, method, clean[method], fleet_v, colors[method], stride, indexes)
+                _send_fleet_world(rec, method, clean[method], fleet_v, h_ns, stride, scene_stride, trail_stride)
+        rec.flush()
+    finally:
+        # Dropping the file sink finishes the file (footer + manifest) before returning.
+        rec.disconnect()
+        del rec
+    rrd_s = time.perf_counter() - t0
+    return {"rrd_s": rrd_s, "signals": signals, "bytes": path.stat().st_size}

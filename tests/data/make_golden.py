@@ -1,0 +1,91 @@
+"""Record the golden traces the master must reproduce exactly (tests/test_golden_traces.py).
+
+Run once from the repository root with the master to be frozen:
+``.venv/bin/python tests/data/make_golden.py``. Writes ``golden_traces.npz`` (every trace of
+every built-in scenario x estimator mode x tracking law x coupling, short horizons) and
+``golden_traces.json`` (the horizons and the BLAS the traces were computed with: bit
+equality is expected only with the same BLAS kernel). One BLAS thread, as the
+orchestrator runs.
+
+The traces in the repository were recorded with the hand-written three-FMU master of
+commit 7b2ae02 (``git worktree add /tmp/old 7b2ae02`` and run this file there with
+``sys.path`` pointing at it), before the master was rewritten around the system
+description.
+"""
+from __future__ import annotations
+
+import json
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"         # before numpy: the thread count changes the last bits
+import numpy as np  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent.parent))
+
+#: steps per built-in scenario (short: the traces are committed)
+HORIZONS = {"paper": 200, "formation-4": 60, "formation-20": 12}
+MODES = ("kalman", "classical", "ideal")
+TRACKINGS = ("lq", "regulator")
+COUPLINGS = ("gauss-seidel", "jacobi")
+
+
+def blas_kernel() -> dict:
+    """What decides the last bits of a result: numpy's and scipy's BLAS builds and the CPU
+    model (OpenBLAS picks its kernels by CPU)."""
+    import platform
+
+    import scipy
+    cpu = next((ln.split(":", 1)[1].strip() for ln in Path("/proc/cpuinfo").read_text().splitlines()
+                if ln.startswith("model name")), platform.processor())
+    return {"numpy": np.__version__, "scipy": scipy.__version__,
+            "numpy_blas": np.show_config(mode="dicts")["Build Dependencies"]["blas"].get("version"),
+            "scipy_blas": scipy.show_config(mode="dicts")["Build Dependencies"]["blas"].get("version"),
+            "cpu": cpu, "machine": platform.machine()}
+
+
+def golden_runs():
+    """(key, scenario, mode, tracking, coupling, steps) of every golden run."""
+    for name, steps in HORIZONS.items():
+        for mode in MODES:
+            for tracking in TRACKINGS:
+                for coupling in COUPLINGS:
+                    yield f"{name}|{mode}|{tracking}|{coupling}", name, mode, tracking, coupling, steps
+
+
+def main() -> None:
+    from orchestrator.master import CosimError, run_cosimulation
+    from orchestrator.scenario import load_scenario
+    from orchestrator.workflow import build, scenario_config
+
+    arrays: dict[str, np.ndarray] = {}
+    refused: dict[str, str] = {}
+    built: dict[str, tuple] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for key, name, mode, tracking, coupling, steps in golden_runs():
+            if name not in built:
+                sc = load_scenario(name)
+                built[name] = (build(sc, Path(tmp) / name), scenario_config(sc))
+            fmus, cfg = built[name]
+            try:
+                res = run_cosimulation(fmus, cfg, mode=mode, seed=7, steps=steps,
+                                       tracking=tracking, coupling=coupling)
+            except CosimError as exc:       # e.g. the classical law on a fleet's C
+                refused[key] = str(exc).split(";")[0]
+                print(key, "refused:", refused[key])
+                continue
+            for sig, arr in res.traces.items():
+                arrays[f"{key}|{sig}"] = np.ascontiguousarray(arr)
+            print(key, {s: a.shape for s, a in res.traces.items()}, flush=True)
+    np.savez_compressed(HERE / "golden_traces.npz", **arrays)
+    (HERE / "golden_traces.json").write_text(json.dumps(
+        {"seed": 7, "horizons": HORIZONS, "platform": blas_kernel(),
+         "refused": refused}, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
