@@ -200,16 +200,23 @@ def cmd_bench_fleet(args: argparse.Namespace) -> int:
     return 0
 
 
+def _printed_as_json(args: argparse.Namespace, r: dict, rounds: str = "") -> bool:
+    """Print a benchmark's figures as JSON (--json) and say so, or print its heading line."""
+    if args.json:
+        print(json.dumps(r, indent=2))
+        return True
+    print(f"scenario {r['scenario']}, estimator {r['mode']}, {r['steps']} steps of {r['h']} s"
+          f"{rounds}; load average {r['loadavg'][0]:.2f} on {r['cpus']} CPUs")
+    return False
+
+
 def cmd_bench_tools(args: argparse.Namespace) -> int:
     from .bench import benchmark_tools
     sc = _scenario(args)
     steps = int(round((args.T or 50.0) / sc.h))
     r = benchmark_tools(sc, steps)
-    if args.json:
-        print(json.dumps(r, indent=2))
+    if _printed_as_json(args, r, f", median of {r['repeats']} rounds"):
         return 0
-    print(f"scenario {r['scenario']}, estimator {r['mode']}, {r['steps']} steps of {r['h']} s, "
-          f"median of {r['repeats']} rounds; load average {r['loadavg'][0]:.2f} on {r['cpus']} CPUs")
     print(f"  ours, Gauss-Seidel        {r['ours_gauss_seidel_us_per_step']:8.1f} us/step")
     print(f"  ours, Jacobi              {r['ours_jacobi_us_per_step']:8.1f} us/step")
     print(f"  libcosim (libcosimpy)     {r['libcosim_us_per_step']:8.1f} us/step   "
@@ -228,11 +235,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
         return cmd_bench_tools(args)
     sc = _scenario(args)
     r = benchmark(sc, mode=sc.estimator, seed=sc.seed)
-    if args.json:
-        print(json.dumps(r, indent=2))
+    if _printed_as_json(args, r):
         return 0
-    print(f"scenario {r['scenario']}, estimator {r['mode']}, {r['steps']} steps of {r['h']} s; "
-          f"load average {r['loadavg'][0]:.2f} on {r['cpus']} CPUs")
     print(f"  co-simulation loop (3 FMUs)   {r['cosim_loop_s']:8.3f} s  {r['cosim_us_per_step']:7.2f} us/step")
     print(f"  .rrd writing                  {r['rrd_write_s']:8.3f} s  ({100 * r['rrd_fraction_of_run']:.1f} % of loop + rrd)")
     print(f"  monolithic numpy loop         {r['monolithic_s']:8.3f} s  {r['monolithic_us_per_step']:7.2f} us/step")

@@ -75,6 +75,32 @@ def make_scalar():
 
 
 @pytest.fixture(scope="session")
+def paper():
+    """The built-in paper scenario (orchestrator/scenario/builtin/paper.toml)."""
+    from orchestrator.scenario import load_scenario
+    return load_scenario("paper")
+
+
+@pytest.fixture(scope="session")
+def formation4():
+    """The built-in formation-4 fleet scenario."""
+    from orchestrator.scenario import load_scenario
+    return load_scenario("formation-4")
+
+
+@pytest.fixture(scope="session")
+def paper_fmus(built_scenario):
+    """The paper scenario's three FMUs, built once per session (read-only: copy to change)."""
+    return built_scenario("paper")[0]
+
+
+@pytest.fixture(scope="session")
+def formation4_fmus(built_scenario):
+    """The formation-4 scenario's three FMUs, built once per session."""
+    return built_scenario("formation-4")[0]
+
+
+@pytest.fixture(scope="session")
 def built_scenario(tmp_path_factory):
     """Factory: ``built_scenario(name)`` -> (FMU paths, configuration) of a built-in
     scenario's three FMUs, built once per test session."""

@@ -131,3 +131,21 @@ def test_committed_fmu_readme_matches_the_generator():
     sc = load_scenario("paper")
     expected = FMU_README_HEAD.format(scenario=sc.name) + variables_markdown(scenario_config(sc))
     assert (ROOT / "fmus" / "README.md").read_text() == expected
+
+
+@pytest.mark.parametrize("fmt", ["osp", "ssp"])
+def test_a_refused_export_is_one_line(fmt, tmp_path, capsys, monkeypatch):
+    """Both exporters refuse a wiring their FMUs cannot run with one line naming every
+    problem (a system that lost its u -> plant connection), exit status 2, nothing written."""
+    from dataclasses import replace
+
+    import orchestrator.workflow as wf
+    good = wf.scenario_system
+    monkeypatch.setattr(wf, "scenario_system", lambda sc: replace(
+        good(sc), connections=tuple(c for c in good(sc).connections if c.target != "plant")))
+    out = tmp_path / "x"
+    assert main(["export", fmt, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == ("auv-cosim export: error: export refused: input plant.u[1] is not connected; "
+                   "input plant.u[2] is not connected")
+    assert not out.exists() or not any(out.rglob("*.xml")) and not any(out.rglob("*.ssp"))

@@ -36,13 +36,8 @@ FEEDTHROUGH = {"plant": False, "estimator": True, "controller": True}
 
 
 @pytest.fixture(scope="module")
-def paper():
-    return load_scenario("paper")
-
-
-@pytest.fixture(scope="module")
-def fmus(paper, tmp_path_factory):
-    return build(paper, tmp_path_factory.mktemp("fmus"))
+def fmus(paper_fmus):
+    return paper_fmus
 
 
 @pytest.fixture(scope="module")

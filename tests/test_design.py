@@ -278,13 +278,28 @@ def test_design_succeeds_or_raises_model_error(mapping):
 
 
 # refusals ------------------------------------------------------------------------------
-def test_not_stabilizable_names_the_mode(paper_mapping):
-    paper_mapping.update(A=[[1.0, 0.0], [0.0, -1.0]], B1=[[0.0, 0.0], [1.0, 2.0]])
-    s = LinearSystem.from_mapping(paper_mapping)
+@pytest.mark.parametrize("changes, start, mode", [
+    (dict(A=[[1.0, 0.0], [0.0, -1.0]], B1=[[0.0, 0.0], [1.0, 2.0]]),
+     "(A, B1) is not stabilizable", "mode(s) 1 "),
+    (dict(A=[[-1.0, 0.0], [0.0, 0.5]], C=[[1.0, 0.0], [2.0, 0.0]]),
+     "(C'QC, A) is not detectable", "mode(s) 0.5 "),
+])
+def test_not_stabilizable_or_detectable_names_the_mode(paper_mapping, changes, start, mode):
+    paper_mapping.update(changes)
     with pytest.raises(ModelError) as exc:
-        lq_tracking_design(s)
+        lq_tracking_design(LinearSystem.from_mapping(paper_mapping))
     msg = str(exc.value)
-    assert msg.startswith("(A, B1) is not stabilizable") and "mode(s) 1 " in msg, msg
+    assert msg.startswith(start) and mode in msg, msg
+
+
+@pytest.mark.parametrize("changes", [
+    dict(A=[[1.0, 0.0], [0.0, -1.0]], B1=[[1.0, 2.0], [0.0, 0.0]]),     # stable, uncontrollable
+    dict(A=[[-1.0, 0.0], [0.0, 0.5]], C=[[0.0, 1.0], [0.0, 2.0]]),      # stable, unobservable
+])
+def test_stable_uncontrollable_or_unobservable_mode_is_fine(paper_mapping, changes):
+    paper_mapping.update(changes)
+    s = LinearSystem.from_mapping(paper_mapping)
+    assert_design_is_correct(s, lq_tracking_design(s))
 
 
 def test_not_stabilizable_oscillatory_mode(paper_mapping):
@@ -295,25 +310,8 @@ def test_not_stabilizable_oscillatory_mode(paper_mapping):
     assert "not stabilizable" in msg and "+1j" in msg and "-1j" in msg, msg
 
 
-def test_stable_uncontrollable_mode_is_fine(paper_mapping):
-    paper_mapping.update(A=[[1.0, 0.0], [0.0, -1.0]], B1=[[1.0, 2.0], [0.0, 0.0]])
-    s = LinearSystem.from_mapping(paper_mapping)
-    assert_design_is_correct(s, lq_tracking_design(s))
 
 
-def test_not_detectable_names_the_mode(paper_mapping):
-    paper_mapping.update(A=[[-1.0, 0.0], [0.0, 0.5]], C=[[1.0, 0.0], [2.0, 0.0]])
-    s = LinearSystem.from_mapping(paper_mapping)
-    with pytest.raises(ModelError) as exc:
-        lq_tracking_design(s)
-    msg = str(exc.value)
-    assert msg.startswith("(C'QC, A) is not detectable") and "mode(s) 0.5 " in msg, msg
-
-
-def test_stable_unobservable_mode_is_fine(paper_mapping):
-    paper_mapping.update(A=[[-1.0, 0.0], [0.0, 0.5]], C=[[0.0, 1.0], [0.0, 2.0]])
-    s = LinearSystem.from_mapping(paper_mapping)
-    assert_design_is_correct(s, lq_tracking_design(s))
 
 
 def _fmt(x):

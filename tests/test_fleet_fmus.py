@@ -19,13 +19,13 @@ from plant_model.fleet import fleet_system
 
 
 @pytest.fixture(scope="module")
-def f4():
-    return load_scenario("formation-4")
+def f4(formation4):
+    return formation4
 
 
 @pytest.fixture(scope="module")
-def fmus(f4, tmp_path_factory):
-    return build(f4, tmp_path_factory.mktemp("fleet_fmus"))
+def fmus(formation4_fmus):
+    return formation4_fmus
 
 
 def _params(fmu) -> set[str]:

@@ -17,6 +17,7 @@ from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
 from orchestrator.cosim.master import run_cosimulation
 from support.loop import fmu_parameters
 from orchestrator.analysis.reference import run_monolithic
+from orchestrator.scenario.generator import scenario_toml as dumps
 from orchestrator.scenario import SCENARIO_DIR, ScenarioError, load_scenario
 from orchestrator.workflow import build, scenario_config
 from plant_model.linalg_checks import ModelError
@@ -26,30 +27,6 @@ EDGES = BASE["graph"]["edges"]           # [[1, 2, 1.0], [1, 3, 1.0], [2, 4, 0.5
 
 
 # --------------------------------------------------------------------------------------
-# a small TOML writer: top-level keys, then one [section] per table; nested tables inline
-def _value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        return repr(v)
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{k} = {_value(x)}" for k, x in v.items()) + " }"
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_value(x) for x in v) + "]"
-    raise TypeError(f"cannot write {v!r} as TOML")
-
-
-def dumps(data: dict) -> str:
-    lines = [f"{k} = {_value(v)}" for k, v in data.items() if not isinstance(v, dict)]
-    for name, table in data.items():
-        if isinstance(table, dict):
-            lines.append(f"[{name}]")
-            lines += [f"{k} = {_value(v)}" for k, v in table.items()]
-    return "\n".join(lines) + "\n"
-
-
 def write_variant(tmp_path: Path, change, name: str = "variant") -> Path:
     data = copy.deepcopy(BASE)
     change(data)

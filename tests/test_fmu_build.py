@@ -13,8 +13,8 @@ from orchestrator.workflow import build, scenario_config
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
-    return build(load_scenario("paper"), tmp_path_factory.mktemp("fmus"))
+def fmus(paper_fmus):
+    return paper_fmus
 
 
 @pytest.mark.parametrize("name", list(FMU_KINDS))

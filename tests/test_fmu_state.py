@@ -30,18 +30,13 @@ BLOCK = 2048          # rows per noise block of the plant (plant_model.plant.Noi
 
 
 @pytest.fixture(scope="module")
-def paper():
-    return load_scenario("paper")
-
-
-@pytest.fixture(scope="module")
 def cfg(paper):
     return scenario_config(paper)
 
 
 @pytest.fixture(scope="module")
-def fmus(paper, tmp_path_factory):
-    return build(paper, tmp_path_factory.mktemp("fmus"))
+def fmus(paper_fmus):
+    return paper_fmus
 
 
 @pytest.fixture(scope="module")

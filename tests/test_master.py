@@ -18,13 +18,8 @@ from orchestrator.workflow import build, scenario_config
 
 
 @pytest.fixture(scope="module")
-def paper():
-    return load_scenario("paper")
-
-
-@pytest.fixture(scope="module")
-def fmus(paper, tmp_path_factory):
-    return build(paper, tmp_path_factory.mktemp("fmus"))
+def fmus(paper_fmus):
+    return paper_fmus
 
 
 @pytest.mark.parametrize("mode", ESTIMATOR_MODES)

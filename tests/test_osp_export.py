@@ -28,13 +28,8 @@ from plant_model.discretization import discretize
 from plant_model.plant import NoiseStream
 
 SYS = f"{{{OSP_SYSTEM_NS}}}"
-SIMULATORS = ("plant", "estimator", "controller")
+COMPONENTS = ("plant", "estimator", "controller")
 MD = f"{{{OSP_MD_NS}}}"
-
-
-@pytest.fixture(scope="module")
-def paper():
-    return load_scenario("paper")
 
 
 @pytest.fixture(scope="module")
@@ -65,7 +60,7 @@ def test_paper_export_is_schema_valid_and_complete(paper, exported):
     assert root.find(SYS + "Algorithm").text == "fixedStep"
     cfg = scenario_config(paper)
     sims = root.find(SYS + "Simulators").findall(SYS + "Simulator")
-    assert [s.get("name") for s in sims] == list(SIMULATORS)
+    assert [s.get("name") for s in sims] == list(COMPONENTS)
     assert [s.get("name") for s in sims] == scenario_system(paper).names
     for sim in sims:
         key = sim.get("name")
@@ -154,7 +149,7 @@ def test_fleet_export_uses_osp_typed_groups(tmp_path):
 # ------------------------------------------------------------- the Jacobi-coupled loop
 
 def test_unknown_coupling_is_refused(paper, exported):
-    fmus = {k: exported[k] for k in SIMULATORS}
+    fmus = {k: exported[k] for k in COMPONENTS}
     with pytest.raises(ValueError, match="coupling 'jacobian'"):
         run_cosimulation(fmus, scenario_config(paper), mode="kalman", seed=0, steps=5,
                          coupling="jacobian")
@@ -165,7 +160,7 @@ def test_jacobi_closed_loop_model_reproduces_the_jacobi_run(paper, exported, mod
     """The matrices the Jacobi Lyapunov prediction uses give the co-simulated traces
     exactly (same noise rows as the plant FMU)."""
     steps = 600
-    fmus = {k: exported[k] for k in SIMULATORS}
+    fmus = {k: exported[k] for k in COMPONENTS}
     res = run_cosimulation(fmus, scenario_config(paper), mode=mode, seed=3, steps=steps,
                            coupling="jacobi")
     model = discretize(paper.system, paper.h)
@@ -199,7 +194,7 @@ def test_libcosim_runs_the_export_like_our_jacobi_master(paper, exported, libcos
     steps = 3000
     cfg = scenario_config(paper)
     lc = libcosim.run_libcosim(exported["system"], scenario_system(paper), steps)
-    fmus = {k: exported[k] for k in SIMULATORS}
+    fmus = {k: exported[k] for k in COMPONENTS}
     jac = run_cosimulation(fmus, cfg, mode=paper.estimator, seed=paper.seed, steps=steps,
                            coupling="jacobi")
     gs = run_cosimulation(fmus, cfg, mode=paper.estimator, seed=paper.seed, steps=steps)
@@ -228,7 +223,7 @@ def test_libcosim_applies_integer_and_string_initial_values(paper, exported, lib
     steps = 500
     cfg = scenario_config(paper)
     lc = libcosim.run_libcosim(tmp_path / "OspSystemStructure.xml", scenario_system(paper), steps)
-    fmus = {k: exported[k] for k in SIMULATORS}
+    fmus = {k: exported[k] for k in COMPONENTS}
     jac = run_cosimulation(fmus, cfg, mode="classical", seed=7, steps=steps, coupling="jacobi")
     for key, arr in lc["traces"].items():
         assert np.array_equal(arr, jac.traces[key]), key
@@ -240,7 +235,7 @@ def test_libcosim_runs_a_fleet_export_like_our_jacobi_master(libcosim, tmp_path)
     steps = 1000
     cfg = scenario_config(sc)
     lc = libcosim.run_libcosim(paths["system"], scenario_system(sc), steps)
-    jac = run_cosimulation({k: paths[k] for k in SIMULATORS}, cfg, mode=sc.estimator,
+    jac = run_cosimulation({k: paths[k] for k in COMPONENTS}, cfg, mode=sc.estimator,
                            seed=sc.seed, steps=steps, tracking=sc.tracking, coupling="jacobi")
     for key, arr in lc["traces"].items():
         assert np.array_equal(arr, jac.traces[key]), key

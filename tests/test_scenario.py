@@ -13,39 +13,12 @@ import numpy as np
 import pytest
 
 from estimator_fmu.estimators import ESTIMATOR_MODES
+from orchestrator.scenario.generator import scenario_toml as dump_toml
 from orchestrator.scenario import (SCENARIO_DIR, Scenario, ScenarioError, builtin_scenarios,
                                    load_scenario, scenario_from_dict)
 from plant_model.system import MATRIX_NAMES
 
 PAPER_TOML = SCENARIO_DIR / "paper.toml"
-
-
-# a tiny TOML writer for the scenario's structure ------------------------------------
-def _value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if math.isnan(v):
-            return "nan"
-        if math.isinf(v):
-            return "inf" if v > 0 else "-inf"
-        return repr(v)
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_value(x) for x in v) + "]"
-    raise TypeError(v)
-
-
-def dump_toml(data: dict) -> str:
-    lines = [f"{k} = {_value(v)}" for k, v in data.items() if not isinstance(v, dict)]
-    for k, v in data.items():
-        if isinstance(v, dict):
-            lines.append(f"\n[{k}]")
-            lines += [f"{kk} = {_value(vv)}" for kk, vv in v.items()]
-    return "\n".join(lines) + "\n"
 
 
 def paper_dict() -> dict:

@@ -116,11 +116,6 @@ def max_rel_error(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> float:
 
 # ------------------------------------------------------------------ fixtures
 @pytest.fixture(scope="module")
-def paper():
-    return load_scenario("paper")
-
-
-@pytest.fixture(scope="module")
 def ssp_for(tmp_path_factory, paper):
     """estimator mode -> .ssp of the paper scenario built for that mode (cached)."""
     cache: dict[str, Path] = {}

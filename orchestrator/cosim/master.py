@@ -271,7 +271,9 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
         for spec in comp.arrays("output"):
             traces[names[(comp.name, spec.name)]] = rec[comp.name][:, i:i + spec.size]
             i += spec.size
-    return traces, loop_s, {"order": plan.order}
+    calls = [what for *_, what in plan.exchange + plan.after]
+    return traces, loop_s, {"order": plan.order, "calls_per_step": calls + [
+        f"fmi2DoStep ({who.label})" for *_, who in plan.stepping]}
 
 
 def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str, seed: int,

@@ -12,9 +12,6 @@ import numpy as np
 
 __all__ = ["TRACE_KEYS", "VIEW_GROUPS", "FleetLayout", "method_color"]
 
-#: Trace keys every run must provide (each an array of shape (steps, dim)).
-TRACE_KEYS: tuple[str, ...] = ("x", "w", "z", "e", "u", "xhat", "what", "zhat", "y", "ybar")
-
 # (trace key, entity path template, series-name suffix, is an estimate)
 _SERIES: tuple[tuple[str, str, str, bool], ...] = (
     ("e", "error/{i}/{m}", "", False),
@@ -28,6 +25,11 @@ _SERIES: tuple[tuple[str, str, str, bool], ...] = (
     ("y", "measurement/y/{i}/{m}", " y", False),
     ("ybar", "measurement/ybar/{i}/{m}", " ybar", False),
 )
+
+#: Trace keys every run must provide (each an array of shape (steps, dim)): the outputs of
+#: the loop's system description (orchestrator.cosim.system.SystemDescription.trace_names)
+#: that this layout places.
+TRACE_KEYS: tuple[str, ...] = tuple(key for key, *_ in _SERIES)
 
 #: Blueprint view groups: (view name prefix == entity root, trace keys whose dims count).
 VIEW_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (

@@ -9,6 +9,7 @@ backwards and every vehicle has a path from the leader.
 """
 from __future__ import annotations
 
+import json
 import math
 from typing import Any
 
@@ -65,17 +66,20 @@ def grid_fleet(N: int, *, columns: int = 5, spacing: float = 10.0, T: float = 30
 
 
 def _toml_value(v: Any) -> str:
+    """TOML text of a value (floats by repr: nan, inf and -inf are TOML too)."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, str):
-        return f'"{v}"'
+        return json.dumps(v)
     if isinstance(v, (int, float)):
         return repr(v)
     if isinstance(v, dict):
         return "{ " + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + " }"
     if v and isinstance(v[0], list):
         return "[\n" + "".join(f"  {_toml_value(x)},\n" for x in v) + "]"
-    return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"cannot write {v!r} as TOML")
 
 
 def scenario_toml(data: dict[str, Any], header: str = "") -> str:
