@@ -59,25 +59,22 @@ def _rel(res: np.ndarray, *terms: np.ndarray) -> float:
     return float(np.linalg.norm(res)) / scale
 
 
+def _refuse_modes(bad: list, what: str, why: str) -> None:
+    """ModelError "<what>: the mode(s) <eigenvalues> of A are not stable and <why>"."""
+    if bad:
+        raise ModelError(f"{what}: the mode(s) {', '.join(_fmt(z) for z in bad)} of A are "
+                         f"not stable and {why}")
+
+
 def lq_tracking_design(system: LinearSystem) -> TrackingDesign:
     """Solve (13)-(15) for ``system``; raise :class:`ModelError` naming what failed."""
     A, B1, B2, Bz, C, F, H, K = (system.A, system.B1, system.B2, system.Bz, system.C,
                                  system.F, system.H, system.K)
     Q, R = system.Q, system.R
-    bad = uncontrollable_modes(A, B1)
-    if bad:
-        raise ModelError(
-            "(A, B1) is not stabilizable: the mode(s) "
-            + ", ".join(_fmt(z) for z in bad)
-            + " of A are not stable and cannot be moved by u"
-        )
-    bad = unobservable_modes(A, C)
-    if bad:
-        raise ModelError(
-            "(C'QC, A) is not detectable: the mode(s) "
-            + ", ".join(_fmt(z) for z in bad)
-            + " of A are not stable and do not show in the tracked output C x"
-        )
+    _refuse_modes(uncontrollable_modes(A, B1), "(A, B1) is not stabilizable",
+                  "cannot be moved by u")
+    _refuse_modes(unobservable_modes(A, C), "(C'QC, A) is not detectable",
+                  "do not show in the tracked output C x")
     Rinv = np.linalg.inv(R)
     CQC = C.T @ Q @ C
     try:

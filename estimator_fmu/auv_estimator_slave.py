@@ -8,7 +8,8 @@ from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
 from fmu_common.interface import ArraySpec
 from fmu_common.slave_base import ArraySlave as Fmi2Slave  # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from plant_model.discretization import discretize
-from plant_model.parameters import model_parameter_specs, system_from_parameters
+from plant_model.parameters import (model_parameter_specs, noise_convention_spec,
+                                    sample_period_spec, system_from_parameters)
 
 ESTIMATOR_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "x0", "w0", "z0",
                         "W_x", "W_w", "W_z", "V_y", "V_ybar")
@@ -29,11 +30,8 @@ class AuvEstimator(Fmi2Slave):
         d = config["dims"]
         n, m, r, p, l_ = d["n"], d["m"], d["r"], d["p"], d["l"]
         return model_parameter_specs(config, "estimator", ESTIMATOR_PARAMETERS) + [
-            ArraySpec("h", (), "parameter", "sample period the filters are designed for",
-                      start=config["h"], unit="s"),
-            ArraySpec("noise_convention", (), "parameter",
-                      "'intensity' (W, V are continuous intensities) or 'per_sample'",
-                      start=config["system"]["noise_convention"], type="String"),
+            sample_period_spec(config, "sample period the filters are designed for"),
+            noise_convention_spec(config),
             ArraySpec("mode", (), "parameter", "estimator: " + ", ".join(ESTIMATOR_MODES),
                       start=config["mode"], type="String"),
             ArraySpec("y", (p,), "input", "measured vehicle output y"),

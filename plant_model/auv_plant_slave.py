@@ -8,7 +8,8 @@ what the base class saves (parameters, buffers, flags).
 from fmu_common.interface import ArraySpec
 from fmu_common.slave_base import ArraySlave as Fmi2Slave  # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from plant_model.discretization import discretize
-from plant_model.parameters import model_parameter_specs, system_from_parameters
+from plant_model.parameters import (model_parameter_specs, noise_convention_spec,
+                                    sample_period_spec, system_from_parameters)
 from plant_model.plant import Plant
 
 PLANT_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "x0", "w0", "z0",
@@ -29,13 +30,11 @@ class AuvPlant(Fmi2Slave):
         d = config["dims"]
         n, m, r, p, l_ = d["n"], d["m"], d["r"], d["p"], d["l"]
         return model_parameter_specs(config, "plant", PLANT_PARAMETERS) + [
-            ArraySpec("h", (), "parameter", "sample period: the communication step the "
-                      "plant is discretized for", start=config["h"], unit="s"),
+            sample_period_spec(config, "sample period: the communication step the plant "
+                               "is discretized for"),
             ArraySpec("seed", (), "parameter", "seed of the noise generator (numpy PCG64)",
                       start=config["seed"], type="Integer"),
-            ArraySpec("noise_convention", (), "parameter",
-                      "'intensity' (W, V are continuous intensities) or 'per_sample'",
-                      start=config["system"]["noise_convention"], type="String"),
+            noise_convention_spec(config),
             ArraySpec("u", (m,), "input", "control input u held over the step"),
             ArraySpec("y", (p,), "output", "measured vehicle output y = C x + n"),
             ArraySpec("ybar", (p,), "output", "measured reference output ybar = H z + n_z"),

@@ -13,7 +13,7 @@ from fmu_common.interface import ArraySpec
 
 from .system import LinearSystem
 
-__all__ = ["PARAMETER_DOCS", "system_parameter_specs", "system_mapping_from_parameters",
+__all__ = ["PARAMETER_DOCS", "sample_period_spec", "noise_convention_spec", "system_parameter_specs", "system_mapping_from_parameters",
            "model_parameter_specs", "system_from_parameters"]
 
 #: name -> (shape in terms of the dimensions n, m, r, p, l; description)
@@ -57,6 +57,18 @@ def system_parameter_specs(config: dict[str, Any], names: Iterable[str]) -> list
 def system_mapping_from_parameters(par: dict[str, Any], names: Iterable[str]) -> dict[str, Any]:
     """The subset of a LinearSystem mapping held in the slave's parameter arrays."""
     return {name: np.array(par[name], dtype=float) for name in names if name in par}
+
+
+def sample_period_spec(config: dict[str, Any], description: str) -> ArraySpec:
+    """The parameter ``h`` (s): the communication step an FMU is sampled or designed for."""
+    return ArraySpec("h", (), "parameter", description, start=config["h"], unit="s")
+
+
+def noise_convention_spec(config: dict[str, Any]) -> ArraySpec:
+    """The String parameter ``noise_convention`` ('intensity' or 'per_sample')."""
+    return ArraySpec("noise_convention", (), "parameter",
+                     "'intensity' (W, V are continuous intensities) or 'per_sample'",
+                     start=config["system"]["noise_convention"], type="String")
 
 
 def model_parameter_specs(config: dict[str, Any], kind: str, names: Iterable[str]) -> list[ArraySpec]:

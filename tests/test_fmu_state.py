@@ -2,7 +2,7 @@
 states that do not belong to an instance are refused with a named error, never a crash.
 
 What a host sees for a refused state (pythonfmu 0.7 cannot return an error status from
-fmi2SetFMUstate without turning it into fmi2Fatal; see fmu_common/slave_base.py):
+fmi2SetFMUstate without turning it into fmi2Fatal; see fmu_common/fmu_state.py):
 fmi2DeSerializeFMUstate and fmi2SetFMUstate return fmi2OK, fmi2SetFMUstate logs a message
 with status fmi2Error naming the problem, the instance keeps its state, the next
 fmi2DoStep returns fmi2Discard with the problem, and the step after that works.

@@ -20,7 +20,7 @@ def jacobi_closed_loop(model, est, Ks: np.ndarray):
     state q, the estimate EST the estimator outputs at t_k (computed after its step from
     q[k] and the measurement it still holds, mvec[k-1]) and the control U that the
     controller outputs at t_k (from the estimate it held, EST[k-1]). With
-    mvec[k] = Ms s[k] + J eta[k] (the same Ms, J as orchestrator.prediction.closed_loop):
+    mvec[k] = Ms s[k] + J eta[k] (the same Ms, J as orchestrator.analysis.prediction.closed_loop):
 
         s[k+1]   = Ad s + Bd U + [I 0] eta
         q[k+1]   = Aq (Ce q + Dm mvec[k]) + Bu U

@@ -61,7 +61,7 @@ def fmu_config(system_mapping: dict[str, Any], dims: dict[str, int], h: float, T
                fleet: dict[str, Any] | None = None) -> dict[str, Any]:
     """The JSON configuration an FMU is built with (dimensions and start values).
 
-    For a fleet the FMUs get the fleet parameter interface (fmu_common.fleet_parameters)
+    For a fleet the FMUs get the fleet parameter interface (plant_model.fleet_parameters)
     and the stacked matrices are not shipped (they are rebuilt from the fleet spec).
     """
     if fleet is not None:
@@ -182,7 +182,7 @@ def build_fmu(kind: FmuKind, config: dict[str, Any], out_dir: Path) -> Path:
                 project_files=[*staged, cfg_path],
                 canHandleVariableCommunicationStepSize=kind.variable_step,
                 # FMU state: the slaves save and restore everything that evolves and
-                # serialize it with a self-describing header (fmu_common.slave_base)
+                # serialize it with a self-describing header (fmu_common.fmu_state)
                 canGetAndSetFMUstate=True,
                 canSerializeFMUstate=True,
             )

@@ -50,7 +50,10 @@ class FmuInstance:
         except Exception:  # pragma: no cover - message formatting only
             pass
         self.slave.instantiate(callbacks=self._callbacks, loggingOn=True)
-        dll = self.slave.dll
+        # the same library as a PyDLL: the hot-loop calls keep the GIL (pythonfmu's slaves
+        # take it again inside every call; a native FMU just runs), which saves two thread
+        # switches per call
+        dll = ctypes.PyDLL(self.slave.dll._name, handle=self.slave.dll._handle)
         self.component = self.slave.component
 
         def raw(name: str, argtypes: list) -> Callable[..., int]:

@@ -33,7 +33,7 @@ import ctypes
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 from fmpy import read_model_description
@@ -44,8 +44,8 @@ from .checks import connection_problems, fmu_variables
 from .instance import CosimError, Extracted, FmuInstance
 from .system import SystemDescription, closed_loop_system, evaluation_order
 
-__all__ = ["COUPLINGS", "CosimError", "RunResult", "StepPlan", "plan_steps", "run_system",
-           "run_cosimulation"]
+__all__ = ["COUPLINGS", "CosimError", "RunResult", "StepPlan", "compile_plan", "plan_steps",
+           "run_system", "run_cosimulation"]
 
 #: how the master couples the FMUs within a step (see the module docstring)
 COUPLINGS = ("gauss-seidel", "jacobi")
@@ -80,7 +80,8 @@ class StepPlan:
     """What one macro step does, resolved to raw FMI calls.
 
     ``exchange``: (function, component pointer, value-reference array address, count,
-    buffer address of row 0, row stride, instance, call label) for the get/set calls
+    buffer address in row 0, row stride, instance, call label, byte offset of that address
+    in its row) for the get/set calls
     before the steps; ``stepping``: (fmi2DoStep, component pointer, instance);
     ``after``: get calls after the steps, into the next row (Jacobi only)."""
 
@@ -128,7 +129,8 @@ def plan_steps(system: SystemDescription, inst: Mapping[str, FmuInstance],
             c0 = columns[a]
             ops.append((fmu.get_real, fmu.component,
                         vr_array(fmu, names[comp][c0:c0 + b - a]), b - a,
-                        buf.ctypes.data + c0 * _DOUBLE, buf.strides[0], fmu, "fmi2GetReal"))
+                        buf.ctypes.data + c0 * _DOUBLE, buf.strides[0], fmu, "fmi2GetReal",
+                        c0 * _DOUBLE))
         return ops
 
     active = system.active_connections()
@@ -157,7 +159,7 @@ def plan_steps(system: SystemDescription, inst: Mapping[str, FmuInstance],
                 ops.append((fmu.set_real, fmu.component,
                             vr_array(fmu, [n for _, n, _ in items[a:b]]), b - a,
                             buf.ctypes.data + columns[a] * _DOUBLE, buf.strides[0], fmu,
-                            f"fmi2SetReal ({ins} from {source})"))
+                            f"fmi2SetReal ({ins} from {source})", columns[a] * _DOUBLE))
         return ops
 
     stepping = [(inst[c].do_step, inst[c].component, inst[c]) for c in system.names]
@@ -184,32 +186,75 @@ def plan_steps(system: SystemDescription, inst: Mapping[str, FmuInstance],
     return plan
 
 
+def compile_plan(plan: StepPlan) -> tuple[Callable[[int, int, float], None], str]:
+    """The plan as one Python function ``run(k0, k1, h)`` stepping k0 <= k < k1, written out
+    call by call (every function, pointer and count a local constant), as a hand-written
+    master for this system would be; returns it and its source (for reading and reports).
+
+    Per step and call: ``st = f(component, value references, count, row address)``; a
+    non-zero status raises the instance's CosimError naming the call and the time."""
+    env: dict[str, Any] = {}
+    lines: list[str] = []
+
+    def const(prefix: str, i: int, value: Any) -> str:
+        name = f"{prefix}{i}"
+        env[name] = value
+        return name
+
+    rows: dict[tuple[int, int], str] = {}      # (row-0 address, stride) -> its variable
+
+    def row_of(base: int, stride: int, col: int) -> str:
+        key = (base - col, stride)
+        if key not in rows:
+            rows[key] = f"r{len(rows)}"
+            env[f"b{rows[key]}"], env[f"s{rows[key]}"] = key
+        return rows[key]
+
+    def calls(ops: list[tuple], tag: str, row: str, indent: str, when: str) -> None:
+        for i, (fn, c, vr, n, base, stride, who, what, col) in enumerate(ops):
+            f, cc, v, w, lab = (const(x, f"{tag}{i}", y) for x, y in
+                                (("f", fn), ("c", c), ("v", vr), ("w", who), ("l", what)))
+            r = row_of(base, stride, col)
+            addr = f"{r}{row} + {col}" if col else f"{r}{row}"
+            lines.append(f"{indent}st = {f}({cc}, {v}, {n}, {addr})")
+            lines.append(f"{indent}if st:")
+            lines.append(f"{indent}    raise {w}.fail(f\"{{{lab}}} at t = {{{when}}} s\", st)")
+
+    lines.append("for k in range(k0, k1):")
+    lines.append("    t = k * h")
+    head = len(lines)
+    calls(plan.exchange, "x", "", "    ", "t")
+    for i, (fn, c, who) in enumerate(plan.stepping):
+        f, cc, w = const("f", f"d{i}", fn), const("c", f"d{i}", c), const("w", f"d{i}", who)
+        lines.append(f"    st = {f}({cc}, t, h, 1)")
+        lines.append("    if st:")
+        lines.append(f"        raise {w}.fail(f\"fmi2DoStep at t = {{t}} s\", st)")
+    exchange_rows = list(rows.values())
+    if plan.after:
+        lines.append("    if k + 1 < last:")
+        mark = len(lines)
+        calls(plan.after, "a", "_next", "        ", "(k + 1) * h")
+        lines[mark:mark] = [f"        {r}_next = b{r} + (k + 1) * s{r}" for r in rows.values()]
+    lines[head:head] = [f"    {r} = b{r} + k * s{r}" for r in exchange_rows]
+    params = ", ".join(f"{k}={k}" for k in env)
+    src = (f"def run(k0, k1, h, last, {params}):\n"
+           + "\n".join("    " + ln for ln in lines) + "\n")
+    ns: dict[str, Any] = dict(env)
+    exec(compile(src, "<auv-cosim step plan>", "exec"), ns)    # noqa: S102 - our own text
+    return ns["run"], src
+
+
 def _step_loop(plan: StepPlan, steps: int, h: float, bar: Any) -> None:
-    """Run ``steps`` macro steps of the plan (t = k h)."""
-    exchange, stepping, after = plan.exchange, plan.stepping, plan.after
-    if after:                                   # Jacobi: the outputs at t = 0 first
-        for fn, c, vr, n, base, stride, who, what in after:
+    """Run ``steps`` macro steps of the plan (t = k h), in chunks for the progress bar."""
+    run, _ = compile_plan(plan)
+    if plan.after:                              # Jacobi: the outputs at t = 0 first
+        for fn, c, vr, n, base, _, who, what, _ in plan.after:
             st = fn(c, vr, n, base)
             if st:
                 raise who.fail(f"{what} at t = 0.0 s", st)
     chunk = 2000
     for k0 in range(0, steps, chunk):
-        for k in range(k0, min(k0 + chunk, steps)):
-            t = k * h
-            for fn, c, vr, n, base, stride, who, what in exchange:
-                st = fn(c, vr, n, base + k * stride)
-                if st:
-                    raise who.fail(f"{what} at t = {t} s", st)
-            for fn, c, who in stepping:
-                st = fn(c, t, h, 1)
-                if st:
-                    raise who.fail(f"fmi2DoStep at t = {t} s", st)
-            if after and k + 1 < steps:
-                k1 = k + 1
-                for fn, c, vr, n, base, stride, who, what in after:
-                    st = fn(c, vr, n, base + k1 * stride)
-                    if st:
-                        raise who.fail(f"{what} at t = {k1 * h} s", st)
+        run(k0, min(k0 + chunk, steps), h, steps)
         if bar is not None:
             bar.update(min(chunk, steps - k0))
 
@@ -271,7 +316,7 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
         for spec in comp.arrays("output"):
             traces[names[(comp.name, spec.name)]] = rec[comp.name][:, i:i + spec.size]
             i += spec.size
-    calls = [what for *_, what in plan.exchange + plan.after]
+    calls = [op[7] for op in plan.exchange + plan.after]
     return traces, loop_s, {"order": plan.order, "calls_per_step": calls + [
         f"fmi2DoStep ({who.label})" for *_, who in plan.stepping]}
 

@@ -58,7 +58,10 @@ def golden_runs():
 
 
 def main() -> None:
-    from orchestrator.master import CosimError, run_cosimulation
+    try:                            # the master the traces were recorded with (7b2ae02)
+        from orchestrator.master import CosimError, run_cosimulation
+    except ImportError:             # the current one
+        from orchestrator.cosim.master import CosimError, run_cosimulation
     from orchestrator.scenario import load_scenario
     from orchestrator.workflow import build, scenario_config
 
