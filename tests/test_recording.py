@@ -200,7 +200,7 @@ def test_different_step_counts_raise(tmp_path):
 
     runs = make_runs()
     runs["classical"] = make_runs(methods=("classical",), steps=STEPS + 5)["classical"]
-    with pytest.raises(ValueError, match=r"'classical'.*'x'.*322 steps"):
+    with pytest.raises(ValueError, match=r"'classical'.*'e'.*322 steps"):
         write_rrd(tmp_path / "bad2.rrd", runs, H, recording_name="bad")
 
 
