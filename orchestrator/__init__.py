@@ -7,7 +7,7 @@ changes the last bits of a result: the same seed gives the same traces only with
 count. Importing this package sets OPENBLAS_NUM_THREADS / OMP_NUM_THREADS /
 MKL_NUM_THREADS to 1 unless the user set them, and applies OPENBLAS_NUM_THREADS (or 1) to
 the BLAS libraries already loaded (numpy's and scipy's, through threadpoolctl), so it
-holds whatever was imported before.
+holds whatever was imported before (a BLAS loaded after this package reads the variable).
 """
 import os as _os
 
@@ -16,7 +16,11 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 
 def _limit_blas_threads() -> None:
-    import scipy.linalg  # noqa: F401 - loads scipy's own BLAS so that the limit reaches it
+    """A BLAS library loaded before the variables above were set ignores them: apply the
+    count to the loaded ones (a library loaded later reads the variable itself)."""
+    import sys
+    if "numpy" not in sys.modules and "scipy" not in sys.modules:
+        return
     from threadpoolctl import threadpool_limits
     try:
         n = max(1, int(_os.environ["OPENBLAS_NUM_THREADS"]))

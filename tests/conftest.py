@@ -74,6 +74,20 @@ def make_scalar():
     return lambda **changes: LinearSystem.from_mapping(scalar_mapping(**changes))
 
 
+@pytest.fixture(scope="session", autouse=True)
+def fmu_cache(tmp_path_factory):
+    """Built FMUs are cached per test session (AUV_COSIM_CACHE), not in the user's cache."""
+    import os
+    path = tmp_path_factory.mktemp("fmu_cache")
+    old = os.environ.get("AUV_COSIM_CACHE")
+    os.environ["AUV_COSIM_CACHE"] = str(path)
+    yield path
+    if old is None:
+        os.environ.pop("AUV_COSIM_CACHE", None)
+    else:
+        os.environ["AUV_COSIM_CACHE"] = old
+
+
 @pytest.fixture(scope="session")
 def paper():
     """The built-in paper scenario (orchestrator/scenario/builtin/paper.toml)."""

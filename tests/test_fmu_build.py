@@ -96,3 +96,50 @@ def test_build_is_fast_and_config_matches(fmus):
         import json
         shipped = json.loads(z.read("resources/auv_controller_config.json"))
     assert shipped["dims"] == cfg["dims"] and shipped["system"]["B1"] == cfg["system"]["B1"]
+
+
+# ------------------------------------------------------------------------- the FMU cache
+def test_identical_builds_come_from_the_cache(fmu_cache, tmp_path):
+    from orchestrator.cosim.build import build_fmus, build_key
+    cfg = scenario_config(load_scenario("paper").with_run(seed=123))
+    first = build_fmus(cfg, tmp_path / "a")
+    entries = {p.name: p.stat().st_mtime_ns for p in fmu_cache.glob("*.fmu")}
+    second = build_fmus(cfg, tmp_path / "b")
+    assert {p.name: p.stat().st_mtime_ns for p in fmu_cache.glob("*.fmu")} == entries
+    for k in FMU_KINDS:
+        assert first[k].read_bytes() == second[k].read_bytes()          # same build, same GUID
+        assert first[k].name == f"{FMU_KINDS[k].model}.fmu"
+    other = dict(cfg, h=0.02)
+    assert build_key(FMU_KINDS["plant"], other) != build_key(FMU_KINDS["plant"], cfg)
+    third = build_fmus(other, tmp_path / "c")
+    assert read_model_description(str(third["plant"])).defaultExperiment.stepSize == "0.02"
+    assert len(list(fmu_cache.glob("*.fmu"))) == len(entries) + 3
+    fresh = build_fmus(cfg, tmp_path / "d", cache=False)             # a new build: a new GUID
+    assert read_model_description(str(fresh["plant"])).guid != \
+        read_model_description(str(first["plant"])).guid
+
+
+def test_concurrent_builds_into_one_folder_leave_whole_fmus(tmp_path):
+    """Two processes build different scenarios' FMUs into the same folder at once, with an
+    empty cache each time: every FMU left there is a whole, valid FMU of one of them."""
+    import os
+    import subprocess
+    import sys
+    import zipfile
+    code = ("import sys; from orchestrator.scenario import load_scenario; "
+            "from orchestrator.workflow import build; "
+            "build(load_scenario(sys.argv[1]), sys.argv[2])")
+    for attempt in range(3):
+        out = tmp_path / f"out{attempt}"
+        env = dict(os.environ, AUV_COSIM_CACHE=str(tmp_path / f"cache{attempt}"))
+        procs = [subprocess.Popen([sys.executable, "-c", code, name, str(out)], env=env,
+                                  stderr=subprocess.PIPE, text=True)
+                 for name in ("paper", "formation-4", "paper")]
+        for p in procs:
+            assert p.wait(timeout=300) == 0, p.stderr.read()
+        assert sorted(f.name for f in out.iterdir()) == ["AuvController.fmu", "AuvEstimator.fmu",
+                                                         "AuvPlant.fmu"]
+        for f in out.iterdir():
+            with zipfile.ZipFile(f) as z:
+                assert z.testzip() is None, f
+            assert validate_fmu(str(f)) == [], f

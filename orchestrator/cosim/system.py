@@ -180,32 +180,51 @@ def evaluation_order(system: SystemDescription) -> list[tuple[str, str]]:
 
     Within one communication step an output that depends directly on an input (its
     ``depends_on``) can be read only after the output feeding that input was read and set:
-    a topological order of the graph output -> connection -> dependent output, ties broken
-    by the order of components and outputs in the description. An algebraic loop (a cycle
-    of such dependencies) is refused with :class:`AlgebraicLoopError` naming the cycle.
+    the lexicographic topological order (Kahn's algorithm, smallest rank first) of the graph
+    output -> connection -> dependent output, ranks being the order of components and
+    outputs in the description. An algebraic loop (a cycle of such dependencies) is refused
+    with :class:`AlgebraicLoopError` naming the cycle.
     """
-    import networkx as nx
+    import heapq
+    from graphlib import CycleError, TopologicalSorter
 
     rank = {(c.name, s.name): (i, j) for i, c in enumerate(system.components)
             for j, s in enumerate(c.arrays("output"))}
-    g = nx.DiGraph()
-    g.add_nodes_from(rank)
+    succ: dict[tuple[str, str], list[tuple[str, str]]] = {n: [] for n in rank}
+    via: dict[tuple, str] = {}
+    indegree = dict.fromkeys(rank, 0)
     for c in system.active_connections():
         if (c.source, c.output) not in rank:
             continue
         for spec in system.component(c.target).arrays("output"):
-            if c.input in spec.depends_on:
-                g.add_edge((c.source, c.output), (c.target, spec.name), via=c.input)
-    try:
-        return list(nx.lexicographical_topological_sort(g, key=lambda n: rank[n]))
-    except nx.NetworkXUnfeasible:
-        cycle = nx.find_cycle(g)
-        steps = " -> ".join(f"{a[0]}.{a[1]} (into {b[0]}.{g.edges[a, b]['via']})"
-                            for a, b in cycle)
-        raise AlgebraicLoopError(
-            f"system {system.name!r} has an algebraic loop: {steps} -> "
-            f"{cycle[0][0][0]}.{cycle[0][0][1]}; break it with an output that does not "
-            "feed through (a delay) or couple with coupling='jacobi'") from None
+            dst = (c.target, spec.name)
+            if c.input in spec.depends_on and dst not in succ[(c.source, c.output)]:
+                succ[(c.source, c.output)].append(dst)
+                via[(c.source, c.output), dst] = c.input
+                indegree[dst] += 1
+    ready = [(rank[n], n) for n, d in indegree.items() if d == 0]
+    heapq.heapify(ready)
+    order: list[tuple[str, str]] = []
+    while ready:
+        _, n = heapq.heappop(ready)
+        order.append(n)
+        for m in succ[n]:
+            indegree[m] -= 1
+            if indegree[m] == 0:
+                heapq.heappush(ready, (rank[m], m))
+    if len(order) == len(rank):
+        return order
+    try:                                        # find one cycle to name it
+        TopologicalSorter({m: [n for n in succ if m in succ[n]] for m in rank}).prepare()
+        cycle: list = []
+    except CycleError as exc:
+        cycle = list(exc.args[1])               # [a, b, ..., a], each feeding the next
+    steps = " -> ".join(f"{a[0]}.{a[1]} (into {b[0]}.{via[a, b]})"
+                        for a, b in zip(cycle, cycle[1:]))
+    raise AlgebraicLoopError(
+        f"system {system.name!r} has an algebraic loop: {steps} -> "
+        f"{cycle[0][0]}.{cycle[0][1]}; break it with an output that does not "
+        "feed through (a delay) or couple with coupling='jacobi'")
 
 
 def component_parameters(specs: list[ArraySpec] | tuple[ArraySpec, ...]) -> dict[str, Any]:
