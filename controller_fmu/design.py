@@ -1,4 +1,4 @@
-"""The paper's LQ feedforward-feedback design (eq. 12-15, corrected in NOTES.md).
+"""The paper's LQ feedforward-feedback design (eq. 12-15, corrected: docs/theory.md section 2).
 
     (13)  A'P + P A - P S P + C'QC = 0,     S = B1 R^-1 B1',  A - S P Hurwitz
     (14)  (A - S P)' P1 + P1 F + P Bz = C'Q H   (Bz = 0 in the paper; see LinearSystem)

@@ -1,4 +1,4 @@
-"""Output regulation: zero steady-state error for persistent references (NOTES.md).
+"""Output regulation: zero steady-state error for persistent references (docs/theory.md section 7).
 
 With a marginally stable exosystem (a constant offset, a straight run, a circle, a survey
 pattern) the paper's law (eq. 12-15) exists but leaves a steady tracking error. The

@@ -12,9 +12,10 @@ Modes:
   [y; ybar] (using the applied u), built on the plant's exact sampled model:
   q is the one-step prediction, est = q + L (meas - M q), q[k+1] = Ad est + Bd u.
   Without Bz (the paper) the joint filter splits exactly into the filter on [x; w] from y
-  and the filter on z from ybar (NOTES.md). Reference states that form a known planned
-  path (:meth:`LinearSystem.known_reference_mask`) are not filtered: their estimate is
-  propagated exactly from z(0), and ybar is not used when the whole reference is known.
+  and the filter on z from ybar (docs/theory.md section 5). Reference states that form a
+  known planned path (:meth:`LinearSystem.known_reference_mask`) are not filtered: their
+  estimate is propagated exactly from z(0), and ybar is not used when the whole reference
+  is known.
 - ``classical``: the paper's comparison law: xhat = C^+ y, zhat = H^+ ybar, and what run
   open loop from w(0): what[k+1] = expm(K h) what[k].
 - ``ideal``: est = the true state (a lower bound on the achievable cost).

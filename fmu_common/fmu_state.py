@@ -2,53 +2,12 @@
 
 :class:`FmuStateMixin` implements pythonfmu's four state hooks for
 :class:`fmu_common.slave_base.ArraySlave`; the slave supplies ``model_state()`` /
-``restore_model_state(state)`` (and ``restores_math_from_state``).
-
-FMU state
----------
-fmi2GetFMUstate captures, as a :class:`FmuState` (plain Python and numpy copies):
-the parameter values, the input and output buffers, the lazy-output dirty flag, the
-pending input error, the sample period, the initialized flag, and the slave's own
-``model_state()`` (the plant's s, k, noise row and noise stream, the estimator's q, the
-controller's gain). fmi2SetFMUstate restores all of it; the mathematics is rebuilt with
-``setup()`` only when the state's parameter values differ from the instance's (or the
-instance is not initialized) and the slave cannot rebuild it from the state itself.
-
-fmi2SerializeFMUstate writes (little-endian)::
-
-    b"AUVFMUST" | format u16 | flags u16 | header length u32 | payload length u64 | CRC-32 u32
-    | header (UTF-8 JSON) | payload (the numpy arrays' bytes)
-
-The header names what the state belongs to: the model identifier (class name), the
-GUID of the build (read from the FMU's modelDescription.xml), a hash of the interface
-(names, types, causalities, variabilities and shapes of all variables) with the list of
-array names and shapes, and the instance name. Nothing is unpickled: a blob is JSON plus
-raw numeric arrays, checked against the lengths and the CRC before use.
-
-What pythonfmu 0.7 allows for errors here: its C++ layer returns fmi2OK from every state
-function unless the Python hook raises, and then it returns fmi2Fatal and drops its
-references to the instance (the instance is dead for a careful host). fmi2SetFMUstate
-ignores the hook's return value and fmi2DeSerializeFMUstate calls a *class* method
-(no instance: nothing can be checked against it, nothing logged). So no hook here
-raises. A state that cannot be restored (another model, another interface, another
-format version, a corrupt or truncated blob, a state that could not be captured) is
-handled like a bad input:
-
-- fmi2DeSerializeFMUstate returns fmi2OK and a state object that records the problem;
-- fmi2SetFMUstate logs a message with status fmi2Error naming the problem (to a host
-  that instantiated with loggingOn), leaves the instance exactly as it was, and
-  returns fmi2OK (pythonfmu cannot return anything else without a fatal error);
-- the next fmi2DoStep is refused with fmi2Discard and a message repeating the problem,
-  so a host that only checks statuses notices; the step after that proceeds normally
-  (from the state the instance kept); a successful fmi2SetFMUstate clears the refusal.
-
-A state from another build of the same model and interface (other GUID) is restored,
-with a warning naming both GUIDs (pythonfmu gives every build a new GUID).
-
-Other pythonfmu 0.7 details: fmi2SerializedFMUstateSize and fmi2SerializeFMUstate each
-call ``_fmu_state_to_bytes`` (the bytes are computed once and kept on the state);
-fmi2GetFMUstate always hands out a new state object (a host that passes a non-NULL
-*FMUstate to have it updated leaks the old one: free states with fmi2FreeFMUstate).
+``restore_model_state(state)`` (and ``restores_math_from_state``). :func:`encode_state` /
+:func:`decode_state` write and read the serialized blob (magic ``AUVFMUST``, JSON header,
+raw arrays, CRC-32; nothing is unpickled). No hook raises: pythonfmu 0.7 turns a raised
+exception into fmi2Fatal, so a state that cannot be restored is logged and the next
+fmi2DoStep is refused. What is saved, the byte layout and the error handling:
+docs/fmu-internals.md.
 """
 from __future__ import annotations
 
@@ -109,7 +68,7 @@ class FmuState:
 
 def encode_state(header: dict[str, Any], tree: Any) -> bytes:
     """Serialize ``header`` and ``tree`` (dicts with str keys, lists, str, int, float,
-    bool, None and numeric numpy arrays) in the layout of the module docstring."""
+    bool, None and numeric numpy arrays) in the layout of docs/fmu-internals.md."""
     arrays: list[np.ndarray] = []
     table: list[dict[str, Any]] = []
     offset = 0
@@ -265,7 +224,7 @@ class FmuStateMixin:
         return f"{type(self).__name__} instance '{self.instance_name}'"
 
     def _get_fmu_state(self) -> FmuState:
-        """fmi2GetFMUstate: a copy of everything that evolves (see the module docstring)."""
+        """fmi2GetFMUstate: a copy of everything that evolves (see docs/fmu-internals.md)."""
         try:
             header = self._state_header()
         except Exception as exc:  # noqa: BLE001 - never raise into pythonfmu
@@ -434,7 +393,7 @@ class FmuStateMixin:
         """fmi2DeSerializeFMUstate (on the class: no instance to check against or log to).
 
         Never raises: a blob that cannot be read gives a state recording the problem,
-        reported when the host sets it (see the module docstring)."""
+        reported when the host sets it (see docs/fmu-internals.md)."""
         try:
             blob = bytes(blob)
             header, tree = decode_state(blob)

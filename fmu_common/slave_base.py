@@ -1,30 +1,12 @@
 """The FMI plumbing shared by the three slaves: arrays in, arrays out, errors as statuses.
 
-A slave subclasses :class:`ArraySlave` and supplies four things, all plain Python:
-
-- ``interface(config)``: the list of :class:`~fmu_common.interface.ArraySpec`;
-- ``setup()``: build the mathematics from the parameter arrays ``self.par``
-  (called in exitInitializationMode, so whatever the host set is used);
-- ``compute_outputs()``: fill the output views ``self.io[name]`` from the inputs;
-- ``advance(step)``: move the internal state over one communication step.
-
-What the base class does for them:
-
-- expands the arrays into FMI scalar variables (``A[1,2]``) whose getters and setters
-  read and write numpy arrays; inputs and outputs live in one contiguous buffer each,
-  so a master that gets/sets a whole block pays one numpy slice, not one Python call per
-  scalar;
-- computes outputs lazily: after inputs are set (direct feedthrough) or a step is taken;
-- turns failures into FMI statuses with a logged message that names the problem.
-  pythonfmu 0.7 maps *any* Python exception to fmi2Fatal, and its C++ layer then drops
-  its references to the Python objects while still holding the pointers. So:
-  a non-finite input is logged (status error) when set and refused by the next
-  fmi2DoStep (fmi2Discard, the instance stays usable); a failure in
-  exitInitializationMode (design impossible, bad parameter) is logged and raised, which
-  the host sees as fmi2Fatal with the message; the objects the C++ layer lets go of are
-  kept alive here so that later calls (terminate, freeInstance) cannot touch freed memory.
-- FMU state (canGetAndSetFMUstate, canSerializeFMUstate): :mod:`fmu_common.fmu_state`
-  (:class:`~fmu_common.fmu_state.FmuStateMixin`, the serialized layout, the errors).
+A slave subclasses :class:`ArraySlave` and supplies ``interface(config)`` (its list of
+:class:`~fmu_common.interface.ArraySpec`), ``setup()`` (build the mathematics from ``self.par``,
+called in exitInitializationMode), ``compute_outputs()`` (fill ``self.io[name]``) and
+``advance(step)``. The base class expands the arrays into FMI scalars backed by one contiguous
+input and one output buffer (batched get/set), computes outputs lazily, and turns failures
+into FMI statuses with a logged message; the FMU state is :mod:`fmu_common.fmu_state`. How
+errors reach the host under pythonfmu 0.7: docs/fmu-internals.md.
 """
 from __future__ import annotations
 
@@ -54,7 +36,7 @@ _VARIABILITY = {"fixed": Fmi2Variability.fixed, "tunable": Fmi2Variability.tunab
                 "discrete": Fmi2Variability.discrete}
 _TYPES = {"Real": Real, "Integer": Integer, "String": String}
 
-#: Python objects pythonfmu's C++ layer released after a fatal error; see module doc.
+#: Python objects pythonfmu's C++ layer released after a fatal error (docs/fmu-internals.md).
 _RELEASED_AFTER_FATAL: list[Any] = []
 
 

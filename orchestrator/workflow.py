@@ -154,11 +154,20 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     """
     from controller_fmu.regulator import tracking_law
 
-    from .recording import write_rrd
+    from .recording.background import BackgroundWriter
 
     t0 = time.perf_counter()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    with BackgroundWriter() as writer:      # imports Rerun in a child while we simulate
+        return _simulate(sc, modes, seeds, out, writer, t0, progress=progress, log=log,
+                         trackings=trackings, record_hz=record_hz, tracking_law=tracking_law)
+
+
+def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], out: Path,
+              writer: Any, t0: float, *, progress: bool, log: Callable[[str], None],
+              trackings: Sequence[str] | None, record_hz: float | None,
+              tracking_law: Callable) -> dict[str, Any]:
     cfg = scenario_config(sc)
     fmus = build_fmus(cfg, out / "fmus")
     methods_run = method_list(sc, modes, trackings)
@@ -202,9 +211,9 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
         bar.close()
     rrd_path = out / f"{sc.name}.rrd"
     stride = record_stride(sc, record_hz)
-    rrd_info = write_rrd(rrd_path, rrd_runs, sc.h,
-                         recording_name=f"{sc.name} ({', '.join(rrd_runs)})",
-                         fleet=fleet_layout(sc), stride=stride)
+    rrd_info = writer.write(rrd_path, rrd_runs, sc.h,
+                            recording_name=f"{sc.name} ({', '.join(rrd_runs)})",
+                            fleet=fleet_layout(sc), stride=stride)
     summary = {
         "scenario": sc.name,
         "source": sc.source,

@@ -29,7 +29,7 @@ from .linalg_checks import ModelError, as_matrix, as_vector, check_symmetric_pd,
 
 __all__ = ["LinearSystem", "NOISE_CONVENTIONS", "MATRIX_NAMES"]
 
-#: ``intensity``: W, V are continuous-time intensities (NOTES.md); ``per_sample``:
+#: ``intensity``: W, V are continuous-time intensities (docs/theory.md section 4); ``per_sample``:
 #: W is the covariance of the process noise added per step and V the covariance of
 #: each measurement sample, whatever h is (a different experiment, named as such).
 NOISE_CONVENTIONS = ("intensity", "per_sample")

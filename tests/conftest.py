@@ -1,7 +1,7 @@
-"""Shared fixtures: the paper's example typed in from NOTES.md, and small scalar systems.
+"""Shared fixtures: the paper's example typed in from docs/theory.md, and small scalar systems.
 
-The paper's matrices are copied from /work/shared/paper/NOTES.md here, independently of
-orchestrator/scenarios/paper.toml, so that test_scenario.py can compare the two.
+The paper's matrices are copied from docs/theory.md (section 9) here, independently of
+orchestrator/scenario/builtin/paper.toml, so that test_scenario.py can compare the two.
 """
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 
 from plant_model.system import LinearSystem
 
-#: The paper's example (NOTES.md): every noise intensity 2, Q = R = I, T = 300 s.
+#: The paper's example (docs/theory.md section 9): every noise intensity 2, Q = R = I, T = 300 s.
 PAPER_MAPPING = {
     "A": [[-1.0, 0.0], [0.0, -1.0]],
     "B1": [[3.0, 2.0], [4.0, 5.0]],

@@ -32,7 +32,7 @@ def hamiltonian_care(A, B, Qx, R):
 
 
 def augmented_care(s: LinearSystem):
-    """The CARE on [x; z; w] of NOTES.md; returns (P, P1, P2) from its first block row."""
+    """The CARE on [x; z; w] (docs/theory.md section 2); (P, P1, P2) is its first block row."""
     n, l_, r, m = s.n, s.l, s.r, s.m
     na = n + l_ + r
     Aa = np.zeros((na, na))
@@ -119,7 +119,7 @@ def test_paper_augmented_care_identity(paper_system, paper_design):
 
 
 def test_paper_typo_in_eq_20_would_give_another_P1(paper_system, paper_design):
-    """NOTES.md: writing A'P for A'P1 in (14) gives a wrong P1; ours is not that one."""
+    """docs/theory.md section 2: A'P for A'P1 in (14) (eq. 20's typo) gives a wrong P1, not ours."""
     s = paper_system
     S = s.B1 @ np.linalg.solve(s.R, s.B1.T)
     P = paper_design.P
@@ -376,7 +376,7 @@ def test_sylvester_resonances_pairs():
 
 
 def test_marginal_reference_is_allowed(paper_mapping):
-    """F only marginally stable (a circle): the law exists (NOTES.md)."""
+    """F only marginally stable (a circle): the law exists (docs/theory.md section 2)."""
     paper_mapping["F"] = [[0.0, 1.0], [-1.0, 0.0]]
     s = LinearSystem.from_mapping(paper_mapping)
     d = lq_tracking_design(s)

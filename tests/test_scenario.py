@@ -51,7 +51,7 @@ def test_builtin_list_contains_paper():
 
 
 def test_paper_scenario_matches_notes(paper_mapping):
-    """paper.toml against the matrices typed in from NOTES.md (conftest.py)."""
+    """paper.toml against the matrices typed in from docs/theory.md section 9 (conftest.py)."""
     sc = load_scenario("paper")
     assert isinstance(sc, Scenario)
     assert sc.name == "paper"

@@ -1,93 +1,11 @@
 """Reference results of each FMU in the FMI cross-check style, cut out of one closed loop.
 
-For each of the three FMUs, :func:`write_crosscheck` writes into ``<out>/<Model>/``
-(the last level of the cross-check repository's ``fmus/2.0/cs/<platform>/<tool>/<version>/
-<Model>`` layout):
-
-- ``<Model>.fmu``: a copy of the FMU the reference was computed with;
-- ``<Model>_in.csv``: every input of the FMU over time, exactly the values the master set
-  in the closed loop;
-- ``<Model>_ref.csv``: every output of the FMU at t = k h, exactly the values the master
-  read from it in the closed loop;
-- ``<Model>_ref.opt``: ``StartTime``, ``StopTime``, ``StepSize``, ``RelTol`` (and the optional
-  ``OutputIntervalLength``), one ``Name, value`` per line, nothing else (fmpy's
-  ``read_ref_opt_file`` parses every two-field line as a number);
-- ``ReadMe.md``: the scenario, the parameters, the timing convention below and how to replay.
-
-and ``<out>/crosscheck.json`` (paths, parameters that differ from the FMUs' start values,
-timing convention) for programs.
-
-CSV files follow the cross-check rules: comma separated, first line the quoted names
-(``"time"`` then the FMI names exactly as in modelDescription.xml, e.g. ``"y[1]"``),
-numbers unquoted as C floating point literals (Python ``repr``: the shortest text that
-reads back to the same double, so values round-trip exactly), time in seconds and
-increasing, no comments. For 500 steps of the paper scenario the files are 23 to 160 kB,
-under the rules' 1 MB.
-
-Timing in the loop (orchestrator.cosim.master): at step k, t = k h, the master reads the plant's
-outputs (they depend on no input), sets y[k], ybar[k] (and the truth x, w, z in mode
-``ideal``) on the estimator and reads its estimate of sample k (direct feedthrough), sets it
-on the controller and reads u[k] (direct feedthrough), sets u[k] on plant and estimator,
-then steps all three from t to t + h.
-
-Input layout: sample and hold, one row per sample time plus one just before the next.
-The value an input had over [k h, (k+1) h) is written at k h and again at (k+1) h - eps,
-eps = 1e-3 h; the next value follows at (k+1) h::
-
-    "time","u[1]","u[2]"
-    0.0,u0_1,u0_2
-    0.00999,u0_1,u0_2
-    0.01,u1_1,u1_2
-    0.01999,u1_1,u1_2
-    ...
-
-(2 N - 1 rows for N samples, times strictly increasing). Every sample time k h has exactly
-one row, holding the value the master set at k h, so a reader that evaluates the table at the
-communication points gets that value whatever it does with discontinuities: linear
-interpolation at a tabulated time returns the tabulated value (fmpy: weights 0 and 1,
-bit-exact; FMU Compliance Checker: lambda = 1). Between samples the value is constant except
-for a ramp over the last eps of each step, which a fixed-step importer never samples.
-
-The other layout the cross-check rules show (a repeated time stamp at every k h, the old
-value then the new one) is ambiguous at exactly the instants that matter: fmpy's ``Input``
-(fmpy 0.3.32, simulation.py) applies ``apply(t, after_event=True)`` in its co-simulation
-loop and takes the row after the repeated time stamp (the right value), but the FMU
-Compliance Checker (fmi2_input_reader.c: advance while t2 < t, then interpolate with
-lambda = 1) takes the row before it, i.e. the previous sample's value: every input one step
-late. ``write_crosscheck(..., layout="repeat")`` writes it anyway (fmpy reproduces the
-reference with either). fmpy finds input events only at repeated time stamps, so the
-default layout adds no communication point even for the variable-step controller; it needs
-eps > 1e-9 t (fmpy's ``isclose``) to keep the two rows apart, checked with a margin.
-
-Inputs the master never sets (the estimator's truth inputs x, w, z outside mode ``ideal``)
-are written as their start value, which is what the FMU had.
-
-Output sampling: ``<Model>_ref.csv`` holds at t = k h the output *after* the inputs of time
-k h were set (the right limit, what the master read). fmpy's ``simulate_fmu`` for FMI 2.0
-co-simulation records outputs right after ``fmi2DoStep(t, h)``, *before* it applies the
-inputs of t + h (the FMU Compliance Checker does the same). For outputs without direct
-feedthrough (the plant) that is the same value and a plain ``simulate_fmu`` run reproduces
-the reference exactly. For direct-feedthrough outputs it records the left limit
-g(state(t+h), input(t)): the controller's u appears one sample late, and the estimator's
-estimate mixes the new prediction with the previous measurement. No input-file layout can
-change that for the estimator: fmpy applies one input vector per step, which both
-``fmi2DoStep(t)`` (it needs y[k], u[k]) and the following sample (it would need y[k+1]) see.
-:func:`sample_after_inputs` is a ``step_finished`` callback for ``simulate_fmu`` that applies
-the inputs of the new communication point and samples again, i.e. records what a master
-that sets inputs before reading outputs (this project's, or any Gauss-Seidel master) sees;
-with it the replay of each FMU alone reproduces its ``_ref.csv`` (see :func:`replay`).
-(fmpy's own cross-check comparison, ``fmpy.cross_check.validate_result``, uses a band 20
-samples wide and accepts even the one-sample-late plain replay; compare exactly instead.)
-
-An importer that accumulates t += h instead of computing k h evaluates the input table a few
-ulps off the sample times; with the default layout that changes an input by at most
-(ulps / eps) times its step (about 3e-8 relative after 500 steps in a check of the
-Compliance Checker's interpolation rule), with the repeated time stamp layout it can pick
-either side of the step.
-
-Parameters: the FMUs' own start values (the scenario they were built for); a ``seed``,
-``mode`` or tracking law other than the built one is set by the master in initialization
-mode and listed as a start value to set in ReadMe.md and crosscheck.json.
+:func:`write_crosscheck` runs the loop once and writes, per FMU, ``<Model>.fmu``,
+``<Model>_in.csv`` (inputs as held values), ``<Model>_ref.csv`` (outputs as the master read
+them), ``<Model>_ref.opt`` and ``ReadMe.md``, plus ``crosscheck.json``; :func:`replay` and
+:func:`sample_after_inputs` replay one FMU alone with fmpy, :func:`compare` checks it.
+The file layout, the timing convention, the two input layouts (``ramp``, ``repeat``) and
+why direct-feedthrough outputs need :func:`sample_after_inputs`: docs/crosscheck.md.
 """
 from __future__ import annotations
 
@@ -207,7 +125,7 @@ def write_crosscheck(fmus: dict[str, Path], config: dict, out_dir: Path, *, step
     ``system``: the co-simulation (default: the paper's loop,
     :func:`orchestrator.cosim.system.closed_loop_system`, with ``seed`` and ``mode``,
     which default to the configuration's, the FMUs' start values); ``layout``: input file
-    layout, ``ramp`` (default) or ``repeat`` (see the module docstring). One reference per
+    layout, ``ramp`` (default) or ``repeat`` (see docs/crosscheck.md). One reference per
     component. Returns, per component, the paths ``fmu``, ``in``, ``ref``, ``opt``,
     ``readme``.
     """

@@ -1,7 +1,7 @@
 """What goes where in a recording: trace keys, entity paths and series names of the paper
 layout, the blueprint view groups, the :class:`FleetLayout` of a fleet, method and vehicle colours.
 
-The entity paths themselves are tabulated in the package docstring (:mod:`orchestrator.recording`).
+The entity paths themselves are tabulated in docs/recording.md (:mod:`orchestrator.recording`).
 """
 from __future__ import annotations
 

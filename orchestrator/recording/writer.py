@@ -169,7 +169,7 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
         If given, the traces are those of a fleet of N vehicles laid out as described by the
         :class:`FleetLayout`; the compact per-vehicle layout and a 3D scene per run are
         written *instead of* the per-component layout, and the default blueprint becomes the
-        fleet layout (see the module docstring).  Checked against the traces of every run.
+        fleet layout (see docs/recording.md).  Checked against the traces of every run.
     trail_seconds:
         Length (s, > 0) of the vehicle trails in the 3D view: the trail entity is shown over
         the visible time range [cursor - trail_seconds, cursor].  Only used with ``fleet``.

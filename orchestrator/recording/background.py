@@ -1,0 +1,88 @@
+"""Write the ``.rrd`` in a child process that imports Rerun while the parent simulates.
+
+Importing rerun-sdk and pyarrow takes about 0.5 s, as long as a third of the paper run's
+loop. :class:`BackgroundWriter` starts ``python -m orchestrator.recording.background`` at
+once; the child imports :func:`orchestrator.recording.writer.write_rrd` (and with it Rerun)
+on the other core, then waits for the traces on its standard input. :meth:`write` sends
+them (pickled: a private pipe between two processes of this program) and waits for the
+child's one-line JSON answer, the figures ``write_rrd`` returns. If the child fails, the
+error names what it reported; when no child could be started, or the traces are too large
+to send (:data:`MAX_PIPE_BYTES`, large fleets), :meth:`BackgroundWriter.write` writes in
+this process.
+"""
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+__all__ = ["BackgroundWriter", "MAX_PIPE_BYTES"]
+
+#: traces larger than this are written in the parent (large fleets: no second copy)
+MAX_PIPE_BYTES = 200_000_000
+
+
+class BackgroundWriter:
+    """A child process ready to write one ``.rrd``; use once, then it exits."""
+
+    def __init__(self) -> None:
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        self.proc: subprocess.Popen | None = None
+        try:
+            self.proc = subprocess.Popen(
+                [sys.executable, "-m", "orchestrator.recording.background"],
+                stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                env=env)
+        except OSError:
+            self.proc = None
+
+    def write(self, path: Path | str, runs: dict[str, dict[str, Any]], h: float,
+              **kwargs: Any) -> dict[str, Any]:
+        """``write_rrd(path, runs, h, **kwargs)`` in the child (or here if there is none or
+        the traces are too large to send); returns its figures."""
+        size = sum(getattr(a, "nbytes", 0) for tr in runs.values() for a in tr.values())
+        if self.proc is None or size > MAX_PIPE_BYTES:
+            self.close()
+            from .writer import write_rrd
+            return write_rrd(Path(path), runs, h, **kwargs)
+        payload = pickle.dumps((str(path), runs, float(h), kwargs),
+                               protocol=pickle.HIGHEST_PROTOCOL)
+        out, err = self.proc.communicate(payload)
+        if self.proc.returncode != 0:
+            lines = err.decode("utf-8", "replace").strip().splitlines()
+            raise RuntimeError(f"writing {path} failed: "
+                               f"{lines[-1] if lines else f'exit status {self.proc.returncode}'}")
+        return json.loads(out.decode())
+
+    def close(self) -> None:
+        """Stop the child if it is still waiting (nothing to write after all)."""
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+        self.proc = None
+
+    def __enter__(self) -> "BackgroundWriter":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _child() -> int:
+    from .writer import write_rrd            # the import this process exists to pay
+
+    data = sys.stdin.buffer.read()
+    if not data:                             # the parent had nothing to write
+        return 0
+    path, runs, h, kwargs = pickle.loads(data)
+    info = write_rrd(Path(path), runs, h, **kwargs)
+    sys.stdout.write(json.dumps(info, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(_child())

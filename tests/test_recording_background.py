@@ -1,0 +1,46 @@
+"""The .rrd written by a child process (orchestrator/recording/background.py): the same
+series as written in process, read back from the file; a failure in the child reaches the
+parent as one line naming it; a writer that is never used leaves no process behind."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from orchestrator.recording import read_rrd_scalars
+from orchestrator.recording.background import BackgroundWriter
+from support.recording import H, expected_series, make_runs
+
+
+def test_child_writes_the_same_series(tmp_path):
+    runs = make_runs()
+    with BackgroundWriter() as w:
+        assert w.proc is not None and w.proc.poll() is None       # a real child, waiting
+        info = w.write(tmp_path / "bg.rrd", runs, H, recording_name="background")
+        assert w.proc.returncode == 0
+    assert info["bytes"] == (tmp_path / "bg.rrd").stat().st_size > 0
+    got = read_rrd_scalars(tmp_path / "bg.rrd")
+    want = expected_series(runs)
+    assert set(got) == set(want)
+    for name, values in want.items():
+        steps, t_ns, v = got[name]
+        assert np.array_equal(steps, np.arange(len(values)))
+        assert np.array_equal(v, values), name
+
+
+def test_a_failure_in_the_child_is_one_line(tmp_path):
+    runs = make_runs()
+    first = next(iter(runs.values()))
+    first["x"] = first["x"][:-3]                       # one trace shorter than the others
+    with BackgroundWriter() as w, pytest.raises(RuntimeError) as exc:
+        w.write(tmp_path / "bad.rrd", runs, H, recording_name="bad")
+    msg = str(exc.value)
+    assert "\n" not in msg and msg.startswith(f"writing {tmp_path / 'bad.rrd'} failed: ")
+    assert "same number of steps" in msg
+    assert not (tmp_path / "bad.rrd").exists()
+
+
+def test_an_unused_writer_stops_its_child():
+    w = BackgroundWriter()
+    proc = w.proc
+    w.close()
+    assert proc.poll() is not None and w.proc is None
