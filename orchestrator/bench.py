@@ -178,7 +178,7 @@ def benchmark_fleet(N: int, *, T: float = 300.0, mode: str = "kalman", tracking:
     }
 
 
-def _variables(fmu: Path):
+def _variables(fmu: Path) -> list:
     from fmpy import read_model_description
     return read_model_description(str(fmu)).modelVariables
 
