@@ -23,7 +23,8 @@ from .cosim.system import closed_loop_system
 from .scenario import Scenario
 from .workflow import build, scenario_config, scenario_system
 
-__all__ = ["benchmark", "benchmark_fleet", "benchmark_libcosim", "benchmark_tools"]
+__all__ = ["benchmark", "benchmark_fleet", "benchmark_libcosim", "benchmark_startup",
+           "benchmark_tools"]
 
 
 def _fmi_call_costs(fmus: dict[str, Path], cfg: dict[str, Any], reps: int = 20000) -> dict[str, float]:
@@ -299,3 +300,55 @@ def benchmark_tools(sc: Scenario, steps: int = 5000, repeats: int = 3) -> dict[s
     out["speedup_gauss_seidel_vs_simulate_ssp"] = (out["simulate_ssp_us_per_step"]
                                                    / out["ours_gauss_seidel_us_per_step"])
     return out
+
+
+def benchmark_startup(sc: Scenario, repeats: int = 3) -> dict[str, Any]:
+    """Wall time of ``auv-cosim run --quiet`` as a subprocess (interpreter start to exit)
+    with a warm and with an empty FMU cache, against the in-process loop of the monolithic
+    reference (:mod:`orchestrator.analysis.reference`), rounds alternating; medians.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario to run (a built-in name or a file, with its T and h).
+    repeats : int
+        Rounds.
+
+    Returns
+    -------
+    dict
+        ``run_warm_s``, ``run_cold_s``, ``reference_loop_s``, ``ratio_run_to_reference_loop``,
+        ``import_cli_s``, ``python_s``, the rounds, the load and the CPU count.
+    """
+    import statistics
+    import subprocess
+    import sys
+
+    def wall(cmd: list[str], env: dict[str, str] | None = None) -> float:
+        t = time.perf_counter()
+        subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
+        return time.perf_counter() - t
+
+    rounds: dict[str, list[float]] = {"run_warm_s": [], "run_cold_s": [], "reference_loop_s": [],
+                                      "import_cli_s": [], "python_s": []}
+    py = sys.executable
+    with tempfile.TemporaryDirectory(prefix="auv_bench_start_") as tmp:
+        spec = sc.name if sc.source.startswith("built-in scenario") else sc.source
+        run = [py, "-m", "orchestrator", "run", "--quiet", "--scenario", spec,
+               "--T", repr(sc.T), "--h", repr(sc.h), "--out", str(Path(tmp) / "out")]
+        wall(run)                                       # fills the user's FMU cache
+        for i in range(max(1, repeats)):
+            rounds["run_warm_s"].append(wall(run))
+            cold = dict(os.environ, AUV_COSIM_CACHE=str(Path(tmp) / f"cache{i}"))
+            rounds["run_cold_s"].append(wall(run, cold))
+            timing: dict[str, float] = {}
+            run_monolithic(sc.system, sc.h, sc.estimator, sc.seed, sc.steps, sc.tracking,
+                           timing=timing)
+            rounds["reference_loop_s"].append(timing["loop_s"])
+            rounds["import_cli_s"].append(wall([py, "-c", "import orchestrator.cli"]))
+            rounds["python_s"].append(wall([py, "-c", "pass"]))
+    med = {k: statistics.median(v) for k, v in rounds.items()}
+    return {"scenario": sc.name, "mode": sc.estimator, "steps": sc.steps, "h": sc.h,
+            "repeats": repeats, **med,
+            "ratio_run_to_reference_loop": med["run_warm_s"] / med["reference_loop_s"],
+            "rounds": rounds, "loadavg": list(os.getloadavg()), "cpus": os.cpu_count()}

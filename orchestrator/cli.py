@@ -228,12 +228,29 @@ def cmd_bench_tools(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_startup(args: argparse.Namespace) -> int:
+    from .bench import benchmark_startup
+    sc = _scenario(args)
+    r = benchmark_startup(sc)
+    if _printed_as_json(args, r, f", median of {r['repeats']} rounds"):
+        return 0
+    print(f"  auv-cosim run (subprocess, warm FMU cache)  {r['run_warm_s']:6.2f} s   "
+          f"{r['ratio_run_to_reference_loop']:.2f}x the reference loop (target <= 2.0)")
+    print(f"  auv-cosim run (subprocess, empty cache)     {r['run_cold_s']:6.2f} s")
+    print(f"  reference loop (in process, numpy)          {r['reference_loop_s']:6.2f} s")
+    print(f"  python -c 'import orchestrator.cli'         {r['import_cli_s']:6.2f} s; "
+          f"python -c pass {r['python_s']:.2f} s")
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from .bench import benchmark
     if args.fleet:
         return cmd_bench_fleet(args)
     if args.tools:
         return cmd_bench_tools(args)
+    if args.startup:
+        return cmd_bench_startup(args)
     sc = _scenario(args)
     r = benchmark(sc, mode=sc.estimator, seed=sc.seed)
     if _printed_as_json(args, r):
@@ -324,6 +341,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--tools", action="store_true",
                     help="the same FMUs in our orchestrator, libcosim (libcosimpy) and fmpy's "
                          "simulate_ssp (--T sets the simulated time, default 50 s)")
+    sp.add_argument("--startup", action="store_true",
+                    help="'auv-cosim run' as a subprocess (start to exit, cold and warm FMU "
+                         "cache) against the in-process monolithic loop")
     sp.add_argument("--json", action="store_true", help="print the figures as JSON")
     sp.set_defaults(func=cmd_bench)
     return p
