@@ -7,11 +7,15 @@ output-regulation equations instead (controller_fmu.regulator). Static law: any
 communication step works. FMU state: the gain matrix (restored as is, the design is not
 solved again), plus what the base class saves (parameters, buffers, flags).
 """
+from typing import Any
+
 import numpy as np
 
 from controller_fmu.regulator import TRACKING_MODES, tracking_law
 from fmu_common.interface import ArraySpec
-from fmu_common.slave_base import ArraySlave as Fmi2Slave  # pythonfmu's loader looks for "class X(Fmi2Slave):"
+
+# pythonfmu's loader looks for "class X(Fmi2Slave):"
+from fmu_common.slave_base import ArraySlave as Fmi2Slave
 from plant_model.parameters import model_parameter_specs, system_from_parameters
 
 CONTROLLER_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "Q", "R")
@@ -27,7 +31,21 @@ class AuvController(Fmi2Slave):
     author = "auv-cosim"
 
     @staticmethod
-    def interface(config):
+    def interface(config: dict[str, Any]) -> list[ArraySpec]:
+        """The controller's FMU interface: model parameters, tracking mode, estimates, u.
+
+        Parameters
+        ----------
+        config : dict[str, Any]
+            The build configuration shipped in resources/ (``dims``, ``system``,
+            ``tracking``, ``fleet``).
+
+        Returns
+        -------
+        list[ArraySpec]
+            Parameters, the inputs xhat (n,), what (r,), zhat (l,) and the output u (m,),
+            which feeds through from the estimates.
+        """
         d = config["dims"]
         n, m, r, l_ = d["n"], d["m"], d["r"], d["l"]
         return model_parameter_specs(config, "controller", CONTROLLER_PARAMETERS) + [
@@ -42,11 +60,22 @@ class AuvController(Fmi2Slave):
                       depends_on=ESTIMATES),
         ]
 
-    def setup(self):
-        system = system_from_parameters(self.config, "controller", self.par, CONTROLLER_PARAMETERS)
+    def setup(self) -> None:
+        """Solve the design (13)-(15) (or the regulator equations) from the parameters.
+
+        Raises
+        ------
+        ValueError
+            If the parameter ``tracking`` is not one of TRACKING_MODES.
+        ModelError
+            If the parameters do not make a valid system or the design fails.
+        """
+        system = system_from_parameters(self.config, "controller", self.par,
+                                        CONTROLLER_PARAMETERS)
         mode = self.par["tracking"]
         if mode not in TRACKING_MODES:
-            raise ValueError(f"parameter tracking = {mode!r} is not one of {', '.join(TRACKING_MODES)}")
+            raise ValueError(f"parameter tracking = {mode!r} is not one of "
+                             f"{', '.join(TRACKING_MODES)}")
         self.law = tracking_law(system, mode)
         self.design = self.law.design
         self._negK = -self.law.Ks
@@ -54,18 +83,45 @@ class AuvController(Fmi2Slave):
         self.log(f"design ({mode}): slowest closed-loop pole {poles[np.argmax(poles.real)]:.6g}, "
                  f"relative residuals {self.design.residuals}")
 
-    def compute_outputs(self):
+    def compute_outputs(self) -> None:
+        """u = -(Kx xhat + Kw what + Kz zhat) into the output buffer."""
         self._negK.dot(self._in, out=self._out)     # ndarray.dot: np.dot's gemv, less dispatch
 
-    def advance(self, step):
+    def advance(self, step: float) -> None:
+        """Nothing to do: the law is static.
+
+        Parameters
+        ----------
+        step : float
+            The communication step, s (any step works).
+        """
         pass
 
     restores_math_from_state = True       # the state carries the gain: no design on restore
 
-    def model_state(self):
+    def model_state(self) -> dict[str, np.ndarray]:
+        """The gain of the law, so that a restore needs no new design.
+
+        Returns
+        -------
+        dict[str, np.ndarray]
+            ``gain``: Ks with u = -Ks [xhat; what; zhat], m x (n + r + l) (a new array).
+        """
         return {"gain": -self._negK}       # u = -gain [xhat; what; zhat] (a new array)
 
-    def restore_model_state(self, state):
+    def restore_model_state(self, state: Any) -> None:
+        """Restore a :meth:`model_state` result: the gain, as is.
+
+        Parameters
+        ----------
+        state : Any
+            The dict :meth:`model_state` returned (decoded from a serialized FMU state).
+
+        Raises
+        ------
+        ValueError
+            If the gain is not a real array of shape (m, n + r + l).
+        """
         gain = state["gain"]
         shape = (self._out.size, self._in.size)
         if not isinstance(gain, np.ndarray) or gain.dtype.kind != "f" or gain.shape != shape:

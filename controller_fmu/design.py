@@ -37,12 +37,34 @@ class TrackingDesign:
     residuals: dict[str, float]       #: relative residuals of (13), (14), (15)
 
     def gain_on_state(self) -> np.ndarray:
-        """K_s with u = -K_s [x; w; z] (the plant's state order)."""
+        """K_s with u = -K_s [x; w; z] (the plant's state order).
+
+        Returns
+        -------
+        np.ndarray
+            K_s = [Kx, Kw, Kz], m x (n + r + l).
+        """
         return np.hstack([self.Kx, self.Kw, self.Kz])
 
 
 def sylvester_resonances(Acl: np.ndarray, G: np.ndarray) -> list[tuple[complex, complex]]:
-    """Pairs (lambda of Acl, mu of G) with lambda + mu = 0 (to a relative tolerance)."""
+    """Pairs (lambda of Acl, mu of G) with lambda + mu = 0 (to a relative tolerance).
+
+    The Sylvester equation Acl' X + X G = Y has a unique solution if and only if there is
+    no such pair; tolerance |lambda + mu| <= 1e-8 (1 + max |lambda|, |mu|).
+
+    Parameters
+    ----------
+    Acl : np.ndarray
+        Closed-loop matrix A - S P, n x n, 1/s.
+    G : np.ndarray
+        Exosystem matrix (F or K), k x k, 1/s.
+
+    Returns
+    -------
+    list[tuple[complex, complex]]
+        The resonant pairs (empty if the solution is unique).
+    """
     la = np.linalg.eigvals(Acl)
     mu = np.linalg.eigvals(G)
     scale = 1.0 + max(np.max(np.abs(la), initial=0.0), np.max(np.abs(mu), initial=0.0))
@@ -67,7 +89,27 @@ def _refuse_modes(bad: list, what: str, why: str) -> None:
 
 
 def lq_tracking_design(system: LinearSystem) -> TrackingDesign:
-    """Solve (13)-(15) for ``system``; raise :class:`ModelError` naming what failed."""
+    """Solve (13)-(15) for ``system``; raise :class:`ModelError` naming what failed.
+
+    P from the Riccati equation (13), P1 and P2 from the Sylvester equations (14) and
+    (15); Kx = R^-1 B1'P, Kz = R^-1 B1'P1, Kw = R^-1 B1'P2 (module docstring).
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The validated model (A, B1, B2, Bz, C, F, H, K, Q, R).
+
+    Returns
+    -------
+    TrackingDesign
+        P, P1, P2, the gains, the closed-loop poles (1/s) and the relative residuals.
+
+    Raises
+    ------
+    ModelError
+        If (A, B1) is not stabilizable, (C'QC, A) not detectable, (13) has no stabilizing
+        solution, (14) or (15) has no unique solution, or a residual exceeds 1e-6.
+    """
     A, B1, B2, Bz, C, F, H, K = (system.A, system.B1, system.B2, system.Bz, system.C,
                                  system.F, system.H, system.K)
     Q, R = system.Q, system.R
@@ -110,7 +152,8 @@ def lq_tracking_design(system: LinearSystem) -> TrackingDesign:
     }
     for name, value in residuals.items():
         if not np.isfinite(value) or value > 1e-6:
-            raise ModelError(f"the design is ill-conditioned: relative residual of {name} is {value:.3g}")
+            raise ModelError(f"the design is ill-conditioned: relative residual of {name} "
+                             f"is {value:.3g}")
     G = Rinv @ B1.T
     return TrackingDesign(P=P, P1=P1, P2=P2, Kx=G @ P, Kz=G @ P1, Kw=G @ P2,
                           closed_loop_poles=poles, residuals=residuals)

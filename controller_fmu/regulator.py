@@ -59,8 +59,37 @@ def solve_regulator_equations(A: np.ndarray, B1: np.ndarray, C: np.ndarray, S: n
     Column by column in the complex Schur basis of S (S = U T U^H, T upper triangular):
     for the k-th Schur vector, [[A - T_kk I, B1], [C, 0]] [pi_k; gamma_k] =
     [sum_{j<k} pi_j T_jk - (Pv U)_k; (Hv U)_k]; one LU factorisation per distinct
-    eigenvalue. ``exosystem`` names S in error messages. Raises :class:`ModelError`
-    naming the eigenvalue at which the equations have no solution.
+    eigenvalue.
+
+    Parameters
+    ----------
+    A : np.ndarray
+        Vehicle state matrix, n x n, 1/s.
+    B1 : np.ndarray
+        Control input matrix, n x m.
+    C : np.ndarray
+        Output matrix, p x n.
+    S : np.ndarray
+        Exosystem matrix, nv x nv, 1/s.
+    Pv : np.ndarray
+        How the exogenous state drives the vehicles, n x nv.
+    Hv : np.ndarray
+        The reference output of the exogenous state, p x nv.
+    exosystem : str, optional
+        Names S in error messages.
+
+    Returns
+    -------
+    Pi : np.ndarray
+        Steady-state map x = Pi v, n x nv.
+    Gamma : np.ndarray
+        Steady-state input u = Gamma v, m x nv.
+
+    Raises
+    ------
+    ModelError
+        Naming the eigenvalue at which the equations have no solution (or when m < p, or
+        the solution is ill-conditioned).
     """
     n, m = B1.shape
     p = C.shape[0]
@@ -128,9 +157,33 @@ class TrackingLaw:
 
 def tracking_law(system: LinearSystem, mode: str = "lq",
                  design: TrackingDesign | None = None) -> TrackingLaw:
-    """The gain of ``mode`` ('lq' or 'regulator') on the plant state [x; w; z]."""
+    """The gain of ``mode`` ('lq' or 'regulator') on the plant state [x; w; z].
+
+    lq: Ks = [Kx, Kw, Kz]; regulator: Ks = [Kx, -(Gamma + Kx Pi)] (module docstring).
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The validated model.
+    mode : str, optional
+        One of :data:`TRACKING_MODES`.
+    design : TrackingDesign or None, optional
+        The LQ design of ``system`` if already solved (else solved here).
+
+    Returns
+    -------
+    TrackingLaw
+        u = -Ks [x; w; z], with the design and (regulator) Pi and Gamma.
+
+    Raises
+    ------
+    ModelError
+        If the mode is unknown, the design fails or the regulator equations have no
+        solution.
+    """
     if mode not in TRACKING_MODES:
-        raise ModelError(f"unknown tracking mode {mode!r}; expected one of {', '.join(TRACKING_MODES)}")
+        raise ModelError(f"unknown tracking mode {mode!r}; expected one of "
+                         f"{', '.join(TRACKING_MODES)}")
     design = design if design is not None else lq_tracking_design(system)
     if mode == "lq":
         return TrackingLaw(mode, design.gain_on_state(), design)

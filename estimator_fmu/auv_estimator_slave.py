@@ -4,12 +4,20 @@ Inputs y, ybar (and the truth x, w, z, read only in mode 'ideal'), then u; outpu
 estimate xhat, what, zhat of sample k, which already includes y[k] (direct feedthrough).
 FMU state: the estimator's q (LinearEstimator.get_state), plus what the base class saves.
 """
+from typing import Any
+
 from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
 from fmu_common.interface import ArraySpec
-from fmu_common.slave_base import ArraySlave as Fmi2Slave  # pythonfmu's loader looks for "class X(Fmi2Slave):"
+
+# pythonfmu's loader looks for "class X(Fmi2Slave):"
+from fmu_common.slave_base import ArraySlave as Fmi2Slave
 from plant_model.discretization import discretize
-from plant_model.parameters import (model_parameter_specs, noise_convention_spec,
-                                    sample_period_spec, system_from_parameters)
+from plant_model.parameters import (
+    model_parameter_specs,
+    noise_convention_spec,
+    sample_period_spec,
+    system_from_parameters,
+)
 
 ESTIMATOR_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "x0", "w0", "z0",
                         "W_x", "W_w", "W_z", "V_y", "V_ybar")
@@ -26,7 +34,22 @@ class AuvEstimator(Fmi2Slave):
     author = "auv-cosim"
 
     @staticmethod
-    def interface(config):
+    def interface(config: dict[str, Any]) -> list[ArraySpec]:
+        """The estimator's FMU interface: model parameters, h, noise convention, mode, I/O.
+
+        Parameters
+        ----------
+        config : dict[str, Any]
+            The build configuration shipped in resources/ (``dims``, ``system``, ``h``,
+            ``mode``, ``fleet``).
+
+        Returns
+        -------
+        list[ArraySpec]
+            Parameters, the inputs y, ybar (p,), x (n,), w (r,), z (l,), u (m,) and the
+            outputs xhat (n,), what (r,), zhat (l,), which feed through from the
+            measurements.
+        """
         d = config["dims"]
         n, m, r, p, l_ = d["n"], d["m"], d["r"], d["p"], d["l"]
         return model_parameter_specs(config, "estimator", ESTIMATOR_PARAMETERS) + [
@@ -48,7 +71,15 @@ class AuvEstimator(Fmi2Slave):
                       depends_on=MEASUREMENTS),
         ]
 
-    def setup(self):
+    def setup(self) -> None:
+        """Build the system from the parameters, sample it at h and make the estimator.
+
+        Raises
+        ------
+        ModelError
+            If the parameters do not make a valid system, h is not positive or the
+            estimator of the chosen mode does not exist.
+        """
         system = system_from_parameters(self.config, "estimator", self.par, ESTIMATOR_PARAMETERS,
                                         self.par["noise_convention"])
         model = discretize(system, float(self.par["h"]))
@@ -57,14 +88,41 @@ class AuvEstimator(Fmi2Slave):
         self._mvec = self._in[:nm]
         self._u = self.io["u"]
 
-    def compute_outputs(self):
+    def compute_outputs(self) -> None:
+        """est[k] = Ce q[k] + Dm mvec[k] into the output buffer [xhat, what, zhat]."""
         self.estimator.estimate(self._mvec, out=self._out)
 
-    def advance(self, step):
+    def advance(self, step: float) -> None:
+        """One sample period: q[k+1] = Aq est[k] + Bu u[k].
+
+        Parameters
+        ----------
+        step : float
+            The communication step, s (checked against h by the base class).
+        """
         self.estimator.update(self._outputs_view(self._out), self._u)
 
-    def model_state(self):
+    def model_state(self) -> dict[str, Any]:
+        """The estimator's evolving state (:meth:`LinearEstimator.get_state`).
+
+        Returns
+        -------
+        dict[str, Any]
+            The mode and the internal state q.
+        """
         return self.estimator.get_state()
 
-    def restore_model_state(self, state):
+    def restore_model_state(self, state: Any) -> None:
+        """Restore a :meth:`model_state` result into the estimator.
+
+        Parameters
+        ----------
+        state : Any
+            The dict :meth:`model_state` returned (decoded from a serialized FMU state).
+
+        Raises
+        ------
+        ValueError
+            If the mode differs or q has the wrong shape.
+        """
         self.estimator.set_state(state)

@@ -48,11 +48,34 @@ class SteadyKalman:
 
 def steady_kalman(name: str, Ad: np.ndarray, Cm: np.ndarray, Qd: np.ndarray,
                   Rd: np.ndarray) -> SteadyKalman:
-    """Gain of the stationary filter from the DARE
+    """Gain of the stationary filter from the discrete algebraic Riccati equation (DARE).
 
-        P = Ad P Ad' - Ad P Cm'(Cm P Cm' + Rd)^-1 Cm P Ad' + Qd,  L = P Cm'(Cm P Cm' + Rd)^-1.
+        P = Ad P Ad' - Ad P Cm'(Cm P Cm' + Rd)^-1 Cm P Ad' + Qd,  L = P Cm'(Cm P Cm' + Rd)^-1
 
-    ``name`` describes the filtered pair in error messages.
+    and the filtered covariance P_filt = (I - L Cm) P.
+
+    Parameters
+    ----------
+    name : str
+        Describes the filtered pair in error messages.
+    Ad : np.ndarray
+        State transition over one step, k x k.
+    Cm : np.ndarray
+        Measurement matrix, q x k.
+    Qd : np.ndarray
+        Covariance of the process noise added per step, k x k.
+    Rd : np.ndarray
+        Covariance of the measurement noise per sample, q x q (positive definite).
+
+    Returns
+    -------
+    SteadyKalman
+        The gain L (k x q) and the stationary prediction and filtered error covariances.
+
+    Raises
+    ------
+    ModelError
+        If (Ad, Cm) is not detectable, Rd is singular or the DARE has no solution.
     """
     bad = unobservable_modes(Ad, Cm, continuous=False)
     if bad:
@@ -69,7 +92,8 @@ def steady_kalman(name: str, Ad: np.ndarray, Cm: np.ndarray, Qd: np.ndarray,
     try:
         P = solve_discrete_are(Ad.T, Cm.T, Qd, Rd)
     except (LinAlgError, ValueError) as exc:
-        raise ModelError(f"the Kalman filter Riccati equation for {name} has no solution: {exc}") from None
+        raise ModelError(f"the Kalman filter Riccati equation for {name} has no solution: "
+                         f"{exc}") from None
     P = 0.5 * (P + P.T)
     S = Cm @ P @ Cm.T + Rd
     L = np.linalg.solve(S, Cm @ P).T
@@ -96,13 +120,28 @@ class LinearEstimator:
         self.reset()
 
     def reset(self) -> None:
+        """Restart from the initial internal state: q <- q0."""
         self.q = self.q0.copy()
 
     # ndarray.dot rather than `@`: the same BLAS gemv (same bits) without the matmul
     # ufunc's dispatch, which costs more than these small products
     def estimate(self, mvec: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """est[k] from the current q[k] and the measurement vector mvec[k] (written into
-        ``out`` if given)."""
+        """est[k] = Ce q[k] + Dm mvec[k], from the current q[k] and the measurements mvec[k].
+
+        In Kalman form est[k] = q[k] + L (meas[k] - M q[k]), meas = [y; ybar].
+
+        Parameters
+        ----------
+        mvec : np.ndarray
+            The measurement vector [y; ybar; x; w; z], shape (2 p + n + r + l,).
+        out : np.ndarray or None, optional
+            Where to write the estimate, shape (n + r + l,); a new array if None.
+
+        Returns
+        -------
+        np.ndarray
+            The estimate [xhat; what; zhat] (``out`` if given).
+        """
         q = self.q
         if self.gain is not None:
             L, M = self.gain
@@ -110,17 +149,42 @@ class LinearEstimator:
         return np.add(self.Ce.dot(q), self.Dm.dot(mvec), out=out)
 
     def update(self, est: np.ndarray, u: np.ndarray) -> None:
-        """q[k+1] = Aq est[k] + Bu u[k]."""
+        """q[k+1] = Aq est[k] + Bu u[k].
+
+        Parameters
+        ----------
+        est : np.ndarray
+            The estimate of sample k, shape (n + r + l,).
+        u : np.ndarray
+            The control input applied over the step, shape (m,).
+        """
         q = self.Aq.dot(est)
         q += self.Bu.dot(u)
         self.q = q
 
     def get_state(self) -> dict:
-        """What evolves: the internal state q (a copy); the mode for checking."""
+        """What evolves: the internal state q (a copy); the mode for checking.
+
+        Returns
+        -------
+        dict
+            Keys ``mode`` (str) and ``q`` (array).
+        """
         return {"mode": self.mode, "q": self.q.copy()}
 
     def set_state(self, state: dict) -> None:
-        """Restore a :meth:`get_state` result (validated first: on error nothing changes)."""
+        """Restore a :meth:`get_state` result (validated first: on error nothing changes).
+
+        Parameters
+        ----------
+        state : dict
+            A result of :meth:`get_state` of an estimator of the same mode and size.
+
+        Raises
+        ------
+        ValueError
+            If the mode differs or q is not a real array of the right shape.
+        """
         if state["mode"] != self.mode:
             raise ValueError(f"the estimator state is of mode {state['mode']!r}, "
                              f"this estimator is {self.mode!r}")
@@ -136,7 +200,28 @@ def _one_based(idx: np.ndarray) -> str:
 
 
 def make_estimator(system: LinearSystem, model: DiscreteModel, mode: str) -> LinearEstimator:
-    """Build the estimator of ``mode`` for ``system`` sampled as ``model``."""
+    """Build the estimator of ``mode`` for ``system`` sampled as ``model``.
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The validated model.
+    model : DiscreteModel
+        ``system`` sampled at the communication step h.
+    mode : str
+        One of :data:`ESTIMATOR_MODES` (module docstring).
+
+    Returns
+    -------
+    LinearEstimator
+        The estimator, reset to its initial internal state.
+
+    Raises
+    ------
+    ModelError
+        If the mode is unknown, a Kalman filter does not exist (:func:`steady_kalman`), or
+        ``classical`` meets a C or H without full column rank.
+    """
     n, r, l_, p, ns = system.n, system.r, system.l, system.p, model.ns
     nm = 2 * p + ns                     # length of mvec = [y; ybar; x; w; z]
     if mode == "kalman":
@@ -187,4 +272,5 @@ def make_estimator(system: LinearSystem, model: DiscreteModel, mode: str) -> Lin
         Dm[:, 2 * p:] = np.eye(ns)
         return LinearEstimator(mode, np.zeros((ns, 0)), Dm, np.zeros((0, ns)),
                                np.zeros((0, system.m)), np.zeros(0), uses_truth=True)
-    raise ModelError(f"unknown estimator mode {mode!r}; expected one of {', '.join(ESTIMATOR_MODES)}")
+    raise ModelError(f"unknown estimator mode {mode!r}; expected one of "
+                     f"{', '.join(ESTIMATOR_MODES)}")

@@ -57,7 +57,13 @@ class FmuState:
         self._blob = blob
 
     def to_bytes(self) -> bytes:
-        """The serialized state (computed once: pythonfmu asks for it twice)."""
+        """The serialized state (computed once: pythonfmu asks for it twice).
+
+        Returns
+        -------
+        bytes
+            :func:`encode_state` of the header and tree (or of the header and the error).
+        """
         if self._blob is None:
             if self.error is not None:
                 self._blob = encode_state(dict(self.header, error=self.error), None)
@@ -67,8 +73,31 @@ class FmuState:
 
 
 def encode_state(header: dict[str, Any], tree: Any) -> bytes:
-    """Serialize ``header`` and ``tree`` (dicts with str keys, lists, str, int, float,
-    bool, None and numeric numpy arrays) in the layout of docs/fmu-internals.md."""
+    """Serialize ``header`` and ``tree`` in the layout of docs/fmu-internals.md.
+
+    Magic, format, flags, header and payload lengths, CRC-32; then the JSON header (with
+    the tree, arrays replaced by references into a table) and the raw little-endian arrays.
+
+    Parameters
+    ----------
+    header : dict[str, Any]
+        What the state belongs to (JSON-ready).
+    tree : Any
+        The captured values: dicts with str keys, lists, str, int, float, bool, None and
+        numeric numpy arrays.
+
+    Returns
+    -------
+    bytes
+        The serialized state.
+
+    Raises
+    ------
+    TypeError
+        If the tree holds a value of another type, a non-numeric array or a non-str key.
+    ValueError
+        If a dict uses the reserved key ``__ndarray__``.
+    """
     arrays: list[np.ndarray] = []
     table: list[dict[str, Any]] = []
     offset = 0
@@ -111,7 +140,26 @@ def encode_state(header: dict[str, Any], tree: Any) -> bytes:
 
 
 def decode_state(blob: bytes) -> tuple[dict[str, Any], Any]:
-    """(header, tree) of a serialized state; :class:`StateError` naming the problem."""
+    """(header, tree) of a serialized state; :class:`StateError` naming the problem.
+
+    Parameters
+    ----------
+    blob : bytes
+        A result of :func:`encode_state`.
+
+    Returns
+    -------
+    header : dict[str, Any]
+        The header (without the tree and the array table).
+    tree : Any
+        The captured values, arrays as new native-byte-order copies.
+
+    Raises
+    ------
+    StateError
+        If the blob is truncated, too long, of another family or format version, fails
+        its CRC-32, or its header or array table is corrupt.
+    """
     n = len(blob)
     if n < _PREFIX.size:
         if n and not STATE_MAGIC.startswith(bytes(blob[:len(STATE_MAGIC)])):
@@ -201,7 +249,7 @@ class FmuStateMixin:
                         for _, elem in ElementTree.iterparse(f, events=("start",)):
                             guid = elem.get("guid")
                             break
-            except Exception:  # noqa: BLE001 - the GUID is informative only
+            except Exception:
                 guid = None
             self._guid = guid
         return self._guid
@@ -227,7 +275,7 @@ class FmuStateMixin:
         """fmi2GetFMUstate: a copy of everything that evolves (see docs/fmu-internals.md)."""
         try:
             header = self._state_header()
-        except Exception as exc:  # noqa: BLE001 - never raise into pythonfmu
+        except Exception as exc:
             header = {"model": type(self).__name__}
             self.log(f"{self._who()}: fmi2GetFMUstate could not describe the interface: "
                      f"{exc!r}", Fmi2Status.warning)
@@ -244,7 +292,7 @@ class FmuStateMixin:
                 "model": self.model_state() if self._initialized else None,
             }
             return FmuState(header, tree)
-        except Exception as exc:  # noqa: BLE001
+        except Exception as exc:
             self.log(f"{self._who()}: fmi2GetFMUstate failed; restoring this state will be "
                      f"refused:\n{traceback.format_exc()}", Fmi2Status.error)
             return FmuState(header, None, error=f"the state could not be captured ({exc!r})")
@@ -258,7 +306,7 @@ class FmuStateMixin:
                 try:
                     self._restore(state.tree)
                     return
-                except Exception as exc:  # noqa: BLE001
+                except Exception as exc:
                     problem = f"restoring it failed: {exc}"
                     self.log(f"{self._who()}: fmi2SetFMUstate failed:\n{traceback.format_exc()}",
                              Fmi2Status.error)
@@ -267,7 +315,7 @@ class FmuStateMixin:
                      "instance keeps the state it had; as pythonfmu 0.7 returns fmi2OK here, "
                      "the next fmi2DoStep is refused with fmi2Discard to report it",
                      Fmi2Status.error)
-        except Exception:  # noqa: BLE001 - a failure to report must not become fmi2Fatal
+        except Exception:
             self._state_error = "fmi2SetFMUstate failed unexpectedly"
 
     def _state_problem(self, state: Any) -> str | None:
@@ -385,7 +433,7 @@ class FmuStateMixin:
                 return state.to_bytes()
             return encode_state({"error": "it is not a state of this FMU "
                                           f"(a {type(state).__name__})"}, None)
-        except Exception as exc:  # noqa: BLE001 - never raise into pythonfmu
+        except Exception as exc:
             return encode_state({"error": f"the state could not be serialized ({exc!r})"}, None)
 
     @staticmethod
@@ -403,7 +451,7 @@ class FmuStateMixin:
             return FmuState(header, tree, blob=blob)
         except StateError as exc:
             return FmuState({}, None, error=f"the serialized state is unusable: {exc}", blob=blob)
-        except Exception as exc:  # noqa: BLE001
+        except Exception as exc:
             return FmuState({}, None, error=f"the serialized state is unusable: {exc!r}",
                             blob=blob if isinstance(blob, bytes) else None)
 

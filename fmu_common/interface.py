@@ -8,8 +8,9 @@ ModelStructure), so the two cannot drift apart.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
@@ -47,10 +48,12 @@ class ArraySpec:
 
     @property
     def size(self) -> int:
+        """Number of scalar elements (1 for a scalar)."""
         return int(np.prod(self.shape)) if self.shape else 1
 
     @property
     def fmi_variability(self) -> str:
+        """The FMI variability: ``variability`` if set, else fixed / discrete / continuous."""
         if self.variability:
             return self.variability
         if self.causality == "parameter":
@@ -59,7 +62,20 @@ class ArraySpec:
 
 
 def element_names(name: str, shape: tuple[int, ...]) -> list[str]:
-    """FMI structured names of the elements of an array, row major."""
+    """FMI structured names of the elements of an array, row major.
+
+    Parameters
+    ----------
+    name : str
+        The array's name.
+    shape : tuple[int, ...]
+        Its shape; () for a scalar.
+
+    Returns
+    -------
+    list[str]
+        ``name[i,j,...]`` with 1-based indices, or ``[name]`` for a scalar.
+    """
     if not shape:
         return [name]
     idx = np.ndindex(*shape)
@@ -67,7 +83,18 @@ def element_names(name: str, shape: tuple[int, ...]) -> list[str]:
 
 
 def expand(specs: list[ArraySpec]) -> Iterator[tuple[ArraySpec, int, str]]:
-    """(spec, flat index, scalar name) for every scalar variable, in registration order."""
+    """(spec, flat index, scalar name) for every scalar variable, in registration order.
+
+    Parameters
+    ----------
+    specs : list[ArraySpec]
+        The interface table.
+
+    Yields
+    ------
+    tuple[ArraySpec, int, str]
+        The array, the element's row-major flat index and its FMI name.
+    """
     for spec in specs:
         for i, nm in enumerate(element_names(spec.name, spec.shape)):
             yield spec, i, nm

@@ -14,16 +14,27 @@ import json
 import math
 import struct
 import traceback
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
-from .fmu_state import (STATE_FORMAT, STATE_MAGIC, FmuState, FmuStateMixin, StateError,
-                        decode_state, encode_state)
+from .fmu_state import (
+    STATE_FORMAT,
+    STATE_MAGIC,
+    FmuState,
+    FmuStateMixin,
+    StateError,
+    decode_state,
+    encode_state,
+)
 from .interface import ArraySpec, expand
+
+if TYPE_CHECKING:
+    from pythonfmu.variables import ScalarVariable
 
 # the state names are re-exported: slaves and tests import them from here
 __all__ = ["STATE_FORMAT", "STATE_MAGIC", "ArraySlave", "FmuState", "StateError",
@@ -40,10 +51,26 @@ _TYPES = {"Real": Real, "Integer": Integer, "String": String}
 _RELEASED_AFTER_FATAL: list[Any] = []
 
 
-
-
 def load_config(resources: str | None, filename: str) -> dict[str, Any]:
-    """The build-time configuration (dimensions and start values) shipped in resources/."""
+    """The build-time configuration (dimensions and start values) shipped in resources/.
+
+    Parameters
+    ----------
+    resources : str or None
+        The FMU's resources folder; None: the project root (a slave used outside an FMU).
+    filename : str
+        Name of the JSON file.
+
+    Returns
+    -------
+    dict[str, Any]
+        The parsed configuration.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the file is not in the folder.
+    """
     here = Path(resources) if resources else Path(__file__).resolve().parent.parent
     path = here / filename
     if not path.exists():
@@ -62,15 +89,58 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
     # ------------------------------------------------------------------ hooks
     @staticmethod
     def interface(config: dict[str, Any]) -> list[ArraySpec]:  # pragma: no cover
+        """The slave's interface table (parameters, inputs, outputs) for ``config``.
+
+        Parameters
+        ----------
+        config : dict[str, Any]
+            The build configuration (:func:`load_config`).
+
+        Returns
+        -------
+        list[ArraySpec]
+            The arrays to register, in any order.
+
+        Raises
+        ------
+        NotImplementedError
+            In the base class: every slave supplies its own.
+        """
         raise NotImplementedError
 
     def setup(self) -> None:  # pragma: no cover
+        """Build the mathematics from ``self.par`` (called in exitInitializationMode).
+
+        Raises
+        ------
+        NotImplementedError
+            In the base class: every slave supplies its own.
+        """
         raise NotImplementedError
 
     def compute_outputs(self) -> None:  # pragma: no cover
+        """Fill the output arrays ``self.io[name]`` from the current inputs.
+
+        Raises
+        ------
+        NotImplementedError
+            In the base class: every slave supplies its own.
+        """
         raise NotImplementedError
 
     def advance(self, step: float) -> None:  # pragma: no cover
+        """Advance the mathematics over one communication step.
+
+        Parameters
+        ----------
+        step : float
+            The communication step, s.
+
+        Raises
+        ------
+        NotImplementedError
+            In the base class: every slave supplies its own.
+        """
         raise NotImplementedError
 
     #: True if :meth:`restore_model_state` rebuilds everything ``compute_outputs`` and
@@ -78,12 +148,29 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
     restores_math_from_state: bool = False
 
     def model_state(self) -> Any:
-        """What evolves in the mathematics, as plain Python / numpy copies (initialized only)."""
+        """What evolves in the mathematics, as plain Python / numpy copies (initialized only).
+
+        Returns
+        -------
+        Any
+            A tree of dicts with str keys, lists, scalars and numeric arrays
+            (:func:`encode_state` serializes it); None in the base class.
+        """
         return None
 
     def restore_model_state(self, state: Any) -> None:
-        """Restore :meth:`model_state`; validate first and raise ValueError naming the
-        problem, leaving the mathematics unchanged."""
+        """Restore :meth:`model_state`; validate first, leaving the mathematics unchanged.
+
+        Parameters
+        ----------
+        state : Any
+            A result of :meth:`model_state` (decoded from a serialized FMU state).
+
+        Raises
+        ------
+        ValueError
+            Naming the problem, if ``state`` does not fit this instance.
+        """
 
     # ---------------------------------------------------------- construction
     def __init__(self, **kwargs: Any) -> None:
@@ -139,7 +226,7 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
             if spec.causality == "output" and self._vr_out is None:
                 self._vr_out = vr
 
-    def _make_variable(self, spec: ArraySpec, i: int, name: str):
+    def _make_variable(self, spec: ArraySpec, i: int, name: str) -> ScalarVariable:
         kind = _TYPES[spec.type]
         kw: dict[str, Any] = dict(causality=_CAUSALITY[spec.causality],
                                   variability=_VARIABILITY[spec.fmi_variability],
@@ -163,7 +250,8 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
         return kind(name, **kw)
 
     # ------------------------------------------------------------- setters
-    def _set_parameter(self, spec: ArraySpec, name: str, target, value) -> None:
+    def _set_parameter(self, spec: ArraySpec, name: str, target: tuple[np.ndarray, int] | None,
+                       value: Any) -> None:
         if self._initialized and spec.fmi_variability == "fixed":
             self.log(f"parameter {name} is fixed: it cannot change after initialization "
                      f"(value {value!r} ignored)", Fmi2Status.error)
@@ -214,10 +302,41 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
         return buf
 
     def get_real(self, vrs: list[int]) -> list[float]:
+        """fmi2GetReal: the values of the Real variables ``vrs`` (outputs computed lazily).
+
+        Parameters
+        ----------
+        vrs : list[int]
+            Value references.
+
+        Returns
+        -------
+        list[float]
+            Their values, in the order of ``vrs``.
+
+        Raises
+        ------
+        TypeError
+            If a value reference is not a Real variable.
+        """
         # shadowed on every instance by the closure of _bind_fast_paths (same result)
         return self._get_planned(vrs)
 
     def set_real(self, vrs: list[int], values: list[float]) -> None:
+        """fmi2SetReal: set the Real variables ``vrs`` (a non-finite input refuses the next step).
+
+        Parameters
+        ----------
+        vrs : list[int]
+            Value references.
+        values : list[float]
+            Their new values, in the order of ``vrs``.
+
+        Raises
+        ------
+        TypeError
+            If a value reference is not a Real variable.
+        """
         # shadowed on every instance by the closure of _bind_fast_paths (same result)
         self._set_planned(vrs, values)
 
@@ -349,9 +468,17 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
         raise RuntimeError(msg)
 
     def exit_initialization_mode(self) -> None:
+        """fmi2ExitInitializationMode: build the mathematics (:meth:`setup`) from the parameters.
+
+        Raises
+        ------
+        RuntimeError
+            If :meth:`setup` fails (logged first; pythonfmu 0.7 turns it into fmi2Fatal,
+            see docs/fmu-internals.md).
+        """
         try:
             self.setup()
-        except Exception as exc:  # noqa: BLE001 - every failure must reach the host
+        except Exception as exc:
             self._fatal(f"{self.modelName} instance '{self.instance_name}': "
                         f"initialization failed: {exc}")
         self._sample_period = (None if self.step_parameter is None
@@ -360,6 +487,24 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
         self._dirty = True
 
     def do_step(self, current_time: float, step_size: float) -> bool:
+        """fmi2DoStep: advance one communication step, or refuse it with a logged reason.
+
+        A step is refused after a rejected fmi2SetFMUstate, before initialization, while an
+        input is not finite, when ``step_size`` differs from the sample period, or when
+        :meth:`advance` raises.
+
+        Parameters
+        ----------
+        current_time : float
+            Time at the start of the step, s.
+        step_size : float
+            Communication step, s.
+
+        Returns
+        -------
+        bool
+            True if the step was taken (pythonfmu: fmi2OK), False if refused (fmi2Discard).
+        """
         if self._state_error is not None:
             problem, self._state_error = self._state_error, None
             self.log(f"step at t = {current_time} s refused: the last fmi2SetFMUstate was "
@@ -384,7 +529,7 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
                 return False
         try:
             self.advance(step_size)
-        except Exception:  # noqa: BLE001
+        except Exception:
             self.log(f"step at t = {current_time} s failed:\n{traceback.format_exc()}",
                      Fmi2Status.error)
             return False

@@ -27,7 +27,8 @@ __all__ = ["benchmark", "benchmark_fleet", "benchmark_libcosim", "benchmark_star
            "benchmark_tools"]
 
 
-def _fmi_call_costs(fmus: dict[str, Path], cfg: dict[str, Any], reps: int = 20000) -> dict[str, float]:
+def _fmi_call_costs(fmus: dict[str, Path], cfg: dict[str, Any],
+                    reps: int = 20000) -> dict[str, float]:
     """Microseconds per raw FMI call on initialized instances (batched get/set)."""
     d = cfg["dims"]
     plant = closed_loop_system(cfg).component("plant")
@@ -292,7 +293,8 @@ def benchmark_tools(sc: Scenario, steps: int = 5000, repeats: int = 3) -> dict[s
     out = benchmark_libcosim(sc, steps, repeats=repeats, check=False)
     with tempfile.TemporaryDirectory(prefix="auv_bench_tools_") as tmp:
         paths = export_osp(sc, Path(tmp) / "osp")
-        ssp = export_ssp(sc, Path(tmp) / "system.ssp", fmus={c.fmu: paths[c.fmu] for c in scenario_system(sc).components})
+        fmus = {c.fmu: paths[c.fmu] for c in scenario_system(sc).components}
+        ssp = export_ssp(sc, Path(tmp) / "system.ssp", fmus=fmus)
         _simulate_ssp_us_per_step(ssp, sc.h, min(steps, 500))          # warm-up
         rounds = [_simulate_ssp_us_per_step(ssp, sc.h, steps) for _ in range(max(1, repeats))]
     out["simulate_ssp_us_per_step"] = statistics.median(rounds)

@@ -9,8 +9,8 @@ import argparse
 import json
 import os
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from controller_fmu.regulator import TRACKING_MODES
 from estimator_fmu.estimators import ESTIMATOR_MODES
@@ -67,7 +67,8 @@ def _print_summary(summary: dict) -> None:
           f"{summary['steps']} steps, seeds {summary['seeds']}, "
           f"noise convention '{summary['noise_convention']}', statistics over "
           f"t in [{summary['stats_window_s'][0]:.3g}, {summary['stats_window_s'][1]:.3g}) s")
-    print(f"{'method':>10s} {'cost rate':>12s} {'(std)':>9s} {'predicted':>10s}   rms e (sim / pred)")
+    print(f"{'method':>10s} {'cost rate':>12s} {'(std)':>9s} {'predicted':>10s}   "
+          "rms e (sim / pred)")
     for name, m in summary["methods"].items():
         c = m["cost_rate"]
         pred = "n/a" if c["predicted"] is None else f"{c['predicted']:.4g}"
@@ -82,7 +83,8 @@ def _print_summary(summary: dict) -> None:
                    + ("" if steady is None else f"; steady error (noise-free RMS) {steady:.3g}"))
         print(f"{name:>10s} {c['mean']:12.4g} {c['std']:9.2g} {pred:>10s}   {rms}")
     print(f"wrote {summary['rrd']['path']} (open it with: rerun {summary['rrd']['path']}) and "
-          f"{Path(summary['rrd']['path']).parent / 'summary.json'}; wall time {summary['wall_s']:.1f} s")
+          f"{Path(summary['rrd']['path']).parent / 'summary.json'}; "
+          f"wall time {summary['wall_s']:.1f} s")
 
 
 def cmd_build(args: argparse.Namespace) -> int:
@@ -159,7 +161,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
     for name, p in paths.items():
         problems = validate_fmu(str(p))
         bad += len(problems)
-        print(f"{name:>10s}: {p.name}: " + ("no problem" if not problems else f"{len(problems)} problem(s)"))
+        verdict = "no problem" if not problems else f"{len(problems)} problem(s)"
+        print(f"{name:>10s}: {p.name}: {verdict}")
         for prob in problems:
             print(f"            - {prob}")
     if tmp:
@@ -171,7 +174,8 @@ def _fleet_sizes(text: str) -> list[int]:
     try:
         sizes = [int(x) for x in text.split(",")]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"--fleet {text!r}: expected sizes like '1,5,20,50'") from None
+        raise argparse.ArgumentTypeError(
+            f"--fleet {text!r}: expected sizes like '1,5,20,50'") from None
     if not sizes or any(n < 1 for n in sizes):
         raise argparse.ArgumentTypeError(f"--fleet {text!r}: sizes must be positive")
     return sizes
@@ -187,14 +191,16 @@ def cmd_bench_fleet(args: argparse.Namespace) -> int:
         r = benchmark_fleet(N, T=args.T or 300.0, mode=args.estimator or "kalman",
                             tracking=args.tracking or "regulator", seed=args.seed or 0)
         rows.append(r)
-        md = "/".join(f"{r['model_description_bytes'][k] / 1e3:.0f}" for k in ("plant", "estimator", "controller"))
-        it = "/".join(f"{r['instantiate_initialize_s'][k]:.2f}" for k in ("plant", "estimator", "controller"))
+        keys = ("plant", "estimator", "controller")
+        md = "/".join(f"{r['model_description_bytes'][k] / 1e3:.0f}" for k in keys)
+        it = "/".join(f"{r['instantiate_initialize_s'][k]:.2f}" for k in keys)
         print(f"{N:3d} {r['state_size']:6d} {r['design_s']:9.3f} {r['filter_gain_s']:9.3f} "
               f"{r['build_s']:8.2f} {md:>18s} {it:>18s} {r['cosim_us_per_step']:9.1f} "
               f"{r['monolithic_us_per_step']:8.1f} {r['ratio_loop']:6.2f} "
               f"{r['fmi_overhead_us_per_step']:7.1f} {r['max_abs_difference']:9.1e}", flush=True)
     r = rows[-1]
-    print(f"({r['steps']} steps of {r['h']} s each; load average {r['loadavg'][0]:.2f} on {r['cpus']} CPUs; "
+    print(f"({r['steps']} steps of {r['h']} s each; load average {r['loadavg'][0]:.2f} "
+          f"on {r['cpus']} CPUs; "
           f"'FMI us' = co-simulation minus monolithic loop per step)")
     if args.json:
         print(json.dumps(rows, indent=2))
@@ -255,14 +261,18 @@ def cmd_bench(args: argparse.Namespace) -> int:
     r = benchmark(sc, mode=sc.estimator, seed=sc.seed)
     if _printed_as_json(args, r):
         return 0
-    print(f"  co-simulation loop (3 FMUs)   {r['cosim_loop_s']:8.3f} s  {r['cosim_us_per_step']:7.2f} us/step")
-    print(f"  .rrd writing                  {r['rrd_write_s']:8.3f} s  ({100 * r['rrd_fraction_of_run']:.1f} % of loop + rrd)")
-    print(f"  monolithic numpy loop         {r['monolithic_s']:8.3f} s  {r['monolithic_us_per_step']:7.2f} us/step")
+    print(f"  co-simulation loop (3 FMUs)   {r['cosim_loop_s']:8.3f} s  "
+          f"{r['cosim_us_per_step']:7.2f} us/step")
+    print(f"  .rrd writing                  {r['rrd_write_s']:8.3f} s  "
+          f"({100 * r['rrd_fraction_of_run']:.1f} % of loop + rrd)")
+    print(f"  monolithic numpy loop         {r['monolithic_s']:8.3f} s  "
+          f"{r['monolithic_us_per_step']:7.2f} us/step")
     print(f"  ratio (loop + rrd) / monolithic  {r['ratio_cosim_to_monolithic']:.2f}   "
           f"(loop only {r['ratio_loop_only']:.2f}; target <= 1.5)")
     print(f"  loop / monolithic loop (setup excluded on both sides)  "
           f"{r['ratio_loop_to_reference_loop']:.2f}   (target <= 1.3)")
-    print(f"  setup (extract, instantiate, initialize) {r['cosim_setup_s']:.3f} s; build {r['build_s']:.3f} s")
+    print(f"  setup (extract, instantiate, initialize) {r['cosim_setup_s']:.3f} s; "
+          f"build {r['build_s']:.3f} s")
     print("  FMI calls: " + ", ".join(f"{k} {v:.2f}" for k, v in r["fmi_calls"].items()))
     print(f"  max |co-simulation - monolithic| over all traces: {r['max_abs_difference']:.2e}")
     return 0
@@ -281,7 +291,8 @@ def build_parser() -> argparse.ArgumentParser:
                              "(default: paper)")
         if run:
             sp.add_argument("--T", type=_positive, help="simulated time, s (default: scenario's)")
-            sp.add_argument("--h", type=_positive, help="communication step, s (default: scenario's)")
+            sp.add_argument("--h", type=_positive,
+                            help="communication step, s (default: scenario's)")
 
     sp = sub.add_parser("build", help="build the three FMUs (default into fmus/)")
     common(sp)
@@ -337,7 +348,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--tracking", choices=TRACKING_MODES, help="tracking law")
     sp.add_argument("--fleet", type=_fleet_sizes,
                     help="benchmark generated grid fleets of these sizes instead, e.g. 1,5,20,50 "
-                         "(REMUS 100 vehicles, circle leader; --T sets the simulated time, default 300 s)")
+                         "(REMUS 100 vehicles, circle leader; --T sets the simulated time, "
+                         "default 300 s)")
     sp.add_argument("--tools", action="store_true",
                     help="the same FMUs in our orchestrator, libcosim (libcosimpy) and fmpy's "
                          "simulate_ssp (--T sets the simulated time, default 50 s)")

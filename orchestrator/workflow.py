@@ -3,13 +3,15 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from estimator_fmu.estimators import make_estimator
 from plant_model.discretization import discretize
+
 from .analysis.prediction import predict_stationary
 from .analysis.summary import method_summary, stats_window, trace_stats, versions
 from .cosim.build import build_fmus, fmu_config, variables_markdown
@@ -20,7 +22,8 @@ from .scenario import Scenario
 if TYPE_CHECKING:
     from .recording import FleetLayout
 
-__all__ = ["scenario_config", "scenario_system", "build", "simulate", "write_fmu_readme", "method_list",
+__all__ = ["scenario_config", "scenario_system", "build", "simulate", "write_fmu_readme",
+           "method_list",
            "fleet_layout", "record_stride"]
 
 FMU_README_HEAD = """# FMUs
@@ -41,7 +44,7 @@ host must load libpython, see the README), so each FMU declares
 |---|---|
 | `AuvPlant` | Python 3.11+, numpy, scipy (matrix exponential, Van Loan); networkx for fleet FMUs |
 | `AuvEstimator` | Python 3.11+, numpy, scipy (discrete Riccati equation); networkx for fleet FMUs |
-| `AuvController` | Python 3.11+, numpy, scipy (continuous Riccati and Sylvester equations); networkx for fleet FMUs |
+| `AuvController` | Python 3.11+, numpy, scipy (Riccati, Sylvester); networkx for fleet FMUs |
 
 pythonfmu itself and this project's modules travel inside each FMU (`resources/`).
 All three support fmi2Get/SetFMUstate and fmi2Serialize/DeSerializeFMUstate.
@@ -117,7 +120,8 @@ def write_fmu_readme(sc: Scenario, path: Path) -> None:
     path : Path
         The file to write.
     """
-    path.write_text(FMU_README_HEAD.format(scenario=sc.name) + variables_markdown(scenario_config(sc)))
+    path.write_text(FMU_README_HEAD.format(scenario=sc.name)
+                    + variables_markdown(scenario_config(sc)))
 
 
 def build(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
@@ -165,7 +169,7 @@ def method_list(sc: Scenario, estimators: Sequence[str] | None = None,
     return out
 
 
-def fleet_layout(sc: Scenario) -> "FleetLayout | None":
+def fleet_layout(sc: Scenario) -> FleetLayout | None:
     """The recording layout of a fleet scenario.
 
     Parameters
@@ -309,7 +313,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
             if name not in rrd_runs:
                 rrd_runs[name] = res.traces
             log(f"{name:>9s} seed {seed}: cost rate {per_seed[-1]['cost_rate']:.4g} "
-                f"(predicted {pred.cost_rate if pred.cost_rate is None else round(pred.cost_rate, 4)}), "
+                f"(predicted {None if pred.cost_rate is None else round(pred.cost_rate, 4)}), "
                 f"{res.loop_s:.2f} s")
         methods[name] = method_summary(per_seed, pred)
         methods[name]["estimator"] = mode

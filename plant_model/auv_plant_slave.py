@@ -5,11 +5,19 @@ No output depends directly on u (the plant is strictly proper when sampled).
 FMU state: the plant's s, k, current noise row and noise stream (Plant.get_state), plus
 what the base class saves (parameters, buffers, flags).
 """
+from typing import Any
+
 from fmu_common.interface import ArraySpec
-from fmu_common.slave_base import ArraySlave as Fmi2Slave  # pythonfmu's loader looks for "class X(Fmi2Slave):"
+
+# pythonfmu's loader looks for "class X(Fmi2Slave):"
+from fmu_common.slave_base import ArraySlave as Fmi2Slave
 from plant_model.discretization import discretize
-from plant_model.parameters import (model_parameter_specs, noise_convention_spec,
-                                    sample_period_spec, system_from_parameters)
+from plant_model.parameters import (
+    model_parameter_specs,
+    noise_convention_spec,
+    sample_period_spec,
+    system_from_parameters,
+)
 from plant_model.plant import Plant
 
 PLANT_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "x0", "w0", "z0",
@@ -26,7 +34,21 @@ class AuvPlant(Fmi2Slave):
     author = "auv-cosim"
 
     @staticmethod
-    def interface(config):
+    def interface(config: dict[str, Any]) -> list[ArraySpec]:
+        """The plant's FMU interface: model parameters, h, seed, noise convention, u, outputs.
+
+        Parameters
+        ----------
+        config : dict[str, Any]
+            The build configuration shipped in resources/ (``dims``, ``system``, ``h``,
+            ``seed``, ``fleet``).
+
+        Returns
+        -------
+        list[ArraySpec]
+            Parameters, the input u (m,) and the outputs y, ybar (p,), x (n,), w (r,),
+            z (l,), e (p,).
+        """
         d = config["dims"]
         n, m, r, p, l_ = d["n"], d["m"], d["r"], d["p"], d["l"]
         return model_parameter_specs(config, "plant", PLANT_PARAMETERS) + [
@@ -44,7 +66,14 @@ class AuvPlant(Fmi2Slave):
             ArraySpec("e", (p,), "output", "true tracking error e = H z - C x"),
         ]
 
-    def setup(self):
+    def setup(self) -> None:
+        """Build the system from the parameters, sample it at h and start the plant at s(0).
+
+        Raises
+        ------
+        ModelError
+            If the parameters do not make a valid system or h is not positive.
+        """
         system = system_from_parameters(self.config, "plant", self.par, PLANT_PARAMETERS,
                                         self.par["noise_convention"])
         self.model = discretize(system, float(self.par["h"]))
@@ -53,14 +82,41 @@ class AuvPlant(Fmi2Slave):
                            out=self._out)
         self._u = self.io["u"]
 
-    def compute_outputs(self):
+    def compute_outputs(self) -> None:
+        """Nothing to do: the plant keeps [y, ybar, x, w, z, e] of sample k in the buffer."""
         pass                # outputs depend on no input: Plant keeps self._out current
 
-    def advance(self, step):
+    def advance(self, step: float) -> None:
+        """One sample period: s <- Ad s + Bd u + v[k], then the outputs of sample k + 1.
+
+        Parameters
+        ----------
+        step : float
+            The communication step, s (checked against h by the base class).
+        """
         self.plant.step(self._u)
 
-    def model_state(self):
+    def model_state(self) -> dict[str, Any]:
+        """The plant's evolving state (:meth:`Plant.get_state`).
+
+        Returns
+        -------
+        dict[str, Any]
+            k, seed, s, the current noise row and the noise stream's state.
+        """
         return self.plant.get_state()
 
-    def restore_model_state(self, state):
+    def restore_model_state(self, state: Any) -> None:
+        """Restore a :meth:`model_state` result into the plant.
+
+        Parameters
+        ----------
+        state : Any
+            The dict :meth:`model_state` returned (decoded from a serialized FMU state).
+
+        Raises
+        ------
+        ValueError
+            If the state does not fit this plant (seed, shapes).
+        """
         self.plant.set_state(state)

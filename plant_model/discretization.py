@@ -24,7 +24,27 @@ __all__ = ["DiscreteModel", "zoh", "van_loan", "discretize"]
 
 
 def zoh(Ac: np.ndarray, Bc: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """(Ad, Bd) of the zero-order-hold discretization, from one matrix exponential."""
+    """(Ad, Bd) of the zero-order-hold discretization, from one matrix exponential.
+
+    expm([[Ac, Bc], [0, 0]] h) = [[Ad, Bd], [0, I]]: Ad = expm(Ac h),
+    Bd = int_0^h expm(Ac t) dt Bc.
+
+    Parameters
+    ----------
+    Ac : np.ndarray
+        Continuous state matrix, ns x ns, 1/s.
+    Bc : np.ndarray
+        Continuous input matrix, ns x m.
+    h : float
+        Sampling period, s.
+
+    Returns
+    -------
+    Ad : np.ndarray
+        State transition over one step, ns x ns.
+    Bd : np.ndarray
+        Input matrix over one step, ns x m.
+    """
     ns, m = Bc.shape
     M = np.zeros((ns + m, ns + m))
     M[:ns, :ns] = Ac
@@ -34,7 +54,22 @@ def zoh(Ac: np.ndarray, Bc: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarra
 
 
 def van_loan(Ac: np.ndarray, Wc: np.ndarray, h: float) -> np.ndarray:
-    """Qd = int_0^h expm(Ac t) Wc expm(Ac' t) dt by Van Loan's block exponential."""
+    """Qd = int_0^h expm(Ac t) Wc expm(Ac' t) dt by Van Loan's block exponential.
+
+    Parameters
+    ----------
+    Ac : np.ndarray
+        Continuous state matrix, ns x ns, 1/s.
+    Wc : np.ndarray
+        Intensity (power spectral density) of the process noise, ns x ns.
+    h : float
+        Sampling period, s.
+
+    Returns
+    -------
+    np.ndarray
+        Qd, the covariance of the noise added per step (symmetrized), ns x ns.
+    """
     ns = Ac.shape[0]
     M = np.zeros((2 * ns, 2 * ns))
     M[:ns, :ns] = -Ac
@@ -64,6 +99,7 @@ class DiscreteModel:
 
     @property
     def ns(self) -> int:
+        """Length of the sampled state s = [x; w; z], n + r + l."""
         return self.n + self.r + self.l
 
     @property
@@ -73,7 +109,26 @@ class DiscreteModel:
 
 
 def discretize(system: LinearSystem, h: float) -> DiscreteModel:
-    """Sample ``system`` at step ``h`` (seconds) as described in the module docstring."""
+    """Sample ``system`` at step ``h`` (seconds) as described in the module docstring.
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The validated model.
+    h : float
+        Sampling period, s.
+
+    Returns
+    -------
+    DiscreteModel
+        Ad, Bd, Qd (Van Loan, or W_x, W_w, W_z per step under 'per_sample'),
+        Rd = blkdiag(V_y, V_ybar) / h (or without / h under 'per_sample'), M and E.
+
+    Raises
+    ------
+    ModelError
+        If h is not a positive finite number or the sampled model overflows.
+    """
     h = float(h)
     if not np.isfinite(h) or h <= 0.0:
         raise ModelError(f"step h = {h} s must be a positive finite number")

@@ -13,8 +13,8 @@ where x_0 = T_i z_l is the leader's state in the vehicle's state space
 G = diag(a_i0), :mod:`plant_model.graph`):
 
     A  = blkdiag(A_ii) - (L + G) kron Gamma
-    Bz = [ (G kron Gamma) blkdiag(T_i) ,  ((L + G) kron Gamma) delta ]   acting on z = [z_l; c]
-    H  = [ 1_N kron H_l ,  d ]                                           (c == 1 carries the offsets)
+    Bz = [ (G kron Gamma) blkdiag(T_i) ,  ((L + G) kron Gamma) delta ]  acting on z = [z_l; c]
+    H  = [ 1_N kron H_l ,  d ]                                          (c == 1 carries the offsets)
     B1, B2, C, K, Q, R and the noise intensities block diagonal per vehicle
 
 The constant state c (F entry 0, no noise, c(0) = 1) is appended to the leader's state
@@ -34,8 +34,9 @@ the FMUs' resources and rebuilt from their parameters):
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 from scipy.linalg import block_diag
@@ -50,7 +51,24 @@ __all__ = ["FleetInfo", "fleet_vehicles", "fleet_graph", "fleet_system", "fleet_
 
 
 def fleet_vehicles(spec: Mapping[str, Any]) -> list[VehicleModel]:
-    """The vehicle models of the spec, checked to share one state dimension."""
+    """The vehicle models of the spec, checked to share one state dimension.
+
+    Parameters
+    ----------
+    spec : Mapping[str, Any]
+        The fleet spec (module docstring); reads ``vehicles``.
+
+    Returns
+    -------
+    list[VehicleModel]
+        One model per vehicle, in vehicle order.
+
+    Raises
+    ------
+    ModelError
+        If there is no vehicle, a model is invalid, or the vehicles differ in their
+        numbers of states or outputs.
+    """
     vehicles = spec.get("vehicles") or []
     if not vehicles:
         raise ModelError("the fleet has no vehicles")
@@ -66,7 +84,23 @@ def fleet_vehicles(spec: Mapping[str, Any]) -> list[VehicleModel]:
 
 
 def fleet_graph(spec: Mapping[str, Any]) -> CommunicationGraph:
-    """The communication graph of the spec (validated: weights, self-loops, reachability)."""
+    """The communication graph of the spec (validated: weights, self-loops, reachability).
+
+    Parameters
+    ----------
+    spec : Mapping[str, Any]
+        The fleet spec; reads ``vehicles`` (their number) and ``graph``.
+
+    Returns
+    -------
+    CommunicationGraph
+        The validated graph.
+
+    Raises
+    ------
+    ModelError
+        As :func:`plant_model.graph.communication_graph`.
+    """
     g = spec.get("graph", {})
     return communication_graph(len(spec["vehicles"]), g.get("edges", []), g.get("pinning", []))
 
@@ -77,8 +111,37 @@ def _square(name: str, value: Any, size: int) -> np.ndarray:
     return as_matrix(name, value, (size, size))
 
 
-def disturbance_of(vehicle: Mapping[str, Any], r: int, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(K_i, W_w,i, w0_i) of one vehicle: a Gauss-Markov current or explicit matrices."""
+def disturbance_of(vehicle: Mapping[str, Any], r: int,
+                   where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(K_i, W_w,i, w0_i) of one vehicle: a Gauss-Markov current or explicit matrices.
+
+    A current of correlation time tau (s) and stationary standard deviation sigma (m/s)
+    per axis gives K_i = -I / tau (1/s) and W_w,i = (2 sigma^2 / tau) I (m^2/s^3).
+
+    Parameters
+    ----------
+    vehicle : Mapping[str, Any]
+        One vehicle's entry of the spec; reads ``current`` (time_constant, default
+        600 s; sigma, default 0 m/s; w0) or ``disturbance`` (K, W_w, w0).
+    r : int
+        Number of disturbance states of the vehicle.
+    where : str
+        Prefix of the error messages (e.g. "vehicle 3").
+
+    Returns
+    -------
+    K : np.ndarray
+        Disturbance exosystem matrix, r x r.
+    W_w : np.ndarray
+        Intensity of the disturbance process noise, r x r.
+    w0 : np.ndarray
+        Initial disturbance state, shape (r,) (m/s for a current).
+
+    Raises
+    ------
+    ModelError
+        If both or invalid entries are given.
+    """
     if "current" in vehicle and "disturbance" in vehicle:
         raise ModelError(f"{where}: give either 'current' or 'disturbance', not both")
     if "disturbance" in vehicle:
@@ -91,7 +154,8 @@ def disturbance_of(vehicle: Mapping[str, Any], r: int, where: str) -> tuple[np.n
     tau = float(c.get("time_constant", 600.0))
     sigma = float(c.get("sigma", 0.0))
     if not (np.isfinite(tau) and tau > 0):
-        raise ModelError(f"{where}: current time_constant = {tau} must be a positive number of seconds")
+        raise ModelError(f"{where}: current time_constant = {tau} must be a positive "
+                         "number of seconds")
     if not (np.isfinite(sigma) and sigma >= 0):
         raise ModelError(f"{where}: current sigma = {sigma} must be a non-negative speed in m/s")
     w0 = as_vector(f"{where} current w0", c.get("w0", np.zeros(r)), r)
@@ -110,7 +174,28 @@ def _offsets(spec: Mapping[str, Any], models: list[VehicleModel]) -> tuple[np.nd
 
 
 def fleet_system(spec: Mapping[str, Any]) -> LinearSystem:
-    """The stacked :class:`LinearSystem` of the fleet (see the module docstring)."""
+    """The stacked :class:`LinearSystem` of the fleet (see the module docstring).
+
+    A = blkdiag(A_ii) - (L + G) kron Gamma, Bz = [(G kron Gamma) blkdiag(T_i),
+    ((L + G) kron Gamma) delta], H = [1_N kron H_l, d]; the other matrices are block
+    diagonal per vehicle.
+
+    Parameters
+    ----------
+    spec : Mapping[str, Any]
+        The fleet spec (module docstring).
+
+    Returns
+    -------
+    LinearSystem
+        The validated stacked system (N p states, N q inputs, N r disturbance states,
+        N s outputs).
+
+    Raises
+    ------
+    ModelError
+        Naming the vehicle, graph or leader entry that is invalid.
+    """
     models = fleet_vehicles(spec)
     graph = fleet_graph(spec)
     N, p = len(models), models[0].p
@@ -179,8 +264,26 @@ _MODEL_KEYS = {"remus100": ("mass", "added_mass", "time_constant", "drag_coeffic
 
 
 def resolve_fleet_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
-    """A copy of ``spec`` with every default made explicit (model parameters, x0, current,
-    coupling), so that an FMU can expose all of them as parameters with their values."""
+    """A copy of ``spec`` with every default made explicit.
+
+    Model parameters, x0, offset, current and coupling are filled in, so that an FMU can
+    expose all of them as parameters with their values; edges and pinning are normalized.
+
+    Parameters
+    ----------
+    spec : Mapping[str, Any]
+        The fleet spec (module docstring).
+
+    Returns
+    -------
+    dict[str, Any]
+        A new, JSON-ready spec.
+
+    Raises
+    ------
+    ModelError
+        If the spec is invalid.
+    """
     import copy
     new = copy.deepcopy(dict(spec))
     models = fleet_vehicles(new)
@@ -229,7 +332,20 @@ class FleetInfo:
 
 
 def fleet_info(spec: Mapping[str, Any], system: LinearSystem | None = None) -> FleetInfo:
-    """Layout of the stacked vectors of ``spec`` (positions, offsets, leader output)."""
+    """Layout of the stacked vectors of ``spec`` (positions, offsets, leader output).
+
+    Parameters
+    ----------
+    spec : Mapping[str, Any]
+        The fleet spec (module docstring).
+    system : LinearSystem or None, optional
+        Its stacked system, if already built (else built here).
+
+    Returns
+    -------
+    FleetInfo
+        Sizes per vehicle, index maps, offsets and names.
+    """
     models = fleet_vehicles(spec)
     graph = fleet_graph(spec)
     system = system if system is not None else fleet_system(spec)

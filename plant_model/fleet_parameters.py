@@ -23,7 +23,8 @@ vehicle models are fixed when the FMU is built.
 from __future__ import annotations
 
 import copy
-from typing import Any, Iterator
+from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 
@@ -103,7 +104,20 @@ def _leaves(spec: dict[str, Any], kind: str) -> Iterator[tuple[tuple, str, Any, 
 
 
 def fleet_parameter_specs(spec: dict[str, Any], kind: str) -> list[ArraySpec]:
-    """The parameters of an FMU of ``kind`` for the fleet ``spec`` (start = spec values)."""
+    """The parameters of an FMU of ``kind`` for the fleet ``spec`` (start = spec values).
+
+    Parameters
+    ----------
+    spec : dict[str, Any]
+        The resolved fleet spec (:func:`plant_model.fleet.resolve_fleet_spec`).
+    kind : str
+        'plant', 'estimator' or 'controller': only what that FMU reads is exposed.
+
+    Returns
+    -------
+    list[ArraySpec]
+        One parameter array per leaf, with structured names such as ``vehicle[1].mass``.
+    """
     out = []
     for _, name, value, unit, doc in _leaves(spec, kind):
         arr = np.asarray(value, dtype=float)
@@ -117,8 +131,24 @@ def _assign(root: Any, path: tuple, value: Any) -> None:
     root[path[-1]] = value
 
 
-def fleet_spec_from_parameters(spec: dict[str, Any], kind: str, par: dict[str, Any]) -> dict[str, Any]:
-    """A copy of ``spec`` with the parameter values ``par`` (name -> array) written in."""
+def fleet_spec_from_parameters(spec: dict[str, Any], kind: str,
+                               par: dict[str, Any]) -> dict[str, Any]:
+    """A copy of ``spec`` with the parameter values ``par`` (name -> array) written in.
+
+    Parameters
+    ----------
+    spec : dict[str, Any]
+        The fleet spec the FMU was built with.
+    kind : str
+        'plant', 'estimator' or 'controller'.
+    par : dict[str, Any]
+        Parameter values by the names of :func:`fleet_parameter_specs`.
+
+    Returns
+    -------
+    dict[str, Any]
+        A deep copy of ``spec`` holding the values as lists / floats.
+    """
     new = copy.deepcopy(spec)
     for path, name, _, _, _ in _leaves(spec, kind):
         value = np.asarray(par[name], dtype=float)

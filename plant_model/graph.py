@@ -165,8 +165,16 @@ class CommunicationGraph:
         object.__setattr__(self, "pinning", pinning)
 
     def digraph(self) -> nx.DiGraph:
-        """networkx digraph: nodes 0 (leader) .. N, edges j -> i (and 0 -> i) with
-        attribute ``weight`` = a_ij (a_i0)."""
+        """The graph as a networkx digraph, leader included.
+
+        Nodes 0 (leader, ``role`` 'leader') .. N (``role`` 'vehicle'); edges j -> i (and
+        0 -> i) with attribute ``weight`` = a_ij (a_i0).
+
+        Returns
+        -------
+        nx.DiGraph
+            A new digraph.
+        """
         g = nx.DiGraph()
         g.add_node(0, role="leader")
         g.add_nodes_from(range(1, self.N + 1), role="vehicle")
@@ -175,7 +183,13 @@ class CommunicationGraph:
         return g
 
     def adjacency(self) -> np.ndarray:
-        """N x N adjacency, [i-1, j-1] = a_ij (row = the vehicle that listens)."""
+        """N x N adjacency, [i-1, j-1] = a_ij (row = the vehicle that listens).
+
+        Returns
+        -------
+        np.ndarray
+            Adj, N x N (the leader is not included).
+        """
         # nx.to_numpy_array gives M[u, v] = weight of u -> v, i.e. M[j-1, i-1] = a_ij.
         sub = self.digraph().subgraph(range(1, self.N + 1))
         M = nx.to_numpy_array(sub, nodelist=range(1, self.N + 1), weight="weight")
@@ -187,6 +201,11 @@ class CommunicationGraph:
         Built as ``nx.laplacian_matrix`` of the *reversed* follower subgraph: for a
         digraph networkx returns the out-degree Laplacian D_out - M with M[u, v] = weight
         of u -> v; reversing every edge j -> i into i -> j makes M = Adj and D_out = D_in.
+
+        Returns
+        -------
+        np.ndarray
+            L, N x N; every row sums to zero.
         """
         sub = self.digraph().subgraph(range(1, self.N + 1))
         L = nx.laplacian_matrix(sub.reverse(copy=True), nodelist=range(1, self.N + 1),
@@ -194,26 +213,53 @@ class CommunicationGraph:
         return np.asarray(L.toarray(), dtype=float)
 
     def pinning_matrix(self) -> np.ndarray:
-        """G = diag(a_i0) (N x N); a_i0 = 0 for vehicles that do not hear the leader."""
+        """G = diag(a_i0) (N x N); a_i0 = 0 for vehicles that do not hear the leader.
+
+        Returns
+        -------
+        np.ndarray
+            G, N x N.
+        """
         g = np.zeros(self.N)
         for i, w in self.pinning:
             g[i - 1] = w
         return np.diag(g)
 
     def consensus_matrix(self) -> np.ndarray:
-        """L + G (N x N); all its eigenvalues have positive real part (module docstring)."""
+        """L + G (N x N); all its eigenvalues have positive real part (module docstring).
+
+        Returns
+        -------
+        np.ndarray
+            L + G, N x N.
+        """
         return self.laplacian() + self.pinning_matrix()
 
 
 def communication_graph(N: int, edges: Iterable[Any], pinning: Any) -> CommunicationGraph:
     """Validated communication graph of N vehicles.
 
-    ``edges``: iterable of (from vehicle j, to vehicle i, weight a_ij > 0), meaning i hears
-    j. ``pinning``: mapping {i: a_i0} or iterable of (i, a_i0), the vehicles that hear the
-    leader (vehicle numbers may be digit strings, as TOML table keys are). Raises :class:`ModelError` naming the offending vehicle or edge for: N < 1, a
-    vehicle outside 1..N, a self-loop, a weight that is not positive and finite, a
-    duplicate edge or pinning entry, no pinned vehicle, or a vehicle with no directed path
-    from the leader.
+    Parameters
+    ----------
+    N : int
+        Number of vehicles (numbered 1..N).
+    edges : Iterable[Any]
+        Triples (from vehicle j, to vehicle i, weight a_ij > 0), meaning i hears j.
+    pinning : Any
+        Mapping {i: a_i0} or iterable of (i, a_i0): the vehicles that hear the leader
+        (vehicle numbers may be digit strings, as TOML table keys are).
+
+    Returns
+    -------
+    CommunicationGraph
+        The graph with sorted, normalized edges and pinning weights.
+
+    Raises
+    ------
+    ModelError
+        Naming the offending vehicle or edge for: N < 1, a vehicle outside 1..N, a
+        self-loop, a weight that is not positive and finite, a duplicate edge or pinning
+        entry, no pinned vehicle, or a vehicle with no directed path from the leader.
     """
     return CommunicationGraph(*_parse(N, edges, pinning))
 
@@ -221,8 +267,25 @@ def communication_graph(N: int, edges: Iterable[Any], pinning: Any) -> Communica
 def stacked_coupling(graph: CommunicationGraph, coupling: Any) -> np.ndarray:
     """-(L + G) kron Gamma (N p x N p): neighbour + pinning part of the stacked A (eq. 1-2).
 
-    ``coupling`` is the p x p consensus gain Gamma. Block (i, j), j != i, is a_ij Gamma
-    (the paper's A_ij); block (i, i) is -(sum_j a_ij + a_i0) Gamma, to be added to A_ii.
+    Block (i, j), j != i, is a_ij Gamma (the paper's A_ij); block (i, i) is
+    -(sum_j a_ij + a_i0) Gamma, to be added to A_ii.
+
+    Parameters
+    ----------
+    graph : CommunicationGraph
+        The validated graph of N vehicles.
+    coupling : Any
+        The p x p consensus gain Gamma (nested lists or an array).
+
+    Returns
+    -------
+    np.ndarray
+        -(L + G) kron Gamma, N p x N p.
+
+    Raises
+    ------
+    ModelError
+        If ``coupling`` is not a finite square matrix.
     """
     Gam = as_matrix("coupling", coupling)
     p = Gam.shape[0]

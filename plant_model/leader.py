@@ -29,8 +29,7 @@ from typing import Any
 import numpy as np
 from scipy.linalg import expm
 
-from .linalg_checks import (ModelError, as_matrix, as_nonnegative, as_number, as_positive,
-                            as_vector)
+from .linalg_checks import ModelError, as_matrix, as_nonnegative, as_number, as_positive, as_vector
 
 __all__ = [
     "LEADER_PATHS",
@@ -81,7 +80,7 @@ class LeaderPath:
         object.__setattr__(self, "state_names", names)
 
     @property
-    def l(self) -> int:
+    def l(self) -> int:  # noqa: E743 - the paper's and python-control's name for this size
         """Number of exosystem states."""
         return self.F.shape[0]
 
@@ -91,7 +90,23 @@ class LeaderPath:
         return self.H.shape[0]
 
     def state(self, t: Any) -> np.ndarray:
-        """z(t) = expm(F t) z0, shape (len(t), l); t in s (a scalar counts as one time)."""
+        """z(t) = expm(F t) z0, shape (len(t), l); t in s (a scalar counts as one time).
+
+        Parameters
+        ----------
+        t : Any
+            Time or 1-D array of times, s.
+
+        Returns
+        -------
+        np.ndarray
+            The exosystem states, shape (len(t), l).
+
+        Raises
+        ------
+        ModelError
+            If ``t`` is not a scalar or a 1-D array.
+        """
         tt = np.atleast_1d(np.asarray(t, dtype=float))
         if tt.ndim != 1:
             raise ModelError(f"leader: times must be a 1-D array, got shape {tt.shape}")
@@ -99,15 +114,43 @@ class LeaderPath:
         return Phi @ self.z0
 
     def position(self, t: Any) -> np.ndarray:
-        """Leader position H expm(F t) z0, shape (len(t), s), in m (NED)."""
+        """Leader position H expm(F t) z0, shape (len(t), s), in m (NED).
+
+        Parameters
+        ----------
+        t : Any
+            Time or 1-D array of times, s.
+
+        Returns
+        -------
+        np.ndarray
+            Positions, shape (len(t), s), m.
+        """
         return self.state(t) @ self.H.T
 
     def velocity(self, t: Any) -> np.ndarray:
-        """Leader velocity H F expm(F t) z0, shape (len(t), s), in m/s (NED)."""
+        """Leader velocity H F expm(F t) z0, shape (len(t), s), in m/s (NED).
+
+        Parameters
+        ----------
+        t : Any
+            Time or 1-D array of times, s.
+
+        Returns
+        -------
+        np.ndarray
+            Velocities, shape (len(t), s), m/s.
+        """
         return self.state(t) @ self.velocity_matrix().T
 
     def velocity_matrix(self) -> np.ndarray:
-        """H F: maps the exosystem state to the leader velocity (m/s)."""
+        """H F: maps the exosystem state to the leader velocity (m/s).
+
+        Returns
+        -------
+        np.ndarray
+            H F, s x l.
+        """
         return self.H @ self.F
 
 
@@ -128,6 +171,28 @@ def straight(speed: float, heading_deg: float = 0.0, start: Any = (0.0, 0.0, 0.0
     ``speed`` horizontal speed (m/s, >= 0), ``heading_deg`` from north toward east (deg),
     ``climb_rate`` down-velocity (m/s, positive = descending). State z = [n, e, d, v_n,
     v_e, v_d]; position(t) = start + [speed cos psi, speed sin psi, climb_rate] t.
+
+    Parameters
+    ----------
+    speed : float
+        Horizontal speed, m/s (>= 0).
+    heading_deg : float, optional
+        Heading psi from north toward east, deg.
+    start : Any, optional
+        Position at t = 0, [north, east, down] in m.
+    climb_rate : float, optional
+        Down-velocity, m/s (positive = descending).
+
+    Returns
+    -------
+    LeaderPath
+        The 6-state exosystem F = [[0, I], [0, 0]], H = [I, 0].
+
+    Raises
+    ------
+    ModelError
+        If an argument is not a finite number, ``speed`` is negative or ``start`` is not
+        3 numbers.
     """
     v = as_nonnegative("speed", speed, "m/s")
     psi = math.radians(as_number("heading_deg", heading_deg))
@@ -152,6 +217,29 @@ def circle(radius: float, speed: float, center: Any = (0.0, 0.0, 0.0), clockwise
     State z = [c_n, c_e, c_d, a, b] with a = R cos theta, b = R sin theta; theta(0) =
     ``start_angle_deg`` measured from north toward east (0 = due north of the center);
     theta' = +speed/R when ``clockwise`` (seen from above), -speed/R otherwise.
+
+    Parameters
+    ----------
+    radius : float
+        Radius R, m (> 0).
+    speed : float
+        Speed along the circle, m/s (>= 0).
+    center : Any, optional
+        Center [north, east, down], m.
+    clockwise : bool, optional
+        Direction seen from above (NED).
+    start_angle_deg : float, optional
+        theta(0), deg from north toward east.
+
+    Returns
+    -------
+    LeaderPath
+        The 5-state exosystem.
+
+    Raises
+    ------
+    ModelError
+        If an argument is out of range or of the wrong type.
     """
     R = as_positive("radius", radius, "m")
     v = as_nonnegative("speed", speed, "m/s")
@@ -179,6 +267,18 @@ def lawnmower_turn_error(leg_length: float, harmonics: int) -> float:
     (4 L / pi^2) (pi^2/8 - sum_{j=1..h} 1/(2j-1)^2): about 0.095 L for h = 1, 0.045 L
     for h = 2, 0.034 L for h = 3, roughly L/(pi^2 h) for large h. It is the largest
     position error of :func:`lawnmower` at the waypoints (it is zero at mid-leg).
+
+    Parameters
+    ----------
+    leg_length : float
+        Leg length L, m.
+    harmonics : int
+        Number h of harmonics kept.
+
+    Returns
+    -------
+    float
+        The north error at a turn, m.
     """
     h = int(harmonics)
     tail = math.pi**2 / 8.0 - sum(1.0 / (2 * j - 1) ** 2 for j in range(1, h + 1))
@@ -224,6 +324,31 @@ def lawnmower(leg_length: float, spacing: float, speed: float, harmonics: int = 
     turn into the first leg. The mean east speed is exactly spacing / T_leg. The speed
     along a leg is not constant (at mid-leg it is (4/pi) speed (1 - 1/3 + 1/5 ...), h
     terms: 1.27, 0.85, 1.10 times speed for h = 1, 2, 3).
+
+    Parameters
+    ----------
+    leg_length : float
+        Leg length L, m (> 0).
+    spacing : float
+        East step between legs, m (negative: west).
+    speed : float
+        Nominal speed along a leg, m/s (> 0); T_leg = leg_length / speed, s.
+    harmonics : int, optional
+        Number h >= 1 of Fourier harmonics kept.
+    start : Any, optional
+        Start of the first leg [north, east, down], m.
+    depth : float or None, optional
+        Constant down position, m (default: start's down).
+
+    Returns
+    -------
+    LeaderPath
+        The (4 + 4 h)-state exosystem.
+
+    Raises
+    ------
+    ModelError
+        If an argument is out of range or of the wrong type.
     """
     L = as_positive("leg_length", leg_length, "m")
     sp = as_number("spacing", spacing)
@@ -272,7 +397,27 @@ def lawnmower(leg_length: float, spacing: float, speed: float, harmonics: int = 
 
 
 def explicit(F: Any, H: Any, z0: Any) -> LeaderPath:
-    """Any exosystem: F (l x l), H (s x l; 3 rows n, e, d for NED vehicles), z0 (l)."""
+    """Any exosystem: F (l x l), H (s x l; 3 rows n, e, d for NED vehicles), z0 (l).
+
+    Parameters
+    ----------
+    F : Any
+        Exosystem matrix, l x l, 1/s.
+    H : Any
+        Output (position) matrix, s x l.
+    z0 : Any
+        Initial exosystem state, length l.
+
+    Returns
+    -------
+    LeaderPath
+        The exosystem, states named z1..zl.
+
+    Raises
+    ------
+    ModelError
+        If the shapes disagree or a value is not finite.
+    """
     F = as_matrix("F", F)
     l_ = F.shape[0]
     F = as_matrix("F", F, (l_, l_))
@@ -298,8 +443,23 @@ _BUILDERS: dict[str, tuple[Callable[..., LeaderPath], tuple[str, ...], tuple[str
 def make_leader(kind: str, params: Mapping[str, Any]) -> LeaderPath:
     """Build a leader path by name from a parameter mapping (e.g. a scenario table).
 
-    ``kind`` is one of :data:`LEADER_PATHS`; ``params`` holds the keyword arguments of
-    the matching function. Every error message starts with "leader: ".
+    Parameters
+    ----------
+    kind : str
+        One of :data:`LEADER_PATHS`.
+    params : Mapping[str, Any]
+        The keyword arguments of the matching function.
+
+    Returns
+    -------
+    LeaderPath
+        The path.
+
+    Raises
+    ------
+    ModelError
+        If the kind or a parameter is unknown, a required parameter is missing or a value
+        is invalid; every message starts with "leader: ".
     """
     if kind not in _BUILDERS:
         raise ModelError(

@@ -6,7 +6,8 @@ problem, so that a scenario loader, a CLI and an FMU slave can all report it as 
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -29,10 +30,29 @@ class ModelError(ValueError):
     """A model, design or scenario is invalid; the message names what is wrong."""
 
 
-def as_matrix(name: str, value, shape: Sequence[int] | None = None) -> np.ndarray:
+def as_matrix(name: str, value: Any, shape: Sequence[int | None] | None = None) -> np.ndarray:
     """Return ``value`` as a finite 2-D float array, checking its shape.
 
-    ``shape`` entries may be ``None`` for "any size".
+    ``shape`` entries may be ``None`` for "any size". A 1-D value is one row.
+
+    Parameters
+    ----------
+    name : str
+        The matrix's name in error messages.
+    value : Any
+        Nested lists or an array.
+    shape : Sequence[int or None] or None, optional
+        Expected (rows, columns); None: any shape.
+
+    Returns
+    -------
+    np.ndarray
+        A float copy, 2-D.
+
+    Raises
+    ------
+    ModelError
+        If ``value`` is not numeric, not 2-D, of the wrong shape or not finite.
     """
     try:
         arr = np.array(value, dtype=float)
@@ -45,7 +65,7 @@ def as_matrix(name: str, value, shape: Sequence[int] | None = None) -> np.ndarra
     if arr.ndim != 2:
         raise ModelError(f"{name}: expected a 2-D matrix, got an array with {arr.ndim} dimensions")
     if shape is not None:
-        for axis, (got, want) in enumerate(zip(arr.shape, shape)):
+        for got, want in zip(arr.shape, shape):
             if want is not None and got != want:
                 exp = "x".join("?" if s is None else str(s) for s in shape)
                 raise ModelError(
@@ -55,8 +75,28 @@ def as_matrix(name: str, value, shape: Sequence[int] | None = None) -> np.ndarra
     return arr
 
 
-def as_vector(name: str, value, length: int | None = None) -> np.ndarray:
-    """Return ``value`` as a finite 1-D float array of the given length."""
+def as_vector(name: str, value: Any, length: int | None = None) -> np.ndarray:
+    """Return ``value`` as a finite 1-D float array of the given length.
+
+    Parameters
+    ----------
+    name : str
+        The vector's name in error messages.
+    value : Any
+        A list, an array or a scalar (a vector of length 1).
+    length : int or None, optional
+        Expected length; None: any length.
+
+    Returns
+    -------
+    np.ndarray
+        A float copy, 1-D.
+
+    Raises
+    ------
+    ModelError
+        If ``value`` is not numeric, not 1-D, of the wrong length or not finite.
+    """
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -81,7 +121,23 @@ def _check_finite(name: str, arr: np.ndarray) -> None:
 def check_symmetric_psd(name: str, M: np.ndarray, *, definite: bool = False) -> None:
     """Require ``M`` symmetric and positive semidefinite (definite if asked).
 
-    Symmetry tolerance: ``|M - M'| <= 1e-10 (1 + max|M|)``.
+    Symmetry tolerance: ``|M - M'| <= 1e-10 (1 + max|M|)``; eigenvalue tolerance
+    ``1e-12 (1 + max|M|)``.
+
+    Parameters
+    ----------
+    name : str
+        The matrix's name in error messages.
+    M : np.ndarray
+        Square matrix.
+    definite : bool, optional
+        Require positive definite instead of semidefinite.
+
+    Raises
+    ------
+    ModelError
+        If ``M`` is not symmetric, or its smallest eigenvalue is negative (not positive
+        when ``definite``).
     """
     scale = 1.0 + float(np.max(np.abs(M))) if M.size else 1.0
     asym = float(np.max(np.abs(M - M.T))) if M.size else 0.0
@@ -108,7 +164,20 @@ def check_symmetric_psd(name: str, M: np.ndarray, *, definite: bool = False) -> 
 
 
 def check_symmetric_pd(name: str, M: np.ndarray) -> None:
-    """Require ``M`` symmetric positive definite."""
+    """Require ``M`` symmetric positive definite.
+
+    Parameters
+    ----------
+    name : str
+        The matrix's name in error messages.
+    M : np.ndarray
+        Square matrix.
+
+    Raises
+    ------
+    ModelError
+        If ``M`` is not symmetric or not positive definite.
+    """
     check_symmetric_psd(name, M, definite=True)
 
 
@@ -116,7 +185,18 @@ def psd_factor(M: np.ndarray) -> np.ndarray:
     """A factor L with ``L L' = M`` for a symmetric positive semidefinite ``M``.
 
     Uses the eigendecomposition, so a singular covariance (a noise that is switched
-    off in some direction) is fine, unlike the Cholesky factorisation.
+    off in some direction) is fine, unlike the Cholesky factorisation:
+    M = V diag(w) V', L = V diag(sqrt(max(w, 0))).
+
+    Parameters
+    ----------
+    M : np.ndarray
+        Symmetric positive semidefinite matrix, k x k.
+
+    Returns
+    -------
+    np.ndarray
+        L, k x k.
     """
     if M.size == 0:
         return np.zeros_like(M)
@@ -135,7 +215,24 @@ def _pbh_rank_deficient(A: np.ndarray, X: np.ndarray, lam: complex, *, rows: boo
 
 def uncontrollable_modes(A: np.ndarray, B: np.ndarray, *, only_unstable: bool = True,
                          continuous: bool = True) -> list[complex]:
-    """Eigenvalues lambda of A where rank [A - lambda I, B] < n (PBH test)."""
+    """Eigenvalues lambda of A where rank [A - lambda I, B] < n (PBH test).
+
+    Parameters
+    ----------
+    A : np.ndarray
+        State matrix, n x n.
+    B : np.ndarray
+        Input matrix, n x m.
+    only_unstable : bool, optional
+        Report only the modes that are not asymptotically stable.
+    continuous : bool, optional
+        Stability in continuous time (Re lambda < 0) rather than discrete (|lambda| < 1).
+
+    Returns
+    -------
+    list[complex]
+        The uncontrollable (unstable) eigenvalues.
+    """
     out = []
     for lam in np.linalg.eigvals(A):
         unstable = lam.real >= -1e-9 if continuous else abs(lam) >= 1 - 1e-9
@@ -148,12 +245,47 @@ def uncontrollable_modes(A: np.ndarray, B: np.ndarray, *, only_unstable: bool = 
 
 def unobservable_modes(A: np.ndarray, C: np.ndarray, *, only_unstable: bool = True,
                        continuous: bool = True) -> list[complex]:
-    """Eigenvalues lambda of A where rank [A - lambda I; C] < n (PBH test)."""
+    """Eigenvalues lambda of A where rank [A - lambda I; C] < n (PBH test).
+
+    Parameters
+    ----------
+    A : np.ndarray
+        State matrix, n x n.
+    C : np.ndarray
+        Output matrix, p x n.
+    only_unstable : bool, optional
+        Report only the modes that are not asymptotically stable.
+    continuous : bool, optional
+        Stability in continuous time (Re lambda < 0) rather than discrete (|lambda| < 1).
+
+    Returns
+    -------
+    list[complex]
+        The unobservable (unstable) eigenvalues.
+    """
     return uncontrollable_modes(A.T, C.T, only_unstable=only_unstable, continuous=continuous)
 
 
 def as_number(name: str, value: Any) -> float:
-    """A finite float, or a :class:`ModelError` naming ``name``."""
+    """A finite float, or a :class:`ModelError` naming ``name``.
+
+    Parameters
+    ----------
+    name : str
+        The quantity's name in error messages.
+    value : Any
+        A number (booleans are refused).
+
+    Returns
+    -------
+    float
+        ``float(value)``.
+
+    Raises
+    ------
+    ModelError
+        If ``value`` is a boolean, not a number or not finite.
+    """
     if isinstance(value, bool):
         raise ModelError(f"{name}: expected a number, got {value!r}")
     try:
@@ -166,7 +298,27 @@ def as_number(name: str, value: Any) -> float:
 
 
 def as_positive(name: str, value: Any, unit: str) -> float:
-    """A finite float > 0 (``unit`` only for the message)."""
+    """A finite float > 0 (``unit`` only for the message).
+
+    Parameters
+    ----------
+    name : str
+        The quantity's name in error messages.
+    value : Any
+        A number.
+    unit : str
+        Its unit, for the message.
+
+    Returns
+    -------
+    float
+        ``float(value)``.
+
+    Raises
+    ------
+    ModelError
+        If ``value`` is not a finite number or not positive.
+    """
     x = as_number(name, value)
     if x <= 0.0:
         raise ModelError(f"{name} = {x:g} {unit} must be positive")
@@ -174,7 +326,27 @@ def as_positive(name: str, value: Any, unit: str) -> float:
 
 
 def as_nonnegative(name: str, value: Any, unit: str) -> float:
-    """A finite float >= 0 (``unit`` only for the message)."""
+    """A finite float >= 0 (``unit`` only for the message).
+
+    Parameters
+    ----------
+    name : str
+        The quantity's name in error messages.
+    value : Any
+        A number.
+    unit : str
+        Its unit, for the message.
+
+    Returns
+    -------
+    float
+        ``float(value)``.
+
+    Raises
+    ------
+    ModelError
+        If ``value`` is not a finite number or is negative.
+    """
     x = as_number(name, value)
     if x < 0.0:
         raise ModelError(f"{name} = {x:g} {unit} must not be negative")

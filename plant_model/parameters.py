@@ -5,7 +5,8 @@ Domain knowledge (what the system matrices mean), expressed as FMI interface tab
 """
 from __future__ import annotations
 
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
 
@@ -13,7 +14,8 @@ from fmu_common.interface import ArraySpec
 
 from .system import LinearSystem
 
-__all__ = ["PARAMETER_DOCS", "sample_period_spec", "noise_convention_spec", "system_parameter_specs", "system_mapping_from_parameters",
+__all__ = ["PARAMETER_DOCS", "sample_period_spec", "noise_convention_spec",
+           "system_parameter_specs", "system_mapping_from_parameters",
            "model_parameter_specs", "system_from_parameters"]
 
 #: name -> (shape in terms of the dimensions n, m, r, p, l; description)
@@ -42,7 +44,21 @@ PARAMETER_DOCS: dict[str, tuple[tuple[str, ...], str]] = {
 
 
 def system_parameter_specs(config: dict[str, Any], names: Iterable[str]) -> list[ArraySpec]:
-    """Parameter specs for ``names``, start values from ``config['system']``."""
+    """Parameter specs for ``names``, start values from ``config['system']``.
+
+    Parameters
+    ----------
+    config : dict[str, Any]
+        The FMU's build configuration: ``dims`` (n, m, r, p, l) and ``system`` (the
+        :meth:`LinearSystem.to_mapping` of the scenario).
+    names : Iterable[str]
+        Keys of :data:`PARAMETER_DOCS` to expose.
+
+    Returns
+    -------
+    list[ArraySpec]
+        One parameter array per name, shaped from ``dims``.
+    """
     system = config["system"]
     dims = config["dims"]
     specs = []
@@ -55,26 +71,81 @@ def system_parameter_specs(config: dict[str, Any], names: Iterable[str]) -> list
 
 
 def system_mapping_from_parameters(par: dict[str, Any], names: Iterable[str]) -> dict[str, Any]:
-    """The subset of a LinearSystem mapping held in the slave's parameter arrays."""
+    """The subset of a LinearSystem mapping held in the slave's parameter arrays.
+
+    Parameters
+    ----------
+    par : dict[str, Any]
+        The slave's parameter values by array name.
+    names : Iterable[str]
+        The system entries to take (those absent from ``par`` are skipped).
+
+    Returns
+    -------
+    dict[str, Any]
+        Name -> float array copy, ready for :meth:`LinearSystem.from_mapping`.
+    """
     return {name: np.array(par[name], dtype=float) for name in names if name in par}
 
 
 def sample_period_spec(config: dict[str, Any], description: str) -> ArraySpec:
-    """The parameter ``h`` (s): the communication step an FMU is sampled or designed for."""
+    """The parameter ``h`` (s): the communication step an FMU is sampled or designed for.
+
+    Parameters
+    ----------
+    config : dict[str, Any]
+        The FMU's build configuration; ``config['h']`` is the start value, s.
+    description : str
+        The variable's description in modelDescription.xml.
+
+    Returns
+    -------
+    ArraySpec
+        The scalar Real parameter ``h`` with unit s.
+    """
     return ArraySpec("h", (), "parameter", description, start=config["h"], unit="s")
 
 
 def noise_convention_spec(config: dict[str, Any]) -> ArraySpec:
-    """The String parameter ``noise_convention`` ('intensity' or 'per_sample')."""
+    """The String parameter ``noise_convention`` ('intensity' or 'per_sample').
+
+    Parameters
+    ----------
+    config : dict[str, Any]
+        The FMU's build configuration; the start value is
+        ``config['system']['noise_convention']``.
+
+    Returns
+    -------
+    ArraySpec
+        The scalar String parameter.
+    """
     return ArraySpec("noise_convention", (), "parameter",
                      "'intensity' (W, V are continuous intensities) or 'per_sample'",
                      start=config["system"]["noise_convention"], type="String")
 
 
-def model_parameter_specs(config: dict[str, Any], kind: str, names: Iterable[str]) -> list[ArraySpec]:
-    """The model parameters of an FMU of ``kind``: the fleet interface
-    (:mod:`plant_model.fleet_parameters`) when the FMU was built for a fleet, else the
-    system matrices ``names``."""
+def model_parameter_specs(config: dict[str, Any], kind: str,
+                          names: Iterable[str]) -> list[ArraySpec]:
+    """The model parameters of an FMU of ``kind``.
+
+    The fleet interface (:mod:`plant_model.fleet_parameters`) when the FMU was built for a
+    fleet, else the system matrices ``names``.
+
+    Parameters
+    ----------
+    config : dict[str, Any]
+        The FMU's build configuration (``fleet`` is its fleet spec, or None).
+    kind : str
+        'plant', 'estimator' or 'controller': what the FMU's mathematics reads.
+    names : Iterable[str]
+        The system matrices to expose when there is no fleet.
+
+    Returns
+    -------
+    list[ArraySpec]
+        The model parameters, start values from the configuration.
+    """
     if config.get("fleet") is not None:
         from .fleet_parameters import fleet_parameter_specs
         return fleet_parameter_specs(config["fleet"], kind)
@@ -82,10 +153,35 @@ def model_parameter_specs(config: dict[str, Any], kind: str, names: Iterable[str
 
 
 def system_from_parameters(config: dict[str, Any], kind: str, par: dict[str, Any],
-                           names: Iterable[str], noise_convention: str | None = None):
-    """The LinearSystem described by the parameter values ``par`` (see model_parameter_specs)."""
+                           names: Iterable[str],
+                           noise_convention: str | None = None) -> LinearSystem:
+    """The LinearSystem described by the parameter values ``par`` (see model_parameter_specs).
+
+    Parameters
+    ----------
+    config : dict[str, Any]
+        The FMU's build configuration (``fleet`` is its fleet spec, or None).
+    kind : str
+        'plant', 'estimator' or 'controller'.
+    par : dict[str, Any]
+        The slave's parameter values by array name.
+    names : Iterable[str]
+        The system matrices held in ``par`` when there is no fleet.
+    noise_convention : str or None, optional
+        Replaces the noise convention of the configuration when given.
+
+    Returns
+    -------
+    LinearSystem
+        The validated system (the stacked fleet system for a fleet FMU).
+
+    Raises
+    ------
+    ModelError
+        If the parameter values do not make a valid system.
+    """
     if config.get("fleet") is not None:
-        from .fleet import fleet_system        # lazily: it brings in networkx
+        from .fleet import fleet_system  # lazily: it brings in networkx
         from .fleet_parameters import fleet_spec_from_parameters
         spec = fleet_spec_from_parameters(config["fleet"], kind, par)
         if noise_convention is not None:

@@ -18,6 +18,8 @@ the current block not yet used. A restored plant draws exactly the same noise af
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .discretization import DiscreteModel
@@ -26,7 +28,7 @@ from .linalg_checks import psd_factor
 __all__ = ["NoiseStream", "Plant", "plant_output_layout"]
 
 
-def _float_array(value, shape: tuple[int, ...], what: str) -> np.ndarray:
+def _float_array(value: Any, shape: tuple[int, ...], what: str) -> np.ndarray:
     """A float copy of ``value`` with exactly ``shape`` (ValueError naming ``what`` if not)."""
     arr = np.asarray(value)
     if arr.dtype.kind not in "fiu" or arr.shape != shape:
@@ -35,7 +37,7 @@ def _float_array(value, shape: tuple[int, ...], what: str) -> np.ndarray:
     return np.array(arr, dtype=float)
 
 
-def _count(value, what: str) -> int:
+def _count(value: Any, what: str) -> int:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 0:
         raise ValueError(f"{what} must be a non-negative integer, got {value!r}")
     return int(value)
@@ -69,11 +71,35 @@ class NoiseStream:
 
     @staticmethod
     def all_rows(model: DiscreteModel, seed: int, steps: int) -> np.ndarray:
-        """The first ``steps`` rows at once (same values as drawing them one by one)."""
+        """The first ``steps`` rows at once (same values as drawing them one by one).
+
+        Row k is [v[k]; n[k]; n_z[k]] = L xi[k], L = blkdiag(factors of Qd and Rd).
+
+        Parameters
+        ----------
+        model : DiscreteModel
+            The sampled model (its Qd, Rd and noise dimension).
+        seed : int
+            Seed of the PCG64 generator.
+        steps : int
+            Number of rows.
+
+        Returns
+        -------
+        np.ndarray
+            The noise rows, shape (steps, ns + 2 p).
+        """
         rng = np.random.default_rng(int(seed))
         return _colour(rng.standard_normal((steps, model.noise_dim)), _noise_factors(model))
 
     def next_row(self) -> np.ndarray:
+        """The next row [v[k]; n[k]; n_z[k]], drawing a new block when the current one is used.
+
+        Returns
+        -------
+        np.ndarray
+            A view of shape (ns + 2 p,) into the current block (do not modify it).
+        """
         if self._i >= self._buf.shape[0]:
             self._buf = _colour(self._rng.standard_normal((self._block, self._dim)), self._factors)
             self._i = 0
@@ -86,13 +112,30 @@ class NoiseStream:
 
         ``pending`` holds the coloured rows of the current block not yet returned: after
         :meth:`set_state` they come first, then new blocks from ``bit_generator``.
+
+        Returns
+        -------
+        dict
+            Keys ``bit_generator`` (the generator's state), ``pending`` (array of rows),
+            ``block`` (rows per draw) and ``dim`` (values per row).
         """
         return {"bit_generator": self._rng.bit_generator.state,   # a fresh dict of ints
                 "pending": self._buf[self._i:].copy(),
                 "block": self._block, "dim": self._dim}
 
     def set_state(self, state: dict) -> None:
-        """Restore a :meth:`get_state` result (validated first: on error nothing changes)."""
+        """Restore a :meth:`get_state` result (validated first: on error nothing changes).
+
+        Parameters
+        ----------
+        state : dict
+            A result of :meth:`get_state` of a stream with the same row length.
+
+        Raises
+        ------
+        ValueError
+            If the row length differs or an entry is invalid.
+        """
         if _count(state["dim"], "noise dim") != self._dim:
             raise ValueError(f"the noise state has rows of {state['dim']} values, this stream "
                              f"draws {self._dim}")
@@ -112,7 +155,18 @@ class NoiseStream:
 
 
 def plant_output_layout(model: DiscreteModel) -> dict[str, slice]:
-    """Slices of the plant's output vector [y, ybar, x, w, z, e]."""
+    """Slices of the plant's output vector [y, ybar, x, w, z, e].
+
+    Parameters
+    ----------
+    model : DiscreteModel
+        The sampled model (its sizes n, r, l, p).
+
+    Returns
+    -------
+    dict[str, slice]
+        Name -> slice of the output vector of length 3 p + n + r + l.
+    """
     p, n, r, l_ = model.p, model.n, model.r, model.l
     names = (("y", p), ("ybar", p), ("x", n), ("w", r), ("z", l_), ("e", p))
     out, i = {}, 0
@@ -151,6 +205,13 @@ class Plant:
         self.reset(s0)
 
     def reset(self, s0: np.ndarray) -> None:
+        """Restart at k = 0 from the state ``s0`` with a fresh noise stream of the same seed.
+
+        Parameters
+        ----------
+        s0 : np.ndarray
+            Initial true state s(0) = [x0; w0; z0], shape (n + r + l,).
+        """
         self.k = 0
         self.s = np.array(s0, dtype=float)
         self._noise = NoiseStream(self.model, self.seed)
@@ -165,12 +226,29 @@ class Plant:
         self._E.dot(s, out=self._o_e)
 
     def get_state(self) -> dict:
-        """Everything that evolves (copies): k, s, the current noise row, the noise stream."""
+        """Everything that evolves (copies): k, s, the current noise row, the noise stream.
+
+        Returns
+        -------
+        dict
+            Keys ``k``, ``seed``, ``s``, ``row`` and ``noise`` (:meth:`NoiseStream.get_state`).
+        """
         return {"k": self.k, "seed": self.seed, "s": self.s.copy(), "row": self._row.copy(),
                 "noise": self._noise.get_state()}
 
     def set_state(self, state: dict) -> None:
-        """Restore a :meth:`get_state` result (validated first: on error nothing changes)."""
+        """Restore a :meth:`get_state` result (validated first: on error nothing changes).
+
+        Parameters
+        ----------
+        state : dict
+            A result of :meth:`get_state` of a plant with the same model and seed.
+
+        Raises
+        ------
+        ValueError
+            If the seed differs or an entry has the wrong type or shape.
+        """
         if int(state["seed"]) != self.seed:
             raise ValueError(f"the plant state was drawn with seed {state['seed']}, "
                              f"this plant has seed {self.seed}")
@@ -182,7 +260,13 @@ class Plant:
         self._refresh()
 
     def step(self, u: np.ndarray) -> None:
-        """Advance one step with u held constant: s <- Ad s + Bd u + v[k]."""
+        """Advance one step with u held constant: s <- Ad s + Bd u + v[k].
+
+        Parameters
+        ----------
+        u : np.ndarray
+            Control input u[k], shape (m,), held over [k h, (k+1) h).
+        """
         s = self._Ad.dot(self.s)            # (Ad s + Bd u) + v, summed in place
         s += self._Bd.dot(u)
         s += self._row[:self._ns]

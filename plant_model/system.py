@@ -20,8 +20,9 @@ states.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -91,15 +92,33 @@ class LinearSystem:
 
     @property
     def dims(self) -> dict[str, int]:
+        """The sizes n, m, r, p, l by name."""
         return {"n": self.n, "m": self.m, "r": self.r, "p": self.p, "l": self.l}
 
     # construction ---------------------------------------------------------
     @classmethod
-    def from_mapping(cls, d: Mapping[str, Any]) -> "LinearSystem":
+    def from_mapping(cls, d: Mapping[str, Any]) -> LinearSystem:
         """Build and validate from a mapping of names to nested lists / arrays.
 
         Scalars are accepted for Q, R and the noise matrices and mean ``scalar * I``.
-        Raises :class:`ModelError` naming the first problem found.
+
+        Parameters
+        ----------
+        d : Mapping[str, Any]
+            Entries named as the fields (A, B1, B2, C, F, H, K required; Bz, x0, w0, z0,
+            Q, R, the noise intensities, ``noise_convention`` and ``meta`` optional).
+
+        Returns
+        -------
+        LinearSystem
+            The validated system.
+
+        Raises
+        ------
+        ModelError
+            Naming the first problem found (unknown or missing entry, wrong shape, value
+            not finite, Q or R not positive definite, a noise matrix not positive
+            semidefinite, unknown noise convention).
         """
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - known)
@@ -159,7 +178,13 @@ class LinearSystem:
         )
 
     def to_mapping(self) -> dict[str, Any]:
-        """Plain-python (JSON-ready) form, the inverse of :meth:`from_mapping`."""
+        """Plain-python (JSON-ready) form, the inverse of :meth:`from_mapping`.
+
+        Returns
+        -------
+        dict[str, Any]
+            Every field, arrays as nested lists; ``meta`` only when it is not empty.
+        """
         out: dict[str, Any] = {}
         for f in fields(self):
             v = getattr(self, f.name)
@@ -172,14 +197,36 @@ class LinearSystem:
                 out[f.name] = v
         return out
 
-    def with_changes(self, **kw: Any) -> "LinearSystem":
-        """A re-validated copy with some entries replaced."""
+    def with_changes(self, **kw: Any) -> LinearSystem:
+        """A re-validated copy with some entries replaced.
+
+        Parameters
+        ----------
+        **kw : Any
+            Entries to replace, named as in :meth:`from_mapping`.
+
+        Returns
+        -------
+        LinearSystem
+            The new, validated system.
+
+        Raises
+        ------
+        ModelError
+            If the changed entries do not make a valid system.
+        """
         d = self.to_mapping()
         d.update(kw)
         return LinearSystem.from_mapping(d)
 
-    def without_noise(self) -> "LinearSystem":
-        """The same system with every noise intensity set to zero."""
+    def without_noise(self) -> LinearSystem:
+        """The same system with every noise intensity set to zero.
+
+        Returns
+        -------
+        LinearSystem
+            A copy with W_x = W_w = W_z = V_y = V_ybar = 0.
+        """
         z = {k: np.zeros_like(getattr(self, k)) for k in ("W_x", "W_w", "W_z", "V_y", "V_ybar")}
         return replace(self, **z)
 
@@ -187,9 +234,18 @@ class LinearSystem:
     def augmented(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Continuous model of the true state s = [x; w; z].
 
-        Returns (Ac, Bc, Wc): s' = Ac s + Bc u + noise with intensity Wc, where
+        s' = Ac s + Bc u + noise with intensity Wc, where
         Ac = [[A, B2, Bz], [0, K, 0], [0, 0, F]], Bc = [B1; 0; 0],
         Wc = blkdiag(W_x, W_w, W_z).
+
+        Returns
+        -------
+        Ac : np.ndarray
+            State matrix, (n + r + l) x (n + r + l), 1/s.
+        Bc : np.ndarray
+            Input matrix, (n + r + l) x m.
+        Wc : np.ndarray
+            Process noise intensity, (n + r + l) x (n + r + l).
         """
         n, r, l_, m = self.n, self.r, self.l, self.m
         ns = n + r + l_
@@ -214,6 +270,11 @@ class LinearSystem:
         feeding it through F) is known to every vehicle from z(0): its estimate is
         propagated exactly instead of filtered. The largest such set D satisfies
         W_z[D, :] = 0 and F[D, not D] = 0.
+
+        Returns
+        -------
+        np.ndarray
+            Boolean mask of shape (l,), True on the states of D.
         """
         known = ~np.any(self.W_z != 0.0, axis=1)
         while True:
@@ -224,14 +285,26 @@ class LinearSystem:
             known[idx[feeds]] = False
 
     def error_matrix(self) -> np.ndarray:
-        """E with e = E s = H z - C x for s = [x; w; z]."""
+        """E with e = E s = H z - C x for s = [x; w; z].
+
+        Returns
+        -------
+        np.ndarray
+            E = [-C, 0, H], p x (n + r + l).
+        """
         E = np.zeros((self.p, self.n + self.r + self.l))
         E[:, :self.n] = -self.C
         E[:, self.n + self.r:] = self.H
         return E
 
     def measurement_matrix(self) -> np.ndarray:
-        """M with [y; ybar] = M s + noise, M = [[C, 0, 0], [0, 0, H]]."""
+        """M with [y; ybar] = M s + noise, M = [[C, 0, 0], [0, 0, H]].
+
+        Returns
+        -------
+        np.ndarray
+            M, 2 p x (n + r + l).
+        """
         n, r = self.n, self.r
         M = np.zeros((2 * self.p, n + r + self.l))
         M[:self.p, :n] = self.C
@@ -239,5 +312,11 @@ class LinearSystem:
         return M
 
     def initial_state(self) -> np.ndarray:
-        """s(0) = [x0; w0; z0]."""
+        """s(0) = [x0; w0; z0].
+
+        Returns
+        -------
+        np.ndarray
+            The initial true state, shape (n + r + l,).
+        """
         return np.concatenate([self.x0, self.w0, self.z0])

@@ -66,8 +66,7 @@ from typing import Any
 
 import numpy as np
 
-from .linalg_checks import (ModelError, as_matrix, as_nonnegative, as_positive,
-                            as_vector)
+from .linalg_checks import ModelError, as_matrix, as_nonnegative, as_positive, as_vector
 
 __all__ = [
     "REMUS100_MAX_SPEED",
@@ -196,8 +195,29 @@ def remus100_parameters(rho: float = 1026.0, length: float = 1.6, diameter: floa
     module docstring), low-speed damping time constants [20, 20, 20] s, parasitic drag
     coefficient ``drag_coefficient`` (Allen et al. 2000) on frontal area pi b^2 (m^2).
 
-    Returns a dict with keys mass, added_mass [surge, sway, heave], time_constant [surge,
-    sway, heave], drag_coefficient, frontal_area, rho, length, diameter.
+    Parameters
+    ----------
+    rho : float, optional
+        Water density, kg/m^3.
+    length : float, optional
+        Hull length 2 a, m.
+    diameter : float, optional
+        Hull diameter 2 b, m (smaller than ``length``).
+    drag_coefficient : float, optional
+        Parasitic drag coefficient Cd (>= 0).
+
+    Returns
+    -------
+    dict[str, Any]
+        Keys mass (kg), added_mass [surge, sway, heave] (kg), time_constant [surge, sway,
+        heave] (s), drag_coefficient, frontal_area (m^2), rho (kg/m^3), length (m),
+        diameter (m).
+
+    Raises
+    ------
+    ModelError
+        If an argument is not positive (Cd: negative) or the diameter is not smaller
+        than the length.
     """
     rho = as_positive("rho", rho, "kg/m^3")
     length = as_positive("length", length, "m")
@@ -242,7 +262,34 @@ def remus100(mass: float | None = None, added_mass: Sequence[float] | None = Non
     ``cruise_speed`` (m/s, 0..2.5) where the quadratic drag is linearized.
 
     The north and east axes use the surge added mass and time constant; the down axis the
-    heave ones (the sway values are kept in ``parameters`` but unused).
+    heave ones (the sway values are kept in ``parameters`` but unused). Per axis a:
+    M_a = m + added mass (kg), D_a = M_a / T_a + 0.5 rho Cd A_f U_c (kg/s, drag on n and
+    e only), A = [[0, I], [0, diag(-D/M)]], B1 = [0; diag(1/M)], B2 = [0; diag(D/M)],
+    C = [I, 0].
+
+    Parameters
+    ----------
+    mass : float or None, optional
+        Rigid-body mass m, kg.
+    added_mass : Sequence[float] or None, optional
+        Added mass [surge, sway, heave], kg.
+    time_constant : Sequence[float] or None, optional
+        Low-speed damping time constants T [surge, sway, heave], s.
+    drag_coefficient : float or None, optional
+        Parasitic drag coefficient Cd on the frontal area.
+    cruise_speed : float, optional
+        Speed U_c where the quadratic drag is linearized (secant), m/s, 0..2.5.
+
+    Returns
+    -------
+    VehicleModel
+        The 6-state model (states n, e, d in m and v_n, v_e, v_d in m/s; inputs forces
+        in N; disturbances current velocities in m/s; outputs n, e, d in m).
+
+    Raises
+    ------
+    ModelError
+        If an argument is out of range or of the wrong type.
     """
     base = remus100_parameters()
     m = base["mass"] if mass is None else as_positive("mass", mass, "kg")
@@ -294,7 +341,29 @@ def remus100(mass: float | None = None, added_mass: Sequence[float] | None = Non
 # ------------------------------------------------------------------------------------
 # generic
 def generic(A: Any, B1: Any, B2: Any, C: Any) -> VehicleModel:
-    """Any linear model: A (p x p), B1 (p x q), B2 (p x r), C (s x p); no units."""
+    """Any linear model: A (p x p), B1 (p x q), B2 (p x r), C (s x p); no units.
+
+    Parameters
+    ----------
+    A : Any
+        State matrix, p x p.
+    B1 : Any
+        Control input matrix, p x q.
+    B2 : Any
+        Disturbance input matrix, p x r.
+    C : Any
+        Output matrix, s x p.
+
+    Returns
+    -------
+    VehicleModel
+        The model, with names x1.., u1.., w1.., y1.. and no position states.
+
+    Raises
+    ------
+    ModelError
+        If the shapes disagree or a value is not finite.
+    """
     A = as_matrix("A", A)
     p = A.shape[0]
     A = as_matrix("A", A, (p, p))
@@ -324,9 +393,26 @@ _GENERIC_KEYS = ("A", "B1", "B2", "C")
 def make_vehicle(model: str, params: Mapping[str, Any], where: str) -> VehicleModel:
     """Build a vehicle model by name from a parameter mapping (e.g. a scenario table).
 
-    ``model`` is one of :data:`VEHICLE_MODELS`; ``params`` holds the keyword arguments of
-    :func:`remus100` (all optional) or of :func:`generic` (all required). ``where`` (e.g.
-    "vehicle 3") prefixes every error message.
+    Parameters
+    ----------
+    model : str
+        One of :data:`VEHICLE_MODELS`.
+    params : Mapping[str, Any]
+        The keyword arguments of :func:`remus100` (all optional) or of :func:`generic`
+        (all required).
+    where : str
+        Prefix of every error message (e.g. "vehicle 3").
+
+    Returns
+    -------
+    VehicleModel
+        The model.
+
+    Raises
+    ------
+    ModelError
+        If the model or a parameter is unknown, a generic matrix is missing or a value
+        is invalid.
     """
     if model not in VEHICLE_MODELS:
         raise ModelError(
@@ -362,6 +448,25 @@ def leader_state_map(model: VehicleModel, H_leader: Any, F_leader: Any) -> np.nd
     velocity of the leader path, so C T = H exactly; H must have 3 rows (n, e, d in m).
     For ``generic`` T = pinv(C) H, the least-squares state with output H z (exact,
     C T = H, when C has full row rank); H must have s rows.
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle's model.
+    H_leader : Any
+        Leader output matrix H, s x l (NED position in m for ``remus100``).
+    F_leader : Any
+        Leader exosystem matrix F, l x l, 1/s.
+
+    Returns
+    -------
+    np.ndarray
+        T, p x l.
+
+    Raises
+    ------
+    ModelError
+        If the shapes do not fit the model or the model is unknown.
     """
     F = as_matrix("leader F", F_leader)
     l_ = F.shape[0]
@@ -393,6 +498,23 @@ def state_offset(model: VehicleModel, offset: Any) -> np.ndarray:
     ``offset`` is the desired output offset d from the leader (for ``remus100`` the NED
     position offset in m, giving delta = [d; 0, 0, 0]: same velocity as the leader). For
     ``generic`` delta = pinv(C) d (least squares; C delta = d when C has full row rank).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle's model.
+    offset : Any
+        The output offset d, length s (m for ``remus100``).
+
+    Returns
+    -------
+    np.ndarray
+        delta, shape (p,).
+
+    Raises
+    ------
+    ModelError
+        If ``offset`` has the wrong length or the model is unknown.
     """
     if model.name == "remus100":
         d = as_vector("formation offset", offset, 3)

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from orchestrator.analysis.reference import run_monolithic
 from orchestrator.cli import main, parse_seeds
 from orchestrator.recording import read_rrd_scalars
-from orchestrator.analysis.reference import run_monolithic
 from orchestrator.scenario import SCENARIO_DIR, load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -126,8 +126,8 @@ def test_build_writes_fmus_and_variable_tables(tmp_path, capsys):
 
 
 def test_committed_fmu_readme_matches_the_generator():
-    from orchestrator.workflow import FMU_README_HEAD, scenario_config
     from orchestrator.cosim.build import variables_markdown
+    from orchestrator.workflow import FMU_README_HEAD, scenario_config
     sc = load_scenario("paper")
     expected = FMU_README_HEAD.format(scenario=sc.name) + variables_markdown(scenario_config(sc))
     assert (ROOT / "fmus" / "README.md").read_text() == expected

@@ -11,8 +11,14 @@ import pytest
 
 from fmu_common.interface import ArraySpec
 from orchestrator.cosim.master import CosimError, run_cosimulation, run_system
-from orchestrator.cosim.system import (AlgebraicLoopError, Component, Connection,
-                                       SystemDescription, closed_loop_system, evaluation_order)
+from orchestrator.cosim.system import (
+    AlgebraicLoopError,
+    Component,
+    Connection,
+    SystemDescription,
+    closed_loop_system,
+    evaluation_order,
+)
 
 
 def _spec(name, causality, depends=()):

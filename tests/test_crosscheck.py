@@ -15,6 +15,7 @@ from fmpy import read_model_description, simulate_fmu
 from fmpy.cross_check.validate_vendor_repo import validate_test_fmu
 from fmpy.util import read_csv, read_ref_opt_file
 
+from orchestrator.cosim.master import run_cosimulation
 from orchestrator.interop.crosscheck import (
     EPS_FRACTION,
     compare,
@@ -24,9 +25,7 @@ from orchestrator.interop.crosscheck import (
     write_crosscheck,
     write_csv,
 )
-from orchestrator.cosim.master import run_cosimulation
-from orchestrator.scenario import load_scenario
-from orchestrator.workflow import build, scenario_config
+from orchestrator.workflow import scenario_config
 
 TOL = 1e-12
 STEPS = 500

@@ -10,10 +10,10 @@ import pytest
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from orchestrator.scenario.generator import grid_fleet
-from orchestrator.cosim.master import run_cosimulation
 from orchestrator.analysis.reference import run_monolithic
-from orchestrator.scenario import load_scenario, scenario_from_dict
+from orchestrator.cosim.master import run_cosimulation
+from orchestrator.scenario import scenario_from_dict
+from orchestrator.scenario.generator import grid_fleet
 from orchestrator.workflow import build, scenario_config
 from plant_model.fleet import fleet_system
 

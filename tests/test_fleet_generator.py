@@ -6,8 +6,8 @@ import tomllib
 import numpy as np
 import pytest
 
-from orchestrator.scenario.generator import grid_fleet, scenario_toml
 from orchestrator.scenario import SCENARIO_DIR, load_scenario, scenario_from_dict
+from orchestrator.scenario.generator import grid_fleet, scenario_toml
 from plant_model.fleet import fleet_graph
 
 

@@ -4,21 +4,20 @@ paper's example as a fleet of one generic vehicle."""
 from __future__ import annotations
 
 import copy
-import json
 import re
 import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
+from support.loop import fmu_parameters
 
 from controller_fmu.regulator import tracking_law
+from orchestrator.analysis.reference import run_monolithic
 from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
 from orchestrator.cosim.master import run_cosimulation
-from support.loop import fmu_parameters
-from orchestrator.analysis.reference import run_monolithic
-from orchestrator.scenario.generator import scenario_toml as dumps
 from orchestrator.scenario import SCENARIO_DIR, ScenarioError, load_scenario
+from orchestrator.scenario.generator import scenario_toml as dumps
 from orchestrator.workflow import build, scenario_config
 from plant_model.linalg_checks import ModelError
 

@@ -9,12 +9,12 @@ import pytest
 
 from controller_fmu.regulator import tracking_law
 from estimator_fmu.estimators import make_estimator
-from orchestrator.cli import main
 from orchestrator.analysis.prediction import predict_stationary
-from orchestrator.recording import read_rrd_points, read_rrd_series
 from orchestrator.analysis.reference import run_monolithic
-from orchestrator.scenario import load_scenario
 from orchestrator.analysis.summary import stats_window, trace_stats
+from orchestrator.cli import main
+from orchestrator.recording import read_rrd_points, read_rrd_series
+from orchestrator.scenario import load_scenario
 from plant_model.discretization import discretize
 
 pytestmark = pytest.mark.slow

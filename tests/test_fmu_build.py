@@ -9,7 +9,7 @@ from fmpy.validation import validate_fmu
 
 from orchestrator.cosim.build import FMU_KINDS, fmu_config
 from orchestrator.scenario import load_scenario
-from orchestrator.workflow import build, scenario_config
+from orchestrator.workflow import scenario_config
 
 
 @pytest.fixture(scope="module")

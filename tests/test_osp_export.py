@@ -12,18 +12,17 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from lxml import etree
+from support.loop import fmu_parameters
 
-from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
 from controller_fmu.regulator import tracking_law
-from orchestrator.cosim.build import FMU_KINDS, interface_of
+from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
 from orchestrator.analysis.jacobi import jacobi_closed_loop
+from orchestrator.cosim.build import FMU_KINDS, interface_of
 from orchestrator.cosim.master import run_cosimulation
 from orchestrator.interop.common import ExportError
 from orchestrator.interop.osp import OSP_MD_NS, OSP_SYSTEM_NS, export_osp, validate_osp_file
-from support.loop import fmu_parameters
 from orchestrator.scenario import load_scenario
 from orchestrator.workflow import scenario_config, scenario_system
-from fmu_common.interface import element_names
 from plant_model.discretization import discretize
 from plant_model.plant import NoiseStream
 

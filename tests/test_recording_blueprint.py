@@ -6,16 +6,31 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from rerun.chunk import RrdReader
-
-from orchestrator.recording import (
-    read_rrd_line_strips, read_rrd_points, read_rrd_scalars, read_rrd_series, write_rrd,
-)
 from support.recording import (
-    FLEET_H, FLEET_METHODS, FLEET_STRIDE_IDS, FLEET_STRIDES, N_VEH, TRAIL_S, make_fleet, make_fleet_runs,
-    write_fleet_recording, write_paper_recording,
+    FLEET_H,
+    FLEET_METHODS,
+    FLEET_STRIDE_IDS,
+    FLEET_STRIDES,
+    N_VEH,
+    TRAIL_S,
+    make_fleet,
+    make_fleet_runs,
+    write_fleet_recording,
+    write_paper_recording,
 )
 from support.rrd_readback import (
-    read_rrd_blueprint_tree, read_rrd_blueprint_views, read_rrd_visible_time_ranges, rrd_has_blueprint,
+    read_rrd_blueprint_tree,
+    read_rrd_blueprint_views,
+    read_rrd_visible_time_ranges,
+    rrd_has_blueprint,
+)
+
+from orchestrator.recording import (
+    read_rrd_line_strips,
+    read_rrd_points,
+    read_rrd_scalars,
+    read_rrd_series,
+    write_rrd,
 )
 
 

@@ -6,15 +6,30 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from orchestrator.recording import (
-    method_color, read_rrd_scalars, read_rrd_series, read_rrd_series_lines, write_rrd,
-)
 from support.recording import (
-    CURRENT_NAMES, FLEET_H, FLEET_H_NS, FLEET_METHODS, FLEET_STRIDE_IDS, FLEET_STRIDES, N_VEH,
-    STATE_NAMES, leader_position, make_fleet, make_fleet_runs, recorded_steps, write_fleet_recording,
+    CURRENT_NAMES,
+    FLEET_H,
+    FLEET_H_NS,
+    FLEET_METHODS,
+    FLEET_STRIDE_IDS,
+    FLEET_STRIDES,
+    N_VEH,
+    STATE_NAMES,
+    leader_position,
+    make_fleet,
+    make_fleet_runs,
+    recorded_steps,
+    write_fleet_recording,
 )
 from support.rrd_readback import read_rrd_series_styles
+
+from orchestrator.recording import (
+    method_color,
+    read_rrd_scalars,
+    read_rrd_series,
+    read_rrd_series_lines,
+    write_rrd,
+)
 
 
 @pytest.fixture(scope="module", params=FLEET_STRIDES, ids=FLEET_STRIDE_IDS)

@@ -6,12 +6,23 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from rerun.chunk import RrdReader
+from support.recording import (
+    FLEET_H,
+    FLEET_H_NS,
+    FLEET_METHODS,
+    FLEET_STEPS,
+    FLEET_STRIDE_IDS,
+    FLEET_STRIDES,
+    N_VEH,
+    TRAIL_SAMPLE_S,
+    leader_position,
+    make_fleet,
+    make_fleet_runs,
+    recorded_steps,
+    write_fleet_recording,
+)
 
 from orchestrator.recording import read_rrd_line_strips, read_rrd_points, write_rrd
-from support.recording import (
-    FLEET_H, FLEET_H_NS, FLEET_METHODS, FLEET_STEPS, FLEET_STRIDE_IDS, FLEET_STRIDES, N_VEH,
-    TRAIL_SAMPLE_S, leader_position, make_fleet, make_fleet_runs, recorded_steps, write_fleet_recording,
-)
 
 
 @pytest.fixture(scope="module", params=FLEET_STRIDES, ids=FLEET_STRIDE_IDS)

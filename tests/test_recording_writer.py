@@ -9,12 +9,26 @@ import warnings
 import numpy as np
 import pytest
 from rerun.chunk import RrdReader
-
-from orchestrator.recording import TRACE_KEYS, method_color, read_rrd_scalars, read_rrd_series, write_rrd
 from support.recording import (
-    DIMS, H, H_NS, LAYOUT, METHODS, STEPS, expected_series, make_runs, write_paper_recording,
+    DIMS,
+    H_NS,
+    LAYOUT,
+    METHODS,
+    STEPS,
+    H,
+    expected_series,
+    make_runs,
+    write_paper_recording,
 )
 from support.rrd_readback import read_rrd_series_styles
+
+from orchestrator.recording import (
+    TRACE_KEYS,
+    method_color,
+    read_rrd_scalars,
+    read_rrd_series,
+    write_rrd,
+)
 
 
 @pytest.fixture(scope="module")

@@ -4,8 +4,6 @@ Bad files are written to tmp_path from the built-in paper.toml with one change e
 """
 from __future__ import annotations
 
-import json
-import math
 import tomllib
 from pathlib import Path
 
@@ -13,9 +11,15 @@ import numpy as np
 import pytest
 
 from estimator_fmu.estimators import ESTIMATOR_MODES
+from orchestrator.scenario import (
+    SCENARIO_DIR,
+    Scenario,
+    ScenarioError,
+    builtin_scenarios,
+    load_scenario,
+    scenario_from_dict,
+)
 from orchestrator.scenario.generator import scenario_toml as dump_toml
-from orchestrator.scenario import (SCENARIO_DIR, Scenario, ScenarioError, builtin_scenarios,
-                                   load_scenario, scenario_from_dict)
 from plant_model.system import MATRIX_NAMES
 
 PAPER_TOML = SCENARIO_DIR / "paper.toml"

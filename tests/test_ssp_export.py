@@ -13,14 +13,14 @@ rounding. fmpy also ignores the archive's ParameterBindings unless they are pass
 """
 from __future__ import annotations
 
-from dataclasses import replace
-
 import zipfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 from lxml import etree
+from support.loop import fmu_parameters
 
 from controller_fmu.regulator import tracking_law
 from estimator_fmu.estimators import make_estimator
@@ -28,14 +28,12 @@ from orchestrator.cosim.master import run_cosimulation
 from orchestrator.cosim.system import Connection
 from orchestrator.interop.common import ExportError
 from orchestrator.interop.ssp import SSC_NS, SSD_NS, SSV_NS, export_ssp, fmpy_parameter_set
-from orchestrator.scenario import load_scenario
 from orchestrator.workflow import scenario_config, scenario_system
-from support.loop import fmu_parameters
 from plant_model.discretization import discretize
 from plant_model.plant import NoiseStream
 
 fmpy_ssp = pytest.importorskip("fmpy.ssp.simulation")
-from fmpy.ssp.ssd import read_ssd, read_ssv
+from fmpy.ssp.ssd import read_ssd, read_ssv  # noqa: E402 - after the importorskip
 
 NS = {"ssd": SSD_NS, "ssc": SSC_NS, "ssv": SSV_NS}
 FMU_FILES = {"plant": "AuvPlant.fmu", "estimator": "AuvEstimator.fmu",

@@ -7,20 +7,28 @@ loop from the discrete Lyapunov equation, as :mod:`.prediction` does for the exa
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from estimator_fmu.estimators import LinearEstimator
+    from plant_model.discretization import DiscreteModel
+    from plant_model.system import LinearSystem
+
 __all__ = ["jacobi_closed_loop", "predict_stationary_jacobi"]
 
-def jacobi_closed_loop(model, est, Ks: np.ndarray):
+
+def jacobi_closed_loop(model: DiscreteModel, est: LinearEstimator,
+                       Ks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(Phi, Gam, Gx, Geta) of the loop as libcosim (``coupling="jacobi"``) runs it.
 
     State X[k] = [s; q; EST; U] at communication point t_k: plant state s, estimator
     state q, the estimate EST the estimator outputs at t_k (computed after its step from
     q[k] and the measurement it still holds, mvec[k-1]) and the control U that the
     controller outputs at t_k (from the estimate it held, EST[k-1]). With
-    mvec[k] = Ms s[k] + J eta[k] (the same Ms, J as orchestrator.analysis.prediction.closed_loop):
+    mvec[k] = Ms s[k] + J eta[k] (the same Ms, J as
+    orchestrator.analysis.prediction.closed_loop):
 
         s[k+1]   = Ad s + Bd U + [I 0] eta
         q[k+1]   = Aq (Ce q + Dm mvec[k]) + Bu U
@@ -28,6 +36,26 @@ def jacobi_closed_loop(model, est, Ks: np.ndarray):
         U[k+1]   = -Ks EST[k]
 
     u[k] = U[k] is the control the plant holds over step k; e[k] = E s[k].
+
+    Parameters
+    ----------
+    model : DiscreteModel
+        The plant sampled at the communication step h.
+    est : LinearEstimator
+        The estimator (its Ce, Dm, Aq, Bu, q0).
+    Ks : np.ndarray
+        Control gain, u = -Ks est, m x (n + r + l).
+
+    Returns
+    -------
+    Phi : np.ndarray
+        X[k+1] = Phi X[k] + Gam eta[k], X of length ns + nq + (n + r + l) + m.
+    Gam : np.ndarray
+        Noise input matrix, columns eta = [v; n; n_z] (ns + 2 p).
+    Gx : np.ndarray
+        u[k] = Gx X[k] + Geta eta[k], m rows.
+    Geta : np.ndarray
+        Zero: u[k] = U[k] has no direct noise term.
     """
     ns, p = model.ns, model.p
     nq = est.q0.shape[0]
@@ -65,12 +93,32 @@ def jacobi_closed_loop(model, est, Ks: np.ndarray):
     return Phi, Gam, Gx, Geta
 
 
-def predict_stationary_jacobi(system, model, est, Ks: np.ndarray) -> dict[str, Any]:
-    """Stationary RMS of e and u and the cost rate of the Jacobi-coupled loop
-    (:func:`jacobi_closed_loop`), from Sigma = Phi Sigma Phi' + Gam W Gam'.
+def predict_stationary_jacobi(system: LinearSystem, model: DiscreteModel,
+                              est: LinearEstimator, Ks: np.ndarray) -> dict[str, Any]:
+    """Stationary RMS of e and u and the cost rate of the Jacobi-coupled loop.
 
-    Only for loops whose every state is noise-driven and stable (the paper's example);
-    returns ``{"cost_rate": None, "reason": ...}`` otherwise.
+    From the loop of :func:`jacobi_closed_loop` and Sigma = Phi Sigma Phi' + Gam W Gam',
+    W = blkdiag(Qd, Rd): E[e e'] = E Sigma_ss E', E[u u'] = Gx Sigma Gx' + Geta W Geta',
+    cost rate tr(Q E[e e']) + tr(R E[u u']) (per second). Only for loops whose every
+    state is noise-driven and stable (the paper's example).
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The model (its cost weights Q, R).
+    model : DiscreteModel
+        The plant sampled at the communication step h.
+    est : LinearEstimator
+        The estimator.
+    Ks : np.ndarray
+        Control gain, u = -Ks est.
+
+    Returns
+    -------
+    dict[str, Any]
+        ``rms_e`` (p values), ``rms_u`` (m values), ``cost_rate``, ``spectral_radius``
+        and ``reason``; the first three are None, and ``reason`` says why, when the loop
+        is not stationary.
     """
     from scipy.linalg import block_diag, solve_discrete_lyapunov
 

@@ -46,8 +46,33 @@ class Prediction:
     rms_e_mean: list[float] | None = None
 
 
-def closed_loop(model: DiscreteModel, est: LinearEstimator, Ks: np.ndarray):
-    """(Phi, Gam, Gx, Geta) of the sampled closed loop described in the module docstring."""
+def closed_loop(model: DiscreteModel, est: LinearEstimator,
+                Ks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(Phi, Gam, Gx, Geta) of the sampled closed loop described in the module docstring.
+
+    X[k+1] = Phi X[k] + Gam eta[k],  u[k] = Gx X[k] + Geta eta[k],  X = [s; q],
+    eta = [v; n; n_z].
+
+    Parameters
+    ----------
+    model : DiscreteModel
+        The plant sampled at the communication step h.
+    est : LinearEstimator
+        The estimator (its Ce, Dm, Aq, Bu, q0).
+    Ks : np.ndarray
+        Control gain, u = -Ks est, m x (n + r + l).
+
+    Returns
+    -------
+    Phi : np.ndarray
+        Closed-loop transition, (ns + nq) x (ns + nq).
+    Gam : np.ndarray
+        Noise input, (ns + nq) x (ns + 2 p).
+    Gx : np.ndarray
+        Control from the state, m x (ns + nq).
+    Geta : np.ndarray
+        Control from the noise of the same sample, m x (ns + 2 p).
+    """
     ns, p = model.ns, model.p
     nq = est.q0.shape[0]
     nm = 2 * p + ns
@@ -72,8 +97,25 @@ def closed_loop(model: DiscreteModel, est: LinearEstimator, Ks: np.ndarray):
 
 def deterministic_states(system: LinearSystem, model: DiscreteModel,
                          est: LinearEstimator) -> np.ndarray:
-    """Mask over the closed-loop state [s; q] of the planned-path reference states and
-    (for the Kalman estimator, whose q is a copy of s) their exact estimates."""
+    """Mask over the closed-loop state [s; q] of the deterministic states.
+
+    The planned-path reference states (:meth:`LinearSystem.known_reference_mask`) and,
+    for the Kalman estimator (whose q is a copy of s), their exact estimates.
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The model.
+    model : DiscreteModel
+        The plant sampled at h.
+    est : LinearEstimator
+        The estimator.
+
+    Returns
+    -------
+    np.ndarray
+        Boolean mask of length ns + nq.
+    """
     ns = model.ns
     known = np.zeros(ns, dtype=bool)
     known[system.n + system.r:] = system.known_reference_mask()
@@ -89,7 +131,30 @@ def predict_stationary(system: LinearSystem, model: DiscreteModel, est: LinearEs
 
     Without ``window``: the stationary (noise-driven) part only. With ``window`` = (k0, K)
     the mean motion from the initial state over samples k0..K-1 is added (needed when the
-    reference is a planned path that never settles).
+    reference is a planned path that never settles). Cost rate J/T = tr(Q E[e e']) +
+    tr(R E[u u']) (module docstring).
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The model (its cost weights Q, R and initial state).
+    model : DiscreteModel
+        The plant sampled at the communication step h, s.
+    est : LinearEstimator
+        The estimator.
+    Ks : np.ndarray
+        Control gain, u = -Ks est.
+    window : tuple[int, int] or None, optional
+        Statistics window (k0, K) in samples; None: the stationary part only.
+    x0 : np.ndarray or None, optional
+        Initial closed-loop state [s; q] for the mean motion; default [s(0); q0].
+
+    Returns
+    -------
+    Prediction
+        RMS of e and u, the cost rate, the spectral radius of the loop and the settling
+        time (5 time constants of the slowest mode, s); None values and ``reason`` when
+        the loop is not stationary.
     """
     Phi, Gam, Gx, Geta = closed_loop(model, est, Ks)
     D = deterministic_states(system, model, est)

@@ -25,8 +25,36 @@ def run_monolithic(system: LinearSystem, h: float, mode: str, seed: int,
                    timing: dict[str, float] | None = None) -> dict[str, np.ndarray]:
     """Traces (row k = sample k) of the closed loop: y, ybar, x, w, z, e, xhat, what, zhat, u.
 
-    ``timing``, if given, receives ``setup_s`` (design, sampling, filter gains) and
-    ``loop_s`` (the noise draws and the time-stepping loop).
+    s[k+1] = Ad s[k] + Bd u[k] + v[k], u[k] = -(Kx xhat + Kw what + Kz zhat), with the
+    estimates of ``mode`` written out explicitly (module docstring).
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The validated model.
+    h : float
+        Sampling period, s.
+    mode : str
+        Estimator: 'kalman', 'classical' or 'ideal'.
+    seed : int
+        Seed of the noise rows (:meth:`NoiseStream.all_rows`).
+    steps : int
+        Number of samples.
+    tracking : str, optional
+        Tracking law: 'lq' or 'regulator'.
+    timing : dict[str, float] or None, optional
+        If given, receives ``setup_s`` (design, sampling, filter gains) and ``loop_s``
+        (the noise draws and the time-stepping loop), s.
+
+    Returns
+    -------
+    dict[str, np.ndarray]
+        Name -> array of shape (steps, size), row k = sample k.
+
+    Raises
+    ------
+    ModelError
+        If the mode is unknown or the design or a filter does not exist.
     """
     import time
     t_setup = time.perf_counter()

@@ -13,7 +13,8 @@ from __future__ import annotations
 import importlib.metadata as md
 import math
 import platform
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
 
@@ -21,14 +22,52 @@ __all__ = ["trace_stats", "method_summary", "versions", "stats_window"]
 
 
 def stats_window(T: float, h: float, settling_time: float) -> int:
-    """First sample index of the statistics window."""
+    """First sample index of the statistics window.
+
+    k0 = ceil(t_from / h), t_from = min(T / 2, settling_time) (T / 2 if the settling time
+    is infinite).
+
+    Parameters
+    ----------
+    T : float
+        Duration of the run, s.
+    h : float
+        Sampling period, s.
+    settling_time : float
+        Settling time of the closed loop, s (may be infinite).
+
+    Returns
+    -------
+    int
+        k0.
+    """
     t_from = min(T / 2.0, settling_time if math.isfinite(settling_time) else T / 2.0)
     return int(math.ceil(t_from / h - 1e-9))
 
 
 def trace_stats(traces: dict[str, np.ndarray], Q: np.ndarray, R: np.ndarray,
                 k0: int) -> dict[str, Any]:
-    """RMS of each e and u component and the cost rate over samples k >= k0."""
+    """RMS of each e and u component and the cost rate over samples k >= k0.
+
+    rms_e[i] = sqrt(mean_k e_i[k]^2), rms_u[j] = sqrt(mean_k u_j[k]^2),
+    cost_rate = mean_k (e[k]' Q e[k] + u[k]' R u[k]).
+
+    Parameters
+    ----------
+    traces : dict[str, np.ndarray]
+        Traces with rows = samples; reads ``e`` (K, p) and ``u`` (K, m).
+    Q : np.ndarray
+        Tracking error weight, p x p.
+    R : np.ndarray
+        Control weight, m x m.
+    k0 : int
+        First sample of the window.
+
+    Returns
+    -------
+    dict[str, Any]
+        ``rms_e``, ``mean_e``, ``rms_u`` (lists) and ``cost_rate`` (float, per second).
+    """
     e, u = traces["e"][k0:], traces["u"][k0:]
     cost = np.einsum("ki,ij,kj->k", e, Q, e) + np.einsum("ki,ij,kj->k", u, R, u)
     return {"rms_e": np.sqrt(np.mean(e * e, axis=0)).tolist(),
@@ -44,7 +83,22 @@ def _mean_std(rows: list[list[float]]) -> tuple[list[float], list[float]]:
 
 
 def method_summary(per_seed: list[dict[str, Any]], prediction: Any) -> dict[str, Any]:
-    """Mean, standard deviation over seeds, and the prediction, as summary.json wants."""
+    """Mean, standard deviation over seeds, and the prediction, as summary.json wants.
+
+    Parameters
+    ----------
+    per_seed : list[dict[str, Any]]
+        :func:`trace_stats` of each seed.
+    prediction : Any
+        The :class:`~orchestrator.analysis.prediction.Prediction` (or an object with
+        ``rms_e``, ``rms_u``, ``cost_rate``, ``reason`` and optionally ``rms_e_mean``).
+
+    Returns
+    -------
+    dict[str, Any]
+        ``rms_e``, ``rms_u``, ``steady_error``, ``cost_rate`` and, when the prediction
+        has a reason, ``prediction_note``.
+    """
     out: dict[str, Any] = {}
     for key, pred in (("rms_e", prediction.rms_e), ("rms_u", prediction.rms_u)):
         mean, std = _mean_std([s[key] for s in per_seed])
@@ -72,7 +126,18 @@ def method_summary(per_seed: list[dict[str, Any]], prediction: Any) -> dict[str,
 
 def versions(packages: Iterable[str] = ("auv-cosim", "numpy", "scipy", "fmpy", "pythonfmu",
                                          "rerun-sdk")) -> dict[str, str]:
-    """Versions of Python and the packages that produced a result."""
+    """Versions of Python and the packages that produced a result.
+
+    Parameters
+    ----------
+    packages : Iterable[str], optional
+        Distribution names to look up.
+
+    Returns
+    -------
+    dict[str, str]
+        ``python`` and each package's version ("not installed" if missing).
+    """
     out = {"python": platform.python_version()}
     for name in packages:
         try:

@@ -45,6 +45,7 @@ class FmuKind:
 
     @property
     def script(self) -> Path:
+        """Path of the slave's source file."""
         return ROOT / (self.module.replace(".", "/") + ".py")
 
 
@@ -67,6 +68,30 @@ def fmu_config(system_mapping: dict[str, Any], dims: dict[str, int], h: float, T
 
     For a fleet the FMUs get the fleet parameter interface (plant_model.fleet_parameters)
     and the stacked matrices are not shipped (they are rebuilt from the fleet spec).
+
+    Parameters
+    ----------
+    system_mapping : dict[str, Any]
+        :meth:`LinearSystem.to_mapping` of the system.
+    dims : dict[str, int]
+        The sizes n, m, r, p, l.
+    h : float
+        Communication step (sample period), s.
+    T : float
+        Stop time of the default experiment, s.
+    seed : int
+        Seed of the plant's noise.
+    mode : str
+        Estimator mode.
+    tracking : str, optional
+        Controller law ('lq' or 'regulator').
+    fleet : dict[str, Any] or None, optional
+        The resolved fleet spec, or None for a single system.
+
+    Returns
+    -------
+    dict[str, Any]
+        Keys system, dims, h, T, seed, mode, tracking, fleet (JSON-ready).
     """
     if fleet is not None:
         system_mapping = {"noise_convention": system_mapping.get("noise_convention", "intensity")}
@@ -75,7 +100,20 @@ def fmu_config(system_mapping: dict[str, Any], dims: dict[str, int], h: float, T
 
 
 def interface_of(kind: FmuKind, config: dict[str, Any]) -> list[ArraySpec]:
-    """The slave's interface table for ``config`` (parameters, inputs, outputs in order)."""
+    """The slave's interface table for ``config`` (parameters, inputs, outputs in order).
+
+    Parameters
+    ----------
+    kind : FmuKind
+        Which slave.
+    config : dict[str, Any]
+        The FMU's configuration (:func:`fmu_config`).
+
+    Returns
+    -------
+    list[ArraySpec]
+        The slave's arrays, parameters first, then inputs, then outputs.
+    """
     module = importlib.import_module(kind.module)
     cls = getattr(module, kind.model)
     order = {"parameter": 0, "input": 1, "output": 2}
@@ -89,7 +127,29 @@ def _fmt(v: Any) -> str:
 
 
 def patch_model_description(xml: bytes, specs: list[ArraySpec], *, T: float, h: float) -> bytes:
-    """Add units, InitialUnknowns, output dependencies and a DefaultExperiment."""
+    """Add units, InitialUnknowns, output dependencies and a DefaultExperiment.
+
+    Parameters
+    ----------
+    xml : bytes
+        The modelDescription.xml pythonfmu wrote.
+    specs : list[ArraySpec]
+        The slave's interface table (:func:`interface_of`).
+    T : float
+        Stop time of the default experiment, s.
+    h : float
+        Step size of the default experiment, s.
+
+    Returns
+    -------
+    bytes
+        The completed modelDescription.xml (UTF-8, pretty-printed).
+
+    Raises
+    ------
+    ValueError
+        If a unit has no entry in UNIT_DEFINITIONS.
+    """
     root = etree.fromstring(xml)
     by_name = {name: spec for spec, _, name in expand(specs)}
     variables = root.find("ModelVariables")
@@ -114,7 +174,8 @@ def patch_model_description(xml: bytes, specs: list[ArraySpec], *, T: float, h: 
     if units_used:
         unknown = [u for u in units_used if u not in UNIT_DEFINITIONS]
         if unknown:
-            raise ValueError(f"no SI definition for unit(s) {unknown}; add them to UNIT_DEFINITIONS")
+            raise ValueError(f"no SI definition for unit(s) {unknown}; add them to "
+                             "UNIT_DEFINITIONS")
         ud = etree.Element("UnitDefinitions")
         for u in units_used:
             unit = etree.SubElement(ud, "Unit", name=u)
@@ -161,7 +222,22 @@ def _rewrite_zip(path: Path, replacements: dict[str, bytes]) -> None:
 
 
 def build_fmu(kind: FmuKind, config: dict[str, Any], out_dir: Path) -> Path:
-    """Build one FMU into ``out_dir`` and patch its model description."""
+    """Build one FMU into ``out_dir`` and patch its model description.
+
+    Parameters
+    ----------
+    kind : FmuKind
+        Which slave.
+    config : dict[str, Any]
+        The FMU's configuration (:func:`fmu_config`), shipped in resources/.
+    out_dir : Path
+        Destination folder (created if missing).
+
+    Returns
+    -------
+    Path
+        The .fmu file.
+    """
     from pythonfmu.builder import FmuBuilder
 
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -172,7 +248,8 @@ def build_fmu(kind: FmuKind, config: dict[str, Any], out_dir: Path) -> Path:
         staged = []
         for pkg in kind.packages:      # copy without caches so the FMU holds sources only
             dst = tmp_path / pkg
-            shutil.copytree(ROOT / pkg, dst, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "auv_*_slave.py"))
+            shutil.copytree(ROOT / pkg, dst, ignore=shutil.ignore_patterns(
+                "__pycache__", "*.pyc", "auv_*_slave.py"))
             staged.append(dst)
         script = kind.script
         # the slave script itself goes to the root of resources/ (a unique module name)
@@ -202,9 +279,17 @@ def build_fmu(kind: FmuKind, config: dict[str, Any], out_dir: Path) -> Path:
 
 
 def fmu_cache_dir() -> Path:
-    """Where built FMUs are kept: ``$AUV_COSIM_CACHE``, else ``$XDG_CACHE_HOME/auv-cosim/fmus``
+    """Where built FMUs are kept.
+
+    ``$AUV_COSIM_CACHE``, else ``$XDG_CACHE_HOME/auv-cosim/fmus``
     (``~/.cache/auv-cosim/fmus``). Delete it at will; entries unused for 30 days are
-    removed when a new one is written."""
+    removed when a new one is written.
+
+    Returns
+    -------
+    Path
+        The cache folder (not created here).
+    """
     env = os.environ.get("AUV_COSIM_CACHE")
     if env:
         return Path(env)
@@ -212,8 +297,23 @@ def fmu_cache_dir() -> Path:
 
 
 def build_key(kind: FmuKind, config: dict[str, Any]) -> str:
-    """SHA-256 of everything that goes into an FMU: the configuration, the kind, every
-    source file it ships, this build code and the pythonfmu version."""
+    """SHA-256 of everything that goes into an FMU.
+
+    The configuration, the kind, every source file it ships, this build code and the
+    pythonfmu version.
+
+    Parameters
+    ----------
+    kind : FmuKind
+        Which slave.
+    config : dict[str, Any]
+        The FMU's configuration.
+
+    Returns
+    -------
+    str
+        The hex digest.
+    """
     from importlib.metadata import version
 
     h = hashlib.sha256()
@@ -253,9 +353,25 @@ def _prune_cache(cache: Path, max_age_s: float = 30 * 86400.0) -> None:
 
 
 def cached_fmu(kind: FmuKind, config: dict[str, Any], cache: Path | None = None) -> Path:
-    """The FMU of ``kind`` for ``config`` from the cache (:func:`fmu_cache_dir`), built there
-    first if missing. The build happens in a private folder and lands under its final name
-    by one rename, so two processes building the same FMU at once both get a whole one."""
+    """The FMU of ``kind`` for ``config`` from the cache, built there first if missing.
+
+    The build happens in a private folder and lands under its final name by one rename,
+    so two processes building the same FMU at once both get a whole one.
+
+    Parameters
+    ----------
+    kind : FmuKind
+        Which slave.
+    config : dict[str, Any]
+        The FMU's configuration.
+    cache : Path or None, optional
+        The cache folder; default :func:`fmu_cache_dir`.
+
+    Returns
+    -------
+    Path
+        ``<cache>/<Model>-<key>.fmu``.
+    """
     cache = Path(cache) if cache is not None else fmu_cache_dir()
     path = cache / f"{kind.model}-{build_key(kind, config)[:32]}.fmu"
     if path.exists():
@@ -272,10 +388,24 @@ def cached_fmu(kind: FmuKind, config: dict[str, Any], cache: Path | None = None)
 
 def build_fmus(config: dict[str, Any], out_dir: Path | str, *,
                cache: bool = True) -> dict[str, Path]:
-    """The plant, estimator and controller FMUs for one configuration, in ``out_dir``
-    (``<Model>.fmu``, each written atomically). ``cache``: take identical builds from
-    :func:`fmu_cache_dir` (a rebuild costs about 0.1 s per FMU); ``False`` builds afresh
-    (a new GUID)."""
+    """The plant, estimator and controller FMUs for one configuration, in ``out_dir``.
+
+    Parameters
+    ----------
+    config : dict[str, Any]
+        The FMUs' configuration (:func:`fmu_config`).
+    out_dir : Path or str
+        Destination folder (created if missing); each ``<Model>.fmu`` is written
+        atomically.
+    cache : bool, optional
+        Take identical builds from :func:`fmu_cache_dir` (a rebuild costs about 0.1 s per
+        FMU); False builds afresh (a new GUID).
+
+    Returns
+    -------
+    dict[str, Path]
+        'plant', 'estimator', 'controller' -> the .fmu path.
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths: dict[str, Path] = {}
@@ -303,7 +433,18 @@ def _start_text(spec: ArraySpec) -> str:
 
 
 def variables_markdown(config: dict[str, Any]) -> str:
-    """A table per FMU: name, causality, variability, unit, start, description."""
+    """A table per FMU: name, causality, variability, unit, start, description.
+
+    Parameters
+    ----------
+    config : dict[str, Any]
+        The FMUs' configuration.
+
+    Returns
+    -------
+    str
+        Markdown, one section per FMU.
+    """
     lines = []
     for key, kind in FMU_KINDS.items():
         lines += [f"### {kind.model}.fmu ({key})", "",

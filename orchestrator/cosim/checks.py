@@ -33,8 +33,18 @@ class Variable:
 
 
 def fmu_variables(fmu: Path | str | Any) -> dict[str, Variable]:
-    """Name -> :class:`Variable` of every variable of an FMU (a path or an fmpy
-    ModelDescription), in the modelDescription's order."""
+    """Name -> :class:`Variable` of every variable of an FMU, in the modelDescription's order.
+
+    Parameters
+    ----------
+    fmu : Path or str or Any
+        Path of the .fmu, or an fmpy ModelDescription already read.
+
+    Returns
+    -------
+    dict[str, Variable]
+        Causality, type, unit and start of each scalar variable.
+    """
     md = fmu
     if isinstance(fmu, (str, Path)):
         from fmpy import read_model_description
@@ -43,14 +53,37 @@ def fmu_variables(fmu: Path | str | Any) -> dict[str, Variable]:
 
 
 def interface_variables(component: Component) -> dict[str, Variable]:
-    """The variables a component's FMU will have, from its interface table (before it is
-    built: nothing is built for a system that would not connect)."""
+    """The variables a component's FMU will have, from its interface table.
+
+    Known before the FMU is built: nothing is built for a system that would not connect.
+
+    Parameters
+    ----------
+    component : Component
+        The component (its interface table).
+
+    Returns
+    -------
+    dict[str, Variable]
+        FMI scalar name -> causality, type and unit.
+    """
     return {name: Variable(spec.causality, spec.type, spec.unit)
             for spec in component.interface for name in element_names(spec.name, spec.shape)}
 
 
 def system_variables(system: SystemDescription) -> dict[str, dict[str, Variable]]:
-    """Component name -> its planned variables (:func:`interface_variables`)."""
+    """Component name -> its planned variables (:func:`interface_variables`).
+
+    Parameters
+    ----------
+    system : SystemDescription
+        The system.
+
+    Returns
+    -------
+    dict[str, dict[str, Variable]]
+        Per component, FMI scalar name -> :class:`Variable`.
+    """
     return {c.name: interface_variables(c) for c in system.components}
 
 
@@ -63,8 +96,22 @@ def connection_problems(variables: Mapping[str, Mapping[str, Variable]],
                         fmu_names: Mapping[str, str] | None = None) -> list[str]:
     """Every problem of a set of scalar connections against the components' variables.
 
-    ``variables``: component name -> variable name -> :class:`Variable`; ``fmu_names``:
-    component -> FMU file name, to name the FMU in the messages."""
+    Parameters
+    ----------
+    variables : Mapping[str, Mapping[str, Variable]]
+        Component name -> variable name -> :class:`Variable`.
+    connections : Iterable[ScalarConnection]
+        The scalar connections to check.
+    fmu_names : Mapping[str, str] or None, optional
+        Component -> FMU file name, to name the FMU in the messages.
+
+    Returns
+    -------
+    list[str]
+        One sentence per problem (a missing component or variable, a connection that does
+        not go from an output to an input of the same type, an input fed twice or not at
+        all); empty when the system can run.
+    """
     label = dict(fmu_names or {})
     problems: list[str] = []
 

@@ -31,9 +31,10 @@ from __future__ import annotations
 
 import ctypes
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import numpy as np
 from fmpy import read_model_description
@@ -68,10 +69,12 @@ class RunResult:
 
     @property
     def steps(self) -> int:
+        """Number of samples in the traces."""
         return next(iter(self.traces.values())).shape[0]
 
     @property
     def t(self) -> np.ndarray:
+        """Sample times t = k h, s."""
         return np.arange(self.steps) * self.h
 
 
@@ -103,8 +106,31 @@ def _runs(cols: list[int]) -> list[tuple[int, int]]:
 
 def plan_steps(system: SystemDescription, inst: Mapping[str, FmuInstance],
                rec: Mapping[str, np.ndarray], coupling: str) -> StepPlan:
-    """Resolve the system's active connections into batched FMI calls on ``inst``
-    writing and reading the trace arrays ``rec`` (component -> (steps, outputs))."""
+    """Resolve the system's active connections into batched FMI calls.
+
+    Parameters
+    ----------
+    system : SystemDescription
+        The system.
+    inst : Mapping[str, FmuInstance]
+        Component name -> its initialized instance.
+    rec : Mapping[str, np.ndarray]
+        Component name -> trace array (steps, outputs) the calls read and write in place.
+    coupling : str
+        'gauss-seidel' or 'jacobi' (module docstring).
+
+    Returns
+    -------
+    StepPlan
+        The get / set calls, the steps and the evaluation order.
+
+    Raises
+    ------
+    CosimError
+        If a connection's two ends differ in size.
+    AlgebraicLoopError
+        If Gauss-Seidel coupling meets an algebraic loop.
+    """
     keep: list[Any] = []                # ctypes arrays the plan points into
 
     def vr_array(fmu: FmuInstance, names: list[str]) -> int:
@@ -186,13 +212,27 @@ def plan_steps(system: SystemDescription, inst: Mapping[str, FmuInstance],
     return plan
 
 
-def compile_plan(plan: StepPlan) -> tuple[Callable[[int, int, float], None], str]:
-    """The plan as one Python function ``run(k0, k1, h)`` stepping k0 <= k < k1, written out
-    call by call (every function, pointer and count a local constant), as a hand-written
-    master for this system would be; returns it and its source (for reading and reports).
+def compile_plan(plan: StepPlan) -> tuple[Callable[[int, int, float, int], None], str]:
+    """The plan as one Python function ``run(k0, k1, h, last)`` stepping k0 <= k < k1.
 
-    Per step and call: ``st = f(component, value references, count, row address)``; a
-    non-zero status raises the instance's CosimError naming the call and the time."""
+    Written out call by call (every function, pointer and count a local constant), as a
+    hand-written master for this system would be. Per step and call:
+    ``st = f(component, value references, count, row address)``; a non-zero status raises
+    the instance's CosimError naming the call and the time t = k h (s).
+
+    Parameters
+    ----------
+    plan : StepPlan
+        The resolved plan (:func:`plan_steps`).
+
+    Returns
+    -------
+    run : Callable
+        ``run(k0, k1, h, last)``: steps k0..k1-1 of ``h`` s; ``last`` is the number of
+        steps of the run (Jacobi reads no outputs after the last one).
+    source : str
+        Its source text, for reading and reports.
+    """
     env: dict[str, Any] = {}
     lines: list[str] = []
 
@@ -240,7 +280,7 @@ def compile_plan(plan: StepPlan) -> tuple[Callable[[int, int, float], None], str
     src = (f"def run(k0, k1, h, last, {params}):\n"
            + "\n".join("    " + ln for ln in lines) + "\n")
     ns: dict[str, Any] = dict(env)
-    exec(compile(src, "<auv-cosim step plan>", "exec"), ns)    # noqa: S102 - our own text
+    exec(compile(src, "<auv-cosim step plan>", "exec"), ns)
     return ns["run"], src
 
 
@@ -264,10 +304,37 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
                instance_suffix: str = "") -> tuple[dict[str, np.ndarray], float, dict[str, Any]]:
     """Co-simulate ``system`` for ``steps`` communication steps of ``system.h``.
 
-    ``fmus``: FMU key (``Component.fmu``) -> .fmu path. Returns (traces keyed by
-    :meth:`SystemDescription.trace_names`, seconds in the step loop, info with the
-    evaluation order). ``progress``: False, True (a progress bar shown after one second)
-    or a shared bar object with ``update(n)``.
+    Parameters
+    ----------
+    system : SystemDescription
+        The system to run.
+    fmus : Mapping[str, Path]
+        FMU key (``Component.fmu``) -> .fmu path.
+    steps : int
+        Number of communication steps.
+    coupling : str, optional
+        'gauss-seidel' or 'jacobi' (module docstring).
+    progress : Any, optional
+        False, True (a progress bar shown after one second) or a shared bar object with
+        ``update(n)``.
+    instance_suffix : str, optional
+        Appended to each component's name to make its FMI instance name.
+
+    Returns
+    -------
+    traces : dict[str, np.ndarray]
+        Keyed by :meth:`SystemDescription.trace_names`, row k = sample k.
+    loop_s : float
+        Seconds spent in the step loop.
+    info : dict[str, Any]
+        ``order`` (the evaluation order) and ``calls_per_step``.
+
+    Raises
+    ------
+    ValueError
+        If the coupling is unknown.
+    CosimError
+        If an FMU is missing, the system does not match its FMUs or an FMI call fails.
     """
     if coupling not in COUPLINGS:
         raise ValueError(f"coupling {coupling!r} is not one of {', '.join(COUPLINGS)}")
@@ -324,12 +391,38 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
 def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str, seed: int,
                      steps: int, progress: Any = False, tracking: str | None = None,
                      coupling: str = "gauss-seidel") -> RunResult:
-    """Run the paper's loop (:func:`closed_loop_system`) of the three FMUs built for
-    ``config`` for ``steps`` steps of ``config['h']``.
+    """Run the paper's loop (:func:`closed_loop_system`) of the three FMUs for ``steps`` steps.
 
-    ``mode``: the estimator mode; ``tracking``: the controller's law ('lq' or 'regulator',
-    default the configuration's); ``coupling``: 'gauss-seidel' (the exact discrete-time
-    loop, default) or 'jacobi' (what libcosim does; module docstring).
+    Parameters
+    ----------
+    fmus : dict[str, Path]
+        'plant', 'estimator', 'controller' -> .fmu path, built for ``config``.
+    config : dict[str, Any]
+        The FMUs' configuration (:func:`orchestrator.cosim.build.fmu_config`); the
+        communication step is ``config['h']``, s.
+    mode : str
+        The estimator mode.
+    seed : int
+        Seed of the plant's noise.
+    steps : int
+        Number of communication steps.
+    progress : Any, optional
+        As in :func:`run_system`.
+    tracking : str or None, optional
+        The controller's law ('lq' or 'regulator'); default the configuration's.
+    coupling : str, optional
+        'gauss-seidel' (the exact discrete-time loop, default) or 'jacobi' (what libcosim
+        does; module docstring).
+
+    Returns
+    -------
+    RunResult
+        The traces, timings and run information.
+
+    Raises
+    ------
+    CosimError
+        If an FMU refuses a call.
     """
     t0 = time.perf_counter()
     cfg = dict(config, mode=mode, seed=int(seed),

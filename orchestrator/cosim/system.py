@@ -20,14 +20,15 @@ traces after its outputs.
 :func:`closed_loop_system` is the paper's loop (one plant, one estimator, one controller,
 also for a stacked fleet)::
 
-    plant.y, ybar, x, w, z   -> estimator.y, ybar, x, w, z   (x, w, z only if estimator.mode = ideal)
+    plant.y, ybar, x, w, z   -> estimator.y, ybar, x, w, z  (x, w, z only if estimator.mode = ideal)
     estimator.xhat, what, zhat -> controller.xhat, what, zhat
     controller.u             -> plant.u, estimator.u
 """
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any, Iterator, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -53,10 +54,38 @@ class Component:
     parameters: Mapping[str, Any] = field(default_factory=dict)  #: FMI scalar name -> value
 
     def arrays(self, causality: str) -> list[ArraySpec]:
-        """The arrays of one causality, in the FMU's order."""
+        """The arrays of one causality, in the FMU's order.
+
+        Parameters
+        ----------
+        causality : str
+            'parameter', 'input' or 'output'.
+
+        Returns
+        -------
+        list[ArraySpec]
+            The matching arrays of the interface table.
+        """
         return [s for s in self.interface if s.causality == causality]
 
     def array(self, name: str) -> ArraySpec:
+        """The array ``name`` of the interface table.
+
+        Parameters
+        ----------
+        name : str
+            The array's name (e.g. ``y``).
+
+        Returns
+        -------
+        ArraySpec
+            Its spec.
+
+        Raises
+        ------
+        KeyError
+            If the component has no such array.
+        """
         for s in self.interface:
             if s.name == name:
                 return s
@@ -107,6 +136,23 @@ class SystemDescription:
     T: float                                    #: stop time, s (start 0)
 
     def component(self, name: str) -> Component:
+        """The component ``name``.
+
+        Parameters
+        ----------
+        name : str
+            Instance name in the system.
+
+        Returns
+        -------
+        Component
+            The component.
+
+        Raises
+        ------
+        KeyError
+            If there is no such component (the message lists the components).
+        """
         for c in self.components:
             if c.name == name:
                 return c
@@ -115,23 +161,57 @@ class SystemDescription:
 
     @property
     def names(self) -> list[str]:
+        """The components' names, in system order."""
         return [c.name for c in self.components]
 
     def active(self, c: Connection) -> bool:
-        """Does ``c`` carry data with the components' parameter values?"""
+        """Does ``c`` carry data with the components' parameter values?
+
+        Parameters
+        ----------
+        c : Connection
+            A connection of this system.
+
+        Returns
+        -------
+        bool
+            True if ``c.when`` is None or its parameter has the given value.
+        """
         if c.when is None:
             return True
         comp, par, value = c.when
         return self.component(comp).parameters.get(par) == value
 
     def active_connections(self) -> list[Connection]:
+        """The connections that carry data in this run (:meth:`active`).
+
+        Returns
+        -------
+        list[Connection]
+            In the order of the description.
+        """
         return [c for c in self.connections if self.active(c)]
 
     def scalar_connections(self, *, active_only: bool = False) -> list[ScalarConnection]:
         """One connection per scalar, in the order of the connections and elements.
 
-        An array connection whose two ends differ in size is refused here (ValueError
-        naming it); the variable-level checks are in :mod:`orchestrator.interop.checks`."""
+        The variable-level checks are in :mod:`orchestrator.cosim.checks`.
+
+        Parameters
+        ----------
+        active_only : bool, optional
+            Only the connections that carry data in this run.
+
+        Returns
+        -------
+        list[ScalarConnection]
+            ``y[1] -> y[1]``, ... for every array connection.
+
+        Raises
+        ------
+        ValueError
+            Naming an array connection whose two ends differ in size.
+        """
         out = []
         for c in (self.active_connections() if active_only else self.connections):
             src, dst = self.component(c.source), self.component(c.target)
@@ -145,22 +225,54 @@ class SystemDescription:
             out += [ScalarConnection((c.source, x), (c.target, y)) for x, y in zip(na, nb)]
         return out
 
-    def with_parameters(self, component: str, **values: Any) -> "SystemDescription":
-        """A copy with some parameter values of one component replaced."""
+    def with_parameters(self, component: str, **values: Any) -> SystemDescription:
+        """A copy with some parameter values of one component replaced.
+
+        Parameters
+        ----------
+        component : str
+            The component's name.
+        **values : Any
+            FMI scalar parameter name -> new value.
+
+        Returns
+        -------
+        SystemDescription
+            The new description.
+
+        Raises
+        ------
+        KeyError
+            If there is no such component.
+        """
         comps = tuple(replace(c, parameters={**c.parameters, **values}) if c.name == component
                       else c for c in self.components)
         self.component(component)
         return replace(self, components=comps)
 
     def outputs(self) -> Iterator[tuple[Component, ArraySpec]]:
-        """Every output array of every component, in system order."""
+        """Every output array of every component, in system order.
+
+        Yields
+        ------
+        tuple[Component, ArraySpec]
+            The component and one of its output arrays.
+        """
         for comp in self.components:
             for spec in comp.arrays("output"):
                 yield comp, spec
 
     def trace_names(self) -> dict[tuple[str, str], str]:
-        """(component, output) -> the name of its trace: the output's name where no other
-        component has an output of that name, else ``component.output``."""
+        """(component, output) -> the name of its trace.
+
+        The output's name where no other component has an output of that name, else
+        ``component.output``.
+
+        Returns
+        -------
+        dict[tuple[str, str], str]
+            Trace name of every output array.
+        """
         count: dict[str, int] = {}
         for _, spec in self.outputs():
             count[spec.name] = count.get(spec.name, 0) + 1
@@ -182,8 +294,22 @@ def evaluation_order(system: SystemDescription) -> list[tuple[str, str]]:
     ``depends_on``) can be read only after the output feeding that input was read and set:
     the lexicographic topological order (Kahn's algorithm, smallest rank first) of the graph
     output -> connection -> dependent output, ranks being the order of components and
-    outputs in the description. An algebraic loop (a cycle of such dependencies) is refused
-    with :class:`AlgebraicLoopError` naming the cycle.
+    outputs in the description.
+
+    Parameters
+    ----------
+    system : SystemDescription
+        The system (its active connections and the outputs' ``depends_on``).
+
+    Returns
+    -------
+    list[tuple[str, str]]
+        Every (component, output array), in evaluation order.
+
+    Raises
+    ------
+    AlgebraicLoopError
+        Naming the cycle, if outputs depend on themselves through direct feedthrough.
     """
     import heapq
     from graphlib import CycleError, TopologicalSorter
@@ -228,7 +354,18 @@ def evaluation_order(system: SystemDescription) -> list[tuple[str, str]]:
 
 
 def component_parameters(specs: list[ArraySpec] | tuple[ArraySpec, ...]) -> dict[str, Any]:
-    """Scalar parameter values (FMI names) of an interface table's parameters."""
+    """Scalar parameter values (FMI names) of an interface table's parameters.
+
+    Parameters
+    ----------
+    specs : list[ArraySpec] or tuple[ArraySpec, ...]
+        An interface table.
+
+    Returns
+    -------
+    dict[str, Any]
+        FMI scalar name -> start value (``A[1,2]`` -> float, a String parameter -> str).
+    """
     out: dict[str, Any] = {}
     for spec in specs:
         if spec.causality != "parameter":
@@ -254,9 +391,21 @@ _LOOP = (
 
 
 def closed_loop_system(config: dict[str, Any], name: str = "auv_loop") -> SystemDescription:
-    """The paper's loop of plant, estimator and controller FMUs built for ``config``
-    (:func:`orchestrator.cosim.build.fmu_config`, with the run's ``mode``, ``seed`` and
-    ``tracking``); its parameter values are the configuration's."""
+    """The paper's loop of plant, estimator and controller FMUs built for ``config``.
+
+    Parameters
+    ----------
+    config : dict[str, Any]
+        :func:`orchestrator.cosim.build.fmu_config`, with the run's ``mode``, ``seed`` and
+        ``tracking``; the components' parameter values are the configuration's.
+    name : str, optional
+        The system's name.
+
+    Returns
+    -------
+    SystemDescription
+        Components plant, estimator, controller, the loop's connections, h and T (s).
+    """
     comps = []
     for key in ("plant", "estimator", "controller"):
         specs = tuple(interface_of(FMU_KINDS[key], config))

@@ -32,8 +32,21 @@ class ExportError(ValueError):
 
 
 def value_text(typ: str, value: Any) -> str:
-    """A value as the text of an XML attribute of FMI type ``typ``: Real as Python's repr
-    (the shortest text that reads back to the same double), Integer, Boolean, String."""
+    """A value as the text of an XML attribute of FMI type ``typ``.
+
+    Parameters
+    ----------
+    typ : str
+        FMI type: Real, Integer, Enumeration, Boolean or String.
+    value : Any
+        The value.
+
+    Returns
+    -------
+    str
+        Real as Python's repr (the shortest text that reads back to the same double),
+        Integer and Enumeration as a whole number, Boolean as true / false, else ``str``.
+    """
     if typ == "Real":
         return repr(float(value))
     if typ in ("Integer", "Enumeration"):
@@ -44,8 +57,23 @@ def value_text(typ: str, value: Any) -> str:
 
 
 def unit_definitions(units: list[str] | set[str]) -> dict[str, dict[str, int]]:
-    """SI base-unit exponents of ``units`` (fmu_common.interface.UNIT_DEFINITIONS), in the
-    order given; an ExportError names a unit without a definition."""
+    """SI base-unit exponents of ``units`` (fmu_common.interface.UNIT_DEFINITIONS).
+
+    Parameters
+    ----------
+    units : list[str] or set[str]
+        Unit names.
+
+    Returns
+    -------
+    dict[str, dict[str, int]]
+        Unit -> base unit -> exponent, in the order given.
+
+    Raises
+    ------
+    ExportError
+        Naming the units without a definition.
+    """
     unknown = [u for u in units if u not in UNIT_DEFINITIONS]
     if unknown:
         raise ExportError(f"no SI definition for unit(s) {', '.join(map(repr, unknown))}")
@@ -54,8 +82,26 @@ def unit_definitions(units: list[str] | set[str]) -> dict[str, dict[str, int]]:
 
 def append_units(parent: etree._Element, container: str, unit_tag: str, base_tag: str,
                  units: Mapping[str, Mapping[str, int]]) -> etree._Element | None:
-    """Append ``<container><unit_tag name=u><base_tag kg=.. m=.. s=../></unit_tag>...``
-    (namespaced tags as given) to ``parent``; nothing for no units."""
+    """Append ``<container><unit_tag name=u><base_tag kg=.. m=.. s=../></unit_tag>...``.
+
+    Parameters
+    ----------
+    parent : etree._Element
+        The element to append to.
+    container : str
+        Tag of the container (namespaced as given).
+    unit_tag : str
+        Tag of one unit.
+    base_tag : str
+        Tag of a unit's base-unit exponents (zero exponents are left out).
+    units : Mapping[str, Mapping[str, int]]
+        Unit -> base unit -> exponent (:func:`unit_definitions`).
+
+    Returns
+    -------
+    etree._Element or None
+        The container, or None (nothing appended) for no units.
+    """
     if not units:
         return None
     box = etree.SubElement(parent, container)
@@ -67,17 +113,48 @@ def append_units(parent: etree._Element, container: str, unit_tag: str, base_tag
 
 def built_variables(system: SystemDescription, fmus: Mapping[str, Path | str]
                     ) -> dict[str, dict[str, Variable]]:
-    """Component -> the variables of the FMU it instantiates (read once per FMU file)."""
+    """Component -> the variables of the FMU it instantiates (read once per FMU file).
+
+    Parameters
+    ----------
+    system : SystemDescription
+        The system.
+    fmus : Mapping[str, Path or str]
+        FMU key (``Component.fmu``) -> .fmu path.
+
+    Returns
+    -------
+    dict[str, dict[str, Variable]]
+        Component name -> FMI scalar name -> :class:`Variable`.
+    """
     per_fmu = {key: fmu_variables(fmus[key]) for key in {c.fmu for c in system.components}}
     return {c.name: per_fmu[c.fmu] for c in system.components}
 
 
 def check_system(system: SystemDescription, fmus: Mapping[str, Path | str] | None = None,
                  fmu_files: Mapping[str, str] | None = None) -> dict[str, dict[str, Variable]]:
-    """Refuse (ExportError listing every problem) a system whose connections do not match
-    its FMUs' variables: the built FMUs ``fmus`` (FMU key -> path) if given, else the
-    interface tables (before anything is built). Returns the variables checked.
-    ``fmu_files``: component -> FMU file name, to name it in messages."""
+    """Refuse a system whose connections or parameters do not match its FMUs' variables.
+
+    Parameters
+    ----------
+    system : SystemDescription
+        The system.
+    fmus : Mapping[str, Path or str] or None, optional
+        The built FMUs (FMU key -> path); None: check against the interface tables
+        (before anything is built).
+    fmu_files : Mapping[str, str] or None, optional
+        Component -> FMU file name, to name it in messages.
+
+    Returns
+    -------
+    dict[str, dict[str, Variable]]
+        The variables checked, per component.
+
+    Raises
+    ------
+    ExportError
+        Listing every problem.
+    """
     variables = built_variables(system, fmus) if fmus is not None else system_variables(system)
     names = dict(fmu_files or {})
     if fmus is not None and not names:

@@ -15,7 +15,7 @@ import shutil
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from fmpy import read_model_description, simulate_fmu
@@ -24,6 +24,10 @@ from fmpy.util import read_csv, read_ref_opt_file
 
 from ..cosim.master import run_system
 from ..cosim.system import SystemDescription, closed_loop_system
+
+if TYPE_CHECKING:
+    from fmpy.model_description import ModelDescription, ModelVariable
+    from fmpy.simulation import Recorder
 
 __all__ = [
     "EPS_FRACTION",
@@ -53,7 +57,24 @@ def _fmt(v: float) -> str:
 
 
 def write_csv(path: Path, names: list[str], t: np.ndarray, values: np.ndarray) -> None:
-    """A cross-check CSV: quoted header ``"time"`` + ``names``, one row per time."""
+    """A cross-check CSV: quoted header ``"time"`` + ``names``, one row per time.
+
+    Parameters
+    ----------
+    path : Path
+        The file to write.
+    names : list[str]
+        Column names after ``time``.
+    t : np.ndarray
+        Times, s, shape (K,).
+    values : np.ndarray
+        Values, shape (K, len(names)); written as Python's repr of each double.
+
+    Raises
+    ------
+    ValueError
+        If a name contains a comma, a double quote or a newline.
+    """
     for n in names:
         if any(c in n for c in ',"\n'):
             raise ValueError(f"variable name {n!r} cannot be written to a cross-check CSV")
@@ -67,8 +88,27 @@ def hold_rows(t: np.ndarray, values: np.ndarray, eps: float | None = None
               ) -> tuple[np.ndarray, np.ndarray]:
     """Sample-and-hold rows: value k at t[k] and at t[k+1] - eps, value k+1 at t[k+1].
 
-    ``eps=None``: ``EPS_FRACTION`` of the sample period. ``eps=0``: the repeated time stamp
-    layout (value k at t[k] and t[k+1], then value k+1 at t[k+1]).
+    Parameters
+    ----------
+    t : np.ndarray
+        Sample times, s, shape (K,), equally spaced by h.
+    values : np.ndarray
+        Values per sample, shape (K, ...).
+    eps : float or None, optional
+        Width of the step, s: None gives ``EPS_FRACTION`` h; 0 gives the repeated time
+        stamp layout (value k at t[k] and t[k+1], then value k+1 at t[k+1]).
+
+    Returns
+    -------
+    times : np.ndarray
+        Row times, shape (2 K - 1,) (K < 2: the first sample only).
+    rows : np.ndarray
+        Row values, shape (2 K - 1, ...).
+
+    Raises
+    ------
+    ValueError
+        If eps cannot separate the rows (too small against t[-1], or not below h / 2).
     """
     n = len(t)
     if n < 2:
@@ -91,11 +131,11 @@ def _split(name: str) -> tuple[str, int]:
     return m.group(1), int(m.group(2)) - 1
 
 
-def _start_value(var) -> float:
+def _start_value(var: ModelVariable) -> float:
     return float(var.start) if var.start is not None else 0.0
 
 
-def _different_start_values(md, parameters: dict[str, Any]) -> dict[str, Any]:
+def _different_start_values(md: ModelDescription, parameters: dict[str, Any]) -> dict[str, Any]:
     """Parameters the loop set to something other than the FMU's start value."""
     by_name = {v.name: v for v in md.modelVariables}
     out: dict[str, Any] = {}
@@ -121,13 +161,39 @@ def write_crosscheck(fmus: dict[str, Path], config: dict, out_dir: Path, *, step
                      system: SystemDescription | None = None) -> dict[str, dict[str, Path]]:
     """Run the closed loop once for ``steps`` steps and write each FMU's cross-check files.
 
-    ``fmus``: the FMUs built for ``config`` (orchestrator.workflow.build), by FMU key;
-    ``system``: the co-simulation (default: the paper's loop,
-    :func:`orchestrator.cosim.system.closed_loop_system`, with ``seed`` and ``mode``,
-    which default to the configuration's, the FMUs' start values); ``layout``: input file
-    layout, ``ramp`` (default) or ``repeat`` (see docs/crosscheck.md). One reference per
-    component. Returns, per component, the paths ``fmu``, ``in``, ``ref``, ``opt``,
-    ``readme``.
+    One reference per component; ``crosscheck.json`` in ``out_dir`` describes the run.
+
+    Parameters
+    ----------
+    fmus : dict[str, Path]
+        The FMUs built for ``config`` (orchestrator.workflow.build), by FMU key.
+    config : dict
+        The FMUs' configuration (:func:`orchestrator.cosim.build.fmu_config`).
+    out_dir : Path
+        Destination folder (a subfolder per FMU).
+    steps : int, optional
+        Number of samples (at least 2).
+    seed : int or None, optional
+        Seed of the plant's noise; default the configuration's (the FMU's start value).
+    mode : str or None, optional
+        Estimator mode; default the configuration's.
+    layout : str, optional
+        Input file layout, ``ramp`` (default) or ``repeat`` (see docs/crosscheck.md).
+    system : SystemDescription or None, optional
+        The co-simulation (default: the paper's loop,
+        :func:`orchestrator.cosim.system.closed_loop_system`, with ``seed`` and ``mode``).
+
+    Returns
+    -------
+    dict[str, dict[str, Path]]
+        Per component, the paths ``fmu``, ``in``, ``ref``, ``opt``, ``readme``.
+
+    Raises
+    ------
+    ValueError
+        If ``steps`` < 2 or the layout is unknown.
+    CosimError
+        If the co-simulation fails.
     """
     if steps < 2:
         raise ValueError("steps must be at least 2 (StopTime must exceed StartTime)")
@@ -211,8 +277,9 @@ def write_crosscheck(fmus: dict[str, Path], config: dict, out_dir: Path, *, step
     return paths
 
 
-def _readme(model, key, md, steps, h, seed, mode, tracking, start_values, held, feedthrough,
-            eps) -> str:
+def _readme(model: str, key: str, md: ModelDescription, steps: int, h: float, seed: int,
+            mode: str, tracking: str, start_values: dict[str, Any], held: list[str],
+            feedthrough: list[str], eps: float) -> str:
     sv = ("none: the FMU's start values are the ones used" if not start_values else
           ", ".join(f"`{k}` = `{v}`" for k, v in start_values.items()))
     lines = [
@@ -246,7 +313,8 @@ def _readme(model, key, md, steps, h, seed, mode, tracking, start_values, held, 
             f"inputs of the same instant. Sample them after setting the inputs of the "
             f"communication point. fmpy's `simulate_fmu` samples after `fmi2DoStep` and before "
             f"setting the next inputs (the left limit); replay with the `step_finished` callback "
-            f"`orchestrator.interop.crosscheck.sample_after_inputs` (or `orchestrator.interop.crosscheck.replay`), "
+            f"`orchestrator.interop.crosscheck.sample_after_inputs` (or "
+            f"`orchestrator.interop.crosscheck.replay`), "
             f"which sets the inputs of the new communication point and samples again.", ""]
     else:
         lines += ["No output depends directly on an input: `fmpy.simulate_fmu(fmu, "
@@ -255,13 +323,29 @@ def _readme(model, key, md, steps, h, seed, mode, tracking, start_values, held, 
     return "\n".join(lines)
 
 
-def sample_after_inputs(signals: np.ndarray | None, model_description) -> Callable[[float, Any], bool]:
-    """A ``step_finished`` callback for ``fmpy.simulate_fmu`` (FMI 2.0 co-simulation):
-    after each step, apply the inputs of the new communication point (after its event) and
-    replace the sample fmpy just recorded by one taken with those inputs set."""
+def sample_after_inputs(signals: np.ndarray | None, model_description: ModelDescription
+                        ) -> Callable[[float, Any], bool]:
+    """A ``step_finished`` callback for ``fmpy.simulate_fmu`` (FMI 2.0 co-simulation).
+
+    After each step, apply the inputs of the new communication point (after its event) and
+    replace the sample fmpy just recorded by one taken with those inputs set.
+
+    Parameters
+    ----------
+    signals : np.ndarray or None
+        The input table (``fmpy.util.read_csv`` of the ``_in.csv``); None: no inputs, the
+        callback changes nothing.
+    model_description : ModelDescription
+        The FMU's model description (fmpy).
+
+    Returns
+    -------
+    Callable[[float, Any], bool]
+        ``step_finished(time, recorder)``, always True (continue).
+    """
     state: dict[str, Any] = {}
 
-    def step_finished(time: float, recorder) -> bool:
+    def step_finished(time: float, recorder: Recorder) -> bool:
         if signals is None:
             return True
         inp = state.get("input")
@@ -280,8 +364,27 @@ def replay(fmu: Path, opt: Path, in_csv: Path | None, outputs: list[str], *,
            sample_after_input: bool = True) -> np.ndarray:
     """Simulate one FMU alone with fmpy from its cross-check files.
 
-    ``sample_after_input=False`` is fmpy's own sampling (outputs recorded before the next
-    inputs are set). Returns fmpy's structured result array (``time`` + ``outputs``).
+    Parameters
+    ----------
+    fmu : Path
+        The FMU.
+    opt : Path
+        Its ``_ref.opt`` (StartTime, StopTime, StepSize, RelTol).
+    in_csv : Path or None
+        Its ``_in.csv``, or None for an FMU without inputs.
+    outputs : list[str]
+        The outputs to record.
+    start_values : dict[str, Any] or None, optional
+        Start values to set before the replay.
+    sample_after_input : bool, optional
+        Sample after setting the inputs of each communication point
+        (:func:`sample_after_inputs`); False is fmpy's own sampling (outputs recorded
+        before the next inputs are set).
+
+    Returns
+    -------
+    np.ndarray
+        fmpy's structured result array (``time`` + ``outputs``).
     """
     opts = read_ref_opt_file(str(opt))
     signals = read_csv(str(in_csv)) if in_csv is not None else None
@@ -295,7 +398,25 @@ def replay(fmu: Path, opt: Path, in_csv: Path | None, outputs: list[str], *,
 
 
 def compare(result: np.ndarray, reference: np.ndarray) -> dict[str, float]:
-    """Max |result - reference| per reference column (same time grid required)."""
+    """Max |result - reference| per reference column (same time grid required).
+
+    Parameters
+    ----------
+    result : np.ndarray
+        Structured array with a ``time`` field (:func:`replay`).
+    reference : np.ndarray
+        Structured array read from the ``_ref.csv``.
+
+    Returns
+    -------
+    dict[str, float]
+        Column name -> maximum absolute difference.
+
+    Raises
+    ------
+    ValueError
+        If the time grids differ.
+    """
     if len(result) != len(reference) or not np.array_equal(result["time"], reference["time"]):
         raise ValueError(f"time grids differ ({len(result)} vs {len(reference)} rows)")
     return {n: float(np.max(np.abs(result[n] - reference[n])))

@@ -18,8 +18,16 @@ from ..cosim.system import SystemDescription
 
 __all__ = ["libcosim_version", "quiet_libcosim", "run_libcosim"]
 
+
 def libcosim_version() -> dict[str, str]:
-    """Versions of libcosimpy and of the libcosim / libcosimc libraries it ships."""
+    """Versions of libcosimpy and of the libcosim / libcosimc libraries it ships.
+
+    Returns
+    -------
+    dict[str, str]
+        ``libcosimpy`` ("not installed" if missing) and, when readable, ``libcosim`` and
+        ``libcosimc``.
+    """
     import ctypes
     import importlib.metadata as md
     out = {}
@@ -41,7 +49,7 @@ def libcosim_version() -> dict[str, str]:
             f.argtypes = []
             v = f()
             out[key] = f"{v.major}.{v.minor}.{v.patch}"
-    except Exception:  # noqa: BLE001 - version report only
+    except Exception:
         pass
     return out
 
@@ -54,18 +62,40 @@ def quiet_libcosim() -> None:
 
 def run_libcosim(system_file: Path | str, system: SystemDescription, steps: int, *,
                  record: bool = True) -> dict[str, Any]:
-    """Run an exported OSP system (``OspSystemStructure.xml`` written from ``system``) for
-    ``steps`` steps of ``system.h`` in libcosim (libcosimpy; time in integer nanoseconds).
+    """Run an exported OSP system for ``steps`` steps of ``system.h`` in libcosim.
 
-    Returns ``{"traces": {trace name: (steps, size) array} | None (every output of every
-    component, named as :meth:`SystemDescription.trace_names`), "loop_s": seconds of
-    stepping, "setup_s": seconds to load and connect the system}``. Row k of a trace is
-    the value at t = k h that libcosim transferred into step k (the outputs read after
-    step k - 1, or after initialization for k = 0): the layout of
-    :class:`orchestrator.cosim.master.RunResult` with ``coupling="jacobi"``. ``loop_s`` times
-    steps 2..steps (the first ``step()`` also initializes the FMUs and is left out, as
-    run_cosimulation's loop_s leaves out initialization). ``record=False`` attaches no
-    observer (timing only).
+    libcosimpy, time in integer nanoseconds. Row k of a trace is the value at t = k h that
+    libcosim transferred into step k (the outputs read after step k - 1, or after
+    initialization for k = 0): the layout of :class:`orchestrator.cosim.master.RunResult`
+    with ``coupling="jacobi"``.
+
+    Parameters
+    ----------
+    system_file : Path or str
+        The ``OspSystemStructure.xml`` written from ``system``.
+    system : SystemDescription
+        The system it describes (its step h, s, and its outputs).
+    steps : int
+        Number of steps (at least 2).
+    record : bool, optional
+        False attaches no observer (timing only).
+
+    Returns
+    -------
+    dict[str, Any]
+        ``traces``: {trace name: (steps, size) array} for every output of every component,
+        named as :meth:`SystemDescription.trace_names` (None without ``record``);
+        ``loop_s``: seconds of stepping over steps 2..steps (the first ``step()`` also
+        initializes the FMUs and is left out, as run_cosimulation's loop_s leaves out
+        initialization); ``setup_s``: seconds to load and connect the system; ``init_s``:
+        seconds of the first step; ``loop_steps``: steps - 1.
+
+    Raises
+    ------
+    ValueError
+        If h is not a whole number of nanoseconds or ``steps`` < 2.
+    RuntimeError
+        If libcosim fails or its observer returns unexpected samples.
     """
     from libcosimpy.CosimEnums import CosimVariableType
     from libcosimpy.CosimExecution import CosimExecution
@@ -120,7 +150,8 @@ def run_libcosim(system_file: Path | str, system: SystemDescription, steps: int,
                 step_no, values = list(step_no)[:steps], list(values)[:steps]
                 if list(step_no) != list(range(len(step_no))) or len(values) != steps:
                     raise RuntimeError(f"libcosim observer returned steps {step_no[:3]}... "
-                                       f"({len(values)} samples) for {s}, expected 0..{steps - 1}")
+                                       f"({len(values)} samples) for {s}, expected "
+                                       f"0..{steps - 1}")
                 cols.append(np.asarray(values, dtype=float))
             traces[s] = np.column_stack(cols)
     del observer, execution          # frees the FMU instances now

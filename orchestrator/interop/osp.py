@@ -32,9 +32,9 @@ the README there for where they come from). :mod:`.libcosim` runs the result.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
 
 from lxml import etree
 
@@ -190,7 +190,7 @@ def _system_structure(system: SystemDescription, fmu_files: Mapping[str, str],
                       variables: Mapping[str, Mapping[str, Variable]]) -> bytes:
     ns = OSP_SYSTEM_NS
 
-    def el(parent, tag, **attrs):
+    def el(parent: etree._Element, tag: str, **attrs: str) -> etree._Element:
         return etree.SubElement(parent, f"{{{ns}}}{tag}", attrs)
 
     root = etree.Element(f"{{{ns}}}OspSystemStructure", version="0.1", nsmap={None: ns})
@@ -226,8 +226,18 @@ def _schema(kind: str) -> etree.XMLSchema:
 
 
 def validate_osp_file(path: Path | str) -> list[str]:
-    """Problems of an OspSystemStructure.xml or *_OspModelDescription.xml against OSP's
-    XML schema (empty when valid)."""
+    """Problems of an OspSystemStructure.xml or *_OspModelDescription.xml against OSP's schema.
+
+    Parameters
+    ----------
+    path : Path or str
+        The XML file.
+
+    Returns
+    -------
+    list[str]
+        One message per schema error (``file:line: message``); empty when valid.
+    """
     doc = etree.parse(str(path))
     local = etree.QName(doc.getroot()).localname
     if local not in _SCHEMA_FILES:
@@ -243,10 +253,28 @@ def export_osp(sc: Scenario, out_dir: Path | str,
                system: SystemDescription | None = None) -> dict[str, Path]:
     """Build the scenario's FMUs into ``out_dir`` and write the OSP system beside them.
 
-    ``system``: the description to export (default: the scenario's loop,
-    :func:`orchestrator.workflow.scenario_system`; use ``sc.with_run(...)`` for other run settings). Returns
-    ``{"system": OspSystemStructure.xml, <FMU key>: the .fmu,
-    "<FMU key>_osp": its <model>_OspModelDescription.xml}``.
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario.
+    out_dir : Path or str
+        Destination folder.
+    system : SystemDescription or None, optional
+        The description to export (default: the scenario's loop,
+        :func:`orchestrator.workflow.scenario_system`; use ``sc.with_run(...)`` for other
+        run settings).
+
+    Returns
+    -------
+    dict[str, Path]
+        ``{"system": OspSystemStructure.xml, <FMU key>: the .fmu,
+        "<FMU key>_osp": its <model>_OspModelDescription.xml}``.
+
+    Raises
+    ------
+    ExportError
+        If the wiring does not match the FMUs (before anything is built) or a written
+        file does not validate against OSP's schemas.
     """
     from ..workflow import build, scenario_system
 
@@ -279,7 +307,18 @@ def export_osp(sc: Scenario, out_dir: Path | str,
 
 
 def typed_groups_used(sc: Scenario) -> dict[str, list[str]]:
-    """The OSP-IS typed variable groups the export declares for each FMU of ``sc``."""
+    """The OSP-IS typed variable groups the export declares for each FMU of ``sc``.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario.
+
+    Returns
+    -------
+    dict[str, list[str]]
+        FMU key -> the typed group types used (e.g. ``LinearDisplacement``).
+    """
     from ..workflow import scenario_system
     system = scenario_system(sc)
     layout = _signal_layout(sc, system)

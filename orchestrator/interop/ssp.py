@@ -42,6 +42,7 @@ import tempfile
 import zipfile
 from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from lxml import etree
 
@@ -50,6 +51,9 @@ from ..cosim.checks import Variable, fmu_variables
 from ..cosim.system import SystemDescription, evaluation_order
 from ..scenario import Scenario
 from .common import ExportError, append_units, check_system, unit_definitions, value_text
+
+if TYPE_CHECKING:
+    from fmpy.ssp.ssd import ParameterSet
 
 __all__ = ["SSC_NS", "SSD_NS", "SSV_NS", "export_ssp", "fmpy_parameter_set",
            "parameter_set_path"]
@@ -63,7 +67,18 @@ _ANNOTATION_TYPE = "org.auv-cosim.master"
 
 
 def parameter_set_path(component: str) -> str:
-    """Where a component's parameter set lives in the archive."""
+    """Where a component's parameter set lives in the archive.
+
+    Parameters
+    ----------
+    component : str
+        The component's name.
+
+    Returns
+    -------
+    str
+        ``resources/<component>.ssv``.
+    """
     return f"resources/{component}.ssv"
 
 
@@ -149,13 +164,32 @@ def _system_structure_xml(system: SystemDescription, fmu_files: Mapping[str, str
 def export_ssp(sc: Scenario, out_path: Path | str, *,
                fmus: Mapping[str, Path] | None = None,
                system: SystemDescription | None = None) -> Path:
-    """Build the scenario's FMUs (or take ``fmus`` already built for it) and write them
-    with the system structure of ``system`` (default: the scenario's,
-    :func:`orchestrator.workflow.scenario_system`) to ``out_path``.
+    """Write the scenario's FMUs and system structure as an SSP archive at ``out_path``.
 
-    Raises :class:`ExportError` (naming every problem) if the connections do not match the
-    FMUs' variables, before anything is written; the archive is written under a temporary
-    name and renamed when complete.
+    The archive is written under a temporary name and renamed when complete.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario.
+    out_path : Path or str
+        The ``.ssp`` file to write.
+    fmus : Mapping[str, Path] or None, optional
+        FMUs already built for the scenario (FMU key -> path); built here if None.
+    system : SystemDescription or None, optional
+        The system structure (default: the scenario's,
+        :func:`orchestrator.workflow.scenario_system`).
+
+    Returns
+    -------
+    Path
+        ``out_path``.
+
+    Raises
+    ------
+    ExportError
+        Naming every problem, if the connections do not match the FMUs' variables
+        (before anything is written).
     """
     from ..workflow import build, scenario_system
 
@@ -184,9 +218,8 @@ def export_ssp(sc: Scenario, out_path: Path | str, *,
     return out_path
 
 
-def fmpy_parameter_set(ssp: Path | str, *, strings: str = "check"):
-    """The archive's component parameter bindings as the ``parameter_set`` of fmpy's
-    ``simulate_ssp``.
+def fmpy_parameter_set(ssp: Path | str, *, strings: str = "check") -> ParameterSet:
+    """The archive's component parameter bindings as the ``parameter_set`` of fmpy's simulate_ssp.
 
     fmpy 0.3.x reads ParameterBindings (``read_ssd`` parses the ``.ssv`` and validates it
     against the schema) but ``simulate_ssp`` never applies them: it applies only a
@@ -198,6 +231,24 @@ def fmpy_parameter_set(ssp: Path | str, *, strings: str = "check"):
     supported and refused). String parameters are left out; with ``strings='check'``
     (default) each left-out String must equal the FMU's start value, so leaving it out
     changes nothing (otherwise :class:`ExportError`); ``strings='drop'`` drops them.
+
+    Parameters
+    ----------
+    ssp : Path or str
+        The ``.ssp`` archive.
+    strings : str, optional
+        'check' or 'drop' (see above).
+
+    Returns
+    -------
+    fmpy.ssp.ssd.ParameterSet
+        Parameters named ``<component>.<variable>``.
+
+    Raises
+    ------
+    ExportError
+        On a parameter mapping or binding prefix, or (``strings='check'``) a String
+        parameter that differs from the FMU's start value.
     """
     from fmpy.ssp.ssd import Component, Parameter, ParameterSet, read_ssd
 

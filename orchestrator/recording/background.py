@@ -42,8 +42,35 @@ class BackgroundWriter:
 
     def write(self, path: Path | str, runs: dict[str, dict[str, Any]], h: float,
               **kwargs: Any) -> dict[str, Any]:
-        """``write_rrd(path, runs, h, **kwargs)`` in the child (or here if there is none or
-        the traces are too large to send); returns its figures."""
+        """``write_rrd(path, runs, h, **kwargs)`` in the child.
+
+        Written here instead if there is no child or the traces are too large to send
+        (:data:`MAX_PIPE_BYTES`).
+
+        Parameters
+        ----------
+        path : Path or str
+            Output .rrd file.
+        runs : dict[str, dict[str, Any]]
+            Method name -> traces (arrays of shape (steps, dim)).
+        h : float
+            Sampling period, s.
+        **kwargs : Any
+            The other keyword arguments of
+            :func:`~orchestrator.recording.writer.write_rrd`.
+
+        Returns
+        -------
+        dict[str, Any]
+            The figures ``write_rrd`` returns (``rrd_s``, ``signals``, ``bytes``).
+
+        Raises
+        ------
+        RuntimeError
+            If the child fails (naming the last line it reported).
+        ValueError
+            If ``write_rrd`` refuses the arguments (when written here).
+        """
         size = sum(getattr(a, "nbytes", 0) for tr in runs.values() for a in tr.values())
         if self.proc is None or size > MAX_PIPE_BYTES:
             self.close()
@@ -65,7 +92,7 @@ class BackgroundWriter:
             self.proc.wait()
         self.proc = None
 
-    def __enter__(self) -> "BackgroundWriter":
+    def __enter__(self) -> BackgroundWriter:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -73,7 +100,7 @@ class BackgroundWriter:
 
 
 def _child() -> int:
-    from .writer import write_rrd            # the import this process exists to pay
+    from .writer import write_rrd  # the import this process exists to pay
 
     data = sys.stdin.buffer.read()
     if not data:                             # the parent had nothing to write

@@ -29,7 +29,8 @@ _FLEET_GRID_MAX = 8
 def _trail_time_ranges(trail_ns: int, trail_steps: int) -> rrb.VisibleTimeRanges:
     """Visible range [cursor - trail, cursor] on both timelines."""
     return rrb.VisibleTimeRanges([
-        rrb.VisibleTimeRange(_SIM_TIME, start=rrb.TimeRangeBoundary.cursor_relative(nanos=-trail_ns),
+        rrb.VisibleTimeRange(_SIM_TIME,
+                             start=rrb.TimeRangeBoundary.cursor_relative(nanos=-trail_ns),
                              end=rrb.TimeRangeBoundary.cursor_relative()),
         rrb.VisibleTimeRange(_STEP, start=rrb.TimeRangeBoundary.cursor_relative(seq=-trail_steps),
                              end=rrb.TimeRangeBoundary.cursor_relative()),
@@ -55,7 +56,8 @@ def _fleet_blueprint(methods: list[str], n: int, trail_ns: int, trail_steps: int
 
     if n <= _FLEET_GRID_MAX:
         right: rrb.Container = rrb.Grid(
-            contents=[v for i in range(1, n + 1) for v in vehicle_views(i)], grid_columns=2, name="vehicles")
+            contents=[v for i in range(1, n + 1) for v in vehicle_views(i)], grid_columns=2,
+            name="vehicles")
     else:
         tabs = []
         for a in range(1, n + 1, _FLEET_TAB_SIZE):

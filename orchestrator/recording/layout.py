@@ -71,6 +71,16 @@ def method_color(methods: list[str] | tuple[str, ...]) -> dict[str, tuple[int, i
     """Colour (RGB 0-255) per method: fixed for kalman/classical/ideal, palette otherwise.
 
     Unknown names take palette colours in the order they appear in ``methods``.
+
+    Parameters
+    ----------
+    methods : list[str] or tuple[str, ...]
+        Method names (estimator modes or any label).
+
+    Returns
+    -------
+    dict[str, tuple[int, int, int]]
+        Method -> (red, green, blue), 0-255.
     """
     colors: dict[str, tuple[int, int, int]] = {}
     n_unknown = 0

@@ -1,5 +1,5 @@
-"""Read the data of a .rrd file back without a viewer: scalar series (one entity or all of them),
-3D points and line strips, and the series names and colours.
+"""Read the data of a .rrd file back without a viewer: scalar series (one entity or all of
+them), 3D points and line strips, and the series names and colours.
 
 Every reader returns the step index (int64) and ``sim_time`` (int64 nanoseconds; divide by
 1e9 for seconds) of each recorded row, sorted by step, with the values of that row.
@@ -34,7 +34,7 @@ def _int64_index(column: pa.Array | pa.ChunkedArray) -> np.ndarray:
 
 
 def _scalar_rows(scal: pa.Array, what: str) -> np.ndarray:
-    """A ``Scalars:scalars`` list column whose rows all hold k values as a (rows, k) float64 array."""
+    """A ``Scalars:scalars`` list column whose rows all hold k values, as (rows, k) float64."""
     k = _uniform(_lengths(scal), f"{what}: scalars per row")
     values = np.asarray(scal.flatten().to_numpy(zero_copy_only=False), dtype=np.float64)
     if values.size != len(scal) * k:  # null rows
@@ -56,13 +56,27 @@ def _merge_rows(pieces: list[tuple[np.ndarray, np.ndarray, np.ndarray]], what: s
 def read_rrd_scalars(path: str | Path) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Read every scalar series of the recording in a .rrd file, without a viewer.
 
-    Returns entity path (no leading slash, e.g. ``error/1/kalman``) -> (step as int64,
-    sim_time as int64 nanoseconds, values as float64), sorted by step.  Values are 1-D
-    (rows,) for entities with one scalar per row (the paper layout) and (rows, k) for the
-    multi-component entities of the fleet layout (e.g. ``vehicles/1/error/kalman``) with
-    k > 1; :func:`read_rrd_series` always returns (rows, k).  Static data (series styles,
-    recording properties) is skipped.  Raises ValueError if an entity's rows hold different
-    numbers of scalars.
+    Static data (series styles, recording properties) is skipped.
+
+    Parameters
+    ----------
+    path : str or Path
+        The .rrd file.
+
+    Returns
+    -------
+    dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
+        Entity path (no leading slash, e.g. ``error/1/kalman``) -> (step as int64,
+        sim_time as int64 nanoseconds, values as float64), sorted by step.  Values are 1-D
+        (rows,) for entities with one scalar per row (the paper layout) and (rows, k) for
+        the multi-component entities of the fleet layout (e.g. ``vehicles/1/error/kalman``)
+        with k > 1; :func:`read_rrd_series` always returns (rows, k).
+
+    Raises
+    ------
+    ValueError
+        If an entity's rows hold different numbers of scalars or a chunk lacks the
+        step / sim_time timelines.
     """
     parts: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
     for chunk in RrdReader(path).stream():
@@ -74,7 +88,8 @@ def read_rrd_scalars(path: str | Path) -> dict[str, tuple[np.ndarray, np.ndarray
             continue
         entity = chunk.entity_path.lstrip("/")
         if _STEP not in names or _SIM_TIME not in names:
-            raise ValueError(f"{path}: scalar chunk of {entity!r} lacks the step/sim_time timelines")
+            raise ValueError(f"{path}: scalar chunk of {entity!r} lacks the step/sim_time "
+                             "timelines")
         values = _scalar_rows(batch.column(_SCALARS_COLUMN), f"{path}: {entity!r}")
         parts.setdefault(entity, []).append(
             (_int64_index(batch.column(_STEP)), _int64_index(batch.column(_SIM_TIME)), values))
@@ -89,19 +104,40 @@ def read_rrd_scalars(path: str | Path) -> dict[str, tuple[np.ndarray, np.ndarray
 def read_rrd_series(path: str | Path, entity: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Read the scalar series of one entity (e.g. ``vehicles/2/state/kalman/true``).
 
-    Returns (step as int64, sim_time as int64 nanoseconds, values as float64 of shape
-    (rows, k)), sorted by step; column c is component c (the c-th series line).  Raises
-    KeyError if the entity has no scalars and ValueError if rows hold different numbers.
+    Parameters
+    ----------
+    path : str or Path
+        The .rrd file.
+    entity : str
+        Entity path (a leading slash is optional).
+
+    Returns
+    -------
+    step : np.ndarray
+        Step index of each row, int64, sorted.
+    sim_time : np.ndarray
+        Simulation time of each row, int64 nanoseconds.
+    values : np.ndarray
+        float64 of shape (rows, k); column c is component c (the c-th series line).
+
+    Raises
+    ------
+    KeyError
+        If the entity has no scalars.
+    ValueError
+        If rows hold different numbers of scalars.
     """
     step, sim_time, cols = _entity_rows(path, entity, _SCALARS_COLUMN)
     values = [_scalar_rows(col, f"{path}: {entity!r}") for col in cols]
     offsets = np.cumsum([0] + [len(v) for v in values])
-    return _merge_rows([(step[a:b], sim_time[a:b], v) for a, b, v in zip(offsets[:-1], offsets[1:], values)],
+    return _merge_rows([(step[a:b], sim_time[a:b], v)
+                        for a, b, v in zip(offsets[:-1], offsets[1:], values)],
                        f"{path}: {entity!r}")
 
 
-def _entity_rows(path: str | Path, entity: str, column: str) -> tuple[np.ndarray, np.ndarray, list[pa.Array]]:
-    """Temporal rows of one component column of one entity: (step, sim_time, column pieces), unsorted."""
+def _entity_rows(path: str | Path, entity: str,
+                 column: str) -> tuple[np.ndarray, np.ndarray, list[pa.Array]]:
+    """Temporal rows of one component column of one entity: (step, sim_time, pieces), unsorted."""
     want = "/" + entity.strip("/")
     steps: list[np.ndarray] = []
     times: list[np.ndarray] = []
@@ -114,7 +150,8 @@ def _entity_rows(path: str | Path, entity: str, column: str) -> tuple[np.ndarray
         if column not in names:
             continue
         if _STEP not in names or _SIM_TIME not in names:
-            raise ValueError(f"{path}: {column} chunk of {entity!r} lacks the step/sim_time timelines")
+            raise ValueError(f"{path}: {column} chunk of {entity!r} lacks the step/sim_time "
+                             "timelines")
         steps.append(_int64_index(batch.column(_STEP)))
         times.append(_int64_index(batch.column(_SIM_TIME)))
         pieces.append(batch.column(column))
@@ -127,20 +164,41 @@ def _uniform(lengths: np.ndarray, what: str) -> int:
     if lengths.size == 0:
         return 0
     if not np.all(lengths == lengths[0]):
-        raise ValueError(f"{what}: rows differ in length ({int(lengths.min())}..{int(lengths.max())})")
+        raise ValueError(f"{what}: rows differ in length "
+                         f"({int(lengths.min())}..{int(lengths.max())})")
     return int(lengths[0])
 
 
 def _lengths(arr: pa.Array) -> np.ndarray:
-    return np.asarray(arr.value_lengths().fill_null(0).to_numpy(zero_copy_only=False), dtype=np.int64)
+    return np.asarray(arr.value_lengths().fill_null(0).to_numpy(zero_copy_only=False),
+                      dtype=np.int64)
 
 
 def read_rrd_points(path: str | Path, entity: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Read the temporal ``Points3D`` positions of one entity (e.g. ``world/kalman/vehicles``).
 
-    Returns (step as int64, sim_time as int64 nanoseconds, positions as float32 of shape
-    (rows, n, 3)), sorted by step.  Raises KeyError if the entity has no positions and
-    ValueError if rows hold different numbers of points.
+    Parameters
+    ----------
+    path : str or Path
+        The .rrd file.
+    entity : str
+        Entity path.
+
+    Returns
+    -------
+    step : np.ndarray
+        Step index of each row, int64, sorted.
+    sim_time : np.ndarray
+        Simulation time of each row, int64 nanoseconds.
+    positions : np.ndarray
+        float32 of shape (rows, n, 3), m (NED).
+
+    Raises
+    ------
+    KeyError
+        If the entity has no positions.
+    ValueError
+        If rows hold different numbers of points.
     """
     step, sim_time, pieces = _entity_rows(path, entity, "Points3D:positions")
     rows = []
@@ -154,12 +212,32 @@ def read_rrd_points(path: str | Path, entity: str) -> tuple[np.ndarray, np.ndarr
     return step[order], sim_time[order], positions[order]
 
 
-def read_rrd_line_strips(path: str | Path, entity: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def read_rrd_line_strips(path: str | Path,
+                         entity: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Read the temporal ``LineStrips3D`` strips of one entity (e.g. ``world/kalman/edges``).
 
-    Returns (step as int64, sim_time as int64 nanoseconds, strips as float32 of shape
-    (rows, strips per row, points per strip, 3)), sorted by step.  Raises KeyError if the
-    entity has no strips and ValueError if the rows are ragged.
+    Parameters
+    ----------
+    path : str or Path
+        The .rrd file.
+    entity : str
+        Entity path.
+
+    Returns
+    -------
+    step : np.ndarray
+        Step index of each row, int64, sorted.
+    sim_time : np.ndarray
+        Simulation time of each row, int64 nanoseconds.
+    strips : np.ndarray
+        float32 of shape (rows, strips per row, points per strip, 3), m (NED).
+
+    Raises
+    ------
+    KeyError
+        If the entity has no strips.
+    ValueError
+        If the rows are ragged.
     """
     step, sim_time, pieces = _entity_rows(path, entity, "LineStrips3D:strips")
     rows = []
@@ -167,9 +245,11 @@ def read_rrd_line_strips(path: str | Path, entity: str) -> tuple[np.ndarray, np.
         n_strips = _uniform(_lengths(col), f"{path}: {entity!r} strips per row")
         inner = col.flatten()
         n_points = _uniform(_lengths(inner), f"{path}: {entity!r} points per strip")
-        xyz = np.asarray(inner.flatten().flatten().to_numpy(zero_copy_only=False), dtype=np.float32)
+        xyz = np.asarray(inner.flatten().flatten().to_numpy(zero_copy_only=False),
+                         dtype=np.float32)
         rows.append(xyz.reshape(len(col), n_strips, n_points, 3))
-    _uniform(np.asarray([r.shape[1] * 1000003 + r.shape[2] for r in rows]), f"{path}: {entity!r} strips")
+    _uniform(np.asarray([r.shape[1] * 1000003 + r.shape[2] for r in rows]),
+             f"{path}: {entity!r} strips")
     strips = np.concatenate(rows)
     order = np.argsort(step, kind="stable")
     return step[order], sim_time[order], strips[order]
@@ -180,9 +260,22 @@ def _unpack_rgba(packed: int) -> tuple[int, int, int, int]:
     return ((packed >> 24) & 0xFF, (packed >> 16) & 0xFF, (packed >> 8) & 0xFF, packed & 0xFF)
 
 
-def read_rrd_series_lines(path: str | Path) -> dict[str, tuple[tuple[str, ...], tuple[tuple[int, int, int, int], ...]]]:
-    """Static series styles of a .rrd, every line: entity path -> (series names, RGBA colours
-    0-255), one name and colour per component (one of each in the paper layout)."""
+def read_rrd_series_lines(
+        path: str | Path,
+) -> dict[str, tuple[tuple[str, ...], tuple[tuple[int, int, int, int], ...]]]:
+    """Static series styles of a .rrd, every line: names and RGBA colours per entity.
+
+    Parameters
+    ----------
+    path : str or Path
+        The .rrd file.
+
+    Returns
+    -------
+    dict[str, tuple[tuple[str, ...], tuple[tuple[int, int, int, int], ...]]]
+        Entity path -> (series names, RGBA colours 0-255), one name and colour per
+        component (one of each in the paper layout).
+    """
     out: dict[str, tuple[tuple[str, ...], tuple[tuple[int, int, int, int], ...]]] = {}
     for chunk in RrdReader(path).stream():
         if not chunk.is_static:
@@ -193,5 +286,6 @@ def read_rrd_series_lines(path: str | Path) -> dict[str, tuple[tuple[str, ...], 
             continue
         entity = chunk.entity_path.lstrip("/")
         out[entity] = (tuple(batch.column("SeriesLines:names").to_pylist()[-1]),
-                       tuple(_unpack_rgba(c) for c in batch.column("SeriesLines:colors").to_pylist()[-1]))
+                       tuple(_unpack_rgba(c)
+                             for c in batch.column("SeriesLines:colors").to_pylist()[-1]))
     return out

@@ -33,12 +33,14 @@ def _send_block(rec: rr.RecordingStream, entity: str, values: np.ndarray, names:
     ``values``) and one ``send_columns`` whose rows hold all k components.  Returns k."""
     rec.log(entity, rr.SeriesLines(colors=colors, names=names), static=True)
     rec.send_columns(entity, indexes=indexes,
-                     columns=rr.Scalars.columns(scalars=np.ascontiguousarray(values, dtype=np.float64)))
+                     columns=rr.Scalars.columns(
+                         scalars=np.ascontiguousarray(values, dtype=np.float64)))
     return values.shape[1]
 
 
-def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray], fleet: _Fleet,
-                       base: tuple[int, int, int], stride: int, indexes: list[rr.TimeColumn]) -> int:
+def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray],
+                       fleet: _Fleet, base: tuple[int, int, int], stride: int,
+                       indexes: list[rr.TimeColumn]) -> int:
     """Per-vehicle multi-component series and the leader series of one run (recorded steps
     only); returns the number of scalar lines (components) written."""
     rec_traces = {key: traces[key][::stride] for key in ("e", "u", "x", "xhat", "w", "what", "z")}
@@ -55,7 +57,8 @@ def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, n
     if fleet.disturbance_index is not None:
         groups += [
             ("w", "current/{m}/true", fleet.disturbance_index, fleet.disturbance_names, "", False),
-            ("what", "current/{m}/estimate", fleet.disturbance_index, fleet.disturbance_names, " estimate", True),
+            ("what", "current/{m}/estimate", fleet.disturbance_index, fleet.disturbance_names,
+             " estimate", True),
         ]
     signals = 0
     for key, template, index, names, suffix, is_estimate in groups:
@@ -63,11 +66,11 @@ def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, n
         line_names = [f"{method} {name}{suffix}" for name in names]
         colors = shades(len(names), is_estimate)
         for i in range(1, fleet.n + 1):
-            signals += _send_block(rec, f"vehicles/{i}/{template.format(m=method)}", arr[:, index[i - 1]],
-                                   line_names, colors, indexes)
+            signals += _send_block(rec, f"vehicles/{i}/{template.format(m=method)}",
+                                   arr[:, index[i - 1]], line_names, colors, indexes)
     leader = rec_traces["z"] @ fleet.leader_output.T  # (rows, 3)
-    signals += _send_block(rec, f"leader/{method}", leader, [f"{method} leader {c}" for c in _POSITION_NAMES],
-                           shades(3), indexes)
+    signals += _send_block(rec, f"leader/{method}", leader,
+                           [f"{method} leader {c}" for c in _POSITION_NAMES], shades(3), indexes)
     return signals
 
 
@@ -84,9 +87,11 @@ def _sample_steps(steps: int, every: int, last: int) -> np.ndarray:
     return ks
 
 
-def _send_fleet_world(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray], fleet: _Fleet,
-                      h_ns: int, stride: int, scene_stride: int, trail_stride: int) -> None:
-    """The 3D scene of one run under ``world/{method}``: one partition per sample, no per-step logs."""
+def _send_fleet_world(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray],
+                      fleet: _Fleet, h_ns: int, stride: int, scene_stride: int,
+                      trail_stride: int) -> None:
+    """The 3D scene of one run under ``world/{method}``: one partition per sample, no per-step
+    logs."""
     n, steps = fleet.n, traces["x"].shape[0]
     root = f"world/{method}"
     colors = _vehicle_colors(n)
@@ -100,7 +105,8 @@ def _send_fleet_world(rec: rr.RecordingStream, method: str, traces: dict[str, np
 
     rec.log(root, rr.ViewCoordinates.FRD, static=True)
     rec.log(f"{root}/vehicles", rr.Points3D.from_fields(
-        radii=[1.0], colors=colors, labels=[str(i) for i in range(1, n + 1)], show_labels=True), static=True)
+        radii=[1.0], colors=colors, labels=[str(i) for i in range(1, n + 1)], show_labels=True),
+        static=True)
     rec.send_columns(f"{root}/vehicles", indexes=indexes, columns=rr.Points3D.columns(
         positions=pos.reshape(rows * n, 3).astype(np.float32)).partition(np.full(rows, n)))
 
@@ -126,9 +132,12 @@ def _send_fleet_world(rec: rr.RecordingStream, method: str, traces: dict[str, np
         seg[:, n_edges:, 0] = lead_all[es][:, None, :]
         seg[:, n_edges:, 1] = pos_all[es][:, fleet.pinned]
         rec.log(f"{root}/edges", rr.LineStrips3D.from_fields(
-            radii=[0.15], colors=[(160, 160, 160)] * n_edges + [(255, 215, 0)] * n_pinned), static=True)
-        rec.send_columns(f"{root}/edges", indexes=_time_columns(es, h_ns), columns=rr.LineStrips3D.columns(
-            strips=seg.reshape(e_rows * n_seg, 2, 3)).partition(np.full(e_rows, n_seg)))
+            radii=[0.15], colors=[(160, 160, 160)] * n_edges + [(255, 215, 0)] * n_pinned),
+            static=True)
+        rec.send_columns(f"{root}/edges", indexes=_time_columns(es, h_ns),
+                         columns=rr.LineStrips3D.columns(
+                             strips=seg.reshape(e_rows * n_seg, 2, 3)
+                         ).partition(np.full(e_rows, n_seg)))
 
     # Trails: one segment per vehicle from the previous trail sample to this one.
     ts = _sample_steps(steps, trail_stride, int(ks[-1]))
@@ -138,8 +147,11 @@ def _send_fleet_world(rec: rr.RecordingStream, method: str, traces: dict[str, np
         seg[:, :, 0] = pos_all[ts[:-1]]
         seg[:, :, 1] = pos_all[ts[1:]]
         rec.log(f"{root}/trails", rr.LineStrips3D.from_fields(radii=[0.2]), static=True)
-        rec.send_columns(f"{root}/trails", indexes=_time_columns(ts[1:], h_ns), columns=rr.LineStrips3D.columns(
-            strips=seg.reshape(t_rows * n, 2, 3), colors=np.tile(colors, (t_rows, 1))).partition(np.full(t_rows, n)))
+        rec.send_columns(f"{root}/trails", indexes=_time_columns(ts[1:], h_ns),
+                         columns=rr.LineStrips3D.columns(
+                             strips=seg.reshape(t_rows * n, 2, 3),
+                             colors=np.tile(colors, (t_rows, 1)),
+                         ).partition(np.full(t_rows, n)))
 
 
 def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float, *,
@@ -151,45 +163,46 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
 
     Parameters
     ----------
-    path:
+    path : str or Path
         Output .rrd file (overwritten).
-    runs:
+    runs : dict[str, dict[str, np.ndarray]]
         Method name -> traces; each trace (keys :data:`TRACE_KEYS`) a float array of shape
         (steps, dim) in the simulation's own units (states, errors, references in the plant's
         units; controls in the actuator's units).  Row k is sample k, at time k*h seconds.
         All traces of all runs must have the same number of steps; dims may differ per key.
         Extra keys are ignored.
-    h:
+    h : float
         Sampling period in seconds (> 0); stored as round(h * 1e9) integer nanoseconds.
-    recording_name:
+    recording_name : str
         Human-readable recording name shown by the viewer.
-    application_id:
+    application_id : str, optional
         Rerun application id (the default blueprint applies to this id).
-    fleet:
+    fleet : FleetLayout or None, optional
         If given, the traces are those of a fleet of N vehicles laid out as described by the
         :class:`FleetLayout`; the compact per-vehicle layout and a 3D scene per run are
         written *instead of* the per-component layout, and the default blueprint becomes the
         fleet layout (see docs/recording.md).  Checked against the traces of every run.
-    trail_seconds:
+    trail_seconds : float, optional
         Length (s, > 0) of the vehicle trails in the 3D view: the trail entity is shown over
         the visible time range [cursor - trail_seconds, cursor].  Only used with ``fleet``.
-    trail_sample_seconds:
+    trail_sample_seconds : float, optional
         Spacing (s, > 0) of the trail samples: one trail segment per vehicle every
         stride * max(1, round(trail_sample_seconds / (stride * h))) steps (plus the last
         recorded step).  Only used with ``fleet``.
-    stride:
+    stride : int, optional
         Record only every stride-th step (k = 0, stride, 2*stride, ...), a positive int.  The
         time columns keep the true step index and sim_time.  Default 1: every step.
-    scene_stride:
+    scene_stride : int or None, optional
         Steps between two samples of the 3D edges (``world/{m}/edges``), a positive multiple
         of ``stride``; default (None) the trail stride.  Only used with ``fleet``.
 
     Returns
     -------
-    dict with ``rrd_s`` (wall-clock seconds spent writing, validation excluded),
-    ``signals`` (number of scalar series written, an int: one per entity in the paper layout,
-    one per component, i.e. per line, of each multi-component entity in the fleet layout) and
-    ``bytes`` (file size in bytes, an int).
+    dict[str, float]
+        ``rrd_s`` (wall-clock seconds spent writing, validation excluded), ``signals``
+        (number of scalar series written, an int: one per entity in the paper layout, one
+        per component, i.e. per line, of each multi-component entity in the fleet layout)
+        and ``bytes`` (file size in bytes, an int).
 
     Raises
     ------
@@ -208,7 +221,8 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
     if scene_stride is not None:
         scene_stride = _positive_int(scene_stride, "scene_stride")
         if scene_stride % stride:
-            raise ValueError(f"write_rrd: scene_stride = {scene_stride} must be a multiple of stride = {stride}")
+            raise ValueError(f"write_rrd: scene_stride = {scene_stride} must be a multiple of "
+                             f"stride = {stride}")
     path = Path(path)
     methods = list(clean)
     colors = method_color(methods)
@@ -251,14 +265,17 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
                         rec.send_columns(
                             entity,
                             indexes=indexes,
-                            columns=rr.Scalars.columns(scalars=np.ascontiguousarray(arr[::stride, i - 1])),
+                            columns=rr.Scalars.columns(
+                                scalars=np.ascontiguousarray(arr[::stride, i - 1])),
                         )
                         signals += 1
         else:
             rec.log("world", rr.ViewCoordinates.FRD, static=True)
             for method in methods:
-                signals += _send_fleet_series(rec, method, clean[method], fleet_v, colors[method], stride, indexes)
-                _send_fleet_world(rec, method, clean[method], fleet_v, h_ns, stride, scene_stride, trail_stride)
+                signals += _send_fleet_series(rec, method, clean[method], fleet_v,
+                                              colors[method], stride, indexes)
+                _send_fleet_world(rec, method, clean[method], fleet_v, h_ns, stride,
+                                  scene_stride, trail_stride)
         rec.flush()
     finally:
         # Dropping the file sink finishes the file (footer + manifest) before returning.

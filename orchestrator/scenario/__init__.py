@@ -5,8 +5,14 @@
 - :mod:`.fleet`: the sections of a fleet scenario (vehicles, graph, leader, ...);
 - :mod:`.generator`: generated grid fleets (formation-20, benchmarks).
 """
-from .loader import (SCENARIO_DIR, Scenario, ScenarioError, builtin_scenarios, load_scenario,
-                     scenario_from_dict)
+from .loader import (
+                     SCENARIO_DIR,
+                     Scenario,
+                     ScenarioError,
+                     builtin_scenarios,
+                     load_scenario,
+                     scenario_from_dict,
+)
 
 __all__ = ["SCENARIO_DIR", "Scenario", "ScenarioError", "builtin_scenarios", "load_scenario",
            "scenario_from_dict"]

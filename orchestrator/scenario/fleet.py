@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .errors import validate_scenario
+
 if TYPE_CHECKING:
     from .schema_fleet import FleetScenario
 
@@ -46,12 +47,12 @@ def fleet_spec_from_dict(data: Mapping[str, Any], where: str = "scenario"
                          ) -> tuple[dict[str, Any], dict[str, Any]]:
     """(fleet spec, [simulation] table) of a parsed fleet scenario; raises a one-line
     :class:`.errors.ScenarioError` naming ``where``, the section and the key."""
-    from .schema_fleet import FleetScenario   # networkx & co.: only for fleets
+    from .schema_fleet import FleetScenario  # networkx & co.: only for fleets
     scenario = validate_scenario(FleetScenario, data, where)
     return fleet_spec(scenario), dict(data["simulation"])
 
 
-def fleet_spec(scenario: "FleetScenario") -> dict[str, Any]:
+def fleet_spec(scenario: FleetScenario) -> dict[str, Any]:
     """The fleet spec of a validated scenario: per vehicle its model, parameters, offset,
     x0 (a position becomes a state moving with the leader), current or disturbance, noise
     (W_x, V_y, V_ybar) and cost (Q, R), each from its override or else from the section."""

@@ -63,9 +63,10 @@ class Scenario:
 
     def with_run(self, *, T: float | None = None, h: float | None = None,
                  seed: int | None = None, estimator: str | None = None,
-                 tracking: str | None = None) -> "Scenario":
+                 tracking: str | None = None) -> Scenario:
         """A copy with run settings overridden, checked like the file's [simulation]."""
-        new = replace(self, T=self.T if T is None else float(T), h=self.h if h is None else float(h),
+        new = replace(self, T=self.T if T is None else float(T),
+                      h=self.h if h is None else float(h),
                       seed=self.seed if seed is None else int(seed),
                       estimator=self.estimator if estimator is None else estimator,
                       tracking=self.tracking if tracking is None else tracking)

@@ -18,13 +18,28 @@ from typing import Annotated, Any, Self
 
 import numpy as np
 from annotated_types import Ge, Gt
-from pydantic import (AllowInfNan, BaseModel, ConfigDict, Field, PrivateAttr, ValidationError,
-                      ValidationInfo, WrapValidator, field_validator, model_validator)
+from pydantic import (
+    AllowInfNan,
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    ValidationError,
+    ValidationInfo,
+    WrapValidator,
+    field_validator,
+    model_validator,
+)
 
 from controller_fmu.regulator import TRACKING_MODES
 from estimator_fmu.estimators import ESTIMATOR_MODES
-from plant_model.linalg_checks import (as_matrix, as_number, as_vector,
-                                       check_symmetric_pd, check_symmetric_psd)
+from plant_model.linalg_checks import (
+    as_matrix,
+    as_number,
+    as_vector,
+    check_symmetric_pd,
+    check_symmetric_psd,
+)
 from plant_model.system import NOISE_CONVENTIONS
 from plant_model.vehicles import VehicleModel, generic
 

@@ -21,8 +21,16 @@ from typing import Annotated, Any, Self
 
 import numpy as np
 from annotated_types import Ge
-from pydantic import (AllowInfNan, BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo,
-                      field_validator, model_validator)
+from pydantic import (
+    AllowInfNan,
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from plant_model.fleet import fleet_vehicles
 from plant_model.graph import communication_graph
@@ -31,8 +39,16 @@ from plant_model.linalg_checks import ModelError, as_matrix, as_vector
 from plant_model.system import NOISE_CONVENTIONS
 from plant_model.vehicles import VehicleModel, leader_state_map, state_offset
 
-from .schema import (CostSection, Matrix, ScenarioFile, Seconds, Section, check_covariance,
-                     expect, one_of)
+from .schema import (
+    CostSection,
+    Matrix,
+    ScenarioFile,
+    Seconds,
+    Section,
+    check_covariance,
+    expect,
+    one_of,
+)
 
 __all__ = ["FleetScenario", "CurrentSection", "VehicleNoise", "VehicleOverride"]
 
