@@ -14,6 +14,7 @@ from plant_model.discretization import discretize
 
 from .analysis.prediction import predict_stationary
 from .analysis.summary import method_summary, stats_window, trace_stats, versions
+from .atomic import write_text_atomically
 from .cosim.build import build_fmus, fmu_config, variables_markdown
 from .cosim.master import run_cosimulation
 from .cosim.system import SystemDescription, closed_loop_system
@@ -351,5 +352,5 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         summary["design"].pop("Kx")
         summary["design"].pop("Kz")
         summary["design"].pop("Kw")
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    write_text_atomically(out / "summary.json", json.dumps(summary, indent=2))
     return summary

@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from support.loop import fmu_parameters
 
 from controller_fmu.regulator import tracking_law
 from orchestrator.analysis.reference import run_monolithic
@@ -20,6 +19,7 @@ from orchestrator.scenario import SCENARIO_DIR, ScenarioError, load_scenario
 from orchestrator.scenario.generator import scenario_toml as dumps
 from orchestrator.workflow import build, scenario_config
 from plant_model.linalg_checks import ModelError
+from support.loop import fmu_parameters
 
 BASE = tomllib.loads((SCENARIO_DIR / "formation-4.toml").read_text())
 EDGES = BASE["graph"]["edges"]           # [[1, 2, 1.0], [1, 3, 1.0], [2, 4, 0.5], [3, 4, 0.5]]

@@ -16,7 +16,6 @@ import numpy as np
 import pytest
 from fmpy import read_model_description
 from numpy.testing import assert_array_equal
-from support.loop import fmu_parameters, output_names
 
 from fmu_common.interface import element_names
 from fmu_common.slave_base import STATE_MAGIC, decode_state
@@ -24,6 +23,7 @@ from orchestrator.cosim.build import FMU_KINDS, build_fmu
 from orchestrator.cosim.instance import Extracted, FmuInstance
 from orchestrator.scenario import load_scenario
 from orchestrator.workflow import scenario_config
+from support.loop import fmu_parameters, output_names
 
 OK, DISCARD = 0, 2
 BLOCK = 2048          # rows per noise block of the plant (plant_model.plant.NoiseStream)

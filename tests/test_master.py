@@ -7,13 +7,13 @@ from contextlib import contextmanager
 
 import numpy as np
 import pytest
-from support.loop import fmu_parameters
 
 from estimator_fmu.estimators import ESTIMATOR_MODES
 from orchestrator.analysis.reference import run_monolithic
 from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
 from orchestrator.cosim.master import run_cosimulation
 from orchestrator.workflow import scenario_config
+from support.loop import fmu_parameters
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,6 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from lxml import etree
-from support.loop import fmu_parameters
 
 from controller_fmu.regulator import tracking_law
 from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
@@ -25,6 +24,7 @@ from orchestrator.scenario import load_scenario
 from orchestrator.workflow import scenario_config, scenario_system
 from plant_model.discretization import discretize
 from plant_model.plant import NoiseStream
+from support.loop import fmu_parameters
 
 SYS = f"{{{OSP_SYSTEM_NS}}}"
 COMPONENTS = ("plant", "estimator", "controller")

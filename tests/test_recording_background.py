@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from support.recording import H, expected_series, make_runs
 
 from orchestrator.recording import read_rrd_scalars
 from orchestrator.recording.background import BackgroundWriter
+from support.recording import H, expected_series, make_runs
 
 
 def test_child_writes_the_same_series(tmp_path):

@@ -6,6 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from rerun.chunk import RrdReader
+
+from orchestrator.recording import (
+    read_rrd_line_strips,
+    read_rrd_points,
+    read_rrd_scalars,
+    read_rrd_series,
+    write_rrd,
+)
 from support.recording import (
     FLEET_H,
     FLEET_METHODS,
@@ -23,14 +31,6 @@ from support.rrd_readback import (
     read_rrd_blueprint_views,
     read_rrd_visible_time_ranges,
     rrd_has_blueprint,
-)
-
-from orchestrator.recording import (
-    read_rrd_line_strips,
-    read_rrd_points,
-    read_rrd_scalars,
-    read_rrd_series,
-    write_rrd,
 )
 
 

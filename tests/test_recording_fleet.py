@@ -6,6 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
+from orchestrator.recording import (
+    method_color,
+    read_rrd_scalars,
+    read_rrd_series,
+    read_rrd_series_lines,
+    write_rrd,
+)
 from support.recording import (
     CURRENT_NAMES,
     FLEET_H,
@@ -22,14 +30,6 @@ from support.recording import (
     write_fleet_recording,
 )
 from support.rrd_readback import read_rrd_series_styles
-
-from orchestrator.recording import (
-    method_color,
-    read_rrd_scalars,
-    read_rrd_series,
-    read_rrd_series_lines,
-    write_rrd,
-)
 
 
 @pytest.fixture(scope="module", params=FLEET_STRIDES, ids=FLEET_STRIDE_IDS)

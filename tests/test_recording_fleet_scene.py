@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from rerun.chunk import RrdReader
+
+from orchestrator.recording import read_rrd_line_strips, read_rrd_points, write_rrd
 from support.recording import (
     FLEET_H,
     FLEET_H_NS,
@@ -21,8 +23,6 @@ from support.recording import (
     recorded_steps,
     write_fleet_recording,
 )
-
-from orchestrator.recording import read_rrd_line_strips, read_rrd_points, write_rrd
 
 
 @pytest.fixture(scope="module", params=FLEET_STRIDES, ids=FLEET_STRIDE_IDS)

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from support.recording import FLEET_H, STATE_NAMES, STEPS, H, make_fleet, make_fleet_runs, make_runs
 
 from orchestrator.recording import read_rrd_series, write_rrd
+from support.recording import FLEET_H, STATE_NAMES, STEPS, H, make_fleet, make_fleet_runs, make_runs
 
 
 def test_different_step_counts_raise(tmp_path):

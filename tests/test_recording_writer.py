@@ -9,6 +9,14 @@ import warnings
 import numpy as np
 import pytest
 from rerun.chunk import RrdReader
+
+from orchestrator.recording import (
+    TRACE_KEYS,
+    method_color,
+    read_rrd_scalars,
+    read_rrd_series,
+    write_rrd,
+)
 from support.recording import (
     DIMS,
     H_NS,
@@ -21,14 +29,6 @@ from support.recording import (
     write_paper_recording,
 )
 from support.rrd_readback import read_rrd_series_styles
-
-from orchestrator.recording import (
-    TRACE_KEYS,
-    method_color,
-    read_rrd_scalars,
-    read_rrd_series,
-    write_rrd,
-)
 
 
 @pytest.fixture(scope="module")

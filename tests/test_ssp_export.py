@@ -20,7 +20,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from lxml import etree
-from support.loop import fmu_parameters
 
 from controller_fmu.regulator import tracking_law
 from estimator_fmu.estimators import make_estimator
@@ -31,6 +30,7 @@ from orchestrator.interop.ssp import SSC_NS, SSD_NS, SSV_NS, export_ssp, fmpy_pa
 from orchestrator.workflow import scenario_config, scenario_system
 from plant_model.discretization import discretize
 from plant_model.plant import NoiseStream
+from support.loop import fmu_parameters
 
 fmpy_ssp = pytest.importorskip("fmpy.ssp.simulation")
 from fmpy.ssp.ssd import read_ssd, read_ssv  # noqa: E402 - after the importorskip

@@ -26,6 +26,8 @@ from lxml import etree
 
 from fmu_common.interface import UNIT_DEFINITIONS, ArraySpec, expand
 
+from ..atomic import copy_atomically
+
 __all__ = ["FMU_KINDS", "FmuKind", "build_fmus", "build_key", "cached_fmu", "fmu_cache_dir",
            "fmu_config", "interface_of",
            "patch_model_description", "variables_markdown"]
@@ -329,19 +331,6 @@ def build_key(kind: FmuKind, config: dict[str, Any]) -> str:
     return h.hexdigest()
 
 
-def _replace_atomically(src: Path, dst: Path) -> None:
-    """Copy ``src`` to ``dst`` under a temporary name in ``dst``'s folder, then rename: a
-    reader (or a concurrent build) sees the old file or the whole new one, never a part."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{dst.name}.", suffix=".part", dir=dst.parent)
-    os.close(fd)
-    try:
-        shutil.copyfile(src, tmp)
-        os.replace(tmp, dst)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def _prune_cache(cache: Path, max_age_s: float = 30 * 86400.0) -> None:
     now = time.time()
     for f in cache.glob("*.fmu"):
@@ -412,10 +401,10 @@ def build_fmus(config: dict[str, Any], out_dir: Path | str, *,
     for name, kind in FMU_KINDS.items():
         dst = out / f"{kind.model}.fmu"
         if cache:
-            _replace_atomically(cached_fmu(kind, config), dst)
+            copy_atomically(cached_fmu(kind, config), dst)
         else:
             with tempfile.TemporaryDirectory(prefix="auv_build_") as tmp:
-                _replace_atomically(build_fmu(kind, config, Path(tmp)), dst)
+                copy_atomically(build_fmu(kind, config, Path(tmp)), dst)
         paths[name] = dst
     return paths
 

@@ -40,6 +40,7 @@ from lxml import etree
 
 from fmu_common.interface import ArraySpec, element_names
 
+from ..atomic import write_bytes_atomically
 from ..cosim.build import FMU_KINDS
 from ..cosim.checks import Variable
 from ..cosim.system import SystemDescription
@@ -291,12 +292,12 @@ def export_osp(sc: Scenario, out_dir: Path | str,
         comp = next(c for c in system.components if c.fmu == key)
         xml, _ = _osp_model_description(comp.interface, layout)
         p = out / f"{FMU_KINDS[key].model}_OspModelDescription.xml"
-        p.write_bytes(xml)
+        write_bytes_atomically(p, xml)
         paths[key] = Path(fmus[key])
         paths[f"{key}_osp"] = p
         written.append(p)
     system_file = out / "OspSystemStructure.xml"
-    system_file.write_bytes(_system_structure(system, fmu_files, variables))
+    write_bytes_atomically(system_file, _system_structure(system, fmu_files, variables))
     paths["system"] = system_file
     written.append(system_file)
     problems = [msg for p in written for msg in validate_osp_file(p)]

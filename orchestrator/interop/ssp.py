@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING
 
 from lxml import etree
 
+from ..atomic import temporary_sibling
 from ..cosim.build import FMU_KINDS
 from ..cosim.checks import Variable, fmu_variables
 from ..cosim.system import SystemDescription, evaluation_order
@@ -206,15 +207,13 @@ def export_ssp(sc: Scenario, out_path: Path | str, *,
                    [(n, variables[c.name][n], v) for n, v in c.parameters.items()])
                for c in system.components}
         ssd = _system_structure_xml(system, fmu_files, variables)
-        out_path.parent.mkdir(parents=True, exist_ok=True)
-        tmp_out = out_path.with_name(out_path.name + ".part")
-        with zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as z:
+        with temporary_sibling(out_path) as tmp_out, \
+                zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as z:
             z.writestr("SystemStructure.ssd", ssd)
             for key in dict.fromkeys(c.fmu for c in system.components):
                 z.write(fmus[key], f"resources/{FMU_KINDS[key].model}.fmu")
             for comp in system.names:
                 z.writestr(parameter_set_path(comp), ssv[comp])
-        tmp_out.replace(out_path)
     return out_path
 
 

@@ -2,6 +2,7 @@
 ``send_columns`` writers of the per-vehicle series and the 3D scene of a fleet."""
 from __future__ import annotations
 
+import os
 import time
 import uuid
 from pathlib import Path
@@ -246,8 +247,9 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
         raise RuntimeError("write_rrd: Rerun logging is disabled (RERUN env var?); refusing to "
                            "write an empty .rrd")
     signals = 0
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.part")   # renamed when complete
     try:
-        rec.save(path, default_blueprint=blueprint)
+        rec.save(tmp, default_blueprint=blueprint)
         rec.send_recording_name(recording_name)
 
         indexes = _time_columns(np.arange(0, steps, stride, dtype=np.int64), h_ns)
@@ -277,9 +279,14 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
                 _send_fleet_world(rec, method, clean[method], fleet_v, h_ns, stride,
                                   scene_stride, trail_stride)
         rec.flush()
-    finally:
-        # Dropping the file sink finishes the file (footer + manifest) before returning.
+    except BaseException:
         rec.disconnect()
         del rec
+        tmp.unlink(missing_ok=True)
+        raise
+    # Dropping the file sink finishes the file (footer + manifest) before returning.
+    rec.disconnect()
+    del rec
+    os.replace(tmp, path)
     rrd_s = time.perf_counter() - t0
     return {"rrd_s": rrd_s, "signals": signals, "bytes": path.stat().st_size}
