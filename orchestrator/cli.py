@@ -62,7 +62,9 @@ def _scenario(args: argparse.Namespace) -> Scenario:
                        tracking=getattr(args, "tracking", None))
 
 
-def _print_summary(summary: dict) -> None:
+def _print_summary(summary: dict, out: Path) -> int:
+    """Print the summary table and where the files are; the exit status: 0, or 130 / 143
+    for a run stopped by SIGINT / SIGTERM (after one line saying what was kept)."""
     print(f"scenario {summary['scenario']}: T = {summary['T']} s, h = {summary['h']} s, "
           f"{summary['steps']} steps, seeds {summary['seeds']}, "
           f"noise convention '{summary['noise_convention']}', statistics over "
@@ -70,6 +72,9 @@ def _print_summary(summary: dict) -> None:
     print(f"{'method':>10s} {'cost rate':>12s} {'(std)':>9s} {'predicted':>10s}   "
           "rms e (sim / pred)")
     for name, m in summary["methods"].items():
+        if "cost_rate" not in m:
+            print(f"{name:>10s}   {m.get('note', 'no statistics')}")
+            continue
         c = m["cost_rate"]
         pred = "n/a" if c["predicted"] is None else f"{c['predicted']:.4g}"
         sim_e, pred_e = m["rms_e"]["mean"], m["rms_e"]["predicted"]
@@ -82,9 +87,23 @@ def _print_summary(summary: dict) -> None:
             rms = (f"max {max(sim_e):.3g}/{'n/a' if not pred_e else format(max(pred_e), '.3g')}"
                    + ("" if steady is None else f"; steady error (noise-free RMS) {steady:.3g}"))
         print(f"{name:>10s} {c['mean']:12.4g} {c['std']:9.2g} {pred:>10s}   {rms}")
-    print(f"wrote {summary['rrd']['path']} (open it with: rerun {summary['rrd']['path']}) and "
-          f"{Path(summary['rrd']['path']).parent / 'summary.json'}; "
-          f"wall time {summary['wall_s']:.1f} s")
+    rrd = summary["rrd"]["path"]
+    if rrd:
+        print(f"wrote {rrd} (open it with: rerun {rrd}) and {out / 'summary.json'}; "
+              f"wall time {summary['wall_s']:.1f} s")
+    if summary.get("interrupted"):
+        import signal
+
+        from .interrupt import EXIT_STATUS
+        sig = summary["interrupted_by"]
+        kept = (f"{rrd} (traces to t = {summary['time_reached_s']:.6g} s)" if rrd
+                else "no traces (stopped before the first steps)")
+        print(f"auv-cosim: interrupted by {sig} at t = {summary['time_reached_s']:.6g} s of "
+              f"{summary['T']} s: kept {kept} and {out / 'summary.json'} (marked "
+              f"\"interrupted\": true; statistics over the seeds that completed)",
+              file=sys.stderr)
+        return EXIT_STATUS.get(getattr(signal, sig, None), 130)
+    return 0
 
 
 def cmd_build(args: argparse.Namespace) -> int:
@@ -109,9 +128,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .workflow import simulate
     sc = _scenario(args)
     out = Path(args.out or f"out/{sc.name}_{sc.estimator}_seed{sc.seed}")
-    _print_summary(simulate(sc, [sc.estimator], [sc.seed], out, progress=not args.quiet,
-                            log=(lambda s: None) if args.quiet else print))
-    return 0
+    return _print_summary(simulate(sc, [sc.estimator], [sc.seed], out, progress=not args.quiet,
+                                   log=(lambda s: None) if args.quiet else print), out)
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
@@ -121,9 +139,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
     what = args.what or ("tracking" if sc.fleet is not None else "estimators")
     modes, trackings = ((list(ESTIMATOR_MODES), None) if what == "estimators"
                         else (None, list(TRACKING_MODES)))
-    _print_summary(simulate(sc, modes, args.seeds, out, progress=not args.quiet,
-                            log=(lambda s: None) if args.quiet else print, trackings=trackings))
-    return 0
+    return _print_summary(simulate(sc, modes, args.seeds, out, progress=not args.quiet,
+                                   log=(lambda s: None) if args.quiet else print,
+                                   trackings=trackings), out)
 
 
 def cmd_export(args: argparse.Namespace) -> int:

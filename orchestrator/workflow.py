@@ -18,6 +18,7 @@ from .atomic import write_text_atomically
 from .cosim.build import build_fmus, fmu_config, variables_markdown
 from .cosim.master import run_cosimulation
 from .cosim.system import SystemDescription, closed_loop_system
+from .interrupt import StopFlag, stop_on_signals
 from .scenario import Scenario
 
 if TYPE_CHECKING:
@@ -271,15 +272,18 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     t0 = time.perf_counter()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    with BackgroundWriter() as writer:      # imports Rerun in a child while we simulate
+    # the .rrd writer imports Rerun in a child while we simulate; SIGINT / SIGTERM stop
+    # the runs between steps and keep what was simulated
+    with BackgroundWriter() as writer, stop_on_signals() as stop:
         return _simulate(sc, modes, seeds, out, writer, t0, progress=progress, log=log,
-                         trackings=trackings, record_hz=record_hz, tracking_law=tracking_law)
+                         trackings=trackings, record_hz=record_hz, tracking_law=tracking_law,
+                         stop=stop)
 
 
 def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], out: Path,
               writer: Any, t0: float, *, progress: bool, log: Callable[[str], None],
               trackings: Sequence[str] | None, record_hz: float | None,
-              tracking_law: Callable) -> dict[str, Any]:
+              tracking_law: Callable, stop: StopFlag) -> dict[str, Any]:
     cfg = scenario_config(sc)
     fmus = build_fmus(cfg, out / "fmus")
     methods_run = method_list(sc, modes, trackings)
@@ -307,25 +311,42 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
             pred = predict_stationary(sc.system, model, est, Ks, window=(k0, sc.steps))
         per_seed = []
         for seed in seeds:
+            if stop:
+                break
             res = run_cosimulation(fmus, cfg, mode=mode, seed=seed, steps=sc.steps,
-                                   progress=bar, tracking=tracking)
+                                   progress=bar, tracking=tracking, stop=stop)
+            if name not in rrd_runs and res.steps:
+                rrd_runs[name] = res.traces
+            if res.info["interrupted_by"]:
+                reached = res.steps * sc.h
+                log(f"{name:>9s} seed {seed}: interrupted by {res.info['interrupted_by']} at "
+                    f"t = {reached:.6g} s (not in the statistics)")
+                break
             loop_us.append(res.loop_s / sc.steps * 1e6)
             per_seed.append(trace_stats(res.traces, sc.system.Q, sc.system.R, k0))
-            if name not in rrd_runs:
-                rrd_runs[name] = res.traces
             log(f"{name:>9s} seed {seed}: cost rate {per_seed[-1]['cost_rate']:.4g} "
                 f"(predicted {None if pred.cost_rate is None else round(pred.cost_rate, 4)}), "
                 f"{res.loop_s:.2f} s")
-        methods[name] = method_summary(per_seed, pred)
+        methods[name] = (method_summary(per_seed, pred) if per_seed else
+                         {"note": "no seed completed before the interruption"})
         methods[name]["estimator"] = mode
         methods[name]["tracking"] = tracking
+        methods[name]["seeds_completed"] = len(per_seed)
+        if stop:
+            break
     if bar is not None:
         bar.close()
     rrd_path = out / f"{sc.name}.rrd"
     stride = record_stride(sc, record_hz)
-    rrd_info = writer.write(rrd_path, rrd_runs, sc.h,
-                            recording_name=f"{sc.name} ({', '.join(rrd_runs)})",
-                            fleet=fleet_layout(sc), stride=stride)
+    recorded = min((len(next(iter(tr.values()))) for tr in rrd_runs.values()), default=0)
+    if recorded:          # an interrupted compare: every method up to the shortest run
+        rrd_runs = {m: {k: v[:recorded] for k, v in tr.items()} for m, tr in rrd_runs.items()}
+        rrd_info = writer.write(rrd_path, rrd_runs, sc.h,
+                                recording_name=f"{sc.name} ({', '.join(rrd_runs)})",
+                                fleet=fleet_layout(sc), stride=stride)
+    else:
+        rrd_path.unlink(missing_ok=True)          # never leave an earlier run's .rrd
+        rrd_info = {"bytes": 0, "signals": 0, "rrd_s": 0.0}
     summary = {
         "scenario": sc.name,
         "source": sc.source,
@@ -341,9 +362,12 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
             "residuals": design.residuals,
             "Kx": design.Kx.tolist(), "Kz": design.Kz.tolist(), "Kw": design.Kw.tolist(),
         },
-        "rrd": {"path": str(rrd_path), "traces_of_seed": int(seeds[0]),
-                "recorded_every_steps": stride, **rrd_info},
-        "timing": {"cosim_loop_us_per_step_mean": float(np.mean(loop_us))},
+        "interrupted": bool(stop),
+        "interrupted_by": stop.name,
+        "time_reached_s": recorded * sc.h if stop else sc.T,
+        "rrd": {"path": str(rrd_path) if recorded else None, "traces_of_seed": int(seeds[0]),
+                "recorded_every_steps": stride, "recorded_steps": recorded, **rrd_info},
+        "timing": {"cosim_loop_us_per_step_mean": float(np.mean(loop_us)) if loop_us else None},
         "fmus": {k: {"path": str(v), "bytes": v.stat().st_size} for k, v in fmus.items()},
         "wall_s": time.perf_counter() - t0,
         "versions": versions(),

@@ -284,24 +284,29 @@ def compile_plan(plan: StepPlan) -> tuple[Callable[[int, int, float, int], None]
     return ns["run"], src
 
 
-def _step_loop(plan: StepPlan, steps: int, h: float, bar: Any) -> None:
-    """Run ``steps`` macro steps of the plan (t = k h), in chunks for the progress bar."""
+def _step_loop(plan: StepPlan, steps: int, h: float, bar: Any, stop: Any = None) -> int:
+    """Run ``steps`` macro steps of the plan (t = k h) in chunks of 200 (progress bar,
+    ``stop`` checked between chunks); returns the number of steps run."""
     run, _ = compile_plan(plan)
     if plan.after:                              # Jacobi: the outputs at t = 0 first
         for fn, c, vr, n, base, _, who, what, _ in plan.after:
             st = fn(c, vr, n, base)
             if st:
                 raise who.fail(f"{what} at t = 0.0 s", st)
-    chunk = 2000
+    chunk = 200
     for k0 in range(0, steps, chunk):
+        if stop:
+            return k0
         run(k0, min(k0 + chunk, steps), h, steps)
         if bar is not None:
             bar.update(min(chunk, steps - k0))
+    return steps
 
 
 def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, *,
                coupling: str = "gauss-seidel", progress: Any = False,
-               instance_suffix: str = "") -> tuple[dict[str, np.ndarray], float, dict[str, Any]]:
+               instance_suffix: str = "",
+               stop: Any = None) -> tuple[dict[str, np.ndarray], float, dict[str, Any]]:
     """Co-simulate ``system`` for ``steps`` communication steps of ``system.h``.
 
     Parameters
@@ -319,15 +324,20 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
         ``update(n)``.
     instance_suffix : str, optional
         Appended to each component's name to make its FMI instance name.
+    stop : StopFlag, optional
+        Checked every 200 steps (:mod:`orchestrator.interrupt`): once true, the run ends
+        there and keeps the steps simulated.
 
     Returns
     -------
     traces : dict[str, np.ndarray]
-        Keyed by :meth:`SystemDescription.trace_names`, row k = sample k.
+        Keyed by :meth:`SystemDescription.trace_names`, row k = sample k (fewer rows than
+        ``steps`` if stopped).
     loop_s : float
         Seconds spent in the step loop.
     info : dict[str, Any]
-        ``order`` (the evaluation order) and ``calls_per_step``.
+        ``order`` (the evaluation order), ``calls_per_step``, ``steps_done`` and
+        ``interrupted_by`` (the signal's name, or None).
 
     Raises
     ------
@@ -368,7 +378,7 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
         elif progress:
             bar = progress                      # a shared bar (an object with update(n))
         t_loop = time.perf_counter()
-        _step_loop(plan, steps, h, bar)
+        done = _step_loop(plan, steps, h, bar, stop)
         loop_s = time.perf_counter() - t_loop
     finally:
         if progress is True and bar is not None:
@@ -381,16 +391,18 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
     for comp in system.components:
         i = 0
         for spec in comp.arrays("output"):
-            traces[names[(comp.name, spec.name)]] = rec[comp.name][:, i:i + spec.size]
+            traces[names[(comp.name, spec.name)]] = rec[comp.name][:done, i:i + spec.size]
             i += spec.size
     calls = [op[7] for op in plan.exchange + plan.after]
-    return traces, loop_s, {"order": plan.order, "calls_per_step": calls + [
+    return traces, loop_s, {"order": plan.order, "steps_done": done,
+                            "interrupted_by": getattr(stop, "name", None) if stop else None,
+                            "calls_per_step": calls + [
         f"fmi2DoStep ({who.label})" for *_, who in plan.stepping]}
 
 
 def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str, seed: int,
                      steps: int, progress: Any = False, tracking: str | None = None,
-                     coupling: str = "gauss-seidel") -> RunResult:
+                     coupling: str = "gauss-seidel", stop: Any = None) -> RunResult:
     """Run the paper's loop (:func:`closed_loop_system`) of the three FMUs for ``steps`` steps.
 
     Parameters
@@ -413,6 +425,8 @@ def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str
     coupling : str, optional
         'gauss-seidel' (the exact discrete-time loop, default) or 'jacobi' (what libcosim
         does; module docstring).
+    stop : StopFlag, optional
+        See :func:`run_system`.
 
     Returns
     -------
@@ -429,7 +443,8 @@ def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str
                tracking=tracking or config.get("tracking", "lq"))
     system = closed_loop_system(cfg)
     traces, loop_s, info = run_system(system, fmus, steps, coupling=coupling,
-                                      progress=progress, instance_suffix=f"_{mode}_{seed}")
+                                      progress=progress, instance_suffix=f"_{mode}_{seed}",
+                                      stop=stop)
     return RunResult(mode=mode, seed=int(seed), h=system.h, traces=traces,
                      wall_s=time.perf_counter() - t0, loop_s=loop_s, coupling=coupling,
                      info=info)

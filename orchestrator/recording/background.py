@@ -36,7 +36,7 @@ class BackgroundWriter:
             self.proc = subprocess.Popen(
                 [sys.executable, "-m", "orchestrator.recording.background"],
                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                env=env)
+                env=env, start_new_session=True)    # Ctrl-C stops the parent's runs only
         except OSError:
             self.proc = None
 
