@@ -9,6 +9,7 @@ import argparse
 import json
 import os
 import sys
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -40,8 +41,17 @@ def parse_seeds(text: str) -> list[int]:
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"seeds {text!r}: expected a range '0-9', a list '1,4,7' or one seed") from None
-    if any(s < 0 for s in seeds):
-        raise argparse.ArgumentTypeError(f"seeds {text!r}: seeds must be non-negative")
+    if any(s < 0 or s > 2**31 - 1 for s in seeds):
+        raise argparse.ArgumentTypeError(
+            f"seeds {text!r}: seeds must be from 0 to 2^31 - 1 (a 32-bit FMI Integer)")
+    if len(seeds) > 100_000:
+        raise argparse.ArgumentTypeError(f"seeds {text!r}: {len(seeds)} seeds is too many "
+                                         "for one compare (at most 100000)")
+    repeated = sorted(s for s, c in Counter(seeds).items() if c > 1)
+    if repeated:
+        raise argparse.ArgumentTypeError(
+            f"seeds {text!r}: seed(s) {', '.join(map(str, repeated))} given more than once "
+            "(each would count twice in the statistics)")
     return seeds
 
 
@@ -382,12 +392,18 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    if getattr(args, "seed", None) is not None and args.seed < 0:
-        parser.error(f"--seed {args.seed}: seeds must be non-negative")
+    if getattr(args, "seed", None) is not None and not 0 <= args.seed <= 2**31 - 1:
+        parser.error(f"--seed {args.seed}: seeds must be from 0 to 2^31 - 1 "
+                     "(a 32-bit FMI Integer)")
     try:
         return args.func(args)
     except (ScenarioError, ModelError, CosimError, ExportError, AlgebraicLoopError) as exc:
         print(f"auv-cosim {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:          # an output folder that is a file, unwritable, full, ...
+        where = f" {exc.filename}" if exc.filename else ""
+        print(f"auv-cosim {args.command}: error: cannot write or read{where}: "
+              f"{exc.strerror or exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

@@ -118,9 +118,16 @@ def load_scenario(spec: str | Path = "paper") -> Scenario:
     path = _resolve(spec)
     where = str(path) if path.parent != SCENARIO_DIR else f"built-in scenario '{path.stem}'"
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{where}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{where}: not a text file (byte {exc.start} is not UTF-8); "
+                            "a scenario is a TOML file") from None
+    except IsADirectoryError:
+        raise ScenarioError(f"{where} is a folder; a scenario is a .toml file") from None
+    except OSError as exc:
+        raise ScenarioError(f"{where}: cannot be read: {exc.strerror}") from None
     return scenario_from_dict(data, where)
 
 

@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from typing import Annotated, Any, Self
 
 import numpy as np
-from annotated_types import Ge, Gt
+from annotated_types import Ge, Gt, Le
 from pydantic import (
     AllowInfNan,
     BaseModel,
@@ -96,15 +96,19 @@ Seconds = Annotated[float, Gt(0), AllowInfNan(False)]
 
 
 class SimulationSection(Section):
-    """[simulation]: h > 0 and T >= h finite numbers of seconds, seed a non-negative
-    integer, estimator and tracking one of the modes the FMUs implement."""
+    """[simulation]: h > 0 and T >= h finite numbers of seconds, T a whole number of steps
+    h, seed a non-negative 32-bit integer, estimator and tracking one of the modes the FMUs
+    implement."""
 
     # h before T: fields are validated in this order, and T's check reads the valid h
     h: Annotated[Seconds, expect("must be a positive number of seconds")] = Field(
         description="the communication step in s, positive")
     T: Annotated[float, AllowInfNan(False)] = Field(
         description="the horizon in s, at least one step h")
-    seed: Annotated[int, Ge(0), expect("must be a non-negative integer")] = 0
+    # the FMUs' seed is an FMI Integer: 32 bits, signed
+    seed: Annotated[int, Ge(0), Le(2**31 - 1),
+                    expect("must be a non-negative integer below 2^31 (the FMUs' seed is a "
+                           "32-bit FMI Integer)")] = 0
     estimator: Annotated[str, one_of(ESTIMATOR_MODES)] = "kalman"
     tracking: Annotated[str, one_of(TRACKING_MODES)] = "lq"
 
@@ -119,6 +123,12 @@ class SimulationSection(Section):
             T = None
         if T is None or (h is not None and T < h):
             raise bad_value("must be at least one step h = {h} s", h=h)
+        if h is not None:
+            n = T / h
+            if abs(n - round(n)) > 1e-9 * n:
+                raise bad_value("is not a whole number of steps h = {h} s ({n} steps); "
+                                "the run would stop at {stop} s", h=h, n=f"{n:.6g}",
+                                stop=f"{round(n) * h:.6g}")
         return T
 
 
