@@ -102,8 +102,6 @@ def _print_summary(summary: dict, out: Path) -> int:
         print(f"wrote {rrd} (open it with: rerun {rrd}) and {out / 'summary.json'}; "
               f"wall time {summary['wall_s']:.1f} s")
     if summary.get("interrupted"):
-        import signal
-
         from .interrupt import EXIT_STATUS
         sig = summary["interrupted_by"]
         kept = (f"{rrd} (traces to t = {summary['time_reached_s']:.6g} s)" if rrd
@@ -112,7 +110,7 @@ def _print_summary(summary: dict, out: Path) -> int:
               f"{summary['T']} s: kept {kept} and {out / 'summary.json'} (marked "
               f"\"interrupted\": true; statistics over the seeds that completed)",
               file=sys.stderr)
-        return EXIT_STATUS.get(getattr(signal, sig, None), 130)
+        return EXIT_STATUS.get(sig, 130)
     return 0
 
 

@@ -16,8 +16,8 @@ from types import FrameType
 
 __all__ = ["StopFlag", "stop_on_signals", "EXIT_STATUS"]
 
-#: exit status of a command stopped by a signal: 128 + the signal number
-EXIT_STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143}
+#: exit status of a command stopped by a signal (by its name): 128 + the signal number
+EXIT_STATUS = {s.name: 128 + s.value for s in (signal.SIGINT, signal.SIGTERM)}
 
 
 class StopFlag:

@@ -265,8 +265,6 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     dict
         The summary also written to ``summary.json``.
     """
-    from controller_fmu.regulator import tracking_law
-
     from .recording.background import BackgroundWriter
 
     t0 = time.perf_counter()
@@ -276,14 +274,15 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     # the runs between steps and keep what was simulated
     with BackgroundWriter() as writer, stop_on_signals() as stop:
         return _simulate(sc, modes, seeds, out, writer, t0, progress=progress, log=log,
-                         trackings=trackings, record_hz=record_hz, tracking_law=tracking_law,
-                         stop=stop)
+                         trackings=trackings, record_hz=record_hz, stop=stop)
 
 
 def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], out: Path,
               writer: Any, t0: float, *, progress: bool, log: Callable[[str], None],
               trackings: Sequence[str] | None, record_hz: float | None,
-              tracking_law: Callable, stop: StopFlag) -> dict[str, Any]:
+              stop: StopFlag) -> dict[str, Any]:
+    from controller_fmu.regulator import tracking_law
+
     cfg = scenario_config(sc)
     fmus = build_fmus(cfg, out / "fmus")
     methods_run = method_list(sc, modes, trackings)

@@ -33,6 +33,7 @@ import ctypes
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from itertools import groupby
 from pathlib import Path
 from typing import Any
 
@@ -92,6 +93,7 @@ class StepPlan:
     stepping: list[tuple]
     after: list[tuple]
     order: list[str]                    #: the evaluation order, for reports
+    keep: list[Any] = field(default_factory=list)   #: ctypes arrays the calls point into
 
 
 def _runs(cols: list[int]) -> list[tuple[int, int]]:
@@ -169,9 +171,7 @@ def plan_steps(system: SystemDescription, inst: Mapping[str, FmuInstance],
                 continue
             tgt = system.component(c.target)
             dst = element_names(c.input, tgt.array(c.input).shape)
-            src_cols = cols[source][c.output]
-            if len(dst) != len(src_cols):
-                raise CosimError(f"connection {c}: {len(src_cols)} elements feed {len(dst)}")
+            src_cols = cols[source][c.output]       # sizes match: checked before the plan
             per_target.setdefault(c.target, []).extend(
                 (col, name, c.input) for col, name in zip(src_cols, dst))
         ops = []
@@ -192,23 +192,16 @@ def plan_steps(system: SystemDescription, inst: Mapping[str, FmuInstance],
     if coupling == "gauss-seidel":
         order = evaluation_order(system)
         exchange: list[tuple] = []
-        i = 0
-        while i < len(order):                   # consecutive outputs of one component
-            j = i
-            while j < len(order) and order[j][0] == order[i][0]:
-                j += 1
-            comp = order[i][0]
-            group = [o for _, o in order[i:j]]
+        for comp, run in groupby(order, key=lambda n: n[0]):   # consecutive outputs of one
+            group = [o for _, o in run]                          # component: one get
             exchange += get_ops(comp, sorted(col for o in group for col in cols[comp][o]))
             exchange += set_ops(comp, set(group))
-            i = j
-        plan = StepPlan(exchange, stepping, [], [f"{c}.{o}" for c, o in order])
+        plan = StepPlan(exchange, stepping, [], [f"{c}.{o}" for c, o in order], keep)
     else:
         sets = [op for comp in system.names for op in set_ops(comp, set(cols[comp]))]
         gets = [op for comp in system.names for op in get_ops(
             comp, [c for cs in cols[comp].values() for c in cs])]
-        plan = StepPlan(sets, stepping, gets, system.names)
-    plan.keep = keep                            # type: ignore[attr-defined]
+        plan = StepPlan(sets, stepping, gets, system.names, keep)
     return plan
 
 
