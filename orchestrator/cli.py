@@ -20,6 +20,7 @@ from plant_model.linalg_checks import ModelError
 from .cosim.instance import CosimError
 from .cosim.system import AlgebraicLoopError
 from .interop.common import ExportError
+from .outputs import OutputFolderError, file_stem, output_folder
 from .scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -117,54 +118,56 @@ def _print_summary(summary: dict, out: Path) -> int:
 def cmd_build(args: argparse.Namespace) -> int:
     from .workflow import build, write_fmu_readme
     sc = _scenario(args)
-    out = Path(args.out)
-    paths = build(sc, out)
-    if out.resolve() == (ROOT / "fmus").resolve():
-        write_fmu_readme(sc, out / "README.md")
-    for k, p in paths.items():
-        print(f"{k:>10s}: {p} ({p.stat().st_size} bytes)")
-    if not args.no_crosscheck:
-        from .interop.crosscheck import write_crosscheck
-        from .workflow import scenario_config
-        written = write_crosscheck(paths, scenario_config(sc), out / "crosscheck")
-        print(f"cross-check references (<Model>_in.csv, _ref.csv, _ref.opt) for "
-              f"{', '.join(written)} in {out / 'crosscheck'}")
+    with output_folder(args.out, "build") as out:
+        paths = build(sc, out)
+        if out.resolve() == (ROOT / "fmus").resolve():
+            write_fmu_readme(sc, out / "README.md")
+        for k, p in paths.items():
+            print(f"{k:>10s}: {p} ({p.stat().st_size} bytes)")
+        if not args.no_crosscheck:
+            from .interop.crosscheck import write_crosscheck
+            from .workflow import scenario_config
+            written = write_crosscheck(paths, scenario_config(sc), out / "crosscheck")
+            print(f"cross-check references (<Model>_in.csv, _ref.csv, _ref.opt) for "
+                  f"{', '.join(written)} in {out / 'crosscheck'}")
     return 0
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     from .workflow import simulate
     sc = _scenario(args)
-    out = Path(args.out or f"out/{sc.name}_{sc.estimator}_seed{sc.seed}")
-    return _print_summary(simulate(sc, [sc.estimator], [sc.seed], out, progress=not args.quiet,
-                                   log=(lambda s: None) if args.quiet else print), out)
+    with output_folder(args.out or f"out/{file_stem(sc.name)}_{sc.estimator}_seed{sc.seed}",
+                       "run") as out:
+        summary = simulate(sc, [sc.estimator], [sc.seed], out, progress=not args.quiet,
+                           log=(lambda s: None) if args.quiet else print)
+    return _print_summary(summary, out)
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from .workflow import simulate
     sc = _scenario(args)
-    out = Path(args.out or f"out/{sc.name}_compare")
     what = args.what or ("tracking" if sc.fleet is not None else "estimators")
     modes, trackings = ((list(ESTIMATOR_MODES), None) if what == "estimators"
                         else (None, list(TRACKING_MODES)))
-    return _print_summary(simulate(sc, modes, args.seeds, out, progress=not args.quiet,
-                                   log=(lambda s: None) if args.quiet else print,
-                                   trackings=trackings), out)
+    with output_folder(args.out or f"out/{file_stem(sc.name)}_compare", "compare") as out:
+        summary = simulate(sc, modes, args.seeds, out, progress=not args.quiet,
+                           log=(lambda s: None) if args.quiet else print, trackings=trackings)
+    return _print_summary(summary, out)
 
 
 def cmd_export(args: argparse.Namespace) -> int:
     sc = _scenario(args)
-    out = Path(args.out or f"out/{sc.name}_{args.format}")
-    if args.format == "osp":
-        from .interop.osp import export_osp
-        paths = export_osp(sc, out)
-        print(f"OSP system for scenario {sc.name} in {out}: {paths['system'].name}, "
-              + ", ".join(p.name for k, p in paths.items() if k != "system"))
-        print(f"run it with libcosim: cosim run {paths['system']}  (or libcosimpy)")
-    else:
-        from .interop.ssp import export_ssp
-        path = export_ssp(sc, out / f"{sc.name}.ssp")
-        print(f"SSP archive for scenario {sc.name}: {path} (fmpy: simulate_ssp('{path}'))")
+    with output_folder(args.out or f"out/{file_stem(sc.name)}_{args.format}", "export") as out:
+        if args.format == "osp":
+            from .interop.osp import export_osp
+            paths = export_osp(sc, out)
+            print(f"OSP system for scenario {sc.name} in {out}: {paths['system'].name}, "
+                  + ", ".join(p.name for k, p in paths.items() if k != "system"))
+            print(f"run it with libcosim: cosim run {paths['system']}  (or libcosimpy)")
+        else:
+            from .interop.ssp import export_ssp
+            path = export_ssp(sc, out / f"{file_stem(sc.name)}.ssp")
+            print(f"SSP archive for scenario {sc.name}: {path} (fmpy: simulate_ssp('{path}'))")
     return 0
 
 
@@ -395,7 +398,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                      "(a 32-bit FMI Integer)")
     try:
         return args.func(args)
-    except (ScenarioError, ModelError, CosimError, ExportError, AlgebraicLoopError) as exc:
+    except (ScenarioError, ModelError, CosimError, ExportError, AlgebraicLoopError,
+            OutputFolderError) as exc:
         print(f"auv-cosim {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:          # an output folder that is a file, unwritable, full, ...

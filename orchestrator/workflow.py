@@ -19,6 +19,7 @@ from .cosim.build import build_fmus, fmu_config, variables_markdown
 from .cosim.master import run_cosimulation
 from .cosim.system import SystemDescription, closed_loop_system
 from .interrupt import StopFlag, stop_on_signals
+from .outputs import file_stem
 from .scenario import Scenario
 
 if TYPE_CHECKING:
@@ -335,7 +336,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
             break
     if bar is not None:
         bar.close()
-    rrd_path = out / f"{sc.name}.rrd"
+    rrd_path = out / f"{file_stem(sc.name)}.rrd"
     stride = record_stride(sc, record_hz)
     recorded = min((len(next(iter(tr.values()))) for tr in rrd_runs.values()), default=0)
     if recorded:          # an interrupted compare: every method up to the shortest run

@@ -71,7 +71,7 @@ def test_out_that_is_a_file_or_under_a_file(capsys, tmp_path):
     f = tmp_path / "a_file"
     f.write_text("keep me")
     _one_line_error(capsys, ["run", "--T", "1", "--quiet", "--out", str(f)],
-                    "auv-cosim run: error: cannot write or read", str(f))
+                    "auv-cosim run: error: output folder", str(f), "is a file")
     _one_line_error(capsys, ["run", "--T", "1", "--quiet", "--out", str(f / "sub")],
-                    "auv-cosim run: error: cannot write or read")
+                    "auv-cosim run: error: output folder", "is under a file")
     assert f.read_text() == "keep me"

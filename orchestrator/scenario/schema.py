@@ -13,6 +13,7 @@ validator of the whole file, once [vehicles] is valid.
 """
 from __future__ import annotations
 
+import unicodedata
 from collections.abc import Sequence
 from typing import Annotated, Any, Self
 
@@ -156,6 +157,19 @@ class ScenarioFile(Section):
     name: str | None = None
     description: str = ""
     simulation: SimulationSection
+
+    @field_validator("name")
+    @classmethod
+    def printable_name(cls, value: str | None) -> str | None:
+        """The name labels the recording and (sanitised) names the output files: printable
+        text, no control characters, at most 200 characters."""
+        if value is None:
+            return value
+        if not value.strip() or len(value) > 200 or any(
+                unicodedata.category(c).startswith("C") for c in value):
+            raise bad_value("must be printable text of 1 to 200 characters without control "
+                            "characters (it names the recording and the output files)")
+        return value
 
 
 # the single stacked system ----------------------------------------------------------

@@ -1,0 +1,122 @@
+"""Output folders: safe file names, one writer at a time, refused early when unwritable.
+
+- :func:`file_stem` turns a scenario name into a file name that stays inside the folder
+  (no separators, no ``..``, no control characters);
+- :func:`output_folder` creates ``--out``, checks it can be written, and holds an exclusive
+  lock on it (``fcntl.flock`` on ``<out>/.auv-cosim.lock``) for the whole command: a second
+  ``run``, ``compare``, ``build`` or ``export`` into the same folder is refused in one line
+  naming the process that holds it. The lock goes with the process (the kernel releases it
+  when the holder exits or is killed), so a crashed run never leaves the folder locked.
+"""
+from __future__ import annotations
+
+import errno
+import fcntl
+import os
+import re
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+__all__ = ["LOCK_NAME", "OutputFolderError", "file_stem", "output_folder"]
+
+#: name of the lock file in an output folder
+LOCK_NAME = ".auv-cosim.lock"
+
+_UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
+
+
+class OutputFolderError(RuntimeError):
+    """An output folder that cannot be used: held by another process, or not writable."""
+
+
+def file_stem(name: str, default: str = "scenario") -> str:
+    """A file name made from ``name``: runs of characters other than letters, digits and
+    ``. _ + -`` become ``_``, leading dots are dropped (no ``..``, no hidden file), at
+    most 100 characters; ``default`` if nothing is left.
+
+    Parameters
+    ----------
+    name : str
+        A scenario (or vehicle) name, as the user wrote it.
+    default : str
+        The stem when ``name`` has no usable character.
+
+    Returns
+    -------
+    str
+        ``"../x"`` -> ``"_x"``, ``"a/b c"`` -> ``"a_b_c"``, ``"paper"`` -> ``"paper"``.
+    """
+    stem = _UNSAFE.sub("_", name).lstrip(".")[:100]
+    return stem if stem.strip("_") else default
+
+
+def _holder(lock_path: Path) -> str:
+    try:
+        text = lock_path.read_text(encoding="utf-8", errors="replace").strip()
+    except OSError:
+        return "another process"
+    return text or "another process"
+
+
+@contextmanager
+def output_folder(out: Path | str, command: str) -> Iterator[Path]:
+    """Create ``out`` and hold it for ``command`` until the block ends.
+
+    Parameters
+    ----------
+    out : Path or str
+        The output folder (created with its parents).
+    command : str
+        What is writing (for the message a second writer gets), e.g. ``"run"``.
+
+    Yields
+    ------
+    Path
+        The folder.
+
+    Raises
+    ------
+    OutputFolderError
+        If another process holds the folder, or it cannot be written (one line, naming it).
+    """
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise OutputFolderError(f"output folder {out} is a file") from None
+    except NotADirectoryError:
+        raise OutputFolderError(f"output folder {out} is under a file") from None
+    except PermissionError:
+        raise OutputFolderError(f"cannot create the output folder {out}: permission "
+                                "denied") from None
+    lock_path = out / LOCK_NAME
+    try:
+        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+    except PermissionError:
+        raise OutputFolderError(f"cannot write into the output folder {out}: permission "
+                                "denied (choose another --out)") from None
+    except OSError as exc:
+        raise OutputFolderError(f"cannot write into the output folder {out}: "
+                                f"{exc.strerror}") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                raise
+            raise OutputFolderError(
+                f"output folder {out} is in use by {_holder(lock_path)}; wait for it to "
+                "finish or choose another --out") from None
+        if not os.access(out, os.W_OK | os.X_OK):
+            raise OutputFolderError(f"cannot write into the output folder {out}: permission "
+                                    "denied (choose another --out)")
+        stamp = time.strftime("%Y-%m-%d %H:%M:%S")
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"auv-cosim {command} (pid {os.getpid()}, since {stamp})\n"
+                  .encode(), 0)
+        yield out
+    finally:
+        os.close(fd)           # releases the lock; the file stays (removing it would race)
+
