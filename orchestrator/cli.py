@@ -26,6 +26,10 @@ from .scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
 ROOT = Path(__file__).resolve().parent.parent
 
 
+class UsageError(RuntimeError):
+    """Bad input found by a command itself (not by the scenario loader or an FMU)."""
+
+
 def parse_seeds(text: str) -> list[int]:
     """'0-9' -> 0..9, '1,4,7' -> [1, 4, 7], '3' -> [3]."""
     seeds: list[int] = []
@@ -134,8 +138,9 @@ def cmd_build(args: argparse.Namespace) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .workflow import simulate
+    from .workflow import check_memory, simulate
     sc = _scenario(args)
+    check_memory(sc, 1)                     # before anything is created
     with output_folder(args.out or f"out/{file_stem(sc.name)}_{sc.estimator}_seed{sc.seed}",
                        "run") as out:
         summary = simulate(sc, [sc.estimator], [sc.seed], out, progress=not args.quiet,
@@ -144,11 +149,12 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from .workflow import simulate
+    from .workflow import check_memory, method_list, simulate
     sc = _scenario(args)
     what = args.what or ("tracking" if sc.fleet is not None else "estimators")
     modes, trackings = ((list(ESTIMATOR_MODES), None) if what == "estimators"
                         else (None, list(TRACKING_MODES)))
+    check_memory(sc, len(method_list(sc, modes, trackings)))
     with output_folder(args.out or f"out/{file_stem(sc.name)}_compare", "compare") as out:
         summary = simulate(sc, modes, args.seeds, out, progress=not args.quiet,
                            log=(lambda s: None) if args.quiet else print, trackings=trackings)
@@ -178,10 +184,14 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
     from .workflow import build
     if args.fmus:
+        import zipfile
         paths = {p.stem: p for p in (Path(x) for x in args.fmus)}
-        missing = [str(p) for p in paths.values() if not p.exists()]
+        missing = [str(p) for p in paths.values() if not p.is_file()]
         if missing:
-            raise ScenarioError(f"FMU file(s) not found: {', '.join(missing)}")
+            raise UsageError(f"FMU file(s) not found: {', '.join(missing)}")
+        not_zip = [str(p) for p in paths.values() if not zipfile.is_zipfile(p)]
+        if not_zip:
+            raise UsageError(f"not an FMU (an FMU is a zip archive): {', '.join(not_zip)}")
         tmp = None
     else:
         tmp = tempfile.TemporaryDirectory(prefix="auv_validate_")
@@ -399,7 +409,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return args.func(args)
     except (ScenarioError, ModelError, CosimError, ExportError, AlgebraicLoopError,
-            OutputFolderError) as exc:
+            OutputFolderError, UsageError) as exc:
         print(f"auv-cosim {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:          # an output folder that is a file, unwritable, full, ...
@@ -410,6 +420,37 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:        # a bug of ours, not bad input: say so, keep the traceback
+        log = _write_bug_report(args)
+        print(f"auv-cosim {args.command}: internal error (a bug in auv-cosim, not in your "
+              f"input): {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+              f"; traceback in {log}; please report it with that file", file=sys.stderr)
+        return 2
+
+
+def _write_bug_report(args: argparse.Namespace) -> str:
+    """Write the current exception's traceback, the command line and the versions to a log
+    file (``$AUV_COSIM_CACHE/../logs`` or ``~/.cache/auv-cosim/logs``; else the temporary
+    folder); its path, or a note that none could be written."""
+    import platform
+    import tempfile
+    import time
+    import traceback
+    text = (f"auv-cosim {' '.join(sys.argv[1:])}\n{time.strftime('%Y-%m-%d %H:%M:%S')}  "
+            f"python {platform.python_version()} on {platform.platform()}\n\n"
+            + traceback.format_exc())
+    cache = os.environ.get("AUV_COSIM_CACHE")
+    base = Path(cache).parent if cache else Path.home() / ".cache" / "auv-cosim"
+    for folder in (base / "logs", Path(tempfile.gettempdir())):
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            path = folder / f"auv-cosim-{args.command}-{time.strftime('%Y%m%d-%H%M%S')}-" \
+                            f"{os.getpid()}.log"
+            path.write_text(text, encoding="utf-8")
+            return str(path)
+        except OSError:
+            continue
+    return "(no log: no writable folder)"
 
 
 def console() -> None:

@@ -108,6 +108,35 @@ class DiscreteModel:
         return self.ns + 2 * self.p
 
 
+#: smallest h max|A| accepted: below it expm(A h) - I is at the level of rounding errors
+MIN_STEP_RESOLUTION = 1e-8
+
+
+def check_step(Ac: np.ndarray, h: float) -> None:
+    """Refuse a step h too small to sample ``x' = Ac x``: h max|Ac| < ``MIN_STEP_RESOLUTION``
+    makes expm(Ac h) the identity to within rounding.
+
+    Parameters
+    ----------
+    Ac : np.ndarray
+        The continuous-time (augmented) state matrix, 1/s.
+    h : float
+        Sampling period, s.
+
+    Raises
+    ------
+    ModelError
+        Naming h, h max|Ac| and the smallest step accepted.
+    """
+    scale = float(np.max(np.abs(Ac))) if Ac.size else 0.0
+    if 0.0 < scale and h * scale < MIN_STEP_RESOLUTION:
+        raise ModelError(
+            f"step h = {h:g} s is too small for this model: h max|A| = {h * scale:.3g} is "
+            f"below {MIN_STEP_RESOLUTION:g}, so the sampled model expm(A h) is the identity "
+            "to within rounding and no estimator or controller can be designed from it; use "
+            f"h >= {MIN_STEP_RESOLUTION / scale:.3g} s")
+
+
 def discretize(system: LinearSystem, h: float) -> DiscreteModel:
     """Sample ``system`` at step ``h`` (seconds) as described in the module docstring.
 
@@ -127,12 +156,14 @@ def discretize(system: LinearSystem, h: float) -> DiscreteModel:
     Raises
     ------
     ModelError
-        If h is not a positive finite number or the sampled model overflows.
+        If h is not a positive finite number, is too small for the model's fastest rate
+        (h max|A| < ``MIN_STEP_RESOLUTION``) or the sampled model overflows.
     """
     h = float(h)
     if not np.isfinite(h) or h <= 0.0:
         raise ModelError(f"step h = {h} s must be a positive finite number")
     Ac, Bc, Wc = system.augmented()
+    check_step(Ac, h)
     Ad, Bd = zoh(Ac, Bc, h)
     V = block_diag(system.V_y, system.V_ybar)
     if system.noise_convention == "intensity":

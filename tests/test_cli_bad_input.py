@@ -75,3 +75,56 @@ def test_out_that_is_a_file_or_under_a_file(capsys, tmp_path):
     _one_line_error(capsys, ["run", "--T", "1", "--quiet", "--out", str(f / "sub")],
                     "auv-cosim run: error: output folder", "is under a file")
     assert f.read_text() == "keep me"
+
+
+@pytest.mark.parametrize("argv, fragments", [
+    (["--T", "1e12"], ["T = 1e+12 s with h = 0.01 s is 1e+14 steps", "GB of memory available",
+                       "shorten T or lengthen h"]),
+    (["--h", "1e-300"], ["[simulation] h: step h = 1e-300 s is too small for this model"]),
+    (["--T", "1e9", "--h", "1e-6"], ["T = 1e+09 s with h = 1e-06 s is 1e+15 steps"]),
+    (["--T", "1e-299", "--h", "1e-300"], ["step h = 1e-300 s is too small for this model",
+                                          "use h >= "]),
+])
+def test_steps_beyond_memory_or_resolution_blame_T_and_h(capsys, tmp_path, argv, fragments):
+    err = _one_line_error(capsys, ["run", *argv, "--quiet", "--out", str(tmp_path / "o")],
+                          *fragments)
+    assert "detectab" not in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_memory_estimate_counts_every_method():
+    from orchestrator.scenario import load_scenario
+    from orchestrator.workflow import check_memory
+    sc = load_scenario("paper")
+    one = check_memory(sc, 1, available=10**15)
+    assert one == 8 * sc.steps * 20 * 3                 # 20 outputs per step, 1 + 2 copies
+    assert check_memory(sc, 3, available=10**15) == one * 5 // 3
+    with pytest.raises(Exception, match="need about 0.024 GB, more than the 0.01 GB"):
+        check_memory(sc, 3, available=10**7)
+
+
+def test_validate_refuses_what_is_not_an_fmu(capsys, tmp_path):
+    (tmp_path / "x.fmu").write_text("not a zip archive")
+    _one_line_error(capsys, ["validate", str(tmp_path / "x.fmu")],
+                    "not an FMU (an FMU is a zip archive)", "x.fmu")
+    _one_line_error(capsys, ["validate", str(tmp_path / "missing.fmu")],
+                    "FMU file(s) not found", "missing.fmu")
+
+
+def test_an_internal_bug_says_so_and_where_the_traceback_is(capsys, tmp_path, monkeypatch):
+    """Fault injection: a function of ours raising an unexpected exception (a bug, not bad
+    input) ends in one line that says so and names a log file holding the traceback."""
+    import orchestrator.workflow as wf
+
+    def broken(*a, **k):
+        raise ZeroDivisionError("division by zero in a place it should not happen")
+
+    monkeypatch.setattr(wf, "simulate", broken)
+    monkeypatch.setenv("AUV_COSIM_CACHE", str(tmp_path / "cache" / "fmus"))
+    err = _one_line_error(capsys, ["run", "--T", "1", "--quiet", "--out", str(tmp_path / "o")],
+                          "internal error (a bug in auv-cosim, not in your input)",
+                          "ZeroDivisionError: division by zero", "traceback in ")
+    log = err.split("traceback in ")[1].split(";")[0]
+    assert log.startswith(str(tmp_path / "cache" / "logs"))
+    text = open(log).read()
+    assert "Traceback (most recent call last)" in text and "in broken" in text

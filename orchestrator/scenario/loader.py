@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
+from plant_model.discretization import check_step
 from plant_model.linalg_checks import ModelError
 from plant_model.system import LinearSystem
 
@@ -73,7 +74,16 @@ class Scenario:
         run = {"T": new.T, "h": new.h, "seed": new.seed, "estimator": new.estimator,
                "tracking": new.tracking}
         validate_scenario(RunSettings, {"simulation": run}, new.source)
+        _check_step(new)
         return new
+
+
+def _check_step(sc: Scenario) -> None:
+    """The step h can sample the model (:func:`plant_model.discretization.check_step`)."""
+    try:
+        check_step(sc.system.augmented()[0], sc.h)
+    except ModelError as exc:
+        raise ScenarioError(f"{sc.source}: [simulation] h: {exc}") from None
 
 
 def builtin_scenarios() -> list[str]:
@@ -92,10 +102,12 @@ def _built(where: str, build: Callable[..., T_], *args: Any) -> T_:
 def _scenario(file: ScenarioFile, where: str, system: LinearSystem,
               fleet: dict[str, Any] | None = None) -> Scenario:
     sim = file.simulation
-    return Scenario(name=file.name if file.name is not None else Path(where).stem,
-                    description=file.description, system=system, T=sim.T, h=sim.h,
-                    seed=sim.seed, estimator=sim.estimator, source=where,
-                    tracking=sim.tracking, fleet=fleet)
+    sc = Scenario(name=file.name if file.name is not None else Path(where).stem,
+                  description=file.description, system=system, T=sim.T, h=sim.h,
+                  seed=sim.seed, estimator=sim.estimator, source=where,
+                  tracking=sim.tracking, fleet=fleet)
+    _check_step(sc)
+    return sc
 
 
 def _resolve(spec: str | Path) -> Path:
