@@ -6,6 +6,8 @@ FMU state: the estimator's q (LinearEstimator.get_state), plus what the base cla
 """
 from typing import Any
 
+import numpy as np
+
 from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
 from fmu_common.interface import ArraySpec
 
@@ -101,6 +103,10 @@ class AuvEstimator(Fmi2Slave):
             The communication step, s (checked against h by the base class).
         """
         self.estimator.update(self._outputs_view(self._out), self._u)
+
+    def evolving(self) -> np.ndarray:
+        """The estimator state q (checked to stay finite after every step)."""
+        return self.estimator.q
 
     def model_state(self) -> dict[str, Any]:
         """The estimator's evolving state (:meth:`LinearEstimator.get_state`).

@@ -305,6 +305,8 @@ class FmuStateMixin:
             if problem is None:
                 try:
                     self._restore(state.tree)
+                    self._output_error = None
+                    self._after_restore(bool(state.tree["initialized"]))
                     return
                 except Exception as exc:
                     problem = f"restoring it failed: {exc}"

@@ -45,6 +45,8 @@ class ArraySpec:
     type: str = "Real"                   #: "Real", "Integer" or "String"
     variability: str | None = None       #: default: fixed for parameters, else continuous
     depends_on: tuple[str, ...] = ()     #: outputs: inputs with direct feedthrough
+    min: float | None = None             #: smallest value a parameter accepts
+    max: float | None = None             #: largest value a parameter accepts
 
     @property
     def size(self) -> int:

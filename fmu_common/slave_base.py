@@ -12,9 +12,7 @@ from __future__ import annotations
 
 import json
 import math
-import struct
 import traceback
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -32,6 +30,8 @@ from .fmu_state import (
     encode_state,
 )
 from .interface import ArraySpec, expand
+from .lifecycle import FAILED, INSTANTIATED, Fmi2StateMachine
+from .value_plans import PlannedAccess
 
 if TYPE_CHECKING:
     from pythonfmu.variables import ScalarVariable
@@ -46,10 +46,6 @@ _VARIABILITY = {"fixed": Fmi2Variability.fixed, "tunable": Fmi2Variability.tunab
                 "continuous": Fmi2Variability.continuous,
                 "discrete": Fmi2Variability.discrete}
 _TYPES = {"Real": Real, "Integer": Integer, "String": String}
-
-#: Python objects pythonfmu's C++ layer released after a fatal error (docs/fmu-internals.md).
-_RELEASED_AFTER_FATAL: list[Any] = []
-
 
 def load_config(resources: str | None, filename: str) -> dict[str, Any]:
     """The build-time configuration (dimensions and start values) shipped in resources/.
@@ -78,7 +74,7 @@ def load_config(resources: str | None, filename: str) -> dict[str, Any]:
     return json.loads(path.read_text())
 
 
-class ArraySlave(FmuStateMixin, Fmi2Slave):
+class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
     """Base class of the project's slaves (see the module docstring)."""
 
     #: name of the JSON configuration file in the FMU's resources/
@@ -147,6 +143,16 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
     #: ``advance`` need from the state alone (no ``setup()`` when parameters changed)
     restores_math_from_state: bool = False
 
+    def evolving(self) -> np.ndarray | None:
+        """The array the mathematics advances in a step (checked to stay finite), or None.
+
+        Returns
+        -------
+        np.ndarray or None
+            The current state vector; None in the base class (nothing to check).
+        """
+        return None
+
     def model_state(self) -> Any:
         """What evolves in the mathematics, as plain Python / numpy copies (initialized only).
 
@@ -174,6 +180,7 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
 
     # ---------------------------------------------------------- construction
     def __init__(self, **kwargs: Any) -> None:
+        self._init_lifecycle()
         super().__init__(**kwargs)
         self.config = load_config(self.resources, self.config_file)
         self.specs = self.interface(self.config)
@@ -186,15 +193,11 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
         self._initialized = False
         self._dirty = True
         self._input_error: str | None = None
+        self._output_error: str | None = None
+        self._param_error: str | None = None
         self._sample_period: float | None = None
         self._init_state()
-        self._in_bytes = memoryview(self._in).cast("B")     # what set plans write into
-        # plans by tuple of value references, and by first reference: (list, plan)
-        self._get_plans: dict[tuple, Callable[[], list]] = {}
-        self._set_plans: dict[tuple, Callable[[list], None]] = {}
-        self._get_index: dict[int, tuple[list, Callable[[], list]]] = {}
-        self._set_index: dict[int, tuple[list, Callable[[list], None]]] = {}
-        self._bind_fast_paths()
+        self._init_plans()
         # specs are registered parameters first, then inputs, then outputs
         order = {"parameter": 0, "input": 1, "output": 2}
         self.specs = sorted(self.specs, key=lambda s: order[s.causality])
@@ -256,6 +259,14 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
             self.log(f"parameter {name} is fixed: it cannot change after initialization "
                      f"(value {value!r} ignored)", Fmi2Status.error)
             return
+        if (spec.min is not None and value < spec.min) or (
+                spec.max is not None and value > spec.max):
+            msg = (f"parameter {name} = {value!r} is outside its range [{spec.min}, "
+                   f"{spec.max}] (value ignored)")
+            self.log(msg, Fmi2Status.error)
+            if not self._initialized:
+                self._param_error = msg
+            return
         if target is None:
             self.par[spec.name] = value
         else:
@@ -286,186 +297,24 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
         var = self.vars[self._vr_in + int(bad[0])]
         return f"input {var.name} = {self._in[bad[0]]} is not finite"
 
-    # --------------------------------------------------------- fast get/set
-    # pythonfmu's fmi2GetReal / fmi2SetReal call get_real(vrs) / set_real(vrs, values) with a
-    # new list of value references each time; a co-simulation master passes the same few
-    # lists at every step. A plan (a closure over one slice of a buffer) is made once per
-    # list and found again by the list's first value reference: one dict lookup and one
-    # list comparison per call (hashing tuple(vrs) cost about twice that). Lists that share
-    # a first reference fall back to a dict keyed by the whole tuple.
-    _PLAN_CACHE_SIZE = 256
-
-    def _outputs_view(self, buf: np.ndarray) -> np.ndarray:
-        if self._dirty and self._initialized:
-            self.compute_outputs()
-            self._dirty = False
-        return buf
-
-    def get_real(self, vrs: list[int]) -> list[float]:
-        """fmi2GetReal: the values of the Real variables ``vrs`` (outputs computed lazily).
-
-        Parameters
-        ----------
-        vrs : list[int]
-            Value references.
-
-        Returns
-        -------
-        list[float]
-            Their values, in the order of ``vrs``.
-
-        Raises
-        ------
-        TypeError
-            If a value reference is not a Real variable.
-        """
-        # shadowed on every instance by the closure of _bind_fast_paths (same result)
-        return self._get_planned(vrs)
-
-    def set_real(self, vrs: list[int], values: list[float]) -> None:
-        """fmi2SetReal: set the Real variables ``vrs`` (a non-finite input refuses the next step).
-
-        Parameters
-        ----------
-        vrs : list[int]
-            Value references.
-        values : list[float]
-            Their new values, in the order of ``vrs``.
-
-        Raises
-        ------
-        TypeError
-            If a value reference is not a Real variable.
-        """
-        # shadowed on every instance by the closure of _bind_fast_paths (same result)
-        self._set_planned(vrs, values)
-
-    def _bind_fast_paths(self) -> None:
-        """Set ``get_real`` / ``set_real`` on the instance: closures over the plan indexes.
-
-        pythonfmu calls them by name on the instance (PyObject_CallMethod), which finds
-        a function in the instance's dict before the class's method: no bound method is
-        made per call and the closures read cells instead of attributes of ``self``.
-        """
-        get_index, set_index = self._get_index, self._set_index
-        get_planned, set_planned = self._get_planned, self._set_planned
-
-        def get_real(vrs: list[int]) -> list[float]:
-            try:
-                key, plan = get_index[vrs[0]]
-            except (IndexError, KeyError):
-                return get_planned(vrs)
-            if key != vrs:
-                return get_planned(vrs)
-            return plan()
-
-        def set_real(vrs: list[int], values: list[float]) -> None:
-            try:
-                key, plan = set_index[vrs[0]]
-            except (IndexError, KeyError):
-                return set_planned(vrs, values)
-            if key != vrs:
-                return set_planned(vrs, values)
-            plan(values)
-
-        self.get_real, self.set_real = get_real, set_real
-
-    def _get_planned(self, vrs: list[int]) -> list[float]:
-        plan = self._cached_plan(vrs, self._get_plans, self._get_index, self._plan_get)
-        return plan()
-
-    def _set_planned(self, vrs: list[int], values: list[float]) -> None:
-        plan = self._cached_plan(vrs, self._set_plans, self._set_index, self._plan_set)
-        plan(values)
-
-    def _cached_plan(self, vrs: list[int], plans: dict, index: dict, make: Callable) -> Callable:
-        key = tuple(vrs)
-        plan = plans.get(key)
-        if plan is None:
-            plan = make(vrs)
-            if len(plans) >= self._PLAN_CACHE_SIZE:
-                plans.clear()
-            plans[key] = plan
-        if vrs:
-            if len(index) >= self._PLAN_CACHE_SIZE:
-                index.clear()
-            index[vrs[0]] = (list(vrs), plan)
-        return plan
-
-    def _contiguous(self, vrs: list[int], first: int | None, size: int) -> tuple[int, int] | None:
-        if first is None or not vrs:
-            return None
-        a = vrs[0] - first
-        if a < 0 or a + len(vrs) > size:
-            return None
-        if any(vr != vrs[0] + j for j, vr in enumerate(vrs)):
-            return None
-        return a, a + len(vrs)
-
-    def _plan_get(self, vrs: list[int]) -> Callable[[], list]:
-        span = self._contiguous(vrs, self._vr_out, self._out.size)
-        if span is not None:
-            view = self._out[span[0]:span[1]]        # a view: the buffer is updated in place
-
-            def plan() -> list:
-                if self._dirty and self._initialized:        # self._outputs_view, inlined
-                    self.compute_outputs()
-                    self._dirty = False
-                return view.tolist()
-        else:
-            getters = []
-            for vr in vrs:
-                var = self.vars[vr]
-                if not isinstance(var, Real):
-                    raise TypeError(f"variable {var.name} (valueReference {vr}) is not a Real")
-                getters.append(var.getter)
-
-            def plan() -> list:
-                return [float(g()) for g in getters]
-        return plan
-
-    def _plan_set(self, vrs: list[int]) -> Callable[[list], None]:
-        span = self._contiguous(vrs, self._vr_in, self._in.size)
-        if span is not None:
-            a, b = span
-            # struct writes the doubles into the buffer about twice as fast as numpy converts
-            # a list (the same IEEE values: PyFloat_AsDouble either way)
-            pack, mem, offset = struct.Struct(f"={b - a}d").pack_into, self._in_bytes, a * 8
-            check = self._check_inputs
-
-            if self._feeds[a:b].any():
-                def plan(values: list) -> None:
-                    pack(mem, offset, *values)
-                    self._dirty = True
-                    total = sum(values)
-                    if total - total != 0.0:          # some value is nan or +-inf (or overflow)
-                        check()
-            else:
-                def plan(values: list) -> None:
-                    pack(mem, offset, *values)
-                    total = sum(values)
-                    if total - total != 0.0:
-                        check()
-        else:
-            setters = []
-            for vr in vrs:
-                var = self.vars[vr]
-                if not isinstance(var, Real):
-                    raise TypeError(f"variable {var.name} (valueReference {vr}) is not a Real")
-                setters.append(var.setter)
-
-            def plan(values: list) -> None:
-                for s, v in zip(setters, values):
-                    s(v)
-        return plan
-
     # ----------------------------------------------------------- lifecycle
-    def _fatal(self, msg: str) -> None:
-        self.log(msg, Fmi2Status.error)
-        # pythonfmu's C++ layer releases these twice (at the error and in freeInstance)
-        keep = (self, type(self), self.log_queue)
-        _RELEASED_AFTER_FATAL.extend([keep, keep])
-        raise RuntimeError(msg)
+    def _early_outputs(self) -> None:
+        """Outputs read before they are defined: refused before initialization or after a
+        fatal error; in initialization mode the current values (start values) are given."""
+        if self._phase in (INSTANTIATED, FAILED):
+            self._out_of_order("fmi2GetReal", "outputs are defined only from "
+                                              "fmi2EnterInitializationMode on, and not after "
+                                              "a fatal error")
+
+    def _check_outputs(self) -> None:
+        """Log the first non-finite output and refuse the next step (it names it)."""
+        bad = np.flatnonzero(~np.isfinite(self._out))
+        if bad.size and self._output_error is None:
+            var = self.vars[self._vr_out + int(bad[0])]
+            self._output_error = (f"output {var.name} = {self._out[bad[0]]} became non-finite "
+                                  f"at t = {self._t_next} s")
+            self.log(f"{self._who()}: {self._output_error}; the next step will be refused",
+                     Fmi2Status.error)
 
     def exit_initialization_mode(self) -> None:
         """fmi2ExitInitializationMode: build the mathematics (:meth:`setup`) from the parameters.
@@ -476,11 +325,13 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
             If :meth:`setup` fails (logged first; pythonfmu 0.7 turns it into fmi2Fatal,
             see docs/fmu-internals.md).
         """
+        self._leave_initialization()
+        if self._param_error is not None:
+            self._fatal(f"{self._who()}: initialization failed: {self._param_error}")
         try:
             self.setup()
         except Exception as exc:
-            self._fatal(f"{self.modelName} instance '{self.instance_name}': "
-                        f"initialization failed: {exc}")
+            self._fatal(f"{self._who()}: initialization failed: {exc}")
         self._sample_period = (None if self.step_parameter is None
                                else float(self.par[self.step_parameter]))
         self._initialized = True
@@ -511,8 +362,13 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
                      f"rejected ({problem}); the instance kept the state it had before that "
                      "call, and the next step proceeds from it", Fmi2Status.error)
             return False
-        if not self._initialized:
-            self.log("fmi2DoStep called before initialization finished", Fmi2Status.error)
+        refusal = self._step_refusal(current_time, step_size)
+        if refusal is not None:
+            self.log(f"{self._who()}: {refusal}", Fmi2Status.error)
+            return False
+        if self._output_error is not None:
+            self.log(f"{self._who()}: step at t = {current_time} s refused: "
+                     f"{self._output_error}", Fmi2Status.error)
             return False
         if self._input_error is not None:
             msg = self._first_bad_input()
@@ -534,5 +390,25 @@ class ArraySlave(FmuStateMixin, Fmi2Slave):
                      Fmi2Status.error)
             return False
         self._dirty = True
+        self._stepped(current_time, step_size)
+        state = self.evolving()
+        if state is not None:
+            total = sum(state.tolist())
+            if total - total != 0.0 and not np.all(np.isfinite(state)):
+                return self._nonfinite_step(current_time, step_size, state)
         return True
+
+    def _nonfinite_step(self, t: float, h: float, state: np.ndarray) -> bool:
+        """Report a step whose state became non-finite: name the outputs it reaches."""
+        i = int(np.flatnonzero(~np.isfinite(state))[0])
+        self.compute_outputs()
+        self._dirty = False
+        bad = np.flatnonzero(~np.isfinite(self._out))
+        names = [self.vars[self._vr_out + int(j)].name for j in bad[:3]]
+        where = (f"outputs {', '.join(names)}{' ...' if bad.size > 3 else ''}" if names
+                 else f"internal state element {i + 1}")
+        self._output_error = (f"{where} became non-finite in the step from t = {t} s to "
+                              f"{t + h} s (state element {i + 1} = {state[i]})")
+        self.log(f"{self._who()}: fmi2DoStep refused: {self._output_error}", Fmi2Status.error)
+        return False
 

@@ -7,6 +7,8 @@ what the base class saves (parameters, buffers, flags).
 """
 from typing import Any
 
+import numpy as np
+
 from fmu_common.interface import ArraySpec
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
@@ -55,7 +57,7 @@ class AuvPlant(Fmi2Slave):
             sample_period_spec(config, "sample period: the communication step the plant "
                                "is discretized for"),
             ArraySpec("seed", (), "parameter", "seed of the noise generator (numpy PCG64)",
-                      start=config["seed"], type="Integer"),
+                      start=config["seed"], type="Integer", min=0, max=2**31 - 1),
             noise_convention_spec(config),
             ArraySpec("u", (m,), "input", "control input u held over the step"),
             ArraySpec("y", (p,), "output", "measured vehicle output y = C x + n"),
@@ -95,6 +97,10 @@ class AuvPlant(Fmi2Slave):
             The communication step, s (checked against h by the base class).
         """
         self.plant.step(self._u)
+
+    def evolving(self) -> np.ndarray:
+        """The sampled state s = [x; w; z] (checked to stay finite after every step)."""
+        return self.plant.s
 
     def model_state(self) -> dict[str, Any]:
         """The plant's evolving state (:meth:`Plant.get_state`).

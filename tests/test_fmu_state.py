@@ -323,12 +323,14 @@ def _refused(inst: FmuInstance, state, *fragments: str) -> None:
     assert inst.get_real(inst.component, vrs, len(vrs), after) == OK
     assert list(after) == list(before)                  # nothing changed
     h = 0.01
-    assert inst.do_step(inst.component, 0.0, h, 1) == DISCARD
+    t0 = getattr(inst, "t_next", 0.0)       # the instance steps forward in time only
+    assert inst.do_step(inst.component, t0, h, 1) == DISCARD
     refusal = inst.messages[-1]
     assert refusal[0] == "Error" and "refused" in refusal[1]
     assert all(f in refusal[1] for f in fragments)
     for j in range(3):                                   # and then it steps again
-        assert inst.do_step(inst.component, j * h, h, 1) == OK, inst.errors()
+        assert inst.do_step(inst.component, t0 + j * h, h, 1) == OK, inst.errors()
+    inst.t_next = t0 + 3 * h
 
 
 def test_controller_state_into_the_plant_is_refused(hosts, cfg):

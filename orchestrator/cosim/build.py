@@ -166,6 +166,9 @@ def patch_model_description(xml: bytes, specs: list[ArraySpec], *, T: float, h: 
             typ.set("unit", spec.unit)
             if spec.unit not in units_used:
                 units_used.append(spec.unit)
+        for bound in ("min", "max"):
+            if getattr(spec, bound) is not None:
+                typ.set(bound, str(getattr(spec, bound)))
         if spec.causality == "output":
             sv.set("initial", "calculated")
             typ.attrib.pop("start", None)
