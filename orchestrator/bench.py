@@ -17,7 +17,7 @@ import numpy as np
 from fmu_common.interface import element_names
 
 from .analysis.reference import run_monolithic
-from .cosim.instance import Extracted, FmuInstance
+from .cosim.instance import Extracted, FmuInstance, pythonfmu_safe_tempdir
 from .cosim.master import run_cosimulation
 from .cosim.system import closed_loop_system
 from .scenario import Scenario
@@ -274,8 +274,9 @@ def _simulate_ssp_us_per_step(ssp: Path, h: float, steps: int) -> float:
 
     fmpy_ssp.instantiate_fmu, fmpy_ssp.free_fmu = timed_instantiate, timed_free
     try:
-        rows = len(fmpy_ssp.simulate_ssp(str(ssp), stop_time=steps * h, step_size=h,
-                                         parameter_set=fmpy_parameter_set(ssp)))
+        with pythonfmu_safe_tempdir():          # simulate_ssp unzips the FMUs there
+            rows = len(fmpy_ssp.simulate_ssp(str(ssp), stop_time=steps * h, step_size=h,
+                                             parameter_set=fmpy_parameter_set(ssp)))
     finally:
         fmpy_ssp.instantiate_fmu, fmpy_ssp.free_fmu = inst, free
     return (marks["end"] - marks["start"]) / rows * 1e6

@@ -7,9 +7,12 @@ unzips each FMU file once for all its instances.
 from __future__ import annotations
 
 import ctypes
+import os
+import re
 import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +26,8 @@ from fmpy.fmi2 import (
     fmi2CallbackLoggerTYPE,
 )
 
-__all__ = ["CosimError", "Extracted", "FmuInstance", "STATUS"]
+__all__ = ["CosimError", "Extracted", "FmuInstance", "STATUS", "pythonfmu_can_load_from",
+           "safe_temporary_folder", "pythonfmu_safe_tempdir"]
 
 #: fmi2Status names by value
 STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
@@ -33,6 +37,98 @@ class CosimError(RuntimeError):
     """An FMU refused a call; the message names the FMU, the call and what it logged."""
 
 
+#: characters a resource path may hold for pythonfmu 0.7 to find it: its fmi2Instantiate
+#: decodes only "%20" in the resource URI, and a path it cannot open crashes the host
+_PYTHONFMU_SAFE_PATH = re.compile(r"[A-Za-z0-9_.~/ -]+")
+
+
+def pythonfmu_can_load_from(folder: Path | str) -> bool:
+    """True if a pythonfmu 0.7 FMU unzipped in ``folder`` can be instantiated: the folder's
+    absolute path survives pythonfmu's URI decoding (letters, digits, ``_ . ~ / -`` and
+    spaces only; README, "Known problems")."""
+    return _PYTHONFMU_SAFE_PATH.fullmatch(str(Path(folder).resolve())) is not None
+
+
+def safe_temporary_folder(prefix: str) -> Path:
+    """A new temporary folder pythonfmu FMUs can be unzipped into: under the system's
+    temporary folder (``TMPDIR``) when its path is safe, else the first safe one of
+    /tmp, /var/tmp and ~/.cache/auv-cosim/tmp.
+
+    Parameters
+    ----------
+    prefix : str
+        Prefix of the folder's name.
+
+    Returns
+    -------
+    Path
+        The folder (created, empty).
+
+    Raises
+    ------
+    CosimError
+        If none of the candidates is safe and writable.
+    """
+    candidates = [Path(tempfile.gettempdir()), Path("/tmp"), Path("/var/tmp"),
+                  Path.home() / ".cache" / "auv-cosim" / "tmp"]
+    for base in candidates:
+        if not pythonfmu_can_load_from(base):
+            continue
+        try:
+            base.mkdir(parents=True, exist_ok=True)
+            return Path(tempfile.mkdtemp(prefix=prefix, dir=base))
+        except OSError:
+            continue
+    raise CosimError("no temporary folder whose path pythonfmu 0.7 can read (only letters, "
+                     f"digits, '_.~/-' and spaces): tried {', '.join(map(str, candidates))}; "
+                     "set TMPDIR to such a folder")
+
+
+@contextmanager
+def pythonfmu_safe_tempdir() -> Iterator[Path]:
+    """Within the block, temporary files of this process and of the native hosts it runs
+    (libcosim, fmpy's simulate_ssp: ``TMPDIR`` and :data:`tempfile.tempdir`) go to a
+    :func:`safe_temporary_folder`, removed at the end: those hosts unzip FMUs there and
+    pythonfmu 0.7 must be able to read the path.
+
+    Yields
+    ------
+    Path
+        The folder.
+    """
+    base = safe_temporary_folder("auv_host_")
+    old_env, old_tempdir = os.environ.get("TMPDIR"), tempfile.tempdir
+    os.environ["TMPDIR"] = tempfile.tempdir = str(base)
+    try:
+        yield base
+    finally:
+        tempfile.tempdir = old_tempdir
+        if old_env is None:
+            os.environ.pop("TMPDIR", None)
+        else:
+            os.environ["TMPDIR"] = old_env
+        shutil.rmtree(base, ignore_errors=True)
+
+
+def _check_pythonfmu_resources(label: str, md: Any, unzip_dir: str) -> None:
+    """Never hand pythonfmu 0.7 a resource folder it would crash on (README, "Known
+    problems"): a path it cannot decode, or a folder without the slave module."""
+    if "pythonfmu" not in (md.generationTool or "").lower():
+        return
+    resources = Path(unzip_dir, "resources")
+    if not pythonfmu_can_load_from(unzip_dir):
+        raise CosimError(f"{label} FMU: not instantiated: its folder {unzip_dir} has "
+                         "characters pythonfmu 0.7 cannot decode in a resource URI (it "
+                         "would crash the process); unzip it under a path of letters, "
+                         "digits, '_.~/-' and spaces")
+    module = resources / "slavemodule.txt"
+    name = module.read_text().strip() if module.is_file() else ""
+    if not name or not (resources / f"{name}.py").is_file():
+        raise CosimError(f"{label} FMU: not instantiated: {resources} holds no slave module "
+                         "(slavemodule.txt and the module it names); pythonfmu 0.7 would "
+                         "crash the process on it")
+
+
 class FmuInstance:
     """One FMU instance with a message log and raw FMI entry points for the hot loop."""
 
@@ -40,6 +136,7 @@ class FmuInstance:
                  model_description: Any = None) -> None:
         self.label = label
         self.md = model_description or read_model_description(str(path))
+        _check_pythonfmu_resources(label, self.md, unzip_dir)
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.types = {v.name: v.type for v in self.md.modelVariables}
         self.messages: list[tuple[str, str]] = []
@@ -177,7 +274,7 @@ class Extracted:
     """FMUs unzipped once per master, removed at the end."""
 
     def __init__(self, fmus: dict[str, Path]) -> None:
-        self.root = Path(tempfile.mkdtemp(prefix="auv_cosim_"))
+        self.root = safe_temporary_folder("auv_cosim_")
         self.dirs = {k: extract(str(p), unzipdir=str(self.root / k)) for k, p in fmus.items()}
 
     def cleanup(self) -> None:

@@ -14,6 +14,7 @@ import numpy as np
 
 from fmu_common.interface import element_names
 
+from ..cosim.instance import pythonfmu_safe_tempdir
 from ..cosim.system import SystemDescription
 
 __all__ = ["libcosim_version", "quiet_libcosim", "run_libcosim"]
@@ -97,9 +98,6 @@ def run_libcosim(system_file: Path | str, system: SystemDescription, steps: int,
     RuntimeError
         If libcosim fails or its observer returns unexpected samples.
     """
-    from libcosimpy.CosimEnums import CosimVariableType
-    from libcosimpy.CosimExecution import CosimExecution
-    from libcosimpy.CosimObserver import CosimObserver
 
     h = float(system.h)
     h_ns = int(round(h * 1e9))
@@ -107,6 +105,16 @@ def run_libcosim(system_file: Path | str, system: SystemDescription, steps: int,
         raise ValueError(f"h = {h} s is not a whole number of nanoseconds")
     if steps < 2:
         raise ValueError("run_libcosim needs at least 2 steps")
+    with pythonfmu_safe_tempdir():      # libcosim unzips the FMUs under TMPDIR
+        return _run(system_file, system, steps, record, h_ns)
+
+
+def _run(system_file: Path | str, system: SystemDescription, steps: int, record: bool,
+         h_ns: int) -> dict[str, Any]:
+    from libcosimpy.CosimEnums import CosimVariableType
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimObserver import CosimObserver
+
     t0 = time.perf_counter()
     execution = CosimExecution.from_osp_config_file(str(system_file))
     index = {info.name.decode(): info.index for info in execution.slave_infos()}
