@@ -87,6 +87,9 @@ def _print_summary(summary: dict, out: Path) -> int:
     print(f"{'method':>10s} {'cost rate':>12s} {'(std)':>9s} {'predicted':>10s}   "
           "rms e (sim / pred)")
     for name, m in summary["methods"].items():
+        if "skipped" in m:
+            print(f"{name:>10s}   skipped: {m['skipped']}")
+            continue
         if "cost_rate" not in m:
             print(f"{name:>10s}   {m.get('note', 'no statistics')}")
             continue
@@ -102,6 +105,12 @@ def _print_summary(summary: dict, out: Path) -> int:
             rms = (f"max {max(sim_e):.3g}/{'n/a' if not pred_e else format(max(pred_e), '.3g')}"
                    + ("" if steady is None else f"; steady error (noise-free RMS) {steady:.3g}"))
         print(f"{name:>10s} {c['mean']:12.4g} {c['std']:9.2g} {pred:>10s}   {rms}")
+    if summary.get("stationarity_note"):
+        window = ", ".join(f"{n} {m['cost_rate']['predicted_window']:.4g}"
+                           for n, m in summary["methods"].items()
+                           if m.get("cost_rate", {}).get("predicted_window") is not None)
+        print(f"note: {summary['stationarity_note']}"
+              + (f"; expected cost rate over this window: {window}" if window else ""))
     rrd = summary["rrd"]["path"]
     if rrd:
         print(f"wrote {rrd} (open it with: rerun {rrd}) and {out / 'summary.json'}; "
@@ -152,8 +161,17 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from .workflow import check_memory, method_list, simulate
     sc = _scenario(args)
     what = args.what or ("tracking" if sc.fleet is not None else "estimators")
-    modes, trackings = ((list(ESTIMATOR_MODES), None) if what == "estimators"
-                        else (None, list(TRACKING_MODES)))
+    choices = ESTIMATOR_MODES if what == "estimators" else TRACKING_MODES
+    picked = list(choices)
+    if args.methods:
+        picked = [m.strip() for m in args.methods.split(",") if m.strip()]
+        unknown = [m for m in picked if m not in choices]
+        if unknown or not picked or len(set(picked)) < len(picked):
+            raise UsageError(
+                f"--methods {args.methods!r}: "
+                + (f"{', '.join(unknown)} is not one of the {what} ({', '.join(choices)})"
+                   if unknown else "give each method once, separated by commas"))
+    modes, trackings = (picked, None) if what == "estimators" else (None, picked)
     check_memory(sc, len(method_list(sc, modes, trackings)))
     with output_folder(args.out or f"out/{file_stem(sc.name)}_compare", "compare") as out:
         summary = simulate(sc, modes, args.seeds, out, progress=not args.quiet,
@@ -359,6 +377,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--what", choices=("estimators", "tracking"),
                     help="compare the estimator modes (default for a single system) or the "
                          "tracking laws lq and regulator (default for a fleet)")
+    sp.add_argument("--methods",
+                    help="which of them, comma-separated, e.g. 'kalman,ideal' or 'lq' "
+                         "(default: all; a mode impossible for the scenario is skipped and "
+                         "the summary says why)")
     sp.add_argument("--seeds", type=parse_seeds, default=list(range(10)),
                     help="seeds: '0-9' (default), '1,4,7' or one seed")
     sp.add_argument("--out", help="output folder (default: out/<scenario>_compare)")

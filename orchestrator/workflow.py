@@ -11,9 +11,16 @@ import numpy as np
 
 from estimator_fmu.estimators import make_estimator
 from plant_model.discretization import discretize
+from plant_model.linalg_checks import ModelError
 
 from .analysis.prediction import predict_stationary
-from .analysis.summary import method_summary, stats_window, trace_stats, versions
+from .analysis.summary import (
+    method_summary,
+    stationarity_note,
+    stats_window,
+    trace_stats,
+    versions,
+)
 from .atomic import write_text_atomically
 from .cosim.build import build_fmus, fmu_config, variables_markdown
 from .cosim.master import run_cosimulation
@@ -353,15 +360,31 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         bar = tqdm(total=len(methods_run) * len(seeds) * sc.steps, unit="step", delay=1.0,
                    leave=False, unit_scale=True)
         log = bar.write
+    skipped: list[ModelError] = []
+    notes: set[str] = set()
     for name, mode, tracking in methods_run:
         Ks = laws[tracking].Ks
-        est = make_estimator(sc.system, model, mode)
+        try:
+            est = make_estimator(sc.system, model, mode)
+        except ModelError as exc:       # impossible for this scenario: run the others
+            if len(methods_run) == 1:
+                raise
+            skipped.append(exc)
+            methods[name] = {"skipped": str(exc), "estimator": mode, "tracking": tracking,
+                             "seeds_completed": 0}
+            log(f"{name:>9s}: skipped: {exc}")
+            continue
         pred0 = predict_stationary(sc.system, model, est, Ks)
         k0 = stats_window(sc.T, sc.h, pred0.settling_time)
         window = (k0 * sc.h, sc.T)
         pred = pred0
         if pred0.cost_rate is not None and sc.fleet is not None:
             pred = predict_stationary(sc.system, model, est, Ks, window=(k0, sc.steps))
+        pred_window = (None if pred0.cost_rate is None else predict_stationary(
+            sc.system, model, est, Ks, window=(k0, sc.steps), transient=True))
+        note = stationarity_note(sc.T, k0 * sc.h, pred0.settling_time)
+        if note is not None:
+            notes.add(note)
         per_seed = []
         for seed in seeds:
             if stop:
@@ -382,6 +405,9 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
                 f"{res.loop_s:.2f} s")
         methods[name] = (method_summary(per_seed, pred) if per_seed else
                          {"note": "no seed completed before the interruption"})
+        if per_seed and pred_window is not None:
+            methods[name]["cost_rate"]["predicted_window"] = pred_window.cost_rate
+            methods[name]["rms_e"]["predicted_window"] = pred_window.rms_e
         methods[name]["estimator"] = mode
         methods[name]["tracking"] = tracking
         methods[name]["seeds_completed"] = len(per_seed)
@@ -389,6 +415,8 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
             break
     if bar is not None:
         bar.close()
+    if len(skipped) == len(methods_run):
+        raise ModelError(f"no method can run on this scenario: {skipped[0]}")
     rrd_path = out / f"{file_stem(sc.name)}.rrd"
     stride = record_stride(sc, record_hz)
     recorded = min((len(next(iter(tr.values()))) for tr in rrd_runs.values()), default=0)
@@ -409,6 +437,8 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         "seeds": [int(s) for s in seeds],
         "noise_convention": sc.system.noise_convention,
         "stats_window_s": list(window) if window else None,
+        "stationary": not notes,
+        "stationarity_note": "; ".join(sorted(notes)) or None,
         "methods": methods,
         "design": {
             "closed_loop_poles": [[float(z.real), float(z.imag)] for z in design.closed_loop_poles],

@@ -259,3 +259,37 @@ def test_monte_carlo_paper_example(paper_system, mode):
     assert_agrees(cost, pred.cost_rate)
     assert_agrees(e2, np.square(pred.rms_e))
     assert_agrees(u2, np.square(pred.rms_u))
+
+
+def test_window_average_covariance_against_the_recursion(paper_system):
+    """Sigma_{k+1} = Phi Sigma_k Phi' + G from Sigma_0 = 0, averaged over k0..K-1 by brute
+    force, against the closed form of two Lyapunov equations and matrix powers."""
+    from scipy.linalg import block_diag, solve_discrete_lyapunov
+
+    from orchestrator.analysis.prediction import window_average_covariance
+    model, _, Ks, est = _setup(paper_system, 0.01, "kalman")
+    Phi, Gam, _, _ = closed_loop(model, est, Ks)
+    G = Gam @ block_diag(model.Qd, model.Rd) @ Gam.T
+    Sigma = solve_discrete_lyapunov(Phi, G)
+    for k0, K in ((0, 1), (0, 50), (120, 700), (3000, 3400)):
+        S, total = np.zeros_like(Phi), np.zeros_like(Phi)
+        for k in range(K):
+            if k >= k0:
+                total += S
+            S = Phi @ S @ Phi.T + G
+        brute = total / (K - k0)
+        closed = window_average_covariance(Phi, Sigma, k0, K)
+        np.testing.assert_allclose(closed, brute, rtol=1e-9, atol=1e-9 * np.abs(Sigma).max())
+    # a window long after the start: the stationary covariance
+    far = window_average_covariance(Phi, Sigma, 200_000, 300_000)
+    np.testing.assert_allclose(far, Sigma, rtol=1e-9, atol=1e-12)
+
+
+def test_transient_prediction_is_below_the_stationary_one_early(paper_system):
+    model, _, Ks, est = _setup(paper_system, 0.01, "kalman")
+    stat = predict_stationary(paper_system, model, est, Ks)
+    early = predict_stationary(paper_system, model, est, Ks, window=(250, 500), transient=True)
+    late = predict_stationary(paper_system, model, est, Ks, window=(20_000, 30_000),
+                              transient=True)
+    assert early.cost_rate < 0.95 * stat.cost_rate          # noise has not built up yet
+    assert late.cost_rate == pytest.approx(stat.cost_rate, rel=1e-3)

@@ -16,6 +16,12 @@ settles: its states and their exact estimates are deterministic and are left out
 Lyapunov equation (their deviation from the mean is zero). Their effect is the mean
 motion X_mean[k] = Phi^k X(0); with a statistics window [k0, K) the prediction adds the
 window average of e_mean' Q e_mean + u_mean' R u_mean, and E[e e'] = Cov + mean mean'.
+
+Over a finite window, transient included (``transient=True``): the run starts from a known
+state, so Sigma_0 = 0 and Sigma_k = Sigma - Phi^k Sigma Phi'^k. Its average over samples
+k0..K-1 (L = K - k0 of them) is Sigma - Phi^k0 (Y - Phi^L Y Phi'^L) Phi'^k0 / L with
+Y = Phi Y Phi' + Sigma (a second Lyapunov equation): the expected value of the statistics
+a run of that length computes, which short runs can be compared with.
 """
 from __future__ import annotations
 
@@ -28,7 +34,8 @@ from estimator_fmu.estimators import LinearEstimator
 from plant_model.discretization import DiscreteModel
 from plant_model.system import LinearSystem
 
-__all__ = ["Prediction", "closed_loop", "deterministic_states", "predict_stationary"]
+__all__ = ["Prediction", "closed_loop", "deterministic_states", "predict_stationary",
+           "window_average_covariance"]
 
 
 @dataclass(frozen=True)
@@ -124,9 +131,43 @@ def deterministic_states(system: LinearSystem, model: DiscreteModel,
     return np.concatenate([known, q_known])
 
 
+def window_average_covariance(Phi: np.ndarray, Sigma: np.ndarray, k0: int,
+                              K: int) -> np.ndarray:
+    """Average of Sigma_k over k = k0..K-1 for Sigma_{k+1} = Phi Sigma_k Phi' + G, Sigma_0 = 0,
+    where Sigma = Phi Sigma Phi' + G is the stationary covariance (Phi stable).
+
+    Sigma_k = Sigma - Phi^k Sigma Phi'^k, so the average is
+    Sigma - Phi^k0 (Y - Phi^L Y Phi'^L) Phi'^k0 / L, L = K - k0, Y = Phi Y Phi' + Sigma.
+
+    Parameters
+    ----------
+    Phi : np.ndarray
+        Stable transition matrix, n x n.
+    Sigma : np.ndarray
+        Its stationary covariance, n x n.
+    k0, K : int
+        The window: samples k0 <= k < K.
+
+    Returns
+    -------
+    np.ndarray
+        The window average, n x n.
+    """
+    L = max(K - k0, 1)
+    if Phi.size == 0:
+        return Sigma.copy()
+    Y = solve_discrete_lyapunov(Phi, Sigma)
+    PL = np.linalg.matrix_power(Phi, L)
+    Pk0 = np.linalg.matrix_power(Phi, k0)
+    S = Pk0 @ (Y - PL @ Y @ PL.T) @ Pk0.T
+    avg = Sigma - S / L
+    return (avg + avg.T) / 2
+
+
 def predict_stationary(system: LinearSystem, model: DiscreteModel, est: LinearEstimator,
                        Ks: np.ndarray, window: tuple[int, int] | None = None,
-                       x0: np.ndarray | None = None) -> Prediction:
+                       x0: np.ndarray | None = None, *,
+                       transient: bool = False) -> Prediction:
     """RMS of each e and u component and the cost rate of the closed loop.
 
     Without ``window``: the stationary (noise-driven) part only. With ``window`` = (k0, K)
@@ -148,6 +189,9 @@ def predict_stationary(system: LinearSystem, model: DiscreteModel, est: LinearEs
         Statistics window (k0, K) in samples; None: the stationary part only.
     x0 : np.ndarray or None, optional
         Initial closed-loop state [s; q] for the mean motion; default [s(0); q0].
+    transient : bool, optional
+        With ``window``: the covariance averaged over the window from Sigma_0 = 0 (the
+        expected statistics of a run of that length) instead of the stationary one.
 
     Returns
     -------
@@ -174,6 +218,8 @@ def predict_stationary(system: LinearSystem, model: DiscreteModel, est: LinearEs
     Sigma = np.zeros_like(Phi)
     GR = Gam[R]
     Sigma[np.ix_(R, R)] = solve_discrete_lyapunov(PhiR, GR @ W @ GR.T)
+    if transient and window is not None:
+        Sigma[np.ix_(R, R)] = window_average_covariance(PhiR, Sigma[np.ix_(R, R)], *window)
     ns = model.ns
     See = model.E @ Sigma[:ns, :ns] @ model.E.T
     Suu = Gx @ Sigma @ Gx.T + Geta @ W @ Geta.T

@@ -45,6 +45,45 @@ def stats_window(T: float, h: float, settling_time: float) -> int:
     return int(math.ceil(t_from / h - 1e-9))
 
 
+def stationarity_note(T: float, t0: float, settling_time: float) -> str | None:
+    """Why statistics over [t0, T) are not yet stationary figures, or None if they are.
+
+    They are not when the window starts inside the start-up transient (t0 < the settling
+    time, 5 time constants tau of the slowest closed-loop mode) or lasts less than 3 tau
+    (the time average of a mode with correlation time tau has not converged).
+
+    Parameters
+    ----------
+    T : float
+        End of the run, s.
+    t0 : float
+        Start of the statistics window, s.
+    settling_time : float
+        5 tau, s (infinite: nothing settles and nothing is said).
+
+    Returns
+    -------
+    str or None
+        One sentence naming what fails, with the figures.
+    """
+    if not math.isfinite(settling_time):
+        return None
+    tau = settling_time / 5.0
+    problems = []
+    if t0 < settling_time * (1 - 1e-9):
+        problems.append(f"it starts at t = {t0:.3g} s, inside the start-up transient (the "
+                        f"slowest closed-loop mode settles in 5 tau = {settling_time:.3g} s)")
+    if T - t0 < 3 * tau * (1 - 1e-9):
+        problems.append(f"it lasts {T - t0:.3g} s, less than 3 correlation times of the "
+                        f"slowest mode (3 tau = {3 * tau:.3g} s)")
+    if not problems:
+        return None
+    return ("the statistics window is not stationary yet: " + "; ".join(problems)
+            + f"; run at least T = {settling_time + 3 * tau:.3g} s for stationary figures, "
+              "or compare with 'predicted_window' (the expected value over this window, "
+              "start-up transient included)")
+
+
 def trace_stats(traces: dict[str, np.ndarray], Q: np.ndarray, R: np.ndarray,
                 k0: int) -> dict[str, Any]:
     """RMS of each e and u component and the cost rate over samples k >= k0.
