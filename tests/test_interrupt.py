@@ -61,3 +61,33 @@ def test_an_uninterrupted_run_says_so(tmp_path):
     assert summary["interrupted"] is False and summary["interrupted_by"] is None
     assert summary["time_reached_s"] == 1.0 and summary["rrd"]["recorded_steps"] == 100
     assert os.path.exists(summary["rrd"]["path"])
+
+
+@pytest.mark.parametrize("sig, status", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+def test_a_signal_while_the_rrd_is_written(tmp_path, sig, status):
+    """The signal arrives while the .rrd is being written (its temporary file exists): the
+    recording is finished whole (a complete, valid file with all 20 series), never left
+    truncated under its final name, and the run says it was interrupted."""
+    out = tmp_path / "run"
+    proc = subprocess.Popen([sys.executable, "-m", "orchestrator", "run", "--T", "1000",
+                             "--quiet", "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 300
+        while not (out.is_dir() and [p for p in out.iterdir()
+                                     if p.name.endswith(".part") and ".rrd" in p.name]):
+            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()
+            time.sleep(0.002)
+        proc.send_signal(sig)
+        _, stderr = proc.communicate(timeout=300)
+    finally:
+        proc.kill()
+    assert proc.returncode == status, stderr
+    assert len(stderr.strip().splitlines()) == 1 and f"interrupted by {sig.name}" in stderr
+    series = read_rrd_scalars(out / "paper.rrd")
+    assert len(series) == 20
+    k, _, e1 = series["error/1/kalman"]
+    assert len(k) == 100_000 and np.all(np.isfinite(e1))
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["interrupted"] is True and summary["rrd"]["recorded_steps"] == 100_000
+    assert not [p for p in out.iterdir() if p.name.endswith(".part")]
