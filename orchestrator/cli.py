@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import sys
 from collections import Counter
 from collections.abc import Sequence
@@ -77,6 +78,23 @@ def _scenario(args: argparse.Namespace) -> Scenario:
                        tracking=getattr(args, "tracking", None))
 
 
+def viewer_command() -> str:
+    """How to start the Rerun viewer from this shell: ``rerun`` if that is the one on PATH
+    next to this Python, else the path of the one installed with this package (relative
+    to the working folder when under it, e.g. ``.venv/bin/rerun``)."""
+    import shutil
+    ours = Path(sys.executable).parent / "rerun"
+    found = shutil.which("rerun")
+    if found and (not ours.exists() or Path(found).resolve() == ours.resolve()):
+        return "rerun"
+    if not ours.exists():
+        return "rerun"
+    try:
+        return shlex.quote(str(ours.relative_to(Path.cwd())))
+    except ValueError:
+        return shlex.quote(str(ours))
+
+
 def _print_summary(summary: dict, out: Path) -> int:
     """Print the summary table and where the files are; the exit status: 0, or 130 / 143
     for a run stopped by SIGINT / SIGTERM (after one line saying what was kept)."""
@@ -94,17 +112,18 @@ def _print_summary(summary: dict, out: Path) -> int:
             print(f"{name:>10s}   {m.get('note', 'no statistics')}")
             continue
         c = m["cost_rate"]
-        pred = "n/a" if c["predicted"] is None else f"{c['predicted']:.4g}"
+        pred = "n/a" if c["predicted"] is None else f"{c['predicted']:#.4g}"
         sim_e, pred_e = m["rms_e"]["mean"], m["rms_e"]["predicted"]
         if len(sim_e) <= 4:
             rms = ", ".join(
-                f"{a:.3g}/{'n/a' if b is None else format(b, '.3g')}"
+                f"{a:#.3g}/{'n/a' if b is None else format(b, '#.3g')}"
                 for a, b in zip(sim_e, pred_e or [None] * len(sim_e)))
         else:       # a fleet: the worst component, and the noise-free (steady) error
             steady = m.get("steady_error", {}).get("max_rms_e_without_noise_predicted")
-            rms = (f"max {max(sim_e):.3g}/{'n/a' if not pred_e else format(max(pred_e), '.3g')}"
-                   + ("" if steady is None else f"; steady error (noise-free RMS) {steady:.3g}"))
-        print(f"{name:>10s} {c['mean']:12.4g} {c['std']:9.2g} {pred:>10s}   {rms}")
+            rms = (f"max {max(sim_e):#.3g}/"
+                   f"{'n/a' if not pred_e else format(max(pred_e), '#.3g')}"
+                   + ("" if steady is None else f"; steady error (noise-free RMS) {steady:#.3g}"))
+        print(f"{name:>10s} {c['mean']:#12.4g} {c['std']:#9.3g} {pred:>10s}   {rms}")
     if summary.get("stationarity_note"):
         window = ", ".join(f"{n} {m['cost_rate']['predicted_window']:.4g}"
                            for n, m in summary["methods"].items()
@@ -113,8 +132,8 @@ def _print_summary(summary: dict, out: Path) -> int:
               + (f"; expected cost rate over this window: {window}" if window else ""))
     rrd = summary["rrd"]["path"]
     if rrd:
-        print(f"wrote {rrd} (open it with: rerun {rrd}) and {out / 'summary.json'}; "
-              f"wall time {summary['wall_s']:.1f} s")
+        print(f"wrote {rrd} and {out / 'summary.json'}; wall time {summary['wall_s']:.1f} s")
+        print(f"open it with: {viewer_command()} {shlex.quote(rrd)}")
     if summary.get("interrupted"):
         from .interrupt import EXIT_STATUS
         sig = summary["interrupted_by"]

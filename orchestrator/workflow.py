@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -312,7 +313,8 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     out_dir : Path or str
         Output folder (created).
     progress : bool
-        Show a progress bar (after one second).
+        Show a progress bar (after one second), only when standard error is a terminal
+        (redirected output gets the per-run lines only, no carriage returns).
     log : callable
         Receives one line per run.
     trackings : sequence of str, optional
@@ -355,7 +357,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
     loop_us: list[float] = []
     window: tuple[float, float] | None = None
     bar = None
-    if progress:
+    if progress and sys.stderr.isatty():
         from tqdm import tqdm
         bar = tqdm(total=len(methods_run) * len(seeds) * sc.steps, unit="step", delay=1.0,
                    leave=False, unit_scale=True)

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from rerun.chunk import RrdReader
 
 from orchestrator.recording import (
     read_rrd_line_strips,
@@ -29,6 +28,7 @@ from support.recording import (
 from support.rrd_readback import (
     read_rrd_blueprint_tree,
     read_rrd_blueprint_views,
+    read_rrd_view_properties,
     read_rrd_visible_time_ranges,
     rrd_has_blueprint,
 )
@@ -44,27 +44,74 @@ def fleet_written(request, tmp_path_factory):
     return write_fleet_recording(tmp_path_factory, request.param)
 
 
-def test_default_blueprint_is_embedded(written):
-    path, _, _ = written
-    assert rrd_has_blueprint(path)
-    views = read_rrd_blueprint_views(path)
-    expected = {}
-    for group, dim in (("error", 2), ("state", 3), ("control", 2), ("disturbance", 1), ("reference", 2)):
-        for i in range(1, dim + 1):
-            expected[f"{group}-{i}"] = ("TimeSeries", f"/{group}/{i}")
-    assert views == expected
+def _views(node):
+    if node["kind"] == "view":
+        return [node]
+    return [v for c in node["contents"] for v in _views(c)]
 
-    # the views sit in one Grid container (ContainerKind.Grid == 4)
-    reader = RrdReader(path)
-    (bp,) = reader.blueprints()
-    grids = []
-    for chunk in reader.stream(store=bp):
-        batch = chunk.to_record_batch()
-        if "ContainerBlueprint:container_kind" in batch.schema.names:
-            kind = batch.column("ContainerBlueprint:container_kind").to_pylist()[-1][0]
-            contents = batch.column("ContainerBlueprint:contents").to_pylist()[-1]
-            grids.append((kind, len(contents)))
-    assert grids == [(4, len(expected))]
+
+def test_default_blueprint_is_embedded(written):
+    """Legend line on top, then tabs: the paper's figures (error, state, control rows),
+    disturbance & reference, and the estimates at full scale; every container full (no
+    empty cell), every plot over the whole run with its legend hidden."""
+    path, runs, _ = written
+    assert rrd_has_blueprint(path)
+    tree = read_rrd_blueprint_tree(path)
+    assert tree["kind"] == "Vertical"
+    legend, tabs = tree["contents"]
+    assert (legend["class"], legend["origin"]) == ("TextDocument", "/legend")
+    assert tabs["kind"] == "Tabs"
+    names = [t["name"] for t in tabs["contents"]]
+    assert names == ["paper figures 2-7", "disturbance & reference", "estimates, full scale"]
+    dims = {"error": 2, "state": 3, "control": 2, "disturbance": 1, "reference": 2}
+    figures, exo, full = tabs["contents"]
+    assert [(r["kind"], r["name"], len(r["contents"])) for r in figures["contents"]] == [
+        ("Horizontal", g, dims[g]) for g in ("error", "state", "control")]
+    assert [(r["name"], len(r["contents"])) for r in exo["contents"]] == [
+        ("disturbance", 1), ("reference", 2)]
+    assert [(r["name"], len(r["contents"])) for r in full["contents"]] == [
+        ("state, full scale", 3), ("disturbance, full scale", 1), ("reference, full scale", 2)]
+    for row in figures["contents"] + exo["contents"]:
+        for i, view in enumerate(row["contents"], start=1):
+            assert view["class"] == "TimeSeries" and view["origin"] == f"/{row['name']}/{i}"
+            assert view["name"].startswith(f"{row['name']}-{i}")
+    props = read_rrd_view_properties(path)
+    ranges = read_rrd_visible_time_ranges(path)
+    series = [v["name"] for v in _views(tree) if v["class"] == "TimeSeries"]
+    assert len(series) == 10 + 6
+    for name in series:
+        assert props[name]["PlotLegend:visible"] == [False]
+        assert ranges[(name, None)] == {"sim_time": (("infinite", None), ("infinite", None)),
+                                        "step": (("infinite", None), ("infinite", None))}
+
+
+def test_estimate_views_fit_the_true_signal(tmp_path):
+    """The state view's y-axis is the true signal's range plus 15 %; an estimate that leaves
+    it more than 1 % of the time is only in the full-scale view, and the name says so."""
+    from orchestrator.recording.blueprint import true_signal_range
+    rng = np.random.default_rng(5)
+    steps = 400
+    x = np.cumsum(rng.standard_normal((steps, 2)), axis=0)
+    runs = {}
+    for m, noise in (("kalman", 0.05), ("classical", 30.0)):
+        runs[m] = {k: rng.standard_normal((steps, 2)) for k in
+                   ("e", "u", "w", "what", "z", "zhat", "y", "ybar")}
+        runs[m]["x"] = x
+        runs[m]["xhat"] = x + noise * rng.standard_normal((steps, 2))
+    path = tmp_path / "fit.rrd"
+    write_rrd(path, runs, 0.01, recording_name="fit")
+    props = read_rrd_view_properties(path)
+    for i in (1, 2):
+        name = f"state-{i} (classical estimate: see full scale)"
+        lo, hi = props[name]["ScalarAxis:range"][0]
+        assert (lo, hi) == pytest.approx(true_signal_range(x[:, i - 1]))
+        assert lo < x[:, i - 1].min() and hi > x[:, i - 1].max()
+        assert props[name]["ViewContents:query"] == [f"+ /state/{i}/kalman/true",
+                                                     f"+ /state/{i}/kalman/estimate"]
+        assert props[f"state-{i} full scale"]["ViewContents:query"] == [
+            f"+ /state/{i}/kalman/true", f"+ /state/{i}/kalman/estimate",
+            f"+ /state/{i}/classical/estimate"]
+        assert "ScalarAxis:range" not in props[f"state-{i} full scale"]
 
 
 def test_without_blueprint_helper_says_so(tmp_path):
@@ -79,17 +126,14 @@ def test_without_blueprint_helper_says_so(tmp_path):
     assert not rrd_has_blueprint(path)
 
 
-def _views(node):
-    if node["kind"] == "view":
-        return [node]
-    return [v for child in node["contents"] for v in _views(child)]
-
-
 def test_fleet_blueprint_layout(fleet_written):
     path, _, _, _, _ = fleet_written
     tree = read_rrd_blueprint_tree(path)
-    assert tree["kind"] == "Horizontal" and len(tree["contents"]) == 2
-    left, right = tree["contents"]
+    assert tree["kind"] == "Vertical" and len(tree["contents"]) == 2
+    legend, body = tree["contents"]
+    assert (legend["class"], legend["origin"]) == ("TextDocument", "/legend")
+    assert body["kind"] == "Horizontal" and len(body["contents"]) == 2
+    left, right = body["contents"]
     # left: one 3D view per method in tabs, the first method first
     assert left["kind"] == "Tabs"
     assert [(v["class"], v["name"], v["origin"]) for v in left["contents"]] == [
@@ -110,7 +154,26 @@ def test_fleet_blueprint_layout(fleet_written):
     assert views["fleet kalman"] == ("3D", "/world/kalman")
     assert views["vehicle 2 control"] == ("TimeSeries", "/vehicles/2/control")
     assert set(views) == {v["name"] for v in _views(tree)}
-    assert "error-1" not in views and len(views) == len(FLEET_METHODS) + 2 * N_VEH
+    assert "error-1" not in views and len(views) == len(FLEET_METHODS) + 2 * N_VEH + 1
+    # every 3D view looks at the centre of everything the run visits, from above and south
+    _, runs, fleet_layout, _, _ = fleet_written
+    props = read_rrd_view_properties(path)
+    pts = np.concatenate([np.concatenate([r["x"][:, np.asarray(fleet_layout.position_index)]
+                                          .reshape(-1, 3),
+                                          r["z"] @ np.asarray(fleet_layout.leader_output).T])
+                          for r in runs.values()])
+    centre = (pts.min(axis=0) + pts.max(axis=0)) / 2
+    for m in FLEET_METHODS:
+        eye = props[f"fleet {m}"]
+        target = np.array(eye["EyeControls3D:look_target"][0])
+        position = np.array(eye["EyeControls3D:position"][0])
+        np.testing.assert_allclose(target, centre, rtol=1e-5, atol=1e-4)
+        offset = position - target
+        assert offset[0] < 0 and offset[2] < 0          # south of and above the centre
+        half = np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)) / 2
+        assert np.linalg.norm(offset) >= 1.5 * max(half, 5.0)
+    for i in range(1, N_VEH + 1):
+        assert props[f"vehicle {i} error"]["PlotLegend:visible"] == [False]
 
 
 def test_fleet_trail_visible_time_range(fleet_written):
@@ -120,8 +183,13 @@ def test_fleet_trail_visible_time_range(fleet_written):
         "sim_time": (("cursor_relative", -round(TRAIL_S * 1e9)), ("cursor_relative", 0)),
         "step": (("cursor_relative", -round(TRAIL_S / FLEET_H)), ("cursor_relative", 0)),
     }
-    # only the trail entities carry a range; the rest of the 3D view shows the latest sample
-    assert ranges == {(f"fleet {m}", f"/world/{m}/trails"): want for m in FLEET_METHODS}
+    # the trail entities carry a range (the rest of the 3D view shows the latest sample);
+    # the per-vehicle plots show the whole run
+    whole = {"sim_time": (("infinite", None), ("infinite", None)),
+             "step": (("infinite", None), ("infinite", None))}
+    assert ranges == {**{(f"fleet {m}", f"/world/{m}/trails"): want for m in FLEET_METHODS},
+                      **{(f"vehicle {i} {g}", None): whole for i in range(1, N_VEH + 1)
+                         for g in ("error", "control")}}
 
 
 def test_fleet_many_vehicles_use_tabs(tmp_path):
@@ -131,7 +199,7 @@ def test_fleet_many_vehicles_use_tabs(tmp_path):
     path = tmp_path / "ten.rrd"
     write_rrd(path, runs, FLEET_H, recording_name="ten", fleet=fleet)
     tree = read_rrd_blueprint_tree(path)
-    left, right = tree["contents"]
+    left, right = tree["contents"][1]["contents"]
     assert (left["kind"], left["class"], left["origin"]) == ("view", "3D", "/world/ideal")
     assert right["kind"] == "Tabs"
     assert [t["name"] for t in right["contents"]] == ["vehicles 1-4", "vehicles 5-8", "vehicles 9-10"]
@@ -151,9 +219,9 @@ def test_fleet_many_vehicles_use_tabs(tmp_path):
 
 def test_no_fleet_file_has_no_fleet_entities(written):
     path, _, _ = written
-    assert read_rrd_visible_time_ranges(path) == {}
+    assert all(target is None for _, target in read_rrd_visible_time_ranges(path))
     tree = read_rrd_blueprint_tree(path)
-    assert tree["kind"] == "Grid" and all(v["class"] == "TimeSeries" for v in _views(tree))
+    assert all(v["class"] in ("TimeSeries", "TextDocument") for v in _views(tree))
     with pytest.raises(KeyError):
         read_rrd_points(path, "world/kalman/vehicles")
     assert not any(e.startswith(("vehicles/", "leader/")) for e in read_rrd_scalars(path))

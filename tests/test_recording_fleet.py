@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from orchestrator.recording import (
-    method_color,
     read_rrd_scalars,
     read_rrd_series,
     read_rrd_series_lines,
     write_rrd,
 )
+from orchestrator.recording.layout import axis_colors
 from support.recording import (
     CURRENT_NAMES,
     FLEET_H,
@@ -97,15 +97,17 @@ def test_fleet_has_no_per_component_layout(fleet_written):
 def test_fleet_series_lines(fleet_written):
     path, _, fleet, _, _ = fleet_written
     lines = read_rrd_series_lines(path)
-    colors = method_color(list(FLEET_METHODS))
-    for m in FLEET_METHODS:
-        base = colors[m] + (255,)
+    every = set()
+    for j, m in enumerate(FLEET_METHODS):
+        # one hue per component (north red, east green, down blue), one shade per method
+        axes = tuple(c + (255,) for c in axis_colors(3, j))
         for i in (1, N_VEH):
             names, rgba = lines[f"vehicles/{i}/error/{m}"]
             assert names == tuple(f"{m} {c}" for c in fleet.error_names)
-            assert rgba[0] == base and len(set(rgba)) == len(rgba) == 3  # distinct shades
+            assert rgba == axes and len(set(rgba)) == 3
+            every.update(rgba)
             names, rgba = lines[f"vehicles/{i}/control/{m}"]
-            assert names == tuple(f"{m} {c}" for c in fleet.control_names) and rgba[0] == base
+            assert names == tuple(f"{m} {c}" for c in fleet.control_names) and rgba == axes
             true_names, true_rgba = lines[f"vehicles/{i}/state/{m}/true"]
             est_names, est_rgba = lines[f"vehicles/{i}/state/{m}/estimate"]
             assert true_names == tuple(f"{m} {c}" for c in STATE_NAMES)
@@ -117,9 +119,11 @@ def test_fleet_series_lines(fleet_written):
             assert lines[f"vehicles/{i}/current/{m}/estimate"][0] == tuple(
                 f"{m} {c} estimate" for c in CURRENT_NAMES)
         assert lines[f"leader/{m}"][0] == (f"{m} leader north", f"{m} leader east", f"{m} leader down")
+    assert len(every) == 3 * len(FLEET_METHODS)          # the methods' lines differ too
+    assert axis_colors(3, 0) == [(214, 39, 40), (44, 160, 44), (31, 119, 180)]
     # the first-line view of the same styles
     styles = read_rrd_series_styles(path)
-    assert styles["vehicles/1/error/kalman"] == ("kalman north", colors["kalman"] + (255,))
+    assert styles["vehicles/1/error/kalman"] == ("kalman north", (214, 39, 40, 255))
 
 
 def test_fleet_default_state_and_no_current(tmp_path):

@@ -146,4 +146,7 @@ def test_fleet_world_is_ned_and_labelled(fleet_written):
         assert _static_component(path, f"world/{m}", "ViewCoordinates:xyz") == [frd]
         assert _static_component(path, f"world/{m}/vehicles", "Points3D:labels") == ["1", "2", "3"]
         assert _static_component(path, f"world/{m}/vehicles", "Points3D:radii") == [1.0]
-        assert _static_component(path, f"world/{m}/leader", "Points3D:labels") == ["leader"]
+        # the leader is unlabelled (a label covered vehicles) and its whole path is drawn
+        assert _static_component(path, f"world/{m}/leader", "Points3D:labels") is None
+        assert _static_component(path, f"world/{m}/leader_path", "LineStrips3D:strips") \
+            is not None

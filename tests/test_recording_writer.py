@@ -17,6 +17,7 @@ from orchestrator.recording import (
     read_rrd_series,
     write_rrd,
 )
+from orchestrator.recording.layout import TRUE_COLOR
 from support.recording import (
     DIMS,
     H_NS,
@@ -90,7 +91,8 @@ def test_series_names_and_colours(written):
         base = colors[m] + (255,)
         name, rgba = styles[f"error/1/{m}"]
         assert (name, rgba) == (m, base)
-        assert styles[f"state/3/{m}/true"] == (m, base)
+        # the true signal is the same for every method: one name, one colour (white)
+        assert styles[f"state/3/{m}/true"] == ("true", TRUE_COLOR + (255,))
         est_name, est_rgba = styles[f"state/3/{m}/estimate"]
         assert est_name == f"{m} estimate"
         assert est_rgba != base

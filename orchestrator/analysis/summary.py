@@ -79,7 +79,8 @@ def stationarity_note(T: float, t0: float, settling_time: float) -> str | None:
     if not problems:
         return None
     return ("the statistics window is not stationary yet: " + "; ".join(problems)
-            + f"; run at least T = {settling_time + 3 * tau:.3g} s for stationary figures, "
+            + f"; run at least T = {max(2 * settling_time, settling_time + 3 * tau):.3g} s "
+              "for stationary figures (the window starts at min(T / 2, 5 tau)), "
               "or compare with 'predicted_window' (the expected value over this window, "
               "start-up transient included)")
 

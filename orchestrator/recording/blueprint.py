@@ -1,24 +1,135 @@
-"""The default Rerun blueprints embedded in a .rrd: the grid of paper-figure views, and the
-fleet layout (3D view(s) on the left, per-vehicle error/control views on the right)."""
+"""The default Rerun blueprints embedded in a .rrd.
+
+Paper layout (tabs):
+
+- "paper figures 2-7": one row per figure pair, error-1/2, state-1/2, control-1/2 (the
+  paper's figures), the methods overlaid;
+- "disturbance & reference": the disturbance and reference components;
+- "estimates, full scale": the state, disturbance and reference views with automatic axes.
+
+Every time-series view shows the whole run (both timelines unbounded), with its legend
+hidden: a one-line legend view on top names the colours instead, so no legend covers data.
+The state, disturbance and reference views of the first two tabs draw the true signal once
+(it is the same for every method: same noise) with each method's estimate, and scale the
+y-axis to the true signal (a margin of 15 % of its span), so a method whose estimate spikes
+(the classical law) does not squash the others: an estimate with more than 1 % of its
+samples outside that range is left out there (the view's name says so) and shown in the
+third tab with the others at full scale. The time panel starts paused and folded.
+
+Fleet layout: the 3D view(s) on the left, framed from above and behind the formation to hold
+every vehicle and the leader over the whole run; per-vehicle error/control views on the
+right (a grid, or tabs of grids for many vehicles), whole run, legends hidden.
+"""
 from __future__ import annotations
 
 import numpy as np
 import rerun.blueprint as rrb
+from rerun.encodings import TimeRange
 
 from .layout import _SIM_TIME, _STEP, VIEW_GROUPS
 
+#: entity of the one-line colour legend (a markdown TextDocument written by the writer)
+LEGEND_ENTITY = "legend"
+#: groups whose views overlay a true signal and estimates (the y-axis fits the true signal)
+_TRUE_GROUPS = {"state": ("x", "xhat"), "disturbance": ("w", "what"),
+                "reference": ("z", "zhat")}
+_MARGIN = 0.15
+
+
+def _whole_run() -> list[rrb.VisibleTimeRange]:
+    """Visible range: the whole recording, on both timelines."""
+    return [rrb.VisibleTimeRange(t, start=rrb.TimeRangeBoundary.infinite(),
+                                 end=rrb.TimeRangeBoundary.infinite())
+            for t in (_SIM_TIME, _STEP)]
+
+
+def _series_view(name: str, origin: str, contents: list[str] | None = None,
+                 y_range: tuple[float, float] | None = None) -> rrb.TimeSeriesView:
+    return rrb.TimeSeriesView(
+        name=name, origin=origin, contents=contents or "$origin/**",
+        plot_legend=rrb.PlotLegend(visible=False), time_ranges=_whole_run(),
+        axis_x=rrb.TimeAxis(view_range=TimeRange(start=rrb.TimeRangeBoundary.infinite(),
+                                                 end=rrb.TimeRangeBoundary.infinite())),
+        axis_y=None if y_range is None else rrb.ScalarAxis(range=y_range, zoom_lock=False))
+
+
+def true_signal_range(true: np.ndarray) -> tuple[float, float]:
+    """The y-axis of a view comparing estimates with ``true``: its range widened by 15 % of
+    its span on each side (at least +-1e-9 around a constant).
+
+    Parameters
+    ----------
+    true : np.ndarray
+        The true signal (one component over the run).
+
+    Returns
+    -------
+    tuple[float, float]
+        (low, high).
+    """
+    lo, hi = float(np.min(true)), float(np.max(true))
+    pad = max(_MARGIN * (hi - lo), 1e-9 * max(1.0, abs(lo), abs(hi)))
+    return lo - pad, hi + pad
+
+
+def _true_and_estimates(group: str, i: int, methods: list[str],
+                        clean: dict[str, dict[str, np.ndarray]]) -> tuple[rrb.TimeSeriesView,
+                                                                         rrb.TimeSeriesView]:
+    """(fitted view, full-scale view) of component i of a true-vs-estimate group: the fitted
+    view's y-axis fits the true signal and holds the estimates that stay (99 % of samples)
+    within it; the others are left to the full-scale view, and the name says so."""
+    true_key, est_key = _TRUE_GROUPS[group]
+    first = methods[0]
+    lo, hi = true_signal_range(clean[first][true_key][:, i - 1])
+    shown, left_out = [], []
+    for m in methods:
+        est = clean[m][est_key]
+        if est.shape[1] < i:
+            continue
+        outside = np.mean((est[:, i - 1] < lo) | (est[:, i - 1] > hi))
+        (shown if outside <= 0.01 else left_out).append(m)
+    true_entity = f"+ /{group}/{i}/{first}/true"
+    name = f"{group}-{i}" + (f" ({', '.join(left_out)} estimate: see full scale)"
+                             if left_out else "")
+    fitted = _series_view(name, f"/{group}/{i}", [true_entity] + [
+        f"+ /{group}/{i}/{m}/estimate" for m in shown], (lo, hi))
+    full = _series_view(f"{group}-{i} full scale", f"/{group}/{i}", [true_entity] + [
+        f"+ /{group}/{i}/{m}/estimate" for m in shown + left_out])
+    return fitted, full
+
 
 def _blueprint(clean: dict[str, dict[str, np.ndarray]]) -> rrb.Blueprint:
-    """Grid of one TimeSeriesView per (group, component), origin ``/{group}/{i}``."""
-    views: list[rrb.TimeSeriesView] = []
+    """The paper layout (module docstring) for the runs ``clean`` (method -> traces)."""
+    methods = list(clean)
+    rows: dict[str, list[rrb.TimeSeriesView]] = {}
+    full: list[rrb.Horizontal] = []
     for group, keys in VIEW_GROUPS:
         dim = max(run[k].shape[1] for run in clean.values() for k in keys)
-        for i in range(1, dim + 1):
-            views.append(rrb.TimeSeriesView(name=f"{group}-{i}", origin=f"/{group}/{i}"))
+        if group in _TRUE_GROUPS:
+            pairs = [_true_and_estimates(group, i, methods, clean) for i in range(1, dim + 1)]
+            rows[group] = [p[0] for p in pairs]
+            full.append(rrb.Horizontal(*[p[1] for p in pairs], name=f"{group}, full scale"))
+        else:
+            rows[group] = [_series_view(f"{group}-{i}", f"/{group}/{i}")
+                           for i in range(1, dim + 1)]
+    figures = rrb.Vertical(*[rrb.Horizontal(*rows[g], name=g)
+                             for g in ("error", "state", "control")],
+                           name="paper figures 2-7")
+    exo = rrb.Vertical(*[rrb.Horizontal(*rows[g], name=g) for g in ("disturbance", "reference")],
+                       name="disturbance & reference")
+    estimates = rrb.Vertical(*full, name="estimates, full scale")
+    legend = rrb.TextDocumentView(origin=f"/{LEGEND_ENTITY}", name="legend")
     return rrb.Blueprint(
-        rrb.Grid(contents=views, name="paper figures"),
-        rrb.TimePanel(timeline=_SIM_TIME),
+        rrb.Vertical(legend, rrb.Tabs(figures, exo, estimates, active_tab=0),
+                     row_shares=[1.0, 14.0], name="auv-cosim"),
+        *_panels(),
     )
+
+
+def _panels() -> tuple:
+    """Side panels folded away (more room for the plots), the time panel paused."""
+    return (rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
+            rrb.TimePanel(timeline=_SIM_TIME, play_state="paused", state="collapsed"))
 
 
 #: Vehicles per tab of the right-hand side of the fleet blueprint when N > _FLEET_GRID_MAX.
@@ -37,12 +148,42 @@ def _trail_time_ranges(trail_ns: int, trail_steps: int) -> rrb.VisibleTimeRanges
     ])
 
 
-def _fleet_blueprint(methods: list[str], n: int, trail_ns: int, trail_steps: int) -> rrb.Blueprint:
-    """3D view(s) of the fleet on the left, per-vehicle error/control views on the right."""
+def fleet_camera(points: np.ndarray) -> rrb.EyeControls3D:
+    """A camera that holds every point of ``points`` (NED, m; any shape (..., 3)): an orbit
+    around the centre of their bounding box, from behind (south) and above, at 1.7 times the
+    box's half-diagonal (at least 5 m).
+
+    Parameters
+    ----------
+    points : np.ndarray
+        Every position the view must show (vehicles and leader over the whole run).
+
+    Returns
+    -------
+    rrb.EyeControls3D
+        Orbital eye: position, look target and up (-down) in the view's NED frame.
+    """
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    centre = (lo + hi) / 2
+    radius = max(float(np.linalg.norm(hi - lo)) / 2, 5.0)
+    direction = np.array([-0.55, -0.35, -0.76])            # south, west, up (NED)
+    eye = centre + 1.7 * radius * direction / np.linalg.norm(direction)
+    return rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, position=eye.tolist(),
+                             look_target=centre.tolist(), eye_up=[0.0, 0.0, -1.0])
+
+
+def _fleet_blueprint(methods: list[str], n: int, trail_ns: int, trail_steps: int,
+                     points: np.ndarray) -> rrb.Blueprint:
+    """3D view(s) of the fleet on the left (framed by :func:`fleet_camera` on ``points``),
+    per-vehicle error/control views on the right (whole run, legends hidden: the legend view
+    on top names the colours)."""
+    camera = fleet_camera(points)
     views_3d = [
         rrb.Spatial3DView(
             name=f"fleet {m}",
             origin=f"/world/{m}",
+            eye_controls=camera,
             overrides={f"/world/{m}/trails": _trail_time_ranges(trail_ns, trail_steps)},
         )
         for m in methods
@@ -51,8 +192,8 @@ def _fleet_blueprint(methods: list[str], n: int, trail_ns: int, trail_steps: int
         views_3d[0] if len(views_3d) == 1 else rrb.Tabs(*views_3d, active_tab=0, name="fleet 3D"))
 
     def vehicle_views(i: int) -> list[rrb.TimeSeriesView]:
-        return [rrb.TimeSeriesView(name=f"vehicle {i} error", origin=f"/vehicles/{i}/error"),
-                rrb.TimeSeriesView(name=f"vehicle {i} control", origin=f"/vehicles/{i}/control")]
+        return [_series_view(f"vehicle {i} error", f"/vehicles/{i}/error"),
+                _series_view(f"vehicle {i} control", f"/vehicles/{i}/control")]
 
     if n <= _FLEET_GRID_MAX:
         right: rrb.Container = rrb.Grid(
@@ -65,7 +206,9 @@ def _fleet_blueprint(methods: list[str], n: int, trail_ns: int, trail_steps: int
             tabs.append(rrb.Grid(contents=[v for i in range(a, b + 1) for v in vehicle_views(i)],
                                  grid_columns=2, name=f"vehicles {a}-{b}"))
         right = rrb.Tabs(*tabs, active_tab=0, name="vehicles")
+    legend = rrb.TextDocumentView(origin=f"/{LEGEND_ENTITY}", name="legend")
     return rrb.Blueprint(
-        rrb.Horizontal(left, right, column_shares=[1.0, 1.0], name="fleet"),
-        rrb.TimePanel(timeline=_SIM_TIME),
+        rrb.Vertical(legend, rrb.Horizontal(left, right, column_shares=[1.0, 1.0]),
+                     row_shares=[1.0, 14.0], name="fleet"),
+        *_panels(),
     )

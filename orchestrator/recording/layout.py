@@ -10,7 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["TRACE_KEYS", "VIEW_GROUPS", "FleetLayout", "method_color"]
+__all__ = ["TRACE_KEYS", "TRUE_COLOR", "VIEW_GROUPS", "FleetLayout", "axis_colors", "color_name",
+           "method_color"]
 
 # (trace key, entity path template, series-name suffix, is an estimate)
 _SERIES: tuple[tuple[str, str, str, bool], ...] = (
@@ -54,6 +55,18 @@ _PALETTE: tuple[tuple[int, int, int], ...] = (
     (188, 189, 34),   # olive
     (23, 190, 207),   # cyan
 )
+
+#: colour of the true signal in the paper layout (drawn once, under the estimates)
+TRUE_COLOR: tuple[int, int, int] = (235, 235, 235)       # on the viewer's dark background
+#: one hue per component of a vehicle's series (north, east, down, then further states)
+_AXIS_COLORS: tuple[tuple[int, int, int], ...] = (
+    (214, 39, 40), (44, 160, 44), (31, 119, 180), (255, 127, 14), (148, 103, 189),
+    (140, 86, 75))
+_COLOR_NAMES: dict[tuple[int, int, int], str] = {
+    (31, 119, 180): "blue", (255, 127, 14): "orange", (44, 160, 44): "green",
+    (214, 39, 40): "red", (148, 103, 189): "purple", (140, 86, 75): "brown",
+    (227, 119, 194): "pink", (127, 127, 127): "grey", (188, 189, 34): "olive",
+    (23, 190, 207): "cyan", TRUE_COLOR: "white"}
 
 _STEP = "step"
 _SIM_TIME = "sim_time"
@@ -166,6 +179,31 @@ def _shade(rgb: tuple[int, int, int], k: int) -> tuple[int, int, int]:
     if k % 2:  # darker: blend towards black
         return tuple(round(c * (1.0 - amount)) for c in rgb)  # type: ignore[return-value]
     return _lighter(rgb, amount)
+
+
+def color_name(rgb: tuple[int, int, int]) -> str:
+    """The name of one of the layout's colours (for the legend view)."""
+    return _COLOR_NAMES.get(tuple(int(c) for c in rgb), f"rgb{tuple(rgb)}")
+
+
+def axis_colors(count: int, method_index: int) -> list[tuple[int, int, int]]:
+    """Colours of the ``count`` components of one method's vehicle series: one hue per
+    component (north red, east green, down blue, ...); the first method in full colour,
+    the second darker, the third lighter, and so on.
+
+    Parameters
+    ----------
+    count : int
+        Components.
+    method_index : int
+        Position of the method in the recording (0-based).
+
+    Returns
+    -------
+    list[tuple[int, int, int]]
+        RGB 0-255 per component.
+    """
+    return [_shade(_AXIS_COLORS[c % len(_AXIS_COLORS)], method_index) for c in range(count)]
 
 
 def _vehicle_colors(n: int) -> np.ndarray:

@@ -10,17 +10,19 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 
-from .blueprint import _blueprint, _fleet_blueprint
+from .blueprint import LEGEND_ENTITY, _blueprint, _fleet_blueprint
 from .layout import (
     _POSITION_NAMES,
     _SERIES,
     _SIM_TIME,
     _STEP,
+    TRUE_COLOR,
     FleetLayout,
     _Fleet,
     _lighter,
-    _shade,
     _vehicle_colors,
+    axis_colors,
+    color_name,
     method_color,
 )
 from .validation import _positive_int, _positive_ns, _validate, _validate_fleet
@@ -40,14 +42,15 @@ def _send_block(rec: rr.RecordingStream, entity: str, values: np.ndarray, names:
 
 
 def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray],
-                       fleet: _Fleet, base: tuple[int, int, int], stride: int,
+                       fleet: _Fleet, method_index: int, stride: int,
                        indexes: list[rr.TimeColumn]) -> int:
     """Per-vehicle multi-component series and the leader series of one run (recorded steps
     only); returns the number of scalar lines (components) written."""
     rec_traces = {key: traces[key][::stride] for key in ("e", "u", "x", "xhat", "w", "what", "z")}
 
     def shades(count: int, estimate: bool = False) -> list[tuple[int, int, int]]:
-        return [_lighter(_shade(base, c)) if estimate else _shade(base, c) for c in range(count)]
+        colors = axis_colors(count, method_index)
+        return [_lighter(c) for c in colors] if estimate else colors
 
     groups: list[tuple[str, str, np.ndarray, tuple[str, ...], str, bool]] = [
         ("e", "error/{m}", fleet.error_index, fleet.error_names, "", False),
@@ -73,6 +76,25 @@ def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, n
     signals += _send_block(rec, f"leader/{method}", leader,
                            [f"{method} leader {c}" for c in _POSITION_NAMES], shades(3), indexes)
     return signals
+
+
+def _paper_legend(methods: list[str], colors: dict[str, tuple[int, int, int]]) -> str:
+    """The one-line colour legend of the paper layout (markdown)."""
+    names = " · ".join(f"**{m}** {color_name(colors[m])}" for m in methods)
+    return (f"{names} · estimates: a lighter shade of the method's colour · true signal: "
+            "white, drawn once (the same noise for every method) · whole run shown; "
+            "scroll or drag in a plot to zoom, double-click to reset")
+
+
+def _fleet_legend(methods: list[str], fleet: _Fleet) -> str:
+    """The one-line colour legend of the fleet layout (markdown)."""
+    comps = ", ".join(f"{n} {color_name(c)}" for n, c in zip(
+        fleet.error_names, axis_colors(len(fleet.error_names), 0)))
+    shades = " · ".join(f"**{m}**: {('full colour', 'darker', 'lighter')[i % 3]}"
+                        for i, m in enumerate(methods))
+    return (f"components: {comps} · {shades} · 3D: one colour per vehicle (numbered), "
+            "leader gold with its whole path, formation targets as small pale points, "
+            "communication edges grey, pinned links gold")
 
 
 def _time_columns(k: np.ndarray, h_ns: int) -> list[rr.TimeColumn]:
@@ -112,12 +134,15 @@ def _send_fleet_world(rec: rr.RecordingStream, method: str, traces: dict[str, np
         positions=pos.reshape(rows * n, 3).astype(np.float32)).partition(np.full(rows, n)))
 
     rec.log(f"{root}/leader", rr.Points3D.from_fields(
-        radii=[1.5], colors=[(255, 215, 0)], labels=["leader"], show_labels=True), static=True)
+        radii=[1.5], colors=[(255, 215, 0)]), static=True)
+    rec.log(f"{root}/leader_path", rr.LineStrips3D(
+        [lead_all[::stride].astype(np.float32)], radii=[0.12], colors=[(230, 190, 0)]),
+        static=True)
     rec.send_columns(f"{root}/leader", indexes=indexes, columns=rr.Points3D.columns(
         positions=leader.astype(np.float32)).partition(np.ones(rows, dtype=np.int64)))
 
     rec.log(f"{root}/targets", rr.Points3D.from_fields(
-        radii=[0.5], colors=[tuple(_lighter(tuple(int(v) for v in c), 0.6)) for c in colors],
+        radii=[0.7], colors=[tuple(_lighter(tuple(int(v) for v in c), 0.55)) for c in colors],
         show_labels=False), static=True)
     rec.send_columns(f"{root}/targets", indexes=indexes, columns=rr.Points3D.columns(
         positions=targets.reshape(rows * n, 3).astype(np.float32)).partition(np.full(rows, n)))
@@ -238,7 +263,10 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
         trail_stride = stride * max(1, round(sample_ns / (stride * h_ns)))
         if scene_stride is None:
             scene_stride = trail_stride
-        blueprint = _fleet_blueprint(methods, fleet_v.n, trail_ns, trail_steps)
+        points = np.concatenate(
+            [np.concatenate([run["x"][:, fleet_v.position_index].reshape(-1, 3),
+                             run["z"] @ fleet_v.leader_output.T]) for run in clean.values()])
+        blueprint = _fleet_blueprint(methods, fleet_v.n, trail_ns, trail_steps, points)
 
     t0 = time.perf_counter()
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -259,8 +287,11 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
                 light = _lighter(base)
                 for key, template, suffix, is_estimate in _SERIES:
                     arr = clean[method][key]
-                    style = rr.SeriesLines(colors=[light if is_estimate else base],
-                                           names=[f"{method}{suffix}"])
+                    if template.endswith("/true"):      # the same for every method
+                        style = rr.SeriesLines(colors=[TRUE_COLOR], names=["true"])
+                    else:
+                        style = rr.SeriesLines(colors=[light if is_estimate else base],
+                                               names=[f"{method}{suffix}"])
                     for i in range(1, arr.shape[1] + 1):
                         entity = template.format(i=i, m=method)
                         rec.log(entity, style, static=True)
@@ -271,11 +302,15 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
                                 scalars=np.ascontiguousarray(arr[::stride, i - 1])),
                         )
                         signals += 1
+            rec.log(LEGEND_ENTITY, rr.TextDocument(_paper_legend(methods, colors),
+                                                   media_type=rr.MediaType.MARKDOWN), static=True)
         else:
             rec.log("world", rr.ViewCoordinates.FRD, static=True)
-            for method in methods:
+            rec.log(LEGEND_ENTITY, rr.TextDocument(_fleet_legend(methods, fleet_v),
+                                                   media_type=rr.MediaType.MARKDOWN), static=True)
+            for index, method in enumerate(methods):
                 signals += _send_fleet_series(rec, method, clean[method], fleet_v,
-                                              colors[method], stride, indexes)
+                                              index, stride, indexes)
                 _send_fleet_world(rec, method, clean[method], fleet_v, h_ns, stride,
                                   scene_stride, trail_stride)
         rec.flush()

@@ -160,3 +160,24 @@ def read_rrd_visible_time_ranges(
 def rrd_has_blueprint(path: str | Path) -> bool:
     """True if the .rrd embeds a blueprint store with at least one view."""
     return bool(read_rrd_blueprint_views(path))
+
+
+def read_rrd_view_properties(path: str | Path) -> dict[str, dict[str, object]]:
+    """View name -> the view's properties in the embedded blueprint, as Python values:
+    ``"PlotLegend:visible"``, ``"ScalarAxis:range"``, ``"TimeAxis:view_range"``,
+    ``"VisibleTimeRanges:ranges"``, ``"EyeControls3D:position"``, ... and the view's
+    ``"ViewContents:query"`` (its entity filter lines)."""
+    rows = _blueprint_rows(path)
+    names = {e: comps["ViewBlueprint:display_name"].as_py()[0]
+             for e, comps in rows.items() if "ViewBlueprint:display_name" in comps}
+    out: dict[str, dict[str, object]] = {name: {} for name in names.values()}
+    for entity, comps in rows.items():
+        parts = entity.split("/")
+        if len(parts) < 4 or parts[1] != "view":
+            continue
+        view = names.get("/".join(parts[:3]))
+        if view is None or len(parts) != 4:
+            continue
+        for key, value in comps.items():
+            out[view][key] = value.as_py() if hasattr(value, "as_py") else value
+    return out
