@@ -70,6 +70,16 @@ def _positive(text: str) -> float:
     return v
 
 
+def _count(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} must be at least 1")
+    return v
+
+
 def _scenario(args: argparse.Namespace) -> Scenario:
     sc = load_scenario(args.scenario)
     return sc.with_run(T=getattr(args, "T", None), h=getattr(args, "h", None),
@@ -225,6 +235,12 @@ def cmd_validate(args: argparse.Namespace) -> int:
     if tmp:
         tmp.cleanup()
     return 1 if bad else 0
+
+
+def cmd_campaign(args: argparse.Namespace) -> int:
+    from .campaign.runner import run_campaign
+    return run_campaign(args.spec, args.out, scheduler=args.scheduler, workers=args.workers,
+                        engine=args.engine)
 
 
 def _fleet_sizes(text: str) -> list[int]:
@@ -386,6 +402,19 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out", help="output folder (default: out/<scenario>_compare)")
     sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
     sp.set_defaults(func=cmd_compare)
+
+    sp = sub.add_parser("campaign", help="Monte Carlo runs and parameter sweeps from a spec "
+                                         "file, on local worker processes or a Dask cluster")
+    sp.add_argument("spec", help="campaign spec (.toml): base scenario, seeds, [sweep] axes")
+    sp.add_argument("--scheduler", help="address of a running Dask scheduler "
+                                        "(tcp://host:port); default: a local cluster")
+    sp.add_argument("--workers", type=_count, help="worker processes of the local cluster "
+                                                   "(default: one per core)")
+    sp.add_argument("--out", help="output folder (default: out/campaign_<name>)")
+    sp.add_argument("--engine", choices=("fmu", "numpy"),
+                    help="fmu: the three FMUs; numpy: the closed loop vectorised over seeds "
+                         "where it applies (default: the spec's, else fmu)")
+    sp.set_defaults(func=cmd_campaign)
 
     sp = sub.add_parser("export", help="the FMUs and a system file for other tools: an OSP "
                                        "system (libcosim) or an SSP archive (fmpy, SSP tools)")
