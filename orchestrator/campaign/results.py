@@ -4,7 +4,8 @@
   same folder is refused. The kernel releases it when the process ends, however it ends.
 - ``parts/*.json``: the rows of each finished task, written as they arrive, each file
   atomically (:mod:`orchestrator.atomic`). This is what survives a killed client; a rerun
-  reads it and skips every run whose key is there.
+  reads it and skips every run whose key is there (and removes the temporary files a killed
+  client may have left).
 - ``results.parquet``: one row per run (role ``run``), rewritten atomically after every
   finished task, sorted by point and seed; ``check.parquet``: the FMU re-runs of the numpy
   engine's sample.
@@ -84,6 +85,9 @@ class ResultStore:
         self.parts = self.out / "parts"
         self.parts.mkdir(parents=True, exist_ok=True)
         self.rows: dict[str, dict[str, Any]] = {}
+        # temporary siblings left by a killed client (the lock says no one else writes)
+        for stale in [*self.out.glob(".*.part"), *self.parts.glob(".*.part")]:
+            stale.unlink(missing_ok=True)
         for part in sorted(self.parts.glob("*.json")):
             try:
                 rows = json.loads(part.read_text())
