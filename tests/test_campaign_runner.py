@@ -93,6 +93,14 @@ def test_local_cluster_failing_point_and_numpy_engine(tmp_path, capsys):
     assert len(_rows(tmp_path / "numpy", "check.parquet")) == 2
     out = capsys.readouterr().out
     assert "agree" in out
+    # a lost numpy batch is run again whole: the same bits as before
+    part = next(p for p in sorted((tmp_path / "numpy" / "parts").glob("*.json"))
+                if '"numpy"' in p.read_text())
+    part.unlink()
+    assert main(["campaign", str(spec), "--workers", "2", "--engine", "numpy",
+                 "--out", str(tmp_path / "numpy")]) == 0
+    assert "0 already done" not in capsys.readouterr().out
+    assert _without_timing(_rows(tmp_path / "numpy")) == _without_timing(num)
 
 
 def _free_port() -> int:

@@ -32,10 +32,12 @@ from .results import ResultStore, output_lock
 from .spec import ENGINES, SpecError, load_spec
 from .tasks import Task, error_rows, run_task
 
-__all__ = ["run_campaign", "plan_tasks", "split_tasks", "check_sample", "compare_check",
-           "CHECK_TOLERANCE", "Progress"]
+__all__ = ["run_campaign", "plan_tasks", "split_tasks", "numpy_batches", "NUMPY_BATCH",
+           "check_sample", "compare_check", "CHECK_TOLERANCE", "Progress"]
 
 CHECK_TOLERANCE = 1e-9
+#: seeds per numpy task unless the spec says (numpy_batches)
+NUMPY_BATCH = 64
 #: seconds without a scheduler before the client gives up (rows kept; rerun to go on)
 LOST_AFTER_S = 15.0
 
@@ -71,12 +73,41 @@ def plan_tasks(points: list[DesignPoint], seeds: list[int], engine: str,
     return tasks
 
 
-def split_tasks(tasks: list[Task], workers: int, seeds_per_task: int | None = None) -> list[Task]:
-    """Split tasks into batches of seeds so that every worker has work.
+def _batches(t: Task, per: int) -> list[Task]:
+    return [Task(t.point, t.params, t.scenario, t.coupling, t.engine, t.seeds[i:i + per],
+                 t.keys[i:i + per], t.role, t.error, t.note)
+            for i in range(0, len(t.seeds), per)]
 
-    Default batch: ceil(runs / (2 workers)) seeds for the FMU engine (two tasks per worker
-    balance uneven points), ceil(runs / workers) for the numpy engine (its batches are
-    vectorised); never across points, so each batch solves its point's design once.
+
+def numpy_batches(tasks: list[Task], seeds_per_task: int | None = None) -> list[Task]:
+    """The numpy engine's tasks split into fixed batches of a point's seeds (FMU tasks
+    unchanged).
+
+    A numpy batch is run as one matrix recursion, and the last bits of a product depend on
+    the number of rows BLAS multiplies at once; so a batch's seeds are fixed by the spec
+    alone (``seeds_per_task``, default :data:`NUMPY_BATCH`), never by the cluster's size or
+    by which runs are finished, and an unfinished batch is re-run whole: the same seed
+    gives the same row in every campaign.
+
+    Parameters
+    ----------
+    tasks : list[Task]
+    seeds_per_task : int, optional
+
+    Returns
+    -------
+    list[Task]
+    """
+    per = seeds_per_task or NUMPY_BATCH
+    return [b for t in tasks for b in (_batches(t, per) if t.engine == "numpy" else [t])]
+
+
+def split_tasks(tasks: list[Task], workers: int, seeds_per_task: int | None = None) -> list[Task]:
+    """Split the FMU engine's tasks into batches of seeds so that every worker has work.
+
+    Default batch: ceil(runs / (2 workers)) seeds (two tasks per worker balance uneven
+    points); never across points, so each batch solves its point's design once. Numpy
+    tasks are left as they are (:func:`numpy_batches`).
 
     Parameters
     ----------
@@ -89,15 +120,9 @@ def split_tasks(tasks: list[Task], workers: int, seeds_per_task: int | None = No
     -------
     list[Task]
     """
-    total = sum(len(t.seeds) for t in tasks)
-    out = []
-    for t in tasks:
-        per = seeds_per_task or max(1, math.ceil(total / ((2 if t.engine == "fmu" else 1)
-                                                          * max(1, workers))))
-        for i in range(0, len(t.seeds), per):
-            out.append(Task(t.point, t.params, t.scenario, t.coupling, t.engine,
-                            t.seeds[i:i + per], t.keys[i:i + per], t.role, t.error, t.note))
-    return out
+    total = sum(len(t.seeds) for t in tasks if t.engine == "fmu")
+    per = seeds_per_task or max(1, math.ceil(total / (2 * max(1, workers))))
+    return [b for t in tasks for b in (_batches(t, per) if t.engine == "fmu" else [t])]
 
 
 def check_sample(tasks: list[Task], count: int, ver: dict[str, str],
@@ -309,8 +334,14 @@ def run_campaign(spec_path: Path | str, out: Path | str | None = None, *,
         for t in tasks:                                # points without a scenario: rows now
             if t.scenario is None and (p := t.pending(store.done)):
                 store.add(error_rows(p, p.error or "invalid point"))
-        todo = [p for t in tasks + checks if t.scenario is not None
-                and (p := t.pending(store.done))]
+        todo = []
+        for t in numpy_batches(tasks, spec.seeds_per_task) + checks:
+            if t.scenario is None:
+                continue
+            if t.engine == "numpy":             # unfinished: whole (numpy_batches says why)
+                todo += [t] if set(t.keys) - store.done else []
+            elif p := t.pending(store.done):
+                todo.append(p)
         total = sum(len(t.seeds) for t in tasks)
         log(f"campaign {name}: {len(points)} point(s) x {len(seeds)} seed(s) = {total} runs "
             f"(+{len(checks)} check) of {base_where}, engine {engine}; "

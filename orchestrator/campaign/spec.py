@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 import tomllib
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_origin
 
 from annotated_types import Ge
 from pydantic import BaseModel, ConfigDict, Field
@@ -64,7 +64,7 @@ class CampaignSpec(BaseModel):
     engine: Literal["fmu", "numpy"] = "fmu"
     check: Annotated[int, Ge(0)] = 2
     seeds_per_task: Annotated[int, Ge(1)] | None = None
-    sweep: dict[str, list[Any]] = Field(default_factory=dict)
+    sweep: dict[str, Any] = Field(default_factory=dict)
     points: list[dict[str, Any]] = Field(default_factory=list)
 
 
@@ -84,10 +84,10 @@ def parse_seed_text(text: str) -> list[int]:
     seeds: list[int] = []
     for part in text.split(","):
         part = part.strip()
-        a, _, b = part.partition("-")
-        if not a.strip().isdigit() or (b and not b.strip().isdigit()):
+        a, dash, b = part.partition("-")
+        if not a.strip().isdigit() or (dash and not b.strip().isdigit()):
             raise ValueError(f"{text!r}: expected a range '0-9', a list '1,4,7' or one seed")
-        lo, hi = int(a), int(b) if b else int(a)
+        lo, hi = int(a), int(b) if dash else int(a)
         if hi < lo:
             raise ValueError(f"{text!r}: the range {part} is empty")
         if hi - lo + len(seeds) >= MAX_SEEDS:
@@ -175,6 +175,8 @@ def _key_problem(data: dict[str, Any], key: str) -> str | None:
         if parts[i] not in table.model_fields:
             return (f"is unknown: {'.'.join(parts[:i])} has no key {parts[i]!r} (allowed: "
                     f"{', '.join(table.model_fields)})")
+        if i + 1 < len(parts) and get_origin(table.model_fields[parts[i]].annotation) is dict:
+            return None                # a free table (vehicles.params): its model checks it
     return None
 
 
@@ -230,6 +232,9 @@ def load_spec(path: Path | str) -> tuple[CampaignSpec, list[int], dict[str, Any]
             problem = _key_problem(base, key)
             if problem:
                 raise SpecError(f"{where}: [{table}] key {key!r} {problem}")
+            if table == "sweep" and not isinstance(value, list):
+                raise SpecError(f"{where}: [sweep] key {key!r} = {value!r} must be an array "
+                                "of values (the axis)")
             values = value if table == "sweep" else [value]
             if table == "sweep" and not values:
                 raise SpecError(f"{where}: [sweep] key {key!r} has no values")
