@@ -322,8 +322,37 @@ def cmd_bench_startup(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_campaign(args: argparse.Namespace) -> int:
+    from .campaign.bench import benchmark_campaign
+    r = benchmark_campaign()
+    if args.json:
+        print(json.dumps(r, indent=2))
+        return 0
+    print(f"paper scenario (T = 300 s, h = 0.01 s); load average {r['loadavg'][0]:.2f} on "
+          f"{r['cpus']} CPUs (after: {r['loadavg_after'][0]:.2f})")
+    for key, label in (("fmu_1_workers", "FMU engine, 1 worker "), ("fmu_2_workers",
+                       "FMU engine, 2 workers"), ("numpy_1_worker", "numpy engine, 1 worker")):
+        x = r[key]
+        print(f"  {label:24s} {x['runs_per_hour']:9.0f} runs/h (whole command, "
+              f"{x['runs']} runs in {x['command_s']:.1f} s), {x['runs_per_hour_tasks']:9.0f} "
+              f"runs/h on the cluster ({x['tasks_s']:.1f} s)")
+    print(f"  numpy engine loop: {r['numpy_1_worker']['us_per_step_per_seed']:.2f} us per "
+          "step and seed")
+    o = r["overhead"]
+    print(f"  overhead per task: {1e3 * o['per_task_s']:.0f} ms ({o['tasks']} one-step tasks "
+          f"on 2 workers in {o['tasks_s']:.2f} s, {o['inside_runs_s']:.2f} s inside the runs)")
+    d = r["design_cache"]
+    print(f"  design cache at N = {d['N']} ({d['states']} states, T = {d['T']} s): "
+          f"{d['per_seed_off_s']:.2f} s per seed without, {d['per_seed_on_s']:.2f} s with "
+          f"(saves {d['saved_per_seed_s']:.2f} s per seed; the point's design and prediction "
+          f"{d['design_on_s']:.2f} s once per task)")
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from .bench import benchmark
+    if args.campaign:
+        return cmd_bench_campaign(args)
     if args.fleet:
         return cmd_bench_fleet(args)
     if args.tools:
@@ -446,6 +475,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--startup", action="store_true",
                     help="'auv-cosim run' as a subprocess (start to exit, cold and warm FMU "
                          "cache) against the in-process monolithic loop")
+    sp.add_argument("--campaign", action="store_true",
+                    help="campaign throughput: runs per hour of the paper scenario on 1 and 2 "
+                         "local workers (FMU engine) and the numpy engine, overhead per task, "
+                         "design-cache gain at N = 50")
     sp.add_argument("--json", action="store_true", help="print the figures as JSON")
     sp.set_defaults(func=cmd_bench)
     return p

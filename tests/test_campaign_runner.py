@@ -149,7 +149,7 @@ seeds = [3, 4]
         assert all(r["status"] == "ok" for r in rows)
         assert "Gauss-Seidel" in rows[2]["engine_note"]
         summary = json.loads((tmp_path / "out" / "campaign.json").read_text())
-        assert summary["cluster"] == {"scheduler": address, "workers": 2}
+        assert summary["cluster"]["scheduler"] == address and summary["cluster"]["workers"] == 2
         assert len({r["pid"] for r in rows}) >= 1
         agg = _rows(tmp_path / "out", "aggregate.parquet")
         assert [a["engines"] for a in agg] == ["numpy", "fmu"]

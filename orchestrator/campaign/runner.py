@@ -357,9 +357,12 @@ def run_campaign(spec_path: Path | str, out: Path | str | None = None, *,
                     cluster_info["workers"] = n
                     run_tasks = split_tasks([t for t in todo if t.role == "run"], n,
                                             spec.seeds_per_task)
+                    t_tasks = time.perf_counter()
                     result = _run_on_cluster(client, run_tasks + [t for t in todo
                                                                   if t.role == "check"],
                                              store, bar, stop, keys)
+                    cluster_info["tasks"] = len(run_tasks) + len(checks)
+                    cluster_info["tasks_wall_s"] = time.perf_counter() - t_tasks
         finally:
             bar.close()
         store.write(keys)
