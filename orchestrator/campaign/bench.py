@@ -4,7 +4,7 @@
   local workers, and with the numpy engine; for each, the whole command (cluster start
   included) and the tasks alone;
 - the overhead per task: Dask scheduling, moving the task and its rows, writing the rows,
-  from a campaign of one-step runs, (tasks time x workers - time inside the runs) / tasks;
+  from a campaign of ten-step runs, (tasks time x workers - time inside the runs) / tasks;
 - the design cache at N = 50 (a generated grid fleet): per-seed wall time of an FMU run
   with the cache off (every FMU instance solves its design) and on (solved once per point).
 """
@@ -121,7 +121,7 @@ def benchmark_campaign(seeds: int = 8, numpy_seeds: int = 64, N: int = 50) -> di
         out["numpy_1_worker"]["us_per_step_per_seed"] = (
             1e6 * sum(x["loop_s"] for x in r["rows"]) / r["runs"] / 30000)
         tiny = 'base = "paper"\nseeds = "0-19"\nseeds_per_task = 1\n[sweep]\n' \
-               '"simulation.T" = [0.01]\n'
+               '"simulation.T" = [0.1]\n'
         r = _campaign(tmp, "overhead", tiny, workers=2)
         cl = r["summary"]["cluster"]
         inside = sum(x["wall_s"] + x["design_s"] + x.get("build_s", 0.0) for x in r["rows"])

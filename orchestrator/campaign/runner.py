@@ -392,7 +392,10 @@ def _report(out: Path, name: str, spec: Any, engine: str, store: ResultStore, ke
     write_text_atomically(out / "campaign.json", json.dumps(summary, indent=2))
     for a in agg:
         params = ", ".join(f"{k}={v}" for k, v in json.loads(a["params"]).items()) or "base"
-        if a["ok"]:
+        if a["ok"] and a.get("cost_rate_mean") is None:
+            log(f"  [{a['point']}] {params}: {a['ok']} ok, no cost rate (empty statistics "
+                "window: T too short)")
+        elif a["ok"]:
             pred = a["predicted_cost_rate"]
             log(f"  [{a['point']}] {params}: cost rate {a['cost_rate_mean']:.4g} "
                 f"[{a['cost_rate_ci_low']:.4g}, {a['cost_rate_ci_high']:.4g}] predicted "
