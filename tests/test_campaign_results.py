@@ -2,14 +2,10 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import pyarrow.parquet as pq
-import pytest
 
-from orchestrator.campaign.results import ResultStore, output_lock, write_table
-from orchestrator.campaign.spec import SpecError
+from orchestrator.campaign.results import ResultStore, write_table
 
 
 def _row(point, seed, key, **kw):
@@ -49,16 +45,3 @@ def test_parameter_columns_by_type(tmp_path):
     assert t.column("param:y").to_pylist() == ["[[1.0]]", "3.0"]
     assert t.column("param:z").to_pylist() == [True, False]
     assert not list(tmp_path.glob(".*"))                         # written atomically
-
-
-def test_the_lock_is_exclusive_across_processes(tmp_path):
-    with output_lock(tmp_path):
-        code = ("from pathlib import Path; from orchestrator.campaign.results import output_lock\n"
-                f"with output_lock(Path({str(tmp_path)!r})): print('got it')")
-        res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-        assert res.returncode != 0 and "in use by another campaign" in res.stderr
-        with pytest.raises(SpecError, match="in use"):     # even from this process
-            with output_lock(tmp_path):
-                pass
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert res.stdout.strip() == "got it"                       # released

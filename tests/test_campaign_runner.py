@@ -17,8 +17,8 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
-from orchestrator.campaign.results import output_lock
 from orchestrator.cli import main
+from orchestrator.outputs import output_folder
 
 #: columns that legitimately differ between two runs of the same campaign
 TIMING = {"wall_s", "loop_s", "design_s", "build_s", "host", "pid"}
@@ -220,12 +220,12 @@ def test_killed_campaign_resumes_to_the_uninterrupted_table(tmp_path, sig):
 def test_a_second_campaign_into_the_same_folder_is_refused(tmp_path):
     spec = _spec(tmp_path, 'base = "paper"\nseeds = "0"\n[sweep]\n"simulation.T" = [1.0]\n')
     out = tmp_path / "out"
-    with output_lock(out):                       # another campaign holds the folder
+    with output_folder(out, "campaign"):         # another campaign holds the folder
         proc = _campaign(spec, "--out", out)
         stdout, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 2
     lines = stderr.strip().splitlines()
-    assert len(lines) == 1 and "is in use by another campaign" in lines[0]
+    assert len(lines) == 1 and "is in use by auv-cosim campaign" in lines[0]
     assert f"pid {os.getpid()}" in lines[0]
     assert not (out / "results.parquet").exists()
 

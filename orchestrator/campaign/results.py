@@ -1,6 +1,7 @@
 """The output folder of a campaign: its lock, the finished rows, the Parquet tables.
 
-- ``.lock``: held (``fcntl.flock``) by the client while it runs; a second campaign into the
+- ``.auv-cosim.lock``: held by the client while it runs (``orchestrator.outputs.output_folder``,
+  the lock of every command's output folder); a second campaign (or any command) into the
   same folder is refused. The kernel releases it when the process ends, however it ends.
 - ``parts/*.json``: the rows of each finished task, written as they arrive, each file
   atomically (:mod:`orchestrator.atomic`). This is what survives a killed client; a rerun
@@ -12,55 +13,18 @@
 """
 from __future__ import annotations
 
-import fcntl
 import json
 import math
-import os
-import socket
 import uuid
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from ..atomic import temporary_sibling, write_text_atomically
-from .spec import SpecError
 
-__all__ = ["output_lock", "ResultStore", "write_table", "PARAM_PREFIX"]
+__all__ = ["ResultStore", "write_table", "PARAM_PREFIX"]
 
 #: swept parameters get one column each, named by their dotted key after this prefix
 PARAM_PREFIX = "param:"
-
-
-@contextmanager
-def output_lock(out: Path) -> Iterator[None]:
-    """Hold the lock on the output folder ``out`` (created) for the block.
-
-    Parameters
-    ----------
-    out : Path
-        The campaign's output folder.
-
-    Raises
-    ------
-    SpecError
-        If another process holds it (one line naming that process).
-    """
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / ".lock"
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "another process"
-            raise SpecError(f"{out} is in use by another campaign ({holder}); wait for it "
-                            "or choose another --out") from None
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()}\n".encode(), 0)
-        yield
-    finally:
-        os.close(fd)                      # releases the lock
 
 
 def _json_safe(value: Any) -> Any:

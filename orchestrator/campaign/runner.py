@@ -27,8 +27,9 @@ from typing import Any
 from ..analysis.summary import versions
 from ..atomic import write_text_atomically
 from ..interrupt import EXIT_STATUS, stop_on_signals
+from ..outputs import output_folder
 from .points import DesignPoint, resolve_points, run_key
-from .results import ResultStore, output_lock
+from .results import ResultStore
 from .spec import ENGINES, SpecError, load_spec
 from .tasks import Task, error_rows, run_task
 
@@ -310,7 +311,9 @@ def run_campaign(spec_path: Path | str, out: Path | str | None = None, *,
     Raises
     ------
     SpecError
-        Bad spec, a folder in use, an unreachable scheduler.
+        Bad spec, an unreachable scheduler.
+    OutputFolderError
+        The output folder is in use or cannot be written.
     """
     t_start = time.perf_counter()
     spec, seeds, base, base_where = load_spec(spec_path)
@@ -322,7 +325,7 @@ def run_campaign(spec_path: Path | str, out: Path | str | None = None, *,
     engine = engine or spec.engine
     name = spec.name or Path(spec_path).stem
     out = Path(out or f"out/campaign_{name}")
-    with output_lock(out), stop_on_signals() as stop:
+    with output_folder(out, "campaign"), stop_on_signals() as stop:
         points = resolve_points(spec, base, base_where)
         ver = versions()
         tasks = plan_tasks(points, seeds, engine, ver)
