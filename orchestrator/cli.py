@@ -185,7 +185,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     check_memory(sc, len(method_list(sc, modes, trackings)))
     with output_folder(args.out or f"out/{file_stem(sc.name)}_compare", "compare") as out:
         summary = simulate(sc, modes, args.seeds, out, progress=not args.quiet,
-                           log=(lambda s: None) if args.quiet else print, trackings=trackings)
+                           log=(lambda s: None) if args.quiet else print, trackings=trackings,
+                           workers=args.workers)
     return _print_summary(summary, out)
 
 
@@ -430,6 +431,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="seeds: '0-9' (default), '1,4,7' or one seed")
     sp.add_argument("--out", help="output folder (default: out/<scenario>_compare)")
     sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
+    sp.add_argument("--workers", type=_count,
+                    help="worker processes for the seeds after each method's first (default: "
+                         "one per core; 1: all in this process); the results do not depend "
+                         "on it")
     sp.set_defaults(func=cmd_compare)
 
     sp = sub.add_parser("campaign", help="Monte Carlo runs and parameter sweeps from a spec "
