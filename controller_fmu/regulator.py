@@ -27,6 +27,7 @@ import numpy as np
 from scipy.linalg import lu_factor, lu_solve, schur
 
 from plant_model.linalg_checks import ModelError
+from plant_model.memo import DesignCache
 from plant_model.system import LinearSystem
 
 from .design import TrackingDesign, lq_tracking_design
@@ -34,6 +35,9 @@ from .design import TrackingDesign, lq_tracking_design
 __all__ = ["TRACKING_MODES", "TrackingLaw", "solve_regulator_equations", "tracking_law"]
 
 TRACKING_MODES = ("lq", "regulator")
+
+#: tracking laws of this process, by the numbers they come from (plant_model.memo)
+_LAW_CACHE = DesignCache("tracking_law")
 
 
 def _fmt(z: complex) -> str:
@@ -160,6 +164,8 @@ def tracking_law(system: LinearSystem, mode: str = "lq",
     """The gain of ``mode`` ('lq' or 'regulator') on the plant state [x; w; z].
 
     lq: Ks = [Kx, Kw, Kz]; regulator: Ks = [Kx, -(Gamma + Kx Pi)] (module docstring).
+    Without ``design``, solved once per process for identical numbers
+    (:mod:`plant_model.memo`; the result's arrays are read-only).
 
     Parameters
     ----------
@@ -184,7 +190,14 @@ def tracking_law(system: LinearSystem, mode: str = "lq",
     if mode not in TRACKING_MODES:
         raise ModelError(f"unknown tracking mode {mode!r}; expected one of "
                          f"{', '.join(TRACKING_MODES)}")
-    design = design if design is not None else lq_tracking_design(system)
+    if design is not None:
+        return _tracking_law(system, mode, design)
+    key = (mode,) + tuple(getattr(system, k) for k in
+                          ("A", "B1", "B2", "Bz", "C", "F", "H", "K", "Q", "R"))
+    return _LAW_CACHE.get(key, lambda: _tracking_law(system, mode, lq_tracking_design(system)))
+
+
+def _tracking_law(system: LinearSystem, mode: str, design: TrackingDesign) -> TrackingLaw:
     if mode == "lq":
         return TrackingLaw(mode, design.gain_on_state(), design)
     n, r, l_ = system.n, system.r, system.l

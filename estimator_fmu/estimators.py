@@ -29,12 +29,16 @@ from scipy.linalg import LinAlgError, solve_discrete_are
 
 from plant_model.discretization import DiscreteModel
 from plant_model.linalg_checks import ModelError, unobservable_modes
+from plant_model.memo import DesignCache
 from plant_model.system import LinearSystem
 
 __all__ = ["ESTIMATOR_MODES", "LinearEstimator", "SteadyKalman", "steady_kalman",
            "make_estimator"]
 
 ESTIMATOR_MODES = ("kalman", "classical", "ideal")
+
+#: filter gains of this process, by the numbers they come from (plant_model.memo)
+_KALMAN_CACHE = DesignCache("steady_kalman")
 
 
 @dataclass(frozen=True)
@@ -52,7 +56,8 @@ def steady_kalman(name: str, Ad: np.ndarray, Cm: np.ndarray, Qd: np.ndarray,
 
         P = Ad P Ad' - Ad P Cm'(Cm P Cm' + Rd)^-1 Cm P Ad' + Qd,  L = P Cm'(Cm P Cm' + Rd)^-1
 
-    and the filtered covariance P_filt = (I - L Cm) P.
+    and the filtered covariance P_filt = (I - L Cm) P. Solved once per process for
+    identical numbers (:mod:`plant_model.memo`; the result's arrays are read-only).
 
     Parameters
     ----------
@@ -77,6 +82,11 @@ def steady_kalman(name: str, Ad: np.ndarray, Cm: np.ndarray, Qd: np.ndarray,
     ModelError
         If (Ad, Cm) is not detectable, Rd is singular or the DARE has no solution.
     """
+    return _KALMAN_CACHE.get((Ad, Cm, Qd, Rd), lambda: _steady_kalman(name, Ad, Cm, Qd, Rd))
+
+
+def _steady_kalman(name: str, Ad: np.ndarray, Cm: np.ndarray, Qd: np.ndarray,
+                   Rd: np.ndarray) -> SteadyKalman:
     bad = unobservable_modes(Ad, Cm, continuous=False)
     if bad:
         modes = ", ".join(f"{z:.6g}" for z in bad)

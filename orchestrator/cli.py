@@ -71,6 +71,16 @@ def _positive(text: str) -> float:
     return v
 
 
+def _count(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} must be at least 1")
+    return v
+
+
 def _scenario(args: argparse.Namespace) -> Scenario:
     sc = load_scenario(args.scenario)
     return sc.with_run(T=getattr(args, "T", None), h=getattr(args, "h", None),
@@ -194,7 +204,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     check_memory(sc, len(method_list(sc, modes, trackings)))
     with output_folder(args.out or f"out/{file_stem(sc.name)}_compare", "compare") as out:
         summary = simulate(sc, modes, args.seeds, out, progress=not args.quiet,
-                           log=(lambda s: None) if args.quiet else print, trackings=trackings)
+                           log=(lambda s: None) if args.quiet else print, trackings=trackings,
+                           workers=args.workers)
     return _print_summary(summary, out)
 
 
@@ -244,6 +255,12 @@ def cmd_validate(args: argparse.Namespace) -> int:
     if tmp:
         tmp.cleanup()
     return 1 if bad else 0
+
+
+def cmd_campaign(args: argparse.Namespace) -> int:
+    from .campaign.runner import run_campaign
+    return run_campaign(args.spec, args.out, scheduler=args.scheduler, workers=args.workers,
+                        engine=args.engine)
 
 
 def _fleet_sizes(text: str) -> list[int]:
@@ -325,8 +342,37 @@ def cmd_bench_startup(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_campaign(args: argparse.Namespace) -> int:
+    from .campaign.bench import benchmark_campaign
+    r = benchmark_campaign()
+    if args.json:
+        print(json.dumps(r, indent=2))
+        return 0
+    print(f"paper scenario (T = 300 s, h = 0.01 s); load average {r['loadavg'][0]:.2f} on "
+          f"{r['cpus']} CPUs (after: {r['loadavg_after'][0]:.2f})")
+    for key, label in (("fmu_1_workers", "FMU engine, 1 worker "), ("fmu_2_workers",
+                       "FMU engine, 2 workers"), ("numpy_1_worker", "numpy engine, 1 worker")):
+        x = r[key]
+        print(f"  {label:24s} {x['runs_per_hour']:9.0f} runs/h (whole command, "
+              f"{x['runs']} runs in {x['command_s']:.1f} s), {x['runs_per_hour_tasks']:9.0f} "
+              f"runs/h on the cluster ({x['tasks_s']:.1f} s)")
+    print(f"  numpy engine loop: {r['numpy_1_worker']['us_per_step_per_seed']:.2f} us per "
+          "step and seed")
+    o = r["overhead"]
+    print(f"  overhead per task: {1e3 * o['per_task_s']:.0f} ms ({o['tasks']} one-step tasks "
+          f"on 2 workers in {o['tasks_s']:.2f} s, {o['inside_runs_s']:.2f} s inside the runs)")
+    d = r["design_cache"]
+    print(f"  design cache at N = {d['N']} ({d['states']} states, T = {d['T']} s): "
+          f"{d['per_seed_off_s']:.2f} s per seed without, {d['per_seed_on_s']:.2f} s with "
+          f"(saves {d['saved_per_seed_s']:.2f} s per seed; the point's design and prediction "
+          f"{d['design_on_s']:.2f} s once per task)")
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from .bench import benchmark
+    if args.campaign:
+        return cmd_bench_campaign(args)
     if args.fleet:
         return cmd_bench_fleet(args)
     if args.tools:
@@ -404,7 +450,24 @@ def build_parser() -> argparse.ArgumentParser:
                     help="seeds: '0-9' (default), '1,4,7' or one seed")
     sp.add_argument("--out", help="output folder (default: out/<scenario>_compare)")
     sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
+    sp.add_argument("--workers", type=_count,
+                    help="worker processes for the seeds after each method's first (default: "
+                         "one per core; 1: all in this process); the results do not depend "
+                         "on it")
     sp.set_defaults(func=cmd_compare)
+
+    sp = sub.add_parser("campaign", help="Monte Carlo runs and parameter sweeps from a spec "
+                                         "file, on local worker processes or a Dask cluster")
+    sp.add_argument("spec", help="campaign spec (.toml): base scenario, seeds, [sweep] axes")
+    sp.add_argument("--scheduler", help="address of a running Dask scheduler "
+                                        "(tcp://host:port); default: a local cluster")
+    sp.add_argument("--workers", type=_count, help="worker processes of the local cluster "
+                                                   "(default: one per core)")
+    sp.add_argument("--out", help="output folder (default: out/campaign_<name>)")
+    sp.add_argument("--engine", choices=("fmu", "numpy"),
+                    help="fmu: the three FMUs; numpy: the closed loop vectorised over seeds "
+                         "where it applies (default: the spec's, else fmu)")
+    sp.set_defaults(func=cmd_campaign)
 
     sp = sub.add_parser("export", help="the FMUs and a system file for other tools: an OSP "
                                        "system (libcosim) or an SSP archive (fmpy, SSP tools)")
@@ -436,6 +499,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--startup", action="store_true",
                     help="'auv-cosim run' as a subprocess (start to exit, cold and warm FMU "
                          "cache) against the in-process monolithic loop")
+    sp.add_argument("--campaign", action="store_true",
+                    help="campaign throughput: runs per hour of the paper scenario on 1 and 2 "
+                         "local workers (FMU engine) and the numpy engine, overhead per task, "
+                         "design-cache gain at N = 50")
     sp.add_argument("--json", action="store_true", help="print the figures as JSON")
     sp.set_defaults(func=cmd_bench)
     return p

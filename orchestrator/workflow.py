@@ -293,7 +293,7 @@ def check_memory(sc: Scenario, n_methods: int, available: int | None = None) -> 
 def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], out_dir: Path | str,
              *, progress: bool = True, log: Callable[[str], None] = print,
              trackings: Sequence[str] | None = None,
-             record_hz: float | None = None) -> dict[str, Any]:
+             record_hz: float | None = None, workers: int | None = None) -> dict[str, Any]:
     """Co-simulate each method (estimator ``modes`` x tracking laws ``trackings``, each
     default the scenario's) on each seed; write ``<out>/<scenario>.rrd`` and summary.json.
 
@@ -321,6 +321,9 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
         Tracking laws (None: the scenario's).
     record_hz : float, optional
         Recording rate of fleets, Hz (:func:`record_stride`).
+    workers : int, optional
+        Worker processes for the seeds after each method's first (default one per core;
+        1: all in this process; :mod:`orchestrator.parallel`); results do not depend on it.
 
     Returns
     -------
@@ -335,15 +338,18 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     out.mkdir(parents=True, exist_ok=True)
     # the .rrd writer imports Rerun in a child while we simulate; SIGINT / SIGTERM stop
     # the runs between steps and keep what was simulated
-    with BackgroundWriter() as writer, stop_on_signals() as stop:
+    from .parallel import seed_pool
+    runs = len(method_list(sc, modes, trackings))
+    with BackgroundWriter() as writer, stop_on_signals() as stop, \
+            seed_pool(sc.steps, len(seeds), runs, workers) as pool:
         return _simulate(sc, modes, seeds, out, writer, t0, progress=progress, log=log,
-                         trackings=trackings, record_hz=record_hz, stop=stop)
+                         trackings=trackings, record_hz=record_hz, stop=stop, pool=pool)
 
 
 def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], out: Path,
               writer: Any, t0: float, *, progress: bool, log: Callable[[str], None],
               trackings: Sequence[str] | None, record_hz: float | None,
-              stop: StopFlag) -> dict[str, Any]:
+              stop: StopFlag, pool: Any = None) -> dict[str, Any]:
     from controller_fmu.regulator import tracking_law
 
     cfg = scenario_config(sc)
@@ -388,9 +394,21 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         if note is not None:
             notes.add(note)
         per_seed = []
+        # the seeds after the first on local worker processes (orchestrator.parallel)
+        pooled = {s: pool.submit(fmus, cfg, mode, s, sc.steps, tracking, k0, sc.system.Q,
+                                 sc.system.R) for s in seeds[1:]} if pool else {}
         for seed in seeds:
             if stop:
                 break
+            if seed in pooled:
+                stats, loop_s = pooled[seed].result()
+                if bar is not None:
+                    bar.update(sc.steps)
+                loop_us.append(loop_s / sc.steps * 1e6)
+                per_seed.append(stats)
+                log(f"{name:>9s} seed {seed}: cost rate {stats['cost_rate']:.4g} (worker "
+                    f"process), {loop_s:.2f} s")
+                continue
             res = run_cosimulation(fmus, cfg, mode=mode, seed=seed, steps=sc.steps,
                                    progress=bar, tracking=tracking, stop=stop)
             if name not in rrd_runs and res.steps:

@@ -18,6 +18,7 @@ import numpy as np
 from scipy.linalg import block_diag, expm
 
 from .linalg_checks import ModelError
+from .memo import DesignCache
 from .system import LinearSystem
 
 __all__ = ["DiscreteModel", "zoh", "van_loan", "discretize"]
@@ -81,6 +82,10 @@ def van_loan(Ac: np.ndarray, Wc: np.ndarray, h: float) -> np.ndarray:
     return 0.5 * (Qd + Qd.T)
 
 
+#: sampled models of this process, by their numbers (plant_model.memo)
+_DISCRETE_CACHE = DesignCache("discretize")
+
+
 @dataclass(frozen=True)
 class DiscreteModel:
     """The sampled model at step h; s = [x; w; z] (sizes n, r, l)."""
@@ -140,6 +145,9 @@ def check_step(Ac: np.ndarray, h: float) -> None:
 def discretize(system: LinearSystem, h: float) -> DiscreteModel:
     """Sample ``system`` at step ``h`` (seconds) as described in the module docstring.
 
+    Solved once per process for identical numbers (:mod:`plant_model.memo`): the result's
+    arrays are read-only.
+
     Parameters
     ----------
     system : LinearSystem
@@ -164,6 +172,14 @@ def discretize(system: LinearSystem, h: float) -> DiscreteModel:
         raise ModelError(f"step h = {h} s must be a positive finite number")
     Ac, Bc, Wc = system.augmented()
     check_step(Ac, h)
+    key = (h, Ac, Bc, Wc, system.V_y, system.V_ybar, system.noise_convention,
+           system.measurement_matrix(), system.error_matrix(), system.n, system.r, system.l,
+           system.p)
+    return _DISCRETE_CACHE.get(key, lambda: _discretize(system, h, Ac, Bc, Wc))
+
+
+def _discretize(system: LinearSystem, h: float, Ac: np.ndarray, Bc: np.ndarray,
+                Wc: np.ndarray) -> DiscreteModel:
     Ad, Bd = zoh(Ac, Bc, h)
     V = block_diag(system.V_y, system.V_ybar)
     if system.noise_convention == "intensity":

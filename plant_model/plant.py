@@ -107,6 +107,33 @@ class NoiseStream:
         self._i += 1
         return row
 
+    def next_rows(self, count: int) -> np.ndarray:
+        """The next ``count`` rows at once: the same values as ``count`` calls of
+        :meth:`next_row` (a batched engine draws its noise here).
+
+        Parameters
+        ----------
+        count : int
+            Number of rows.
+
+        Returns
+        -------
+        np.ndarray
+            A new array of shape (count, ns + 2 p).
+        """
+        out = np.empty((int(count), self._dim))
+        i = 0
+        while i < out.shape[0]:
+            if self._i >= self._buf.shape[0]:
+                self._buf = _colour(self._rng.standard_normal((self._block, self._dim)),
+                                    self._factors)
+                self._i = 0
+            take = min(out.shape[0] - i, self._buf.shape[0] - self._i)
+            out[i:i + take] = self._buf[self._i:self._i + take]
+            self._i += take
+            i += take
+        return out
+
     def get_state(self) -> dict:
         """Everything that evolves, as plain values (copies).
 

@@ -1,0 +1,206 @@
+"""Design points: the grid (or list) of a spec, each resolved to a validated scenario, and
+the key of every run.
+
+A point is a mapping of dotted keys to values (:mod:`.spec`), applied to a copy of the base
+scenario's mapping; ``vehicles.count`` of a fleet takes the generator's offsets, positions,
+edges and pinning for that many vehicles (:func:`orchestrator.scenario.generator.grid_fleet`),
+so the formation and the graph follow the count. A point that does not make a valid scenario
+is kept, with its error, and becomes rows with that message.
+
+Run key = SHA-256 of the canonical JSON of (the resolved FMU configuration without the
+seed, the coupling, the seed, the engine, the package versions): the same run in any later
+campaign has the same key, and a changed scenario, engine or version a new one.
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from plant_model.linalg_checks import ModelError
+
+from ..scenario import Scenario, ScenarioError, scenario_from_dict
+
+if TYPE_CHECKING:
+    from .spec import CampaignSpec
+
+__all__ = ["DesignPoint", "expand_points", "resolve_point", "resolve_points", "run_key",
+           "canonical_json", "param_text"]
+
+
+@dataclass(frozen=True)
+class DesignPoint:
+    """One point of a campaign: its index, its values, what it runs (or why it cannot)."""
+
+    index: int
+    params: dict[str, Any]          #: dotted key -> value, in the spec's order
+    scenario: Scenario | None       #: None when the point does not make a valid scenario
+    coupling: str                   #: the master's coupling (``cosim.coupling``)
+    error: str | None               #: why the point cannot run
+    resolved: str                   #: canonical JSON of what the point runs (run keys)
+    sections: frozenset[str] = frozenset()   #: top-level keys of its scenario mapping
+
+
+def canonical_json(value: Any) -> str:
+    """JSON with sorted keys and no spaces (floats by repr: they round-trip exactly).
+
+    Parameters
+    ----------
+    value : Any
+        JSON-ready data.
+
+    Returns
+    -------
+    str
+    """
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), allow_nan=True)
+
+
+def param_text(value: Any) -> str:
+    """A swept value as short text (strings bare, others as JSON).
+
+    Parameters
+    ----------
+    value : Any
+
+    Returns
+    -------
+    str
+    """
+    return value if isinstance(value, str) else canonical_json(value)
+
+
+def expand_points(spec: CampaignSpec) -> list[dict[str, Any]]:
+    """The points of a spec: every ``points`` entry (one empty point if none) crossed with
+    the full grid of ``[sweep]`` (the last axis varies fastest).
+
+    Parameters
+    ----------
+    spec : CampaignSpec
+
+    Returns
+    -------
+    list[dict[str, Any]]
+        Dotted key -> value for each point.
+    """
+    axes = list(spec.sweep.items())
+    grid = [dict(zip([k for k, _ in axes], combo))
+            for combo in itertools.product(*[v for _, v in axes])]
+    listed = spec.points or [{}]
+    return [{**p, **g} for p in listed for g in grid]
+
+
+def _set(data: dict[str, Any], key: str, value: Any) -> None:
+    """data[a][b]... = value for key 'a.b...' (creating missing tables)."""
+    *tables, last = key.split(".")
+    node = data
+    for t in tables:
+        node = node.setdefault(t, {})
+        if not isinstance(node, dict):
+            raise ScenarioError(f"{key}: {t} is not a table in the base scenario")
+    node[last] = copy.deepcopy(value)
+
+
+def _regenerate_fleet(data: dict[str, Any], count: Any) -> None:
+    """Offsets, positions, edges and pinning of ``count`` vehicles from the grid generator."""
+    from ..scenario.generator import grid_fleet
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        return                                   # the schema reports the bad count
+    gen = grid_fleet(count)
+    vehicles = data.setdefault("vehicles", {})
+    for k in ("offsets", "positions"):
+        vehicles[k] = gen["vehicles"][k]
+    vehicles.pop("x0", None)
+    graph = data.setdefault("graph", {})
+    for k in ("edges", "pinning"):
+        graph[k] = gen["graph"][k]
+
+
+def resolve_point(index: int, params: dict[str, Any], base: dict[str, Any],
+                  base_where: str) -> DesignPoint:
+    """Apply ``params`` to a copy of ``base`` and validate it.
+
+    Parameters
+    ----------
+    index : int
+        The point's number.
+    params : dict[str, Any]
+        Dotted key -> value.
+    base : dict[str, Any]
+        The base scenario mapping (not changed).
+    base_where : str
+        Names the base scenario.
+
+    Returns
+    -------
+    DesignPoint
+        With the scenario, or with the one-line error when it is not valid.
+    """
+    data = copy.deepcopy(base)
+    coupling = "gauss-seidel"
+    for key, value in params.items():
+        if key == "cosim.coupling":
+            coupling = value
+        elif key == "vehicles.count" and "leader" in data:
+            _set(data, key, value)
+            _regenerate_fleet(data, value)
+        else:
+            _set(data, key, value)
+    where = f"{base_where} with " + ", ".join(f"{k} = {param_text(v)}"
+                                              for k, v in params.items()) if params else base_where
+    try:
+        sc = scenario_from_dict(data, where)
+    except (ScenarioError, ModelError) as exc:
+        resolved = canonical_json({"base": data, "coupling": coupling})
+        return DesignPoint(index, params, None, coupling, str(exc), resolved, frozenset(data))
+    from ..workflow import scenario_config
+    resolved = canonical_json({"config": scenario_config(sc.with_run(seed=0)),
+                               "coupling": coupling})
+    return DesignPoint(index, params, sc, coupling, None, resolved, frozenset(data))
+
+
+def resolve_points(spec: CampaignSpec, base: dict[str, Any],
+                   base_where: str) -> list[DesignPoint]:
+    """Every point of ``spec`` resolved (:func:`expand_points`, :func:`resolve_point`).
+
+    Parameters
+    ----------
+    spec : CampaignSpec
+    base : dict[str, Any]
+        The base scenario mapping.
+    base_where : str
+        Names the base scenario.
+
+    Returns
+    -------
+    list[DesignPoint]
+    """
+    return [resolve_point(i, p, base, base_where) for i, p in enumerate(expand_points(spec))]
+
+
+def run_key(point: DesignPoint, seed: int, engine: str, versions: dict[str, str],
+            role: str = "run") -> str:
+    """The key of one run (module docstring); a ``check`` run has its own key.
+
+    Parameters
+    ----------
+    point : DesignPoint
+    seed : int
+    engine : str
+        'fmu' or 'numpy': the engine that runs it.
+    versions : dict[str, str]
+        Package versions (:func:`orchestrator.analysis.summary.versions`).
+    role : str, optional
+        'run' (a row of results.parquet) or 'check' (an FMU re-run of a numpy run).
+
+    Returns
+    -------
+    str
+        32 hex digits.
+    """
+    text = canonical_json({"point": point.resolved, "seed": int(seed), "engine": engine,
+                           "versions": versions, "role": role})
+    return hashlib.sha256(text.encode()).hexdigest()[:32]
