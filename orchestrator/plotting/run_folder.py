@@ -133,18 +133,36 @@ def _read_scalars(rrd: Path) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarr
             return read_rrd_scalars(rrd)
     except (RuntimeError, ValueError, OSError) as exc:
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        first = first.replace(f"Failed to read RRD file at {rrd}: ", "")
         raise RunFolderError(f"{rrd} cannot be read as a recording: {first}") from None
 
 
 def _methods(summary: dict[str, Any], scalars: dict[str, Any], rrd: Path) -> tuple[
         tuple[str, ...], bool]:
-    """Recorded methods (summary order) and whether the layout is the fleet one."""
-    for probe, fleet in ((_PAPER_PROBE, False), (_FLEET_PROBE, True)):
-        found = tuple(m for m in summary["methods"] if probe.format(m=m) in scalars)
-        if found:
-            return found, fleet
-    raise RunFolderError(f"{rrd} holds no traces of the summary's methods "
-                         f"({', '.join(summary['methods']) or 'none'}): not this run's recording?")
+    """Recorded methods (summary order) and whether the layout is the fleet one; checks that
+    the recording is this run's (every method that ran is in it, with the summary's number
+    of samples)."""
+    layouts = [(probe, fleet, tuple(m for m in summary["methods"] if probe.format(m=m) in scalars))
+               for probe, fleet in ((_PAPER_PROBE, False), (_FLEET_PROBE, True))]
+    probe, fleet, found = next((lay for lay in layouts if lay[2]), layouts[0])
+    if not found:
+        raise RunFolderError(f"{rrd} holds no traces of the summary's methods "
+                             f"({', '.join(summary['methods']) or 'none'}): not this run's "
+                             "recording?")
+    ran = [m for m, v in summary["methods"].items()
+           if isinstance(v, dict) and v.get("seeds_completed", 1) and "skipped" not in v]
+    missing = [m for m in ran if m not in found]
+    if missing:
+        raise RunFolderError(f"{rrd} holds no traces of {', '.join(missing)}, which "
+                             "summary.json says ran: not this run's recording?")
+    steps, stride = summary["rrd"].get("recorded_steps"), summary["rrd"].get(
+        "recorded_every_steps", 1)
+    rows = len(scalars[probe.format(m=found[0])][0])
+    if isinstance(steps, int) and isinstance(stride, int) and stride > 0 \
+            and rows != -(-steps // stride):
+        raise RunFolderError(f"{rrd} holds {rows} samples per series but summary.json says "
+                             f"{-(-steps // stride)}: not this run's recording?")
+    return found, fleet
 
 
 def _fleet_units(summary: dict[str, Any], scalars: dict[str, Any], rrd: Path,

@@ -2,10 +2,12 @@
 deterministic, atomic writing."""
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
 from orchestrator.atomic import temporary_sibling
+from orchestrator.outputs import OutputFolderError
 
 from .figure import PlotFigure, deterministic_style
 from .run_folder import RunData, load_run
@@ -86,12 +88,33 @@ def save_figure(pf: PlotFigure, out: Path, formats: Sequence[str]) -> list[Path]
         The files written.
     """
     written = []
+    umask = os.umask(0o022)
+    os.umask(umask)
     for fmt in formats:
         path = out / f"{pf.name}.{fmt}"
-        with temporary_sibling(path) as tmp, open(tmp, "wb") as fh:
-            pf.figure.savefig(fh, format=fmt, metadata=_METADATA[fmt])
+        with temporary_sibling(path) as tmp:
+            with open(tmp, "wb") as fh:
+                pf.figure.savefig(fh, format=fmt, metadata=_METADATA[fmt])
+            os.chmod(tmp, 0o666 & ~umask)    # as open() would (the temporary file is 0600)
         written.append(path)
     return written
+
+
+def _output_folder(out: Path) -> Path:
+    """Create the figures folder (with its parents) and check it can be written."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise OutputFolderError(f"output folder {out} is a file") from None
+    except NotADirectoryError:
+        raise OutputFolderError(f"output folder {out} is under a file") from None
+    except PermissionError:
+        raise OutputFolderError(f"cannot create the output folder {out}: permission "
+                                "denied") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise OutputFolderError(f"cannot write into the output folder {out}: permission "
+                                "denied (choose another --out)")
+    return out
 
 
 def plot_run(folder: str | Path, out: str | Path | None = None,
@@ -118,12 +141,14 @@ def plot_run(folder: str | Path, out: str | Path | None = None,
         If the folder cannot be plotted (see :func:`load_run`).
     ValueError
         If a format is unknown.
+    OutputFolderError
+        If the output folder is a file, under a file or cannot be written.
     """
     unknown = [f for f in formats if f not in FORMATS]
     if unknown or not formats:
         raise ValueError(f"formats {list(formats)!r}: expected some of {', '.join(FORMATS)}")
     run = load_run(folder)
-    dest = Path(out) if out is not None else Path(folder) / "figures"
+    dest = _output_folder(Path(out) if out is not None else Path(folder) / "figures")
     written: list[Path] = []
     with deterministic_style():
         for pf in build_figures(run):
