@@ -244,3 +244,13 @@ def test_bad_input_is_one_line_and_exit_status_2(runs, tmp_path, capsys):
     _one_line_error(capsys, ["plot", str(good), "--out", str(bad / "file" / "figs")],
                     "is under a file")
     assert not (bad / "figures").exists()
+
+
+def test_the_state_limits_ignore_what_a_diverged_run_leaves():
+    from orchestrator.plotting.paper import _limits
+    true = np.array([0.0, 1.0, np.inf, np.nan])
+    ylim, clipped = _limits([true], {"near": np.array([0.2, 1.1]), "far": np.array([-50.0, 50.0]),
+                                     "gone": np.array([np.nan])})
+    assert ylim[0] < 0.0 and 1.1 < ylim[1] < 1.5
+    assert clipped == {"far": (-50.0, 50.0)}
+    assert np.all(np.isfinite(_limits([np.array([np.nan])], {})[0]))

@@ -106,8 +106,7 @@ def _error_norm_figure(run: RunData, n: int) -> PlotFigure:
     fig, axes = new_figure(9.0 + (1.0 if n > 10 else 0.0), 0.8 + 3.0 * k, k, 1, sharex=True,
                            sharey=True)
     pf = PlotFigure("fleet-errors", fig)
-    m0 = run.methods[0]
-    names = [n_.removeprefix(f"{m0} ") for n_ in _line_names(run, f"vehicles/1/error/{m0}")]
+    names = list(run.error_names)
     units = {run.units.get(c) for c in names} if names else {None}
     unit = units.pop() if len(units) == 1 else None
     for ax, m in zip(axes[:, 0], run.methods):
@@ -128,14 +127,6 @@ def _error_norm_figure(run: RunData, n: int) -> PlotFigure:
     fig.suptitle(_title(run, f"Tracking-error norm of each vehicle, $\\|e_i\\|$ over {comps}"),
                  fontsize=10)
     return pf
-
-
-def _line_names(run: RunData, entity: str) -> tuple[str, ...]:
-    from orchestrator.recording import read_rrd_series_lines
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        lines = read_rrd_series_lines(run.rrd)
-    return lines.get(entity, ((), ()))[0]
 
 
 def fleet_figures(run: RunData) -> list[PlotFigure]:

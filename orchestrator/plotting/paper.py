@@ -45,21 +45,34 @@ def _title(run: RunData, text: str, note: str = "") -> str:
     return head + (f"\n{note}" if note else "")
 
 
+def _range(v: np.ndarray) -> tuple[float, float] | None:
+    """(min, max) of the finite values (a diverged run holds inf / nan), None if none."""
+    finite = v[np.isfinite(v)]
+    return (float(finite.min()), float(finite.max())) if finite.size else None
+
+
+def _spread(v: np.ndarray) -> float:
+    """Standard deviation of a series; inf if it holds inf / nan (a diverged run)."""
+    return float(np.std(v)) if np.all(np.isfinite(v)) else float("inf")
+
+
 def _limits(trues: list[np.ndarray], estimates: dict[str, np.ndarray]
             ) -> tuple[tuple[float, float], dict[str, tuple[float, float]]]:
     """y-limits covering the true signals and the estimates near them; the estimates left
-    out, with their (min, max)."""
-    lo = min(float(np.min(v)) for v in trues)
-    hi = max(float(np.max(v)) for v in trues)
+    out, with their (min, max) (finite values only)."""
+    ranges = [r for r in map(_range, trues) if r is not None] or [(-1.0, 1.0)]
+    lo, hi = min(r[0] for r in ranges), max(r[1] for r in ranges)
     span = hi - lo if hi > lo else max(abs(hi), 1.0)
     near = (lo - _NEAR * span, hi + _NEAR * span)
     far: dict[str, tuple[float, float]] = {}
     for key, v in estimates.items():
-        vmin, vmax = float(np.min(v)), float(np.max(v))
-        if vmin >= near[0] and vmax <= near[1]:
-            lo, hi = min(lo, vmin), max(hi, vmax)
+        r = _range(v)
+        if r is None:
+            continue
+        if r[0] >= near[0] and r[1] <= near[1]:
+            lo, hi = min(lo, r[0]), max(hi, r[1])
         else:
-            far[key] = (vmin, vmax)
+            far[key] = r
     pad = _MARGIN * (hi - lo if hi > lo else max(abs(hi), 1.0))
     ylim = (lo - pad, hi + pad)
     clipped = {k: r for k, r in far.items() if r[0] < ylim[0] or r[1] > ylim[1]}
@@ -73,7 +86,7 @@ def _simple_figure(run: RunData, root: str, i: int, title: str, symbol: str) -> 
     fig, axes = new_figure(_WIDTH, _HEIGHT)
     ax = axes[0, 0]
     pf = PlotFigure(f"{root}-{i}", fig)
-    spread = {m: float(np.std(run.scalars[f"{root}/{i}/{m}"][2])) for m in run.methods}
+    spread = {m: _spread(run.scalars[f"{root}/{i}/{m}"][2]) for m in run.methods}
     back_to_front = sorted(run.methods, key=lambda m: -spread[m])
     for m in run.methods:           # the widest series at the back: the others stay visible
         entity = f"{root}/{i}/{m}"

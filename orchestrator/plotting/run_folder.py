@@ -52,6 +52,9 @@ class RunData:
         Units of the fleet vehicle model's components by name (states, inputs, outputs),
         when the scenario could be loaded and its names match the recording; else empty
         (axes then say "model units").
+    error_names : tuple[str, ...]
+        Fleet: the component names of a vehicle's error (e.g. ``n``, ``e``, ``d``), from
+        the recording's series names; () for the paper layout.
     """
 
     folder: Path
@@ -61,6 +64,7 @@ class RunData:
     scalars: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
     fleet: bool
     units: dict[str, str]
+    error_names: tuple[str, ...] = ()
 
     @property
     def scenario(self) -> str:
@@ -165,32 +169,39 @@ def _methods(summary: dict[str, Any], scalars: dict[str, Any], rrd: Path) -> tup
     return found, fleet
 
 
-def _fleet_units(summary: dict[str, Any], scalars: dict[str, Any], rrd: Path,
-                 method: str) -> dict[str, str]:
+def _error_names(rrd: Path, method: str) -> tuple[str, ...]:
+    """Component names of a fleet vehicle's error (``n``, ``e``, ``d``), from the series
+    names of the recording; () if it has none."""
+    from orchestrator.recording import read_rrd_series_lines
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            lines = read_rrd_series_lines(rrd)
+    except (RuntimeError, ValueError, OSError):
+        return ()
+    recorded = lines.get(f"vehicles/1/error/{method}", ((), ()))[0]
+    return tuple(n.removeprefix(f"{method} ") for n in recorded)
+
+
+def _fleet_units(summary: dict[str, Any], error_names: tuple[str, ...]) -> dict[str, str]:
     """Units of the vehicle model by component name, from the scenario the summary names
-    (a built-in name or a .toml file), if it still loads and its names match the recording;
-    else {}."""
+    (a built-in name or a .toml file), if it still loads and its output names are the
+    recorded error names; else {}."""
     source = str(summary.get("source", ""))
     m = _BUILTIN.match(source)
     spec = m.group("name") if m else source
     if not spec or (not m and not Path(spec).is_file()):
         return {}
     try:
-        from orchestrator.recording import read_rrd_series_lines
         from orchestrator.scenario import load_scenario
         from plant_model.fleet import fleet_vehicles
         sc = load_scenario(spec)
         if sc.fleet is None:
             return {}
         model = fleet_vehicles(sc.fleet)[0]
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            lines = read_rrd_series_lines(rrd)
     except Exception:       # a file changed or gone since the run: no units, not an error
         return {}
-    recorded = lines.get(f"vehicles/1/error/{method}", ((), ()))[0]
-    names = tuple(n.removeprefix(f"{method} ") for n in recorded)
-    if names != tuple(model.output_names):
+    if error_names != tuple(model.output_names):
         return {}          # the scenario file changed since the run: do not guess
     units: dict[str, str] = {}
     for n, u in (*zip(model.state_names, model.state_units),
@@ -224,6 +235,7 @@ def load_run(folder: str | Path) -> RunData:
     rrd = _rrd_path(folder, summary)
     scalars = _read_scalars(rrd)
     methods, fleet = _methods(summary, scalars, rrd)
-    units = _fleet_units(summary, scalars, rrd, methods[0]) if fleet else {}
+    error_names = _error_names(rrd, methods[0]) if fleet else ()
+    units = _fleet_units(summary, error_names) if fleet else {}
     return RunData(folder=folder, summary=summary, rrd=rrd, methods=methods, scalars=scalars,
-                   fleet=fleet, units=units)
+                   fleet=fleet, units=units, error_names=error_names)
