@@ -1,4 +1,4 @@
-"""``auv-cosim``: build the FMUs, run, compare, validate and benchmark.
+"""``auv-cosim``: build the FMUs, run, compare, plot, validate and benchmark.
 
 Every error a user can cause (a bad scenario, an impossible design, an FMU that
 refuses a call) is printed as one line naming the problem, with exit status 2.
@@ -263,6 +263,19 @@ def cmd_campaign(args: argparse.Namespace) -> int:
                         engine=args.engine)
 
 
+def cmd_plot(args: argparse.Namespace) -> int:
+    from .plotting import RunFolderError, parse_formats, plot_run
+    try:
+        formats = parse_formats(args.format)
+        written = plot_run(args.run_dir, args.out, formats)
+    except (RunFolderError, ValueError) as exc:
+        raise UsageError(str(exc)) from None
+    for path in written:
+        print(path)
+    print(f"wrote {len(written)} files into {written[0].parent if written else args.out}")
+    return 0
+
+
 def _fleet_sizes(text: str) -> list[int]:
     try:
         sizes = [int(x) for x in text.split(",")]
@@ -478,6 +491,15 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--seed", type=int, help="noise seed written as the plant's initial value")
     sp.add_argument("--out", help="output folder (default: out/<scenario>_<format>)")
     sp.set_defaults(func=cmd_export)
+
+    sp = sub.add_parser("plot", help="static figures of a run folder (PNG, SVG, PDF): the "
+                                     "paper's figures 2-7, or a fleet's paths and errors")
+    sp.add_argument("run_dir", metavar="RUN_DIR",
+                    help="a folder written by 'auv-cosim run' or 'compare'")
+    sp.add_argument("--out", help="output folder (default: RUN_DIR/figures)")
+    sp.add_argument("--format", default="png,svg",
+                    help="comma-separated formats from png, svg, pdf (default: png,svg)")
+    sp.set_defaults(func=cmd_plot)
 
     sp = sub.add_parser("validate", help="fmpy validate the FMUs (built afresh, or given)")
     common(sp, run=False)

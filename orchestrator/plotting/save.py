@@ -1,0 +1,157 @@
+"""Build the figures of a run folder and write them: :func:`plot_run`, the formats and their
+deterministic, atomic writing."""
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+from orchestrator.atomic import temporary_sibling
+from orchestrator.outputs import OutputFolderError
+
+from .figure import PlotFigure, deterministic_style
+from .run_folder import RunData, load_run
+
+__all__ = ["DEFAULT_FORMATS", "FORMATS", "build_figures", "parse_formats", "plot_run",
+           "save_figure"]
+
+#: File formats ``auv-cosim plot`` can write.
+FORMATS: tuple[str, ...] = ("png", "svg", "pdf")
+#: Written when no ``--format`` is given.
+DEFAULT_FORMATS: tuple[str, ...] = ("png", "svg")
+
+#: Metadata that makes the vector files the same on every call (no creation date).
+_METADATA: dict[str, dict[str, str | None]] = {
+    "png": {"Software": "auv-cosim (matplotlib)"},
+    "svg": {"Date": None, "Creator": "auv-cosim (matplotlib)"},
+    "pdf": {"CreationDate": None, "ModDate": None, "Creator": "auv-cosim (matplotlib)",
+            "Producer": "auv-cosim (matplotlib)"},
+}
+
+
+def parse_formats(text: str) -> tuple[str, ...]:
+    """``"png,svg"`` -> ``("png", "svg")``, checked against :data:`FORMATS`.
+
+    Parameters
+    ----------
+    text : str
+        Comma-separated formats (case and spaces ignored).
+
+    Returns
+    -------
+    tuple[str, ...]
+        The formats, each once, in the given order.
+
+    Raises
+    ------
+    ValueError
+        If a format is unknown or none is given (one line naming it).
+    """
+    picked: list[str] = []
+    for part in text.split(","):
+        f = part.strip().lower().lstrip(".")
+        if f and f not in picked:
+            picked.append(f)
+    unknown = [f for f in picked if f not in FORMATS]
+    if unknown or not picked:
+        what = f"{', '.join(unknown)} is not one of" if unknown else "give one or more of"
+        raise ValueError(f"--format {text!r}: {what} {', '.join(FORMATS)} "
+                         "(comma-separated, e.g. png,pdf)")
+    return tuple(picked)
+
+
+def build_figures(run: RunData) -> list[PlotFigure]:
+    """Every figure of a run: figures 2-7 for the paper layout, the fleet figures for a
+    fleet. Call it inside :func:`deterministic_style` for the package's fixed style."""
+    if run.fleet:
+        from .fleet import fleet_figures
+        return fleet_figures(run)
+    from .paper import paper_figures
+    return paper_figures(run)
+
+
+def save_figure(pf: PlotFigure, out: Path, formats: Sequence[str]) -> list[Path]:
+    """Write one figure in each format as ``out/<name>.<format>``, each file through a
+    temporary sibling renamed into place.
+
+    Parameters
+    ----------
+    pf : PlotFigure
+    out : Path
+        Destination folder (created if needed).
+    formats : Sequence[str]
+        Formats from :data:`FORMATS`.
+
+    Returns
+    -------
+    list[Path]
+        The files written.
+    """
+    written = []
+    umask = os.umask(0o022)
+    os.umask(umask)
+    for fmt in formats:
+        path = out / f"{pf.name}.{fmt}"
+        with temporary_sibling(path) as tmp:
+            with open(tmp, "wb") as fh:
+                pf.figure.savefig(fh, format=fmt, metadata=_METADATA[fmt])
+            os.chmod(tmp, 0o666 & ~umask)    # as open() would (the temporary file is 0600)
+        written.append(path)
+    return written
+
+
+def _output_folder(out: Path) -> Path:
+    """Create the figures folder (with its parents) and check it can be written."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise OutputFolderError(f"output folder {out} is a file") from None
+    except NotADirectoryError:
+        raise OutputFolderError(f"output folder {out} is under a file") from None
+    except PermissionError:
+        raise OutputFolderError(f"cannot create the output folder {out}: permission "
+                                "denied") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise OutputFolderError(f"cannot write into the output folder {out}: permission "
+                                "denied (choose another --out)")
+    return out
+
+
+def plot_run(folder: str | Path, out: str | Path | None = None,
+             formats: Sequence[str] = DEFAULT_FORMATS) -> list[Path]:
+    """Write the figures of a run folder.
+
+    Parameters
+    ----------
+    folder : str or Path
+        A folder written by ``auv-cosim run`` or ``auv-cosim compare``.
+    out : str, Path or None, optional
+        Where to write; default ``<folder>/figures``.
+    formats : Sequence[str], optional
+        Formats from :data:`FORMATS` (default PNG and SVG).
+
+    Returns
+    -------
+    list[Path]
+        The files written, figure by figure.
+
+    Raises
+    ------
+    RunFolderError
+        If the folder cannot be plotted (see :func:`load_run`).
+    ValueError
+        If a format is unknown.
+    OutputFolderError
+        If the output folder is a file, under a file or cannot be written.
+    """
+    unknown = [f for f in formats if f not in FORMATS]
+    if unknown or not formats:
+        raise ValueError(f"formats {list(formats)!r}: expected some of {', '.join(FORMATS)}")
+    run = load_run(folder)
+    dest = _output_folder(Path(out) if out is not None else Path(folder) / "figures")
+    written: list[Path] = []
+    with deterministic_style():
+        for pf in build_figures(run):
+            written += save_figure(pf, dest, formats)
+            pf.figure.clear()
+    return written
