@@ -15,6 +15,12 @@ __all__ = ["temporary_sibling", "write_bytes_atomically", "write_text_atomically
            "copy_atomically"]
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 @contextmanager
 def temporary_sibling(path: Path | str) -> Iterator[Path]:
     """A fresh temporary path next to ``path``; on a normal exit the file written there
@@ -33,6 +39,7 @@ def temporary_sibling(path: Path | str) -> Iterator[Path]:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    os.fchmod(fd, 0o666 & ~_umask())         # mkstemp makes 0600; a plain file is 0666 - umask
     os.close(fd)
     try:
         yield Path(tmp)

@@ -31,3 +31,17 @@ def test_write_rrd_leaves_only_the_final_file(tmp_path):
     info = write_rrd(tmp_path / "x.rrd", make_runs(), H, recording_name="atomic")
     assert [p.name for p in tmp_path.iterdir()] == ["x.rrd"]
     assert info["bytes"] == (tmp_path / "x.rrd").stat().st_size
+
+
+def test_a_written_file_has_the_usual_permissions(tmp_path):
+    """mkstemp's 0600 is not kept: the file is 0666 minus the umask, like open() makes it."""
+    import os
+    from orchestrator.atomic import write_text_atomically
+    old = os.umask(0o022)
+    try:
+        write_text_atomically(tmp_path / "a.json", "{}")
+        (tmp_path / "b.json").write_text("{}")
+    finally:
+        os.umask(old)
+    mode = (tmp_path / "a.json").stat().st_mode & 0o777
+    assert mode == (tmp_path / "b.json").stat().st_mode & 0o777 == 0o644

@@ -106,11 +106,13 @@ def test_estimate_views_fit_the_true_signal(tmp_path):
         lo, hi = props[name]["ScalarAxis:range"][0]
         assert (lo, hi) == pytest.approx(true_signal_range(x[:, i - 1]))
         assert lo < x[:, i - 1].min() and hi > x[:, i - 1].max()
-        assert props[name]["ViewContents:query"] == [f"+ /state/{i}/kalman/true",
-                                                     f"+ /state/{i}/kalman/estimate"]
-        assert props[f"state-{i} full scale"]["ViewContents:query"] == [
-            f"+ /state/{i}/kalman/true", f"+ /state/{i}/kalman/estimate",
-            f"+ /state/{i}/classical/estimate"]
+        trues = [f"+ /state/{i}/kalman/true", f"+ /state/{i}/classical/true"]
+        assert props[name]["ViewContents:query"] == trues + [f"+ /state/{i}/kalman/estimate"]
+        assert props[f"state-{i} full scale"]["ViewContents:query"] == trues + [
+            f"+ /state/{i}/kalman/estimate", f"+ /state/{i}/classical/estimate"]
+        # the shared reference: drawn once
+        assert props["reference-1"]["ViewContents:query"][0] == "+ /reference/1/kalman/true"
+        assert "+ /reference/1/classical/true" not in props["reference-1"]["ViewContents:query"]
         assert "ScalarAxis:range" not in props[f"state-{i} full scale"]
 
 

@@ -91,8 +91,9 @@ def test_series_names_and_colours(written):
         base = colors[m] + (255,)
         name, rgba = styles[f"error/1/{m}"]
         assert (name, rgba) == (m, base)
-        # the true signal is the same for every method: one name, one colour (white)
-        assert styles[f"state/3/{m}/true"] == ("true", TRUE_COLOR + (255,))
+        # the state depends on the method's control: its colour; the reference is shared
+        assert styles[f"state/3/{m}/true"] == (m, base)
+        assert styles[f"reference/1/{m}/true"] == ("true", TRUE_COLOR + (255,))
         est_name, est_rgba = styles[f"state/3/{m}/estimate"]
         assert est_name == f"{m} estimate"
         assert est_rgba != base

@@ -9,9 +9,10 @@ Paper layout (tabs):
 
 Every time-series view shows the whole run (both timelines unbounded), with its legend
 hidden: a one-line legend view on top names the colours instead, so no legend covers data.
-The state, disturbance and reference views of the first two tabs draw the true signal once
-(it is the same for every method: same noise) with each method's estimate, and scale the
-y-axis to the true signal (a margin of 15 % of its span), so a method whose estimate spikes
+The state, disturbance and reference views of the first two tabs draw the true signals (each
+method's state, which its own control drives; the disturbance and reference once, as every
+method sees the same) with each method's estimate, and scale the y-axis to the true
+signals (a margin of 15 % of their span), so a method whose estimate spikes
 (the classical law) does not squash the others: an estimate with more than 1 % of its
 samples outside that range is left out there (the view's name says so) and shown in the
 third tab with the others at full scale. The time panel starts paused and folded.
@@ -76,11 +77,13 @@ def _true_and_estimates(group: str, i: int, methods: list[str],
                         clean: dict[str, dict[str, np.ndarray]]) -> tuple[rrb.TimeSeriesView,
                                                                          rrb.TimeSeriesView]:
     """(fitted view, full-scale view) of component i of a true-vs-estimate group: the fitted
-    view's y-axis fits the true signal and holds the estimates that stay (99 % of samples)
+    view's y-axis fits the true signals and holds the estimates that stay (99 % of samples)
     within it; the others are left to the full-scale view, and the name says so."""
     true_key, est_key = _TRUE_GROUPS[group]
-    first = methods[0]
-    lo, hi = true_signal_range(clean[first][true_key][:, i - 1])
+    # the state depends on each method's control: every method's; w and z are shared: once
+    owners = methods if group == "state" else methods[:1]
+    owners = [m for m in owners if clean[m][true_key].shape[1] >= i]
+    lo, hi = true_signal_range(np.concatenate([clean[m][true_key][:, i - 1] for m in owners]))
     shown, left_out = [], []
     for m in methods:
         est = clean[m][est_key]
@@ -88,12 +91,12 @@ def _true_and_estimates(group: str, i: int, methods: list[str],
             continue
         outside = np.mean((est[:, i - 1] < lo) | (est[:, i - 1] > hi))
         (shown if outside <= 0.01 else left_out).append(m)
-    true_entity = f"+ /{group}/{i}/{first}/true"
+    trues = [f"+ /{group}/{i}/{m}/true" for m in owners]
     name = f"{group}-{i}" + (f" ({', '.join(left_out)} estimate: see full scale)"
                              if left_out else "")
-    fitted = _series_view(name, f"/{group}/{i}", [true_entity] + [
+    fitted = _series_view(name, f"/{group}/{i}", trues + [
         f"+ /{group}/{i}/{m}/estimate" for m in shown], (lo, hi))
-    full = _series_view(f"{group}-{i} full scale", f"/{group}/{i}", [true_entity] + [
+    full = _series_view(f"{group}-{i} full scale", f"/{group}/{i}", trues + [
         f"+ /{group}/{i}/{m}/estimate" for m in shown + left_out])
     return fitted, full
 

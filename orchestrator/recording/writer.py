@@ -78,12 +78,17 @@ def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, n
     return signals
 
 
+#: true signals every method shares (same noise, no feedback): drawn once, in white; the
+#: state x depends on each method's control and keeps the method's colour
+_SHARED_TRUTH = ("w", "z")
+
+
 def _paper_legend(methods: list[str], colors: dict[str, tuple[int, int, int]]) -> str:
     """The one-line colour legend of the paper layout (markdown)."""
     names = " · ".join(f"**{m}** {color_name(colors[m])}" for m in methods)
-    return (f"{names} · estimates: a lighter shade of the method's colour · true signal: "
-            "white, drawn once (the same noise for every method) · whole run shown; "
-            "scroll or drag in a plot to zoom, double-click to reset")
+    return (f"{names} · true state: the method's colour, its estimate a lighter shade · "
+            "disturbance and reference (the same for every method): white, drawn once · "
+            "whole run shown; scroll or drag in a plot to zoom, double-click to reset")
 
 
 def _fleet_legend(methods: list[str], fleet: _Fleet) -> str:
@@ -287,7 +292,7 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
                 light = _lighter(base)
                 for key, template, suffix, is_estimate in _SERIES:
                     arr = clean[method][key]
-                    if template.endswith("/true"):      # the same for every method
+                    if key in _SHARED_TRUTH:        # exogenous: the same for every method
                         style = rr.SeriesLines(colors=[TRUE_COLOR], names=["true"])
                     else:
                         style = rr.SeriesLines(colors=[light if is_estimate else base],
