@@ -6,7 +6,6 @@ refuses a call) is printed as one line naming the problem, with exit status 2.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import shlex
 import sys
@@ -18,6 +17,7 @@ from controller_fmu.regulator import TRACKING_MODES
 from estimator_fmu.estimators import ESTIMATOR_MODES
 from plant_model.linalg_checks import ModelError
 
+from .cli_bench import _fleet_sizes, cmd_bench
 from .cosim.instance import CosimError
 from .cosim.system import AlgebraicLoopError
 from .interop.common import ExportError
@@ -273,143 +273,6 @@ def cmd_plot(args: argparse.Namespace) -> int:
     for path in written:
         print(path)
     print(f"wrote {len(written)} files into {written[0].parent if written else args.out}")
-    return 0
-
-
-def _fleet_sizes(text: str) -> list[int]:
-    try:
-        sizes = [int(x) for x in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"--fleet {text!r}: expected sizes like '1,5,20,50'") from None
-    if not sizes or any(n < 1 for n in sizes):
-        raise argparse.ArgumentTypeError(f"--fleet {text!r}: sizes must be positive")
-    return sizes
-
-
-def cmd_bench_fleet(args: argparse.Namespace) -> int:
-    from .bench import benchmark_fleet
-    rows = []
-    print(f"{'N':>3s} {'states':>6s} {'design s':>9s} {'filter s':>9s} {'build s':>8s} "
-          f"{'mD kB (p/e/c)':>18s} {'init s (p/e/c)':>18s} {'cosim us':>9s} {'mono us':>8s} "
-          f"{'ratio':>6s} {'FMI us':>7s} {'max diff':>9s}")
-    for N in args.fleet:
-        r = benchmark_fleet(N, T=args.T or 300.0, mode=args.estimator or "kalman",
-                            tracking=args.tracking or "regulator", seed=args.seed or 0)
-        rows.append(r)
-        keys = ("plant", "estimator", "controller")
-        md = "/".join(f"{r['model_description_bytes'][k] / 1e3:.0f}" for k in keys)
-        it = "/".join(f"{r['instantiate_initialize_s'][k]:.2f}" for k in keys)
-        print(f"{N:3d} {r['state_size']:6d} {r['design_s']:9.3f} {r['filter_gain_s']:9.3f} "
-              f"{r['build_s']:8.2f} {md:>18s} {it:>18s} {r['cosim_us_per_step']:9.1f} "
-              f"{r['monolithic_us_per_step']:8.1f} {r['ratio_loop']:6.2f} "
-              f"{r['fmi_overhead_us_per_step']:7.1f} {r['max_abs_difference']:9.1e}", flush=True)
-    r = rows[-1]
-    print(f"({r['steps']} steps of {r['h']} s each; load average {r['loadavg'][0]:.2f} "
-          f"on {r['cpus']} CPUs; "
-          f"'FMI us' = co-simulation minus monolithic loop per step)")
-    if args.json:
-        print(json.dumps(rows, indent=2))
-    return 0
-
-
-def _printed_as_json(args: argparse.Namespace, r: dict, rounds: str = "") -> bool:
-    """Print a benchmark's figures as JSON (--json) and say so, or print its heading line."""
-    if args.json:
-        print(json.dumps(r, indent=2))
-        return True
-    print(f"scenario {r['scenario']}, estimator {r['mode']}, {r['steps']} steps of {r['h']} s"
-          f"{rounds}; load average {r['loadavg'][0]:.2f} on {r['cpus']} CPUs")
-    return False
-
-
-def cmd_bench_tools(args: argparse.Namespace) -> int:
-    from .bench import benchmark_tools
-    sc = _scenario(args)
-    steps = int(round((args.T or 50.0) / sc.h))
-    r = benchmark_tools(sc, steps)
-    if _printed_as_json(args, r, f", median of {r['repeats']} rounds"):
-        return 0
-    print(f"  ours, Gauss-Seidel        {r['ours_gauss_seidel_us_per_step']:8.1f} us/step")
-    print(f"  ours, Jacobi              {r['ours_jacobi_us_per_step']:8.1f} us/step")
-    print(f"  libcosim (libcosimpy)     {r['libcosim_us_per_step']:8.1f} us/step   "
-          f"ours {r['speedup_gauss_seidel_vs_libcosim']:.1f}x faster (target 5x)")
-    print(f"  fmpy simulate_ssp         {r['simulate_ssp_us_per_step']:8.1f} us/step   "
-          f"ours {r['speedup_gauss_seidel_vs_simulate_ssp']:.1f}x faster")
-    print(f"  ({', '.join(f'{k} {v}' for k, v in r['versions'].items())})")
-    return 0
-
-
-def cmd_bench_startup(args: argparse.Namespace) -> int:
-    from .bench import benchmark_startup
-    sc = _scenario(args)
-    r = benchmark_startup(sc)
-    if _printed_as_json(args, r, f", median of {r['repeats']} rounds"):
-        return 0
-    print(f"  auv-cosim run (subprocess, warm FMU cache)  {r['run_warm_s']:6.2f} s   "
-          f"{r['ratio_run_to_reference_loop']:.2f}x the reference loop (target <= 2.0)")
-    print(f"  auv-cosim run (subprocess, empty cache)     {r['run_cold_s']:6.2f} s")
-    print(f"  reference loop (in process, numpy)          {r['reference_loop_s']:6.2f} s")
-    print(f"  python -c 'import orchestrator.cli'         {r['import_cli_s']:6.2f} s; "
-          f"python -c pass {r['python_s']:.2f} s")
-    return 0
-
-
-def cmd_bench_campaign(args: argparse.Namespace) -> int:
-    from .campaign.bench import benchmark_campaign
-    r = benchmark_campaign()
-    if args.json:
-        print(json.dumps(r, indent=2))
-        return 0
-    print(f"paper scenario (T = 300 s, h = 0.01 s); load average {r['loadavg'][0]:.2f} on "
-          f"{r['cpus']} CPUs (after: {r['loadavg_after'][0]:.2f})")
-    for key, label in (("fmu_1_workers", "FMU engine, 1 worker "), ("fmu_2_workers",
-                       "FMU engine, 2 workers"), ("numpy_1_worker", "numpy engine, 1 worker")):
-        x = r[key]
-        print(f"  {label:24s} {x['runs_per_hour']:9.0f} runs/h (whole command, "
-              f"{x['runs']} runs in {x['command_s']:.1f} s), {x['runs_per_hour_tasks']:9.0f} "
-              f"runs/h on the cluster ({x['tasks_s']:.1f} s)")
-    print(f"  numpy engine loop: {r['numpy_1_worker']['us_per_step_per_seed']:.2f} us per "
-          "step and seed")
-    o = r["overhead"]
-    print(f"  overhead per task: {1e3 * o['per_task_s']:.0f} ms ({o['tasks']} one-step tasks "
-          f"on 2 workers in {o['tasks_s']:.2f} s, {o['inside_runs_s']:.2f} s inside the runs)")
-    d = r["design_cache"]
-    print(f"  design cache at N = {d['N']} ({d['states']} states, T = {d['T']} s): "
-          f"{d['per_seed_off_s']:.2f} s per seed without, {d['per_seed_on_s']:.2f} s with "
-          f"(saves {d['saved_per_seed_s']:.2f} s per seed; the point's design and prediction "
-          f"{d['design_on_s']:.2f} s once per task)")
-    return 0
-
-
-def cmd_bench(args: argparse.Namespace) -> int:
-    from .bench import benchmark
-    if args.campaign:
-        return cmd_bench_campaign(args)
-    if args.fleet:
-        return cmd_bench_fleet(args)
-    if args.tools:
-        return cmd_bench_tools(args)
-    if args.startup:
-        return cmd_bench_startup(args)
-    sc = _scenario(args)
-    r = benchmark(sc, mode=sc.estimator, seed=sc.seed)
-    if _printed_as_json(args, r):
-        return 0
-    print(f"  co-simulation loop (3 FMUs)   {r['cosim_loop_s']:8.3f} s  "
-          f"{r['cosim_us_per_step']:7.2f} us/step")
-    print(f"  .rrd writing                  {r['rrd_write_s']:8.3f} s  "
-          f"({100 * r['rrd_fraction_of_run']:.1f} % of loop + rrd)")
-    print(f"  monolithic numpy loop         {r['monolithic_s']:8.3f} s  "
-          f"{r['monolithic_us_per_step']:7.2f} us/step")
-    print(f"  ratio (loop + rrd) / monolithic  {r['ratio_cosim_to_monolithic']:.2f}   "
-          f"(loop only {r['ratio_loop_only']:.2f}; target <= 1.5)")
-    print(f"  loop / monolithic loop (setup excluded on both sides)  "
-          f"{r['ratio_loop_to_reference_loop']:.2f}   (target <= 1.3)")
-    print(f"  setup (extract, instantiate, initialize) {r['cosim_setup_s']:.3f} s; "
-          f"build {r['build_s']:.3f} s")
-    print("  FMI calls: " + ", ".join(f"{k} {v:.2f}" for k, v in r["fmi_calls"].items()))
-    print(f"  max |co-simulation - monolithic| over all traces: {r['max_abs_difference']:.2e}")
     return 0
 
 
