@@ -36,6 +36,7 @@ def test_write_rrd_leaves_only_the_final_file(tmp_path):
 def test_a_written_file_has_the_usual_permissions(tmp_path):
     """mkstemp's 0600 is not kept: the file is 0666 minus the umask, like open() makes it."""
     import os
+
     from orchestrator.atomic import write_text_atomically
     old = os.umask(0o022)
     try:

@@ -1,0 +1,105 @@
+"""A campaign on a real `dask scheduler` with real `dask worker` processes, when a worker is
+killed (SIGKILL) mid-way and when the scheduler itself is killed: nothing is lost, and the
+final table equals an uninterrupted campaign's (apart from wall times and hosts)."""
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from support.dask_cluster import dask_cluster
+
+TIMING = {"wall_s", "loop_s", "design_s", "build_s", "host", "pid"}
+SPEC = """
+base = "paper"
+seeds = "0-5"
+seeds_per_task = 1
+[sweep]
+"simulation.estimator" = ["kalman", "ideal"]
+"simulation.T" = [40.0]
+"""
+RUNS = 12
+
+
+def _campaign(*args) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "orchestrator", "campaign", *map(str, args)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _table(out: Path) -> list[dict]:
+    rows = pq.read_table(out / "results.parquet").to_pylist()
+    return [{k: v for k, v in r.items() if k not in TIMING} for r in rows]
+
+
+def _wait_for_parts(out: Path, count: int, proc: subprocess.Popen) -> int:
+    deadline = time.monotonic() + 180
+    while True:
+        n = len(list((out / "parts").glob("*.json"))) if (out / "parts").exists() else 0
+        if n >= count:
+            return n
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The same campaign, uninterrupted, on a local cluster of 2 workers."""
+    d = tmp_path_factory.mktemp("reference")
+    (d / "spec.toml").write_text(SPEC)
+    proc = _campaign(d / "spec.toml", "--workers", "2", "--out", d / "out")
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0, err
+    table = _table(d / "out")
+    assert len(table) == RUNS and all(r["status"] == "ok" for r in table)
+    return table
+
+
+@pytest.mark.slow
+def test_a_killed_worker_loses_nothing(tmp_path, reference):
+    (tmp_path / "spec.toml").write_text(SPEC)
+    with dask_cluster(2) as cluster:
+        proc = _campaign(tmp_path / "spec.toml", "--scheduler", cluster.address,
+                         "--out", tmp_path / "out")
+        try:
+            done = _wait_for_parts(tmp_path / "out", 2, proc)
+            cluster.workers[0].send_signal(signal.SIGKILL)       # a worker dies mid-campaign
+            cluster.workers[0].wait(timeout=20)
+            _, err = proc.communicate(timeout=300)
+        finally:
+            proc.kill()
+    assert done < RUNS, "the worker was not killed mid-way"
+    assert proc.returncode == 0, err
+    assert _table(tmp_path / "out") == reference          # its task ran on the other worker
+
+
+@pytest.mark.slow
+def test_a_lost_scheduler_keeps_the_rows_and_a_rerun_finishes(tmp_path, reference):
+    (tmp_path / "spec.toml").write_text(SPEC)
+    out = tmp_path / "out"
+    with dask_cluster(1) as cluster:
+        proc = _campaign(tmp_path / "spec.toml", "--scheduler", cluster.address, "--out", out)
+        try:
+            _wait_for_parts(out, 2, proc)
+            cluster.scheduler.send_signal(signal.SIGKILL)         # the scheduler is gone
+            t0 = time.monotonic()
+            _, err = proc.communicate(timeout=120)
+            waited = time.monotonic() - t0
+        finally:
+            proc.kill()
+    kept = len(list((out / "parts").glob("*.json")))
+    assert 2 <= kept < RUNS
+    assert proc.returncode != 0 and waited < 90, (proc.returncode, waited, err)
+    lines = [line for line in err.strip().splitlines() if line.startswith("auv-cosim campaign")]
+    assert len(lines) == 1 and "not done" in lines[0], err
+    assert len(_table(out)) == kept                      # what finished is in the table
+    again = _campaign(tmp_path / "spec.toml", "--workers", "2", "--out", out)
+    stdout, err = again.communicate(timeout=300)
+    assert again.returncode == 0, err
+    assert f"{kept} already done, {RUNS - kept} to run" in stdout
+    assert _table(out) == reference
