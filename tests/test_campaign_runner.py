@@ -8,7 +8,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -19,10 +18,10 @@ import pytest
 
 from orchestrator.cli import main
 from orchestrator.outputs import output_folder
+from support.dask_cluster import dask_cluster
 
 #: columns that legitimately differ between two runs of the same campaign
 TIMING = {"wall_s", "loop_s", "design_s", "build_s", "host", "pid"}
-BIN = Path(sys.executable).parent
 
 
 def _spec(tmp_path: Path, text: str, name: str = "spec.toml") -> Path:
@@ -103,34 +102,12 @@ def test_local_cluster_failing_point_and_numpy_engine(tmp_path, capsys):
     assert _without_timing(_rows(tmp_path / "numpy")) == _without_timing(num)
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.mark.slow
 def test_external_scheduler_and_workers_then_jacobi_goes_to_the_fmus(tmp_path):
     """A `dask scheduler` and two `dask worker` processes on 127.0.0.1, used through
     --scheduler; with --engine numpy the Jacobi points run through the FMUs."""
-    port = _free_port()
-    address = f"tcp://127.0.0.1:{port}"
-    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
-    procs = [subprocess.Popen([BIN / "dask", "scheduler", "--host", "127.0.0.1", "--port",
-                               str(port), "--no-dashboard"], env=env,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
-    try:
-        for _ in range(2):
-            procs.append(subprocess.Popen(
-                [BIN / "dask", "worker", address, "--nthreads", "1", "--no-dashboard",
-                 "--host", "127.0.0.1"], env=env,
-                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        from dask.distributed import Client
-        deadline = time.monotonic() + 60
-        with Client(address, timeout="30s") as client:
-            while len(client.scheduler_info()["workers"]) < 2:
-                assert time.monotonic() < deadline, "workers did not join"
-                time.sleep(0.2)
+    with dask_cluster(2) as cluster:
+        address = cluster.address
         spec = _spec(tmp_path, """
 base = "paper"
 seeds = [3, 4]
@@ -155,14 +132,6 @@ seeds = [3, 4]
         assert [a["engines"] for a in agg] == ["numpy", "fmu"]
         # the Jacobi loop costs more, as its own prediction says
         assert agg[1]["predicted_cost_rate"] > agg[0]["predicted_cost_rate"]
-    finally:
-        for p in reversed(procs):
-            p.send_signal(signal.SIGTERM)
-        for p in reversed(procs):
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                p.kill()
 
 
 RESUME = """
