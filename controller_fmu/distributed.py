@@ -317,6 +317,7 @@ class SampledObserver:
     eta_i[k+1] = Phi eta_i[k] + mu Gam_F r_i[k] (module docstring, item 2).
     """
 
+    F: np.ndarray        #: leader exosystem, l x l, 1/s
     h: float             #: communication step, s
     mu: float            #: observer gain, 1/s
     Phi: np.ndarray      #: expm(F h), l x l
@@ -394,7 +395,7 @@ def sampled_observer(F: Any, h: float, mu: float) -> SampledObserver:
         raise ModelError(f"observer gain mu = {mu} 1/s must be a non-negative number")
     check_step(F, h)
     Phi, Gam = zoh(F, np.eye(F.shape[0]), h)
-    return SampledObserver(h=h, mu=mu, Phi=Phi, Gam_F=Gam)
+    return SampledObserver(F=F, h=h, mu=mu, Phi=Phi, Gam_F=Gam)
 
 
 def innovation(eta_i: Any, neighbour_etas: Any, weights: Any, a_i0: float,
