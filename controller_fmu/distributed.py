@@ -192,8 +192,27 @@ def graph_from_slots(N: int, neighbours: Any, weights: Any, pinning: Any) -> Com
     return communication_graph(N, edges, [(i + 1, float(a)) for i, a in enumerate(g) if a > 0])
 
 
+def _acyclic(LG: np.ndarray) -> bool:
+    """True when the graph of the off-diagonal pattern of LG has no directed cycle."""
+    nz = (LG != 0.0) & ~np.eye(LG.shape[0], dtype=bool)
+    indeg = nz.sum(axis=1)          # row i: the vehicles i hears
+    done = np.zeros(LG.shape[0], dtype=bool)
+    while True:
+        ready = ~done & (indeg == 0)
+        if not ready.any():
+            return bool(done.all())
+        done |= ready
+        indeg = (nz & ~done[None, :]).sum(axis=1)
+
+
 def consensus_eigenvalues(LG: Any) -> np.ndarray:
     """Eigenvalues lambda of L + G, sorted by real part; all must have Re lambda > 0.
+
+    For an acyclic graph (a tree or any DAG, as every built-in formation) L + G is
+    triangular in a topological order and its eigenvalues are exactly its diagonal
+    d_i = sum_j a_ij + a_i0; they are read from there, which stays exact when L + G is
+    defective (e.g. formation-4: the eigenvalue 1 four times in one Jordan chain), where
+    a general eigenvalue solver is off by about eps^(1/k) for a chain of length k.
 
     Parameters
     ----------
@@ -211,7 +230,8 @@ def consensus_eigenvalues(LG: Any) -> np.ndarray:
         If some eigenvalue has Re lambda <= 0 (no spanning tree rooted at the leader).
     """
     LG = as_matrix("L + G", LG)
-    lam = np.linalg.eigvals(LG).astype(complex)
+    lam = (np.diag(LG).astype(complex) if _acyclic(LG)
+           else np.linalg.eigvals(LG).astype(complex))
     lam = lam[np.lexsort((lam.imag, lam.real))]
     tol = 1e-12 * max(1.0, float(np.abs(LG).max(initial=0.0)))
     if lam.size and lam[0].real <= tol:
@@ -697,14 +717,16 @@ def design_vehicle_law(A: Any, B: Any, C: Any, Q: Any, R: Any, F: Any, H: Any,
                          f"{', '.join(REGULATOR_FORMS)}")
     P, Kx, poles, _ = lq_riccati_gain(A, B, C, Q, R, where=where)
     zero = np.zeros((1, 1))
-    if regulator == "continuous":
-        X, U = _solve(A, B, C, F, np.zeros((p, l_)), H, "F (leader)", where, None, None)
-        Xw, Uw = _solve(A, B, C, Kw, E, np.zeros((s, r)), "K (own disturbance)", where,
-                        None, None)
-        xc, uc = _solve(A, B, C, zero, np.zeros((p, 1)), d[:, None], "0 (formation offset)",
-                        where, None, None)
-        h_used = None
-    else:
+    # the continuous equations always: a transmission zero of the vehicle at an eigenvalue
+    # of F is named here (the sampled vehicle's zeros are only near exp(zero h), so the
+    # sampled equations would be solvable but ill-conditioned)
+    X, U = _solve(A, B, C, F, np.zeros((p, l_)), H, "F (leader)", where, None, None)
+    Xw, Uw = _solve(A, B, C, Kw, E, np.zeros((s, r)), "K (own disturbance)", where,
+                    None, None)
+    xc, uc = _solve(A, B, C, zero, np.zeros((p, 1)), d[:, None], "0 (formation offset)",
+                    where, None, None)
+    h_used = None
+    if regulator == "sampled":
         if h is None or not np.isfinite(float(h)) or float(h) <= 0.0:
             raise ModelError(f"the sampled regulator needs a positive step h, got {h!r}")
         h_used = float(h)

@@ -449,7 +449,8 @@ def _identical(loop: DistributedLoop) -> bool:
 class StabilityVerdict:
     """Spectral radius of the error part, per-eigenvalue blocks, continuous-time bounds."""
 
-    spectral_radius: float          #: of the whole stacked error part
+    spectral_radius: float          #: of the error part (the largest block's if identical)
+    stacked_spectral_radius: float  #: from the eigenvalues of the stacked error part
     identical: bool                 #: the per-eigenvalue blocks are exact
     blocks: tuple[tuple[complex, float], ...]  #: (lambda of L + G, spectral radius of its block)
     observer_mu_min: float          #: continuous-time bound, mu > this (1/s)
@@ -498,8 +499,11 @@ def stability_verdict(loop: DistributedLoop, *, check: bool = False) -> Stabilit
             Rb = ~part["deterministic"]
             blocks.append((complex(lam), float(np.max(np.abs(
                 np.linalg.eigvals(part["Phi"][np.ix_(Rb, Rb)]))))))
+    if identical:       # exact: the stacked eigenvalues are ill-conditioned when L + G
+        rho = max(b for _, b in blocks)     # is defective (a Jordan chain of length k)
     verdict = StabilityVerdict(
-        spectral_radius=rho, identical=identical, blocks=tuple(blocks),
+        spectral_radius=rho, stacked_spectral_radius=float(np.abs(ev[k])),
+        identical=identical, blocks=tuple(blocks),
         observer_mu_min=min_observer_gain(loop.observer.F, loop.LG),
         cohesion_bound=("continuous time: stable for every c >= 0 (blocks A - (1 + c lambda) "
                         "B Kx, Re(1 + c lambda) >= 1/2: LQ gain margin)"))
