@@ -23,6 +23,7 @@ from controller_fmu.distributed import (
     cohesion_input,
     consensus_eigenvalues,
     control_input,
+    coupling_force_gain,
     design_vehicle_law,
     graph_from_slots,
     innovation,
@@ -474,3 +475,15 @@ def test_neighbour_slots_and_graph_errors():
         graph_from_slots(3, [[0], [3], [2]], [[0.0], [1.0], [1.0]], [1.0, 0.0, 0.0])
     with pytest.raises(ModelError, match=r"no positive real part"):
         consensus_eigenvalues(np.array([[1.0, 0.0], [0.0, 0.0]]))
+
+
+def test_coupling_through_the_actuators():
+    m = remus100(cruise_speed=1.5)
+    Gam = np.array(formation4_spec()["graph"]["coupling"])
+    Kc = coupling_force_gain(m.B1, Gam, m.state_names)
+    assert np.allclose(m.B1 @ Kc, Gam, atol=1e-14)
+    M = np.array(m.parameters["total_mass"])
+    assert np.allclose(Kc, np.hstack([np.diag(0.02 * M), np.diag(0.2 * M)]))
+    with pytest.raises(ModelError, match=r"its rows for n, e, d cannot be produced by any "
+                                         r"force"):
+        coupling_force_gain(m.B1, np.eye(6), m.state_names)
