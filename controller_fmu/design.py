@@ -19,7 +19,7 @@ from scipy.linalg import LinAlgError, solve_continuous_are, solve_sylvester
 from plant_model.linalg_checks import ModelError, uncontrollable_modes, unobservable_modes
 from plant_model.system import LinearSystem
 
-__all__ = ["TrackingDesign", "lq_tracking_design", "uncontrollable_modes",
+__all__ = ["TrackingDesign", "lq_riccati_gain", "lq_tracking_design", "uncontrollable_modes",
            "unobservable_modes", "sylvester_resonances"]
 
 
@@ -88,6 +88,73 @@ def _refuse_modes(bad: list, what: str, why: str) -> None:
                          f"not stable and {why}")
 
 
+def lq_riccati_gain(A: np.ndarray, B1: np.ndarray, C: np.ndarray, Q: np.ndarray,
+                    R: np.ndarray, *, where: str = "") -> tuple[np.ndarray, np.ndarray,
+                                                              np.ndarray, float]:
+    """The stabilizing solution P of (13) and the state-feedback gain Kx = R^-1 B1' P.
+
+        A'P + P A - P S P + C'Q C = 0,    S = B1 R^-1 B1',    A - S P Hurwitz
+
+    Checks first, naming the modes: (A, B1) stabilizable (PBH) and (C'QC, A) detectable;
+    then that A - S P is Hurwitz. Shared by the stacked design (:func:`lq_tracking_design`)
+    and the per-vehicle design of :mod:`controller_fmu.distributed`.
+
+    Parameters
+    ----------
+    A : np.ndarray
+        State matrix, n x n, 1/s.
+    B1 : np.ndarray
+        Input matrix, n x m.
+    C : np.ndarray
+        Tracked output matrix, p x n.
+    Q : np.ndarray
+        Output error weight, p x p (positive definite).
+    R : np.ndarray
+        Input weight, m x m (positive definite).
+    where : str, optional
+        Prefix of the error messages (e.g. "vehicle 3: ").
+
+    Returns
+    -------
+    P : np.ndarray
+        Stabilizing Riccati solution, n x n (symmetric).
+    Kx : np.ndarray
+        Gain R^-1 B1' P, m x n (input units per state unit).
+    poles : np.ndarray
+        Eigenvalues of A - B1 Kx, 1/s.
+    residual : float
+        Relative residual of (13).
+
+    Raises
+    ------
+    ModelError
+        If (A, B1) is not stabilizable, (C'QC, A) not detectable, or (13) has no
+        stabilizing solution.
+    """
+    _refuse_modes(uncontrollable_modes(A, B1), f"{where}(A, B1) is not stabilizable",
+                  "cannot be moved by u")
+    _refuse_modes(unobservable_modes(A, C), f"{where}(C'QC, A) is not detectable",
+                  "do not show in the tracked output C x")
+    Rinv = np.linalg.inv(R)
+    CQC = C.T @ Q @ C
+    try:
+        P = solve_continuous_are(A, B1, CQC, R)
+    except (LinAlgError, ValueError) as exc:
+        raise ModelError(f"{where}the Riccati equation (13) has no stabilizing solution: "
+                         f"{exc}") from None
+    P = 0.5 * (P + P.T)
+    S = B1 @ Rinv @ B1.T
+    poles = np.linalg.eigvals(A - S @ P)
+    margin = 1e-9 * max(1.0, float(np.max(np.abs(poles))))
+    if np.max(poles.real) >= -margin:
+        raise ModelError(
+            f"{where}the Riccati solution of (13) is not stabilizing: A - S P has the "
+            "eigenvalue " + _fmt(poles[np.argmax(poles.real)])
+        )
+    residual = _rel(A.T @ P + P @ A - P @ S @ P + CQC, A.T @ P, P @ S @ P, CQC)
+    return P, Rinv @ B1.T @ P, poles, residual
+
+
 def lq_tracking_design(system: LinearSystem) -> TrackingDesign:
     """Solve (13)-(15) for ``system``; raise :class:`ModelError` naming what failed.
 
@@ -113,26 +180,10 @@ def lq_tracking_design(system: LinearSystem) -> TrackingDesign:
     A, B1, B2, Bz, C, F, H, K = (system.A, system.B1, system.B2, system.Bz, system.C,
                                  system.F, system.H, system.K)
     Q, R = system.Q, system.R
-    _refuse_modes(uncontrollable_modes(A, B1), "(A, B1) is not stabilizable",
-                  "cannot be moved by u")
-    _refuse_modes(unobservable_modes(A, C), "(C'QC, A) is not detectable",
-                  "do not show in the tracked output C x")
+    P, Kx, poles, riccati_res = lq_riccati_gain(A, B1, C, Q, R)
     Rinv = np.linalg.inv(R)
-    CQC = C.T @ Q @ C
-    try:
-        P = solve_continuous_are(A, B1, CQC, R)
-    except (LinAlgError, ValueError) as exc:
-        raise ModelError(f"the Riccati equation (13) has no stabilizing solution: {exc}") from None
-    P = 0.5 * (P + P.T)
     S = B1 @ Rinv @ B1.T
     Acl = A - S @ P
-    poles = np.linalg.eigvals(Acl)
-    margin = 1e-9 * max(1.0, float(np.max(np.abs(poles))))
-    if np.max(poles.real) >= -margin:
-        raise ModelError(
-            "the Riccati solution of (13) is not stabilizing: A - S P has the eigenvalue "
-            + _fmt(poles[np.argmax(poles.real)])
-        )
     for name, G in (("F", F), ("K", K)):
         pairs = sylvester_resonances(Acl, G)
         if pairs:
@@ -146,7 +197,7 @@ def lq_tracking_design(system: LinearSystem) -> TrackingDesign:
     P1 = solve_sylvester(Acl.T, F, CQH - P @ Bz)
     P2 = solve_sylvester(Acl.T, K, -P @ B2)
     residuals = {
-        "riccati_13": _rel(A.T @ P + P @ A - P @ S @ P + CQC, A.T @ P, P @ S @ P, CQC),
+        "riccati_13": riccati_res,
         "sylvester_14": _rel(Acl.T @ P1 + P1 @ F + P @ Bz - CQH, Acl.T @ P1, P1 @ F, P @ Bz, CQH),
         "sylvester_15": _rel(Acl.T @ P2 + P2 @ K + P @ B2, Acl.T @ P2, P2 @ K, P @ B2),
     }
@@ -155,5 +206,5 @@ def lq_tracking_design(system: LinearSystem) -> TrackingDesign:
             raise ModelError(f"the design is ill-conditioned: relative residual of {name} "
                              f"is {value:.3g}")
     G = Rinv @ B1.T
-    return TrackingDesign(P=P, P1=P1, P2=P2, Kx=G @ P, Kz=G @ P1, Kw=G @ P2,
+    return TrackingDesign(P=P, P1=P1, P2=P2, Kx=Kx, Kz=G @ P1, Kw=G @ P2,
                           closed_loop_poles=poles, residuals=residuals)
