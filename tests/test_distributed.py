@@ -37,9 +37,8 @@ from orchestrator.analysis.distributed import (
     agents_from_fleet_spec,
     design_laws,
     distributed_closed_loop,
-    predict_cost,
-    stability_verdict,
 )
+from orchestrator.analysis.distributed_verdict import predict_cost, stability_verdict
 from orchestrator.scenario import SCENARIO_DIR
 from orchestrator.scenario.fleet import fleet_spec_from_dict
 from plant_model.graph import communication_graph

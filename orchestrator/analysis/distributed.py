@@ -38,10 +38,8 @@ Continuous-time sufficient bounds reported beside it: observer mu > max Re f / m
 (any mu > 0 for a marginally stable F); cohesion: any c >= 0 (the blocks
 A - (1 + c lambda) B Kx are Hurwitz since Re(1 + c lambda) >= 1/2, the LQ gain margin).
 
-Cost rate (the project's, on the total force): J/T = tr(Q E[e e']) + tr(R E[u u']) with
-Sigma = Phi_R Sigma Phi_R' + Gam_R W Gam_R' on the error part (:func:`predict_cost`); with a
-window and an initial state the deterministic mean motion is added, as in
-:func:`orchestrator.analysis.prediction.predict_stationary`.
+The stability verdict and the cost prediction of such a loop are in
+:mod:`orchestrator.analysis.distributed_verdict`.
 """
 from __future__ import annotations
 
@@ -50,14 +48,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.linalg import block_diag, solve_discrete_lyapunov
+from scipy.linalg import block_diag
 
 from controller_fmu.distributed import (
     SampledObserver,
     VehicleLaw,
-    consensus_eigenvalues,
     design_vehicle_law,
-    min_observer_gain,
 )
 from estimator_fmu.estimators import steady_kalman
 from plant_model.discretization import van_loan, zoh
@@ -65,11 +61,8 @@ from plant_model.fleet import disturbance_of, fleet_graph, fleet_vehicles
 from plant_model.graph import CommunicationGraph
 from plant_model.linalg_checks import ModelError, as_matrix, as_vector
 
-from .prediction import window_average_covariance
-
-__all__ = ["Agent", "DistributedLoop", "DistributedPrediction", "SampledAgent",
-           "StabilityVerdict", "agents_from_fleet_spec", "design_laws",
-           "distributed_closed_loop", "predict_cost", "sample_agent", "stability_verdict"]
+__all__ = ["Agent", "DistributedLoop", "SampledAgent", "agents_from_fleet_spec",
+           "design_laws", "distributed_closed_loop", "sample_agent"]
 
 ESTIMATORS = ("ideal", "kalman")
 
@@ -432,164 +425,3 @@ def distributed_closed_loop(agents: Sequence[Agent], laws: Sequence[VehicleLaw],
                            Rc=block_diag(*[a.R for a in agents]), h=h, sampled=sampled,
                            laws=tuple(laws), observer=observer, LG=LG,
                            cohesion=float(cohesion), estimator=estimator)
-
-
-def _identical(loop: DistributedLoop) -> bool:
-    a0, l0 = loop.sampled[0], loop.laws[0]
-
-    def same(x: np.ndarray | None, y: np.ndarray | None) -> bool:
-        return (x is None and y is None) or (x is not None and y is not None
-                                             and x.shape == y.shape and np.array_equal(x, y))
-    return all(same(a.Ad, a0.Ad) and same(a.Bd, a0.Bd) and same(a.L, a0.L)
-               and all(same(getattr(law, k), getattr(l0, k)) for k in ("Kx", "X", "U", "Xw", "Uw"))
-               for a, law in zip(loop.sampled, loop.laws))
-
-
-@dataclass(frozen=True)
-class StabilityVerdict:
-    """Spectral radius of the error part, per-eigenvalue blocks, continuous-time bounds."""
-
-    spectral_radius: float          #: of the error part (the largest block's if identical)
-    stacked_spectral_radius: float  #: from the eigenvalues of the stacked error part
-    identical: bool                 #: the per-eigenvalue blocks are exact
-    blocks: tuple[tuple[complex, float], ...]  #: (lambda of L + G, spectral radius of its block)
-    observer_mu_min: float          #: continuous-time bound, mu > this (1/s)
-    cohesion_bound: str             #: continuous-time statement on c
-
-    @property
-    def stable(self) -> bool:
-        """Spectral radius < 1."""
-        return self.spectral_radius < 1.0
-
-
-def stability_verdict(loop: DistributedLoop, *, check: bool = False) -> StabilityVerdict:
-    """Stability of the sampled loop, per eigenvalue of L + G when the vehicles are identical.
-
-    Parameters
-    ----------
-    loop : DistributedLoop
-        The stacked loop.
-    check : bool, optional
-        Raise :class:`ModelError` when unstable.
-
-    Returns
-    -------
-    StabilityVerdict
-        The verdict.
-
-    Raises
-    ------
-    ModelError
-        With ``check``, naming the eigenvalue of L + G whose block fails (identical
-        vehicles) or the unstable eigenvalue of the stacked loop, with mu, c and h.
-    """
-    R = ~loop.deterministic
-    ev = np.linalg.eigvals(loop.Phi[np.ix_(R, R)])
-    k = int(np.argmax(np.abs(ev)))
-    rho = float(np.abs(ev[k]))
-    lams = consensus_eigenvalues(loop.LG)
-    identical = _identical(loop)
-    blocks: list[tuple[complex, float]] = []
-    if identical:
-        sa, law = loop.sampled[0], loop.laws[0]
-        for lam in lams:
-            part = _assemble([sa], [law], np.array([[lam]], dtype=complex), np.zeros(1),
-                             loop.observer, np.zeros((sa.M.shape[0], loop.observer.Phi.shape[0])),
-                             [np.zeros(sa.M.shape[0])], loop.cohesion, loop.estimator == "kalman")
-            Rb = ~part["deterministic"]
-            blocks.append((complex(lam), float(np.max(np.abs(
-                np.linalg.eigvals(part["Phi"][np.ix_(Rb, Rb)]))))))
-    if identical:       # exact: the stacked eigenvalues are ill-conditioned when L + G
-        rho = max(b for _, b in blocks)     # is defective (a Jordan chain of length k)
-    verdict = StabilityVerdict(
-        spectral_radius=rho, stacked_spectral_radius=float(np.abs(ev[k])),
-        identical=identical, blocks=tuple(blocks),
-        observer_mu_min=min_observer_gain(loop.observer.F, loop.LG),
-        cohesion_bound=("continuous time: stable for every c >= 0 (blocks A - (1 + c lambda) "
-                        "B Kx, Re(1 + c lambda) >= 1/2: LQ gain margin)"))
-    if check and rho >= 1.0:
-        gains = (f"observer gain mu = {loop.observer.mu:g} 1/s, coupling gain c = "
-                 f"{loop.cohesion:g}, h = {loop.h:g} s")
-        if identical:
-            lam, rb = max(blocks, key=lambda b: b[1])
-            raise ModelError(
-                f"the sampled distributed loop is unstable ({gains}): at eigenvalue "
-                f"{_fmt(lam)} of L + G the vehicle block has spectral radius {rb:.6g} >= 1 "
-                f"(continuous-time bound: mu > {verdict.observer_mu_min:.6g} 1/s, any c >= 0)")
-        raise ModelError(
-            f"the sampled distributed loop is unstable ({gains}): eigenvalue {_fmt(ev[k])} "
-            f"of the stacked loop (|.| = {rho:.6g} >= 1); the vehicles differ, so it is not "
-            "attributed to one eigenvalue of L + G")
-    return verdict
-
-
-@dataclass(frozen=True)
-class DistributedPrediction:
-    """Predicted RMS of e and u per component and the cost rate J/T."""
-
-    rms_e: list[float]
-    rms_u: list[float]
-    cost_rate: float
-    spectral_radius: float
-    settling_time: float      #: 5 time constants of the slowest error mode, s
-
-
-def predict_cost(loop: DistributedLoop, window: tuple[int, int] | None = None,
-                 X0: np.ndarray | None = None, *, transient: bool = False
-                 ) -> DistributedPrediction:
-    """J/T = tr(Qc E[e e']) + tr(Rc E[u u']) from the discrete Lyapunov equation.
-
-    Sigma = Phi_R Sigma Phi_R' + Gam_R W Gam_R' on the error part; E[e e'] = Ce Sigma Ce',
-    E[u u'] = Gx Sigma Gx' + Geta W Geta'. With ``window`` = (k0, K) and ``X0`` the mean
-    motion X_mean[k] = Phi^k X0 is averaged over the window and added; with ``transient`` the
-    covariance is the window average from Sigma_0 = 0
-    (:func:`orchestrator.analysis.prediction.window_average_covariance`).
-
-    Parameters
-    ----------
-    loop : DistributedLoop
-        The stacked loop.
-    window : tuple[int, int] or None, optional
-        Samples k0 <= k < K.
-    X0 : np.ndarray or None, optional
-        Initial state for the mean motion (:meth:`DistributedLoop.initial_state`).
-    transient : bool, optional
-        Average the covariance over the window from a known initial state.
-
-    Returns
-    -------
-    DistributedPrediction
-        The prediction.
-
-    Raises
-    ------
-    ModelError
-        If the error part is not stable.
-    """
-    stability_verdict(loop, check=True)
-    R = ~loop.deterministic
-    PhiR = loop.Phi[np.ix_(R, R)]
-    GR = loop.Gam[R]
-    Sigma = np.zeros_like(loop.Phi)
-    SR = solve_discrete_lyapunov(PhiR, GR @ loop.W @ GR.T)
-    if transient and window is not None:
-        SR = window_average_covariance(PhiR, SR, *window)
-    Sigma[np.ix_(R, R)] = SR
-    See = loop.Ce @ Sigma @ loop.Ce.T
-    Suu = loop.Gx @ Sigma @ loop.Gx.T + loop.Geta @ loop.W @ loop.Geta.T
-    if window is not None and X0 is not None:
-        k0, K = window
-        X = np.linalg.matrix_power(loop.Phi, k0) @ X0
-        ee, uu = np.zeros_like(See), np.zeros_like(Suu)
-        for _ in range(k0, K):
-            e, u = loop.Ce @ X, loop.Gx @ X
-            ee += np.outer(e, e)
-            uu += np.outer(u, u)
-            X = loop.Phi @ X
-        See, Suu = See + ee / max(K - k0, 1), Suu + uu / max(K - k0, 1)
-    rho = float(np.max(np.abs(np.linalg.eigvals(PhiR)))) if PhiR.size else 0.0
-    tau = -loop.h / np.log(rho) if rho > 0 else loop.h
-    cost = float(np.trace(loop.Qc @ See) + np.trace(loop.Rc @ Suu))
-    return DistributedPrediction(rms_e=np.sqrt(np.clip(np.diag(See), 0, None)).tolist(),
-                                 rms_u=np.sqrt(np.clip(np.diag(Suu), 0, None)).tolist(),
-                                 cost_rate=cost, spectral_radius=rho, settling_time=5 * tau)
