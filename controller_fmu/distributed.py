@@ -414,45 +414,7 @@ def control_input(law: VehicleLaw, xhat: Any, what: Any | None, eta: Any,
 
 def coupling_force_gain(B: Any, coupling: Any,
                         state_names: tuple[str, ...] | None = None) -> np.ndarray:
-    """Kc = B^+ Gamma: the consensus protocol of eq. 1 as a force through the actuators.
-
-    The in-plant protocol adds Gamma (sum_j a_ij ((x_j - delta_j) - (x_i - delta_i))
-    + a_i0 (x_0 - (x_i - delta_i))) to x_i'; as control it is u_i += Kc (...) with
-    B Kc = Gamma, which exists iff range(Gamma) lies in range(B): (I - B B^+) Gamma = 0.
-    For ``remus100`` with formation-4's coupling (0.02 on positions, 0.2 on velocities, in the
-    velocity rows) Kc = diag(M_a) [0.02 I, 0.2 I] (N/m, N s/m); the identity coupling also
-    acts on the position rows, which no force reaches, and is refused.
-
-    Parameters
-    ----------
-    B : Any
-        The vehicle's input matrix, p x m.
-    coupling : Any
-        Gamma, p x p.
-    state_names : tuple[str, ...] or None, optional
-        Names of the states for the message.
-
-    Returns
-    -------
-    np.ndarray
-        Kc, m x p (input units per state unit).
-
-    Raises
-    ------
-    ModelError
-        Naming the state rows of Gamma outside the actuators' reach.
-    """
-    B = as_matrix("B", B)
-    p = B.shape[0]
-    Gam = as_matrix("coupling", coupling, (p, p))
-    Bp = np.linalg.pinv(B)
-    miss = Gam - B @ (Bp @ Gam)
-    tol = 1e-9 * max(1.0, float(np.abs(Gam).max(initial=0.0)))
-    rows = np.flatnonzero(np.abs(miss).max(axis=1) > tol)
-    if rows.size:
-        names = state_names or tuple(f"x{k + 1}" for k in range(p))
-        raise ModelError(
-            "the coupling matrix acts outside the actuators' reach (range of Gamma not within "
-            f"the range of B1): its rows for {', '.join(names[k] for k in rows)} cannot be "
-            "produced by any force; couple through the rows B1 reaches (e.g. accelerations)")
-    return Bp @ Gam
+    """Kc = B^+ Gamma (:func:`plant_model.fleet.consensus_force_gain`, which refuses a coupling
+    outside the actuators' reach, naming the state rows)."""
+    from plant_model.fleet import consensus_force_gain
+    return consensus_force_gain(B, coupling, state_names)

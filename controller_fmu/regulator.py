@@ -21,7 +21,7 @@ Both tracking modes are returned as one gain on the plant's state order [x; w; z
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.linalg import lu_factor, lu_solve, schur
@@ -164,6 +164,9 @@ def tracking_law(system: LinearSystem, mode: str = "lq",
     """The gain of ``mode`` ('lq' or 'regulator') on the plant state [x; w; z].
 
     lq: Ks = [Kx, Kw, Kz]; regulator: Ks = [Kx, -(Gamma + Kx Pi)] (module docstring).
+    For a fleet whose consensus protocol is a force (``system.meta["consensus"]``, a
+    :class:`plant_model.fleet.ConsensusProtocol`) the law is designed on the in-plant system
+    and the protocol force added: Ks = Ks_design - Kc.
     Without ``design``, solved once per process for identical numbers
     (:mod:`plant_model.memo`; the result's arrays are read-only).
 
@@ -190,6 +193,12 @@ def tracking_law(system: LinearSystem, mode: str = "lq",
     if mode not in TRACKING_MODES:
         raise ModelError(f"unknown tracking mode {mode!r}; expected one of "
                          f"{', '.join(TRACKING_MODES)}")
+    protocol = system.meta.get("consensus")
+    if protocol is not None:      # a fleet whose consensus protocol is a force (plant_model.fleet)
+        law = tracking_law(protocol.design, mode, design)
+        total = law.Ks - protocol.gain                     # u = -Ks s + Kc s
+        total.setflags(write=False)
+        return replace(law, Ks=total)
     if design is not None:
         return _tracking_law(system, mode, design)
     key = (mode,) + tuple(getattr(system, k) for k in

@@ -456,6 +456,8 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         "steps": sc.steps,
         "seeds": [int(s) for s in seeds],
         "noise_convention": sc.system.noise_convention,
+        "consensus": None if sc.fleet is None else sc.fleet["graph"].get("consensus",
+                                                                         "in-plant"),
         "stats_window_s": list(window) if window else None,
         "stationary": not notes,
         "stationarity_note": "; ".join(sorted(notes)) or None,

@@ -17,6 +17,14 @@ G = diag(a_i0), :mod:`plant_model.graph`):
     H  = [ 1_N kron H_l ,  d ]                                          (c == 1 carries the offsets)
     B1, B2, C, K, Q, R and the noise intensities block diagonal per vehicle
 
+``consensus = "protocol"`` (in the spec's ``graph``) takes the protocol out of the
+physics: the plant is blkdiag(A_ii) with Bz = 0 and the controller applies the protocol as
+a force, u_cons = Kc [x; w; z] with B1 Kc = [-(L + G) kron Gamma, 0, Bz] (Kc = blkdiag(B1i^+)
+times that; it exists iff Gamma's range lies within every B1i's range). The returned
+system carries a :class:`ConsensusProtocol` in ``meta["consensus"]``: the in-plant system
+the law is designed on, and Kc. Held over a step, the force makes the same sampled loop as
+the co-simulation; the in-plant form differs from it by O(h).
+
 The constant state c (F entry 0, no noise, c(0) = 1) is appended to the leader's state
 only when some offset is non-zero. The leader z_l' = F_l z_l (+ m_z) is shared by all
 vehicles. Each vehicle's disturbance is its own exosystem: an ocean current as a
@@ -46,8 +54,72 @@ from .linalg_checks import ModelError, as_matrix, as_vector
 from .system import LinearSystem
 from .vehicles import VehicleModel, leader_state_map, make_vehicle, state_offset
 
-__all__ = ["FleetInfo", "fleet_vehicles", "fleet_graph", "fleet_system", "fleet_info",
-           "disturbance_of", "resolve_fleet_spec"]
+__all__ = ["CONSENSUS_FORMS", "ConsensusProtocol", "FleetInfo", "consensus_force_gain",
+           "fleet_vehicles", "fleet_graph", "fleet_system", "fleet_info", "disturbance_of",
+           "resolve_fleet_spec"]
+
+#: where the consensus protocol of eq. 1 acts: in the plant's dynamics (the paper's
+#: stacked model) or as a force the controller applies (what a real fleet does)
+CONSENSUS_FORMS = ("in-plant", "protocol")
+
+
+@dataclass(frozen=True, eq=False)
+class ConsensusProtocol:
+    """The protocol as control: u = u_design + gain [x; w; z] (held over each step).
+
+    ``design`` is the in-plant stacked system the tracking law is designed on; ``gain``
+    (m x (n + r + l), N and N s/m for remus100) satisfies B1 gain = [-(L + G) kron Gamma,
+    0, Bz] of that system.
+    """
+
+    design: LinearSystem
+    gain: np.ndarray
+
+
+def consensus_force_gain(B: Any, coupling: Any,
+                         state_names: tuple[str, ...] | None = None) -> np.ndarray:
+    """Kc = B^+ Gamma: the consensus protocol of eq. 1 as a force through the actuators.
+
+    The in-plant protocol adds Gamma (sum_j a_ij ((x_j - delta_j) - (x_i - delta_i))
+    + a_i0 (x_0 - (x_i - delta_i))) to x_i'; as control it is u_i += Kc (...) with
+    B Kc = Gamma, which exists iff range(Gamma) lies in range(B): (I - B B^+) Gamma = 0.
+    For ``remus100`` with formation-4's coupling (0.02 on positions, 0.2 on velocities, in the
+    velocity rows) Kc = diag(M_a) [0.02 I, 0.2 I] (N/m, N s/m); the identity coupling also
+    acts on the position rows, which no force reaches, and is refused.
+
+    Parameters
+    ----------
+    B : Any
+        The vehicle's input matrix, p x m.
+    coupling : Any
+        Gamma, p x p.
+    state_names : tuple[str, ...] or None, optional
+        Names of the states for the message.
+
+    Returns
+    -------
+    np.ndarray
+        Kc, m x p (input units per state unit).
+
+    Raises
+    ------
+    ModelError
+        Naming the state rows of Gamma outside the actuators' reach.
+    """
+    B = as_matrix("B", B)
+    p = B.shape[0]
+    Gam = as_matrix("coupling", coupling, (p, p))
+    Bp = np.linalg.pinv(B)
+    miss = Gam - B @ (Bp @ Gam)
+    tol = 1e-9 * max(1.0, float(np.abs(Gam).max(initial=0.0)))
+    rows = np.flatnonzero(np.abs(miss).max(axis=1) > tol)
+    if rows.size:
+        names = state_names or tuple(f"x{k + 1}" for k in range(p))
+        raise ModelError(
+            "the coupling matrix acts outside the actuators' reach (range of Gamma not within "
+            f"the range of B1): its rows for {', '.join(names[k] for k in rows)} cannot be "
+            "produced by any force; couple through the rows B1 reaches (e.g. accelerations)")
+    return Bp @ Gam
 
 
 def fleet_vehicles(spec: Mapping[str, Any]) -> list[VehicleModel]:
@@ -255,7 +327,22 @@ def fleet_system(spec: Mapping[str, Any]) -> LinearSystem:
         "V_ybar": per_vehicle("V_ybar", lambda m: m.s, 0.0),
         "noise_convention": spec.get("noise_convention", "intensity"),
     }
-    return LinearSystem.from_mapping(mapping)
+    form = spec.get("graph", {}).get("consensus", "in-plant")
+    if form not in CONSENSUS_FORMS:
+        raise ModelError(f"graph consensus = {form!r} is not one of {', '.join(CONSENSUS_FORMS)}")
+    if form == "in-plant":
+        return LinearSystem.from_mapping(mapping)
+    design = LinearSystem.from_mapping(mapping)
+    for mdl in models:
+        consensus_force_gain(mdl.B1, Gam, mdl.state_names)  # refuses an unreachable coupling
+    Bplus = block_diag(*[np.linalg.pinv(mdl.B1) for mdl in models])
+    r = design.r
+    gain = np.zeros((design.m, N * p + r + l_))
+    gain[:, :N * p] = -Bplus @ np.kron(LG, Gam)
+    gain[:, N * p + r:] = Bplus @ Bz
+    physics = dict(mapping, A=block_diag(*[mdl.A for mdl in models]), Bz=np.zeros_like(Bz),
+                   meta={"consensus": ConsensusProtocol(design=design, gain=gain)})
+    return LinearSystem.from_mapping(physics)
 
 
 _MODEL_KEYS = {"remus100": ("mass", "added_mass", "time_constant", "drag_coefficient",

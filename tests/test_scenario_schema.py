@@ -100,7 +100,7 @@ def test_missing_and_unknown_keys_of_one_table_are_listed_together():
     msg = error_of(PAPER, lambda d: (d["vehicles"].pop("B2"), d["vehicles"].pop("A")))
     assert "missing key(s) in [vehicles]: A, B2 (A: n x n matrix; B2: n x r matrix)" in msg, msg
     msg = error_of(FLEET, lambda d: d["graph"].update(weights=1, nodes=2))
-    assert "unknown key(s) in [graph]: nodes, weights (allowed: edges, pinning, coupling)" in msg
+    assert "unknown key(s) in [graph]: nodes, weights (allowed: edges, pinning, coupling, consensus)" in msg
 
 
 def test_missing_sections_of_a_fleet():

@@ -85,7 +85,8 @@ def fleet_spec(scenario: FleetScenario) -> dict[str, Any]:
     graph, leader = scenario.graph, scenario.leader
     return {
         "vehicles": vehicles,
-        "graph": {"edges": graph.edges, "pinning": graph.pinning, "coupling": graph.coupling},
+        "graph": {"edges": graph.edges, "pinning": graph.pinning, "coupling": graph.coupling,
+                  "consensus": graph.consensus},
         "leader": {"kind": leader.path, "F": path.F.tolist(), "H": path.H.tolist(),
                    "z0": path.z0.tolist(), "W_z": leader.noise, "params": leader.parameters},
         "noise_convention": noise.convention,

@@ -32,7 +32,7 @@ from pydantic import (
     model_validator,
 )
 
-from plant_model.fleet import fleet_vehicles
+from plant_model.fleet import CONSENSUS_FORMS, fleet_vehicles
 from plant_model.graph import communication_graph
 from plant_model.leader import LeaderPath, make_leader
 from plant_model.linalg_checks import ModelError, as_matrix, as_vector
@@ -140,6 +140,9 @@ class GraphSection(Section):
     edges: list[Any] = Field(default_factory=list)
     pinning: Any = Field(default_factory=list)
     coupling: Matrix = None
+    #: "in-plant": the protocol in the plant's dynamics (the paper's model); "protocol": a
+    #: force the controller applies (plant_model.fleet.CONSENSUS_FORMS)
+    consensus: Annotated[str, one_of(CONSENSUS_FORMS)] = "in-plant"
 
     def check(self, count: int, p: int) -> None:
         """A valid communication graph of count vehicles (plant_model.graph) and a finite
