@@ -41,7 +41,8 @@ class Fmi2StateMachine:
     """Mixin for a pythonfmu ``Fmi2Slave``: the lifecycle checks of the module docstring.
 
     The slave calls :meth:`_init_lifecycle` in ``__init__``, :meth:`_step_refusal` at the
-    start of ``do_step`` and :meth:`_stepped` after a step was taken.
+    start of ``do_step`` (or inlines its common case) and sets ``_t_next`` to the end of a
+    step it took.
     """
 
     def _init_lifecycle(self) -> None:
@@ -120,7 +121,19 @@ class Fmi2StateMachine:
 
     # --------------------------------------------------------------- steps
     def _step_refusal(self, current_time: float, step_size: float) -> str | None:
-        """Why fmi2DoStep(current_time, step_size) breaks the rules now (None: it does not)."""
+        """Why fmi2DoStep(current_time, step_size) breaks the rules now (None: it does not).
+
+        The common case (step mode, a positive finite step at the expected point) costs a
+        few comparisons; the message is built only for a refusal."""
+        expected = self._t_next
+        if (self._phase == STEPPING and 0.0 < step_size < math.inf
+                and current_time - current_time == 0.0
+                and (expected is None or abs(current_time - expected)
+                     <= 1e-9 * max(abs(expected), step_size, 1.0))):
+            return None
+        return self._why_refused(current_time, step_size)
+
+    def _why_refused(self, current_time: float, step_size: float) -> str | None:
         call = f"fmi2DoStep(t = {current_time} s, h = {step_size} s)"
         if self._phase != STEPPING:
             why = {INSTANTIATED: "before initialization (fmi2EnterInitializationMode and "
@@ -143,9 +156,6 @@ class Fmi2StateMachine:
                     "steps forward in time only (to repeat a step, restore a state with "
                     "fmi2SetFMUstate first)")
         return None
-
-    def _stepped(self, current_time: float, step_size: float) -> None:
-        self._t_next = current_time + step_size
 
     # ---------------------------------------------------- value references
     def _check_refs(self, call: str, vrs: Sequence[int], kind: type, kind_name: str) -> None:

@@ -30,7 +30,7 @@ from .fmu_state import (
     encode_state,
 )
 from .interface import ArraySpec, expand
-from .lifecycle import FAILED, INSTANTIATED, Fmi2StateMachine
+from .lifecycle import FAILED, INSTANTIATED, STEPPING, Fmi2StateMachine
 from .value_plans import PlannedAccess
 
 if TYPE_CHECKING:
@@ -142,6 +142,12 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
     #: True if :meth:`restore_model_state` rebuilds everything ``compute_outputs`` and
     #: ``advance`` need from the state alone (no ``setup()`` when parameters changed)
     restores_math_from_state: bool = False
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls._checks_state = cls.evolving is not ArraySlave.evolving
+
+    _checks_state = False
 
     def evolving(self) -> np.ndarray | None:
         """The array the mathematics advances in a step (checked to stay finite), or None.
@@ -362,10 +368,15 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
                      f"rejected ({problem}); the instance kept the state it had before that "
                      "call, and the next step proceeds from it", Fmi2Status.error)
             return False
-        refusal = self._step_refusal(current_time, step_size)
-        if refusal is not None:
-            self.log(f"{self._who()}: {refusal}", Fmi2Status.error)
-            return False
+        expected = self._t_next                     # the state machine's common case, inlined
+        if not (self._phase == STEPPING and 0.0 < step_size < math.inf
+                and current_time - current_time == 0.0
+                and (expected is None or abs(current_time - expected)
+                     <= 1e-9 * (abs(expected) + step_size + 1.0))):
+            refusal = self._step_refusal(current_time, step_size)
+            if refusal is not None:
+                self.log(f"{self._who()}: {refusal}", Fmi2Status.error)
+                return False
         if self._output_error is not None:
             self.log(f"{self._who()}: step at t = {current_time} s refused: "
                      f"{self._output_error}", Fmi2Status.error)
@@ -390,9 +401,9 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
                      Fmi2Status.error)
             return False
         self._dirty = True
-        self._stepped(current_time, step_size)
-        state = self.evolving()
-        if state is not None:
+        self._t_next = current_time + step_size
+        if self._checks_state:
+            state = self.evolving()
             total = sum(state.tolist())
             if total - total != 0.0 and not np.all(np.isfinite(state)):
                 return self._nonfinite_step(current_time, step_size, state)
