@@ -123,10 +123,19 @@ def built_scenario(tmp_path_factory):
 
     cache: dict[str, tuple] = {}
 
-    def get(name: str = "paper"):
-        if name not in cache:
+    def get(name: str = "paper", consensus: str | None = None):
+        key = (name, consensus)
+        if key not in cache:
             sc = load_scenario(name)
-            cache[name] = (build(sc, tmp_path_factory.mktemp(f"fmus_{name}")), scenario_config(sc))
-        return cache[name]
+            if consensus is not None:           # a fleet in the other consensus form
+                import tomllib
+
+                from orchestrator.scenario import SCENARIO_DIR, scenario_from_dict
+                data = tomllib.loads((SCENARIO_DIR / f"{name}.toml").read_text())
+                data["graph"]["consensus"] = consensus
+                sc = scenario_from_dict(data, f"built-in scenario '{name}' ({consensus})")
+            cache[key] = (build(sc, tmp_path_factory.mktemp(f"fmus_{name}")),
+                          scenario_config(sc))
+        return cache[key]
 
     return get

@@ -29,7 +29,9 @@ def _scenario(tmp_path, consensus="protocol", text=None):
 @pytest.fixture(scope="module")
 def both(tmp_path_factory):
     d = tmp_path_factory.mktemp("protocol")
-    return load_scenario("formation-4"), _scenario(d)
+    default = load_scenario("formation-4")                  # the protocol form is the default
+    assert default.fleet["graph"]["consensus"] == "protocol"
+    return _scenario(d, "in-plant"), default
 
 
 def test_the_protocol_force_reproduces_the_in_plant_terms(both):

@@ -175,6 +175,7 @@ count = 2
 model = "generic"
 params = { A = [[0.0, 1.0], [0.0, -1.0]], B1 = [[0.0], [1.0]], B2 = [[0.0], [1.0]], C = [[1.0, 0.0], [0.0, 1.0]] }
 [graph]
+consensus = "in-plant"
 edges = [[1, 2, 1.0]]
 pinning = [[1, 1.0]]
 """
@@ -187,6 +188,9 @@ def _load_text(tmp_path: Path, text: str, name: str):
 
 
 def test_fewer_inputs_than_outputs_loads_but_has_no_regulator(tmp_path):
+    # the identity coupling acts on x1, which the single input cannot reach: in-plant only
+    with pytest.raises(ScenarioError, match="rows for x1 cannot be produced by any force"):
+        _load_text(tmp_path, FEWER_INPUTS.replace('consensus = "in-plant"\n', ""), "fewer0")
     sc = _load_text(tmp_path, FEWER_INPUTS, "fewer")
     assert (sc.system.m, sc.system.p) == (2, 4)
     tracking_law(sc.system, "lq")                 # the paper's law exists
@@ -306,7 +310,8 @@ def test_paper_as_a_fleet_of_one_vehicle_is_the_paper(tmp_path):
 def test_paper_as_a_fleet_with_the_default_coupling_is_not_the_paper(tmp_path):
     """Gamma = I (the default) pins the vehicle to the leader inside its dynamics:
     A = A_11 - a_10 I and Bz = a_10 C^-1 H: a different (also valid) system."""
-    sc = _load_text(tmp_path, paper_fleet(""), "paper2")
+    sc = _load_text(tmp_path, paper_fleet("").replace("[graph]", '[graph]\nconsensus = "in-plant"'),
+                    "paper2")
     A = np.array([[-1.0, 0.0], [0.0, -1.0]])
     C = np.array([[1.0, 2.0], [3.0, 4.0]])
     H = np.array([[0.2, 4.0], [2.0, 5.0]])

@@ -135,14 +135,17 @@ class LeaderSection(BaseModel):
 
 class GraphSection(Section):
     """[graph]: edges [[j, i, a_ij], ...] (vehicle i hears vehicle j), pinning [[i, a_i0],
-    ...] (vehicle i hears the leader), coupling Gamma (p x p, identity by default)."""
+    ...] (vehicle i hears the leader), coupling Gamma (p x p, identity by default; the
+    protocol form needs it within the actuators' reach), consensus ("protocol" or
+    "in-plant")."""
 
     edges: list[Any] = Field(default_factory=list)
     pinning: Any = Field(default_factory=list)
     coupling: Matrix = None
-    #: "in-plant": the protocol in the plant's dynamics (the paper's model); "protocol": a
-    #: force the controller applies (plant_model.fleet.CONSENSUS_FORMS)
-    consensus: Annotated[str, one_of(CONSENSUS_FORMS)] = "in-plant"
+    #: "protocol" (the default): a force the controller applies, the plant keeps only the
+    #: vehicles' physics; "in-plant": the protocol in the plant's dynamics (the paper's
+    #: stacked model) (plant_model.fleet.CONSENSUS_FORMS)
+    consensus: Annotated[str, one_of(CONSENSUS_FORMS)] = "protocol"
 
     def check(self, count: int, p: int) -> None:
         """A valid communication graph of count vehicles (plant_model.graph) and a finite
