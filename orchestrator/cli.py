@@ -134,8 +134,17 @@ def _print_summary(summary: dict, out: Path) -> int:
                    f"{'n/a' if not pred_e else format(max(pred_e), '#.3g')}"
                    + ("" if steady is None else f"; steady error (noise-free RMS) {steady:#.3g}"))
         print(f"{name:>10s} {c['mean']:#12.4g} {c['std']:#9.3g} {pred:>10s}   {rms}")
+        sep = m.get("min_separation")
+        if m.get("formation_error_rms"):
+            worst = max(m["formation_error_rms"], key=m["formation_error_rms"].get)
+            print(f"{'':>10s}   formation error RMS (window) worst edge {worst} "
+                  f"{m['formation_error_rms'][worst]:#.3g} m"
+                  + ("" if sep is None else
+                     f"; closest approach {sep['m']:#.3g} m (vehicles {sep['vehicles'][0]} "
+                     f"and {sep['vehicles'][1]} at t = {sep['time_s']:.4g} s, seed "
+                     f"{sep['seed']})"))
     if summary.get("stationarity_note"):
-        window = ", ".join(f"{n} {m['cost_rate']['predicted_window']:.4g}"
+        window = ", ".join(f"{n} {m['cost_rate']['predicted_window']:#.4g}"
                            for n, m in summary["methods"].items()
                            if m.get("cost_rate", {}).get("predicted_window") is not None)
         print(f"note: {summary['stationarity_note']}"

@@ -35,7 +35,8 @@ def _init_worker() -> None:
 
 
 def seed_stats(fmus: dict[str, Path], cfg: dict[str, Any], mode: str, seed: int, steps: int,
-               tracking: str, k0: int, Q: Any, R: Any) -> tuple[dict[str, Any], float]:
+               tracking: str, k0: int, Q: Any, R: Any,
+               formation: tuple | None = None) -> tuple[dict[str, Any], float]:
     """One seed's co-simulation on a worker: its :func:`trace_stats` and loop time.
 
     Parameters
@@ -52,6 +53,9 @@ def seed_stats(fmus: dict[str, Path], cfg: dict[str, Any], mode: str, seed: int,
         First sample of the statistics window.
     Q, R : np.ndarray
         Cost weights.
+    formation : tuple or None, optional
+        (position_index, offsets, edges, h) of a fleet: the stats then hold ``formation``
+        (:func:`orchestrator.analysis.formation.formation_stats`).
 
     Returns
     -------
@@ -60,11 +64,11 @@ def seed_stats(fmus: dict[str, Path], cfg: dict[str, Any], mode: str, seed: int,
     loop_s : float
         Seconds in the step loop.
     """
-    from .analysis.summary import trace_stats
+    from .analysis.summary import run_stats
     from .cosim.master import run_cosimulation
 
     res = run_cosimulation(fmus, cfg, mode=mode, seed=seed, steps=steps, tracking=tracking)
-    return trace_stats(res.traces, Q, R, k0), res.loop_s
+    return run_stats(res.traces, Q, R, k0, formation), res.loop_s
 
 
 class SeedPool:

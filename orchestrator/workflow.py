@@ -14,12 +14,13 @@ from estimator_fmu.estimators import make_estimator
 from plant_model.discretization import discretize
 from plant_model.linalg_checks import ModelError
 
+from .analysis.formation import formation_summary
 from .analysis.prediction import predict_stationary
 from .analysis.summary import (
     method_summary,
+    run_stats,
     stationarity_note,
     stats_window,
-    trace_stats,
     versions,
 )
 from .atomic import write_text_atomically
@@ -368,6 +369,9 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         bar = tqdm(total=len(methods_run) * len(seeds) * sc.steps, unit="step", delay=1.0,
                    leave=False, unit_scale=True)
         log = bar.write
+    layout = fleet_layout(sc)
+    formation = (None if layout is None else
+                 (layout.position_index, layout.offsets, layout.edges, sc.h))
     skipped: list[ModelError] = []
     notes: set[str] = set()
     for name, mode, tracking in methods_run:
@@ -396,7 +400,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         per_seed = []
         # the seeds after the first on local worker processes (orchestrator.parallel)
         pooled = {s: pool.submit(fmus, cfg, mode, s, sc.steps, tracking, k0, sc.system.Q,
-                                 sc.system.R) for s in seeds[1:]} if pool else {}
+                                 sc.system.R, formation) for s in seeds[1:]} if pool else {}
         for seed in seeds:
             if stop:
                 break
@@ -419,12 +423,15 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
                     f"t = {reached:.6g} s (not in the statistics)")
                 break
             loop_us.append(res.loop_s / sc.steps * 1e6)
-            per_seed.append(trace_stats(res.traces, sc.system.Q, sc.system.R, k0))
+            per_seed.append(run_stats(res.traces, sc.system.Q, sc.system.R, k0, formation))
             log(f"{name:>9s} seed {seed}: cost rate {per_seed[-1]['cost_rate']:.4g} "
                 f"(predicted {None if pred.cost_rate is None else round(pred.cost_rate, 4)}), "
                 f"{res.loop_s:.2f} s")
         methods[name] = (method_summary(per_seed, pred) if per_seed else
                          {"note": "no seed completed before the interruption"})
+        if per_seed and formation is not None:
+            methods[name].update(formation_summary(
+                [st["formation"] for st in per_seed], list(seeds[:len(per_seed)])))
         if per_seed and pred_window is not None:
             methods[name]["cost_rate"]["predicted_window"] = pred_window.cost_rate
             methods[name]["rms_e"]["predicted_window"] = pred_window.rms_e
@@ -444,7 +451,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         rrd_runs = {m: {k: v[:recorded] for k, v in tr.items()} for m, tr in rrd_runs.items()}
         rrd_info = writer.write(rrd_path, rrd_runs, sc.h,
                                 recording_name=f"{sc.name} ({', '.join(rrd_runs)})",
-                                fleet=fleet_layout(sc), stride=stride)
+                                fleet=layout, stride=stride)
     else:
         rrd_path.unlink(missing_ok=True)          # never leave an earlier run's .rrd
         rrd_info = {"bytes": 0, "signals": 0, "rrd_s": 0.0}

@@ -122,6 +122,35 @@ def _mean_std(rows: list[list[float]]) -> tuple[list[float], list[float]]:
     return a.mean(axis=0).tolist(), np.atleast_1d(std).tolist()
 
 
+def run_stats(traces: dict[str, np.ndarray], Q: np.ndarray, R: np.ndarray, k0: int,
+              formation: tuple | None = None) -> dict[str, Any]:
+    """:func:`trace_stats` of one run, with its ``formation`` figures for a fleet.
+
+    Parameters
+    ----------
+    traces : dict[str, np.ndarray]
+        The run's traces.
+    Q, R : np.ndarray
+        Cost weights.
+    k0 : int
+        First sample of the statistics window.
+    formation : tuple or None, optional
+        (position_index, offsets, edges, h) of a fleet
+        (:func:`orchestrator.analysis.formation.formation_stats`).
+
+    Returns
+    -------
+    dict[str, Any]
+        The statistics.
+    """
+    stats = trace_stats(traces, Q, R, k0)
+    if formation is not None:
+        from .formation import formation_stats
+        index, offsets, edges, h = formation
+        stats["formation"] = formation_stats(traces["x"], index, offsets, edges, k0, h)
+    return stats
+
+
 def method_summary(per_seed: list[dict[str, Any]], prediction: Any) -> dict[str, Any]:
     """Mean, standard deviation over seeds, and the prediction, as summary.json wants.
 
