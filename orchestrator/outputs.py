@@ -19,7 +19,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["LOCK_NAME", "OutputFolderError", "file_stem", "output_folder"]
+__all__ = ["LOCK_NAME", "OutputFolderError", "file_stem", "make_folder", "output_folder"]
 
 #: name of the lock file in an output folder
 LOCK_NAME = ".auv-cosim.lock"
@@ -60,6 +60,37 @@ def _holder(lock_path: Path) -> str:
     return text or "another process"
 
 
+def make_folder(out: Path | str) -> Path:
+    """Create ``out`` with its parents; one-line errors for a file in the way or no right.
+
+    Parameters
+    ----------
+    out : Path or str
+        The folder.
+
+    Returns
+    -------
+    Path
+        The folder.
+
+    Raises
+    ------
+    OutputFolderError
+        If it is a file, under a file, or cannot be created.
+    """
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise OutputFolderError(f"output folder {out} is a file") from None
+    except NotADirectoryError:
+        raise OutputFolderError(f"output folder {out} is under a file") from None
+    except PermissionError:
+        raise OutputFolderError(f"cannot create the output folder {out}: permission "
+                                "denied") from None
+    return out
+
+
 @contextmanager
 def output_folder(out: Path | str, command: str) -> Iterator[Path]:
     """Create ``out`` and hold it for ``command`` until the block ends.
@@ -81,16 +112,7 @@ def output_folder(out: Path | str, command: str) -> Iterator[Path]:
     OutputFolderError
         If another process holds the folder, or it cannot be written (one line, naming it).
     """
-    out = Path(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except FileExistsError:
-        raise OutputFolderError(f"output folder {out} is a file") from None
-    except NotADirectoryError:
-        raise OutputFolderError(f"output folder {out} is under a file") from None
-    except PermissionError:
-        raise OutputFolderError(f"cannot create the output folder {out}: permission "
-                                "denied") from None
+    out = make_folder(out)
     lock_path = out / LOCK_NAME
     try:
         fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from orchestrator.atomic import temporary_sibling
-from orchestrator.outputs import OutputFolderError
+from orchestrator.outputs import OutputFolderError, make_folder
 
 from .figure import PlotFigure, deterministic_style
 from .run_folder import RunData, load_run
@@ -102,15 +102,7 @@ def save_figure(pf: PlotFigure, out: Path, formats: Sequence[str]) -> list[Path]
 
 def _output_folder(out: Path) -> Path:
     """Create the figures folder (with its parents) and check it can be written."""
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except FileExistsError:
-        raise OutputFolderError(f"output folder {out} is a file") from None
-    except NotADirectoryError:
-        raise OutputFolderError(f"output folder {out} is under a file") from None
-    except PermissionError:
-        raise OutputFolderError(f"cannot create the output folder {out}: permission "
-                                "denied") from None
+    out = make_folder(out)
     if not os.access(out, os.W_OK | os.X_OK):
         raise OutputFolderError(f"cannot write into the output folder {out}: permission "
                                 "denied (choose another --out)")
