@@ -101,6 +101,9 @@ class DiscreteModel:
     r: int
     l: int  # noqa: E741
     p: int
+    #: independent noise streams: per stream the positions it fills in a noise row
+    #: [v; n; n_z] (a fleet whose vehicles draw their own noise); None: one stream
+    noise_blocks: tuple[tuple[int, ...], ...] | None = None
 
     @property
     def ns(self) -> int:
@@ -174,7 +177,7 @@ def discretize(system: LinearSystem, h: float) -> DiscreteModel:
     check_step(Ac, h)
     key = (h, Ac, Bc, Wc, system.V_y, system.V_ybar, system.noise_convention,
            system.measurement_matrix(), system.error_matrix(), system.n, system.r, system.l,
-           system.p)
+           system.p, repr(system.meta.get("noise_blocks")))
     return _DISCRETE_CACHE.get(key, lambda: _discretize(system, h, Ac, Bc, Wc))
 
 
@@ -195,4 +198,4 @@ def _discretize(system: LinearSystem, h: float, Ac: np.ndarray, Bc: np.ndarray,
         )
     return DiscreteModel(h=h, Ad=Ad, Bd=Bd, Qd=Qd, Rd=Rd, M=system.measurement_matrix(),
                          E=system.error_matrix(), n=system.n, r=system.r, l=system.l,
-                         p=system.p)
+                         p=system.p, noise_blocks=system.meta.get("noise_blocks"))

@@ -245,6 +245,37 @@ def _offsets(spec: Mapping[str, Any], models: list[VehicleModel]) -> tuple[np.nd
     return d, delta
 
 
+def noise_blocks(N: int, p: int, r: int, s: int, l_: int) -> tuple[tuple[int, ...], ...]:
+    """The independent noise streams of a fleet whose protocol is a force: per vehicle
+    i = 1..N the positions of its process noise (x_i, w_i) and sensor noise (y_i, ybar_i) in
+    the noise row [v; n; n_z] of the stacked model, then the leader's (z).
+
+    With no coupling in the physics the sampled process noise is block diagonal by vehicle,
+    so each vehicle (and the leader) can draw its own: vehicle i from the generator seeded
+    [seed, i], the leader from [seed, 0] (:class:`plant_model.plant.NoiseStream`), which a
+    per-vehicle plant reproduces alone.
+
+    Parameters
+    ----------
+    N, p, r, s, l_ : int
+        Vehicles, states, disturbance states and outputs per vehicle; leader states.
+
+    Returns
+    -------
+    tuple[tuple[int, ...], ...]
+        N + 1 tuples of positions.
+    """
+    n, ns, P = N * p, N * (p + r) + l_, N * s
+    blocks = []
+    for i in range(N):
+        blocks.append(tuple(range(i * p, (i + 1) * p))
+                      + tuple(range(n + i * r, n + (i + 1) * r))
+                      + tuple(range(ns + i * s, ns + (i + 1) * s))
+                      + tuple(range(ns + P + i * s, ns + P + (i + 1) * s)))
+    blocks.append(tuple(range(n + N * r, ns)))
+    return tuple(blocks)
+
+
 def fleet_system(spec: Mapping[str, Any]) -> LinearSystem:
     """The stacked :class:`LinearSystem` of the fleet (see the module docstring).
 
@@ -341,7 +372,8 @@ def fleet_system(spec: Mapping[str, Any]) -> LinearSystem:
     gain[:, :N * p] = -Bplus @ np.kron(LG, Gam)
     gain[:, N * p + r:] = Bplus @ Bz
     physics = dict(mapping, A=block_diag(*[mdl.A for mdl in models]), Bz=np.zeros_like(Bz),
-                   meta={"consensus": ConsensusProtocol(design=design, gain=gain)})
+                   meta={"consensus": ConsensusProtocol(design=design, gain=gain),
+                         "noise_blocks": noise_blocks(N, p, models[0].r, models[0].s, l_)})
     return LinearSystem.from_mapping(physics)
 
 

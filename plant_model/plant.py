@@ -21,6 +21,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from scipy.linalg import block_diag
 
 from .discretization import DiscreteModel
 from .linalg_checks import psd_factor
@@ -48,6 +49,34 @@ def _noise_factors(model: DiscreteModel) -> tuple[np.ndarray, np.ndarray]:
     return psd_factor(model.Qd).T.copy(), psd_factor(model.Rd).T.copy()
 
 
+def _streams(model: DiscreteModel) -> list[tuple[int, np.ndarray, np.ndarray]] | None:
+    """(seed key, positions, transposed factor) per independent stream of ``model`` (its
+    ``noise_blocks``: vehicles 1..N keyed 1..N, the leader keyed 0), or None for one stream.
+
+    Raises
+    ------
+    ValueError
+        If the blocks do not cover the row or the covariance couples two blocks.
+    """
+    if not model.noise_blocks:
+        return None
+    full = block_diag(model.Qd, model.Rd)
+    blocks = [np.asarray(b, dtype=np.int64) for b in model.noise_blocks]
+    every = np.sort(np.concatenate(blocks))
+    if not np.array_equal(every, np.arange(model.noise_dim)):
+        raise ValueError("the noise streams must cover every position of the noise row once")
+    scale = max(float(np.abs(full).max(initial=0.0)), 1e-300)
+    out = []
+    for k, idx in enumerate(blocks):
+        others = np.setdiff1d(every, idx)
+        if others.size and np.abs(full[np.ix_(idx, others)]).max() > 1e-12 * scale:
+            raise ValueError(f"noise stream {k + 1} is correlated with the others: the noise "
+                             "cannot be drawn per vehicle")
+        key = k + 1 if k < len(blocks) - 1 else 0
+        out.append((key, idx, psd_factor(full[np.ix_(idx, idx)]).T.copy()))
+    return out
+
+
 def _colour(xi: np.ndarray, factors: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """Rows xi L' for standard normal rows xi, L = blkdiag(Lq, Lr) (block by block)."""
     LqT, LrT = factors
@@ -62,12 +91,25 @@ class NoiseStream:
     """Rows [v[k]; n[k]; n_z[k]] for k = 0, 1, ..., drawn lazily in blocks."""
 
     def __init__(self, model: DiscreteModel, seed: int, block: int = 2048):
-        self._factors = _noise_factors(model)
         self._dim = model.noise_dim
-        self._rng = np.random.default_rng(int(seed))
+        self._streams = _streams(model)
+        if self._streams is None:
+            self._factors = _noise_factors(model)
+            self._rngs = [np.random.default_rng(int(seed))]
+        else:                         # a fleet's vehicles (and leader) draw their own noise
+            self._rngs = [np.random.default_rng([int(seed), key]) for key, _, _ in self._streams]
         self._block = int(block)
         self._buf = np.empty((0, model.noise_dim))
         self._i = 0
+
+    def _draw(self, count: int) -> np.ndarray:
+        """``count`` new coloured rows from the generator(s)."""
+        if self._streams is None:
+            return _colour(self._rngs[0].standard_normal((count, self._dim)), self._factors)
+        out = np.empty((count, self._dim))
+        for (_, idx, LT), rng in zip(self._streams, self._rngs):
+            out[:, idx] = rng.standard_normal((count, idx.size)) @ LT
+        return out
 
     @staticmethod
     def all_rows(model: DiscreteModel, seed: int, steps: int) -> np.ndarray:
@@ -89,8 +131,7 @@ class NoiseStream:
         np.ndarray
             The noise rows, shape (steps, ns + 2 p).
         """
-        rng = np.random.default_rng(int(seed))
-        return _colour(rng.standard_normal((steps, model.noise_dim)), _noise_factors(model))
+        return NoiseStream(model, seed, block=1)._draw(int(steps))
 
     def next_row(self) -> np.ndarray:
         """The next row [v[k]; n[k]; n_z[k]], drawing a new block when the current one is used.
@@ -101,7 +142,7 @@ class NoiseStream:
             A view of shape (ns + 2 p,) into the current block (do not modify it).
         """
         if self._i >= self._buf.shape[0]:
-            self._buf = _colour(self._rng.standard_normal((self._block, self._dim)), self._factors)
+            self._buf = self._draw(self._block)
             self._i = 0
         row = self._buf[self._i]
         self._i += 1
@@ -125,8 +166,7 @@ class NoiseStream:
         i = 0
         while i < out.shape[0]:
             if self._i >= self._buf.shape[0]:
-                self._buf = _colour(self._rng.standard_normal((self._block, self._dim)),
-                                    self._factors)
+                self._buf = self._draw(self._block)
                 self._i = 0
             take = min(out.shape[0] - i, self._buf.shape[0] - self._i)
             out[i:i + take] = self._buf[self._i:self._i + take]
@@ -146,7 +186,8 @@ class NoiseStream:
             Keys ``bit_generator`` (the generator's state), ``pending`` (array of rows),
             ``block`` (rows per draw) and ``dim`` (values per row).
         """
-        return {"bit_generator": self._rng.bit_generator.state,   # a fresh dict of ints
+        states = [rng.bit_generator.state for rng in self._rngs]   # fresh dicts of ints
+        return {"bit_generator": states[0] if self._streams is None else states,
                 "pending": self._buf[self._i:].copy(),
                 "block": self._block, "dim": self._dim}
 
@@ -173,12 +214,21 @@ class NoiseStream:
         if pending.ndim != 2:
             raise ValueError(f"pending noise rows must be a 2-d array, got shape {pending.shape}")
         pending = _float_array(pending, (pending.shape[0], self._dim), "pending noise rows")
-        rng = np.random.Generator(type(self._rng.bit_generator)())
-        try:
-            rng.bit_generator.state = state["bit_generator"]
-        except (TypeError, ValueError, KeyError) as exc:
-            raise ValueError(f"invalid noise generator state: {exc}") from None
-        self._rng, self._block, self._buf, self._i = rng, block, pending, 0
+        saved = state["bit_generator"]
+        saved = [saved] if self._streams is None else saved
+        if not isinstance(saved, list) or len(saved) != len(self._rngs):
+            held = len(saved) if isinstance(saved, list) else "no list of"
+            raise ValueError(f"the noise state holds {held} generator states, this stream "
+                             f"has {len(self._rngs)}")
+        rngs = []
+        for one in saved:
+            rng = np.random.Generator(type(self._rngs[0].bit_generator)())
+            try:
+                rng.bit_generator.state = one
+            except (TypeError, ValueError, KeyError) as exc:
+                raise ValueError(f"invalid noise generator state: {exc}") from None
+            rngs.append(rng)
+        self._rngs, self._block, self._buf, self._i = rngs, block, pending, 0
 
 
 def plant_output_layout(model: DiscreteModel) -> dict[str, slice]:

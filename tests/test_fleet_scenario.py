@@ -328,8 +328,9 @@ def test_paper_as_a_fleet_needs_a_pinned_vehicle(tmp_path):
 def test_paper_as_a_fleet_co_simulates_like_the_paper(tmp_path):
     """The fleet FMUs (fleet parameter interface, generic model, explicit disturbance and
     leader noise) run the paper's loop: equal to the paper's monolithic reference."""
-    sc = _load_text(tmp_path, paper_fleet(ZERO_COUPLING),
-                    "paper4")
+    # in-plant: one noise stream for the stacked system, as the paper's plant draws it
+    sc = _load_text(tmp_path, paper_fleet(ZERO_COUPLING).replace(
+        "[graph]", '[graph]\nconsensus = "in-plant"'), "paper4")
     paper = load_scenario("paper")
     fmus = build(sc, tmp_path / "fmus")
     steps = 1500
