@@ -40,9 +40,9 @@ _RELEASED_AFTER_FATAL: list[Any] = []
 class Fmi2StateMachine:
     """Mixin for a pythonfmu ``Fmi2Slave``: the lifecycle checks of the module docstring.
 
-    The slave calls :meth:`_init_lifecycle` in ``__init__``, :meth:`_step_refusal` at the
-    start of ``do_step`` (or inlines its common case) and sets ``_t_next`` to the end of a
-    step it took.
+    The slave calls :meth:`_init_lifecycle` in ``__init__``, tests the common case of a step
+    in ``do_step`` and calls :meth:`_step_refusal` otherwise, and sets ``_t_next`` to the
+    end of a step it took.
     """
 
     def _init_lifecycle(self) -> None:
@@ -123,17 +123,8 @@ class Fmi2StateMachine:
     def _step_refusal(self, current_time: float, step_size: float) -> str | None:
         """Why fmi2DoStep(current_time, step_size) breaks the rules now (None: it does not).
 
-        The common case (step mode, a positive finite step at the expected point) costs a
-        few comparisons; the message is built only for a refusal."""
-        expected = self._t_next
-        if (self._phase == STEPPING and 0.0 < step_size < math.inf
-                and current_time - current_time == 0.0
-                and (expected is None or abs(current_time - expected)
-                     <= 1e-9 * max(abs(expected), step_size, 1.0))):
-            return None
-        return self._why_refused(current_time, step_size)
-
-    def _why_refused(self, current_time: float, step_size: float) -> str | None:
+        ``do_step`` tests the common case (step mode, a positive finite step at the
+        expected point) inline and calls this only otherwise, to name the rule broken."""
         call = f"fmi2DoStep(t = {current_time} s, h = {step_size} s)"
         if self._phase != STEPPING:
             why = {INSTANTIATED: "before initialization (fmi2EnterInitializationMode and "

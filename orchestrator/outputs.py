@@ -61,7 +61,8 @@ def _holder(lock_path: Path) -> str:
 
 
 def make_folder(out: Path | str) -> Path:
-    """Create ``out`` with its parents; one-line errors for a file in the way or no right.
+    """Create ``out`` with its parents and check it can be written; one-line errors for a
+    file in the way or no right.
 
     Parameters
     ----------
@@ -76,7 +77,7 @@ def make_folder(out: Path | str) -> Path:
     Raises
     ------
     OutputFolderError
-        If it is a file, under a file, or cannot be created.
+        If it is a file, under a file, cannot be created or cannot be written.
     """
     out = Path(out)
     try:
@@ -88,6 +89,9 @@ def make_folder(out: Path | str) -> Path:
     except PermissionError:
         raise OutputFolderError(f"cannot create the output folder {out}: permission "
                                 "denied") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise OutputFolderError(f"cannot write into the output folder {out}: permission "
+                                "denied (choose another --out)")
     return out
 
 
@@ -131,9 +135,6 @@ def output_folder(out: Path | str, command: str) -> Iterator[Path]:
             raise OutputFolderError(
                 f"output folder {out} is in use by {_holder(lock_path)}; wait for it to "
                 "finish or choose another --out") from None
-        if not os.access(out, os.W_OK | os.X_OK):
-            raise OutputFolderError(f"cannot write into the output folder {out}: permission "
-                                    "denied (choose another --out)")
         stamp = time.strftime("%Y-%m-%d %H:%M:%S")
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"auv-cosim {command} (pid {os.getpid()}, since {stamp})\n"

@@ -9,20 +9,12 @@ import sys
 import time
 from pathlib import Path
 
-import pyarrow.parquet as pq
 import pytest
 
+from support.campaign import RESUME, rows, without_timing
 from support.dask_cluster import dask_cluster
 
-TIMING = {"wall_s", "loop_s", "design_s", "build_s", "host", "pid"}
-SPEC = """
-base = "paper"
-seeds = "0-5"
-seeds_per_task = 1
-[sweep]
-"simulation.estimator" = ["kalman", "ideal"]
-"simulation.T" = [40.0]
-"""
+SPEC = RESUME
 RUNS = 12
 
 
@@ -32,8 +24,7 @@ def _campaign(*args) -> subprocess.Popen:
 
 
 def _table(out: Path) -> list[dict]:
-    rows = pq.read_table(out / "results.parquet").to_pylist()
-    return [{k: v for k, v in r.items() if k not in TIMING} for r in rows]
+    return without_timing(rows(out))
 
 
 def _wait_for_parts(out: Path, count: int, proc: subprocess.Popen) -> int:

@@ -13,15 +13,14 @@ import sys
 import time
 from pathlib import Path
 
-import pyarrow.parquet as pq
 import pytest
 
 from orchestrator.cli import main
 from orchestrator.outputs import output_folder
+from support.campaign import RESUME
+from support.campaign import rows as _rows
+from support.campaign import without_timing as _without_timing
 from support.dask_cluster import dask_cluster
-
-#: columns that legitimately differ between two runs of the same campaign
-TIMING = {"wall_s", "loop_s", "design_s", "build_s", "host", "pid"}
 
 
 def _spec(tmp_path: Path, text: str, name: str = "spec.toml") -> Path:
@@ -30,12 +29,6 @@ def _spec(tmp_path: Path, text: str, name: str = "spec.toml") -> Path:
     return p
 
 
-def _rows(out: Path, name: str = "results.parquet") -> list[dict]:
-    return pq.read_table(out / name).to_pylist()
-
-
-def _without_timing(rows: list[dict]) -> list[dict]:
-    return [{k: v for k, v in r.items() if k not in TIMING} for r in rows]
 
 
 def _campaign(*args: str, **kw) -> subprocess.Popen:
@@ -133,15 +126,6 @@ seeds = [3, 4]
         # the Jacobi loop costs more, as its own prediction says
         assert agg[1]["predicted_cost_rate"] > agg[0]["predicted_cost_rate"]
 
-
-RESUME = """
-base = "paper"
-seeds = "0-5"
-seeds_per_task = 1
-[sweep]
-"simulation.estimator" = ["kalman", "ideal"]
-"simulation.T" = [40.0]
-"""
 
 
 def _wait_for_parts(out: Path, count: int, proc: subprocess.Popen) -> None:

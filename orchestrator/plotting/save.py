@@ -7,7 +7,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from orchestrator.atomic import temporary_sibling
-from orchestrator.outputs import OutputFolderError, make_folder
+from orchestrator.outputs import make_folder
 
 from .figure import PlotFigure, deterministic_style
 from .run_folder import RunData, load_run
@@ -100,15 +100,6 @@ def save_figure(pf: PlotFigure, out: Path, formats: Sequence[str]) -> list[Path]
     return written
 
 
-def _output_folder(out: Path) -> Path:
-    """Create the figures folder (with its parents) and check it can be written."""
-    out = make_folder(out)
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise OutputFolderError(f"cannot write into the output folder {out}: permission "
-                                "denied (choose another --out)")
-    return out
-
-
 def plot_run(folder: str | Path, out: str | Path | None = None,
              formats: Sequence[str] = DEFAULT_FORMATS) -> list[Path]:
     """Write the figures of a run folder.
@@ -140,7 +131,7 @@ def plot_run(folder: str | Path, out: str | Path | None = None,
     if unknown or not formats:
         raise ValueError(f"formats {list(formats)!r}: expected some of {', '.join(FORMATS)}")
     run = load_run(folder)
-    dest = _output_folder(Path(out) if out is not None else Path(folder) / "figures")
+    dest = make_folder(Path(out) if out is not None else Path(folder) / "figures")
     written: list[Path] = []
     with deterministic_style():
         for pf in build_figures(run):
