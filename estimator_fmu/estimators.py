@@ -33,7 +33,7 @@ from plant_model.memo import DesignCache
 from plant_model.system import LinearSystem
 
 __all__ = ["ESTIMATOR_MODES", "LinearEstimator", "SteadyKalman", "steady_kalman",
-           "make_estimator"]
+           "make_estimator", "make_vehicle_estimator"]
 
 ESTIMATOR_MODES = ("kalman", "classical", "ideal")
 
@@ -280,6 +280,77 @@ def make_estimator(system: LinearSystem, model: DiscreteModel, mode: str) -> Lin
     if mode == "ideal":
         Dm = np.zeros((ns, nm))
         Dm[:, 2 * p:] = np.eye(ns)
+        return LinearEstimator(mode, np.zeros((ns, 0)), Dm, np.zeros((0, ns)),
+                               np.zeros((0, system.m)), np.zeros(0), uses_truth=True)
+    raise ModelError(f"unknown estimator mode {mode!r}; expected one of "
+                     f"{', '.join(ESTIMATOR_MODES)}")
+
+
+def make_vehicle_estimator(system: LinearSystem, model: DiscreteModel, mode: str,
+                           where: str = "vehicle") -> LinearEstimator:
+    """One vehicle's own estimator of s = [x; w] from its own y (per-vehicle deployment).
+
+    ``model`` is the vehicle alone (:func:`plant_model.per_vehicle.sample_vehicle`); the
+    measurement vector is mvec = [y; x; w] (the truth read only by ``ideal``):
+
+    - ``kalman``: est = q + L (y - [C, 0] q), q[k+1] = Ad est + Bd u, L the steady gain of
+      the pair (Ad, [C, 0]) with Qd and V_y / h (:func:`steady_kalman`); q(0) = [x0; w0];
+    - ``classical``: xhat = C^+ y, what = expm(K h)^k w0;
+    - ``ideal``: est = [x; w].
+
+    With the consensus protocol as a force the stacked filter on [x; w] of the whole fleet
+    is block diagonal, so it equals the N vehicle filters (to the Riccati solver's
+    precision).
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The vehicle's view (:func:`plant_model.per_vehicle.vehicle_view`).
+    model : DiscreteModel
+        The vehicle sampled alone (l = 0).
+    mode : str
+        One of :data:`ESTIMATOR_MODES`.
+    where : str, optional
+        Names the vehicle in error messages.
+
+    Returns
+    -------
+    LinearEstimator
+        The estimator, reset to its initial internal state.
+
+    Raises
+    ------
+    ModelError
+        If the mode is unknown, the Kalman filter does not exist or C lacks full column
+        rank for ``classical``.
+    """
+    n, r, s, ns = system.n, system.r, system.p, model.ns
+    nm = s + ns
+    if mode == "kalman":
+        M = np.ascontiguousarray(model.M[:s])
+        L = steady_kalman(f"{where} [x; w] from y (pair ([[A, B2], [0, K]], [C, 0]))",
+                          model.Ad, M, model.Qd, model.Rd[:s, :s]).L
+        Dm = np.zeros((ns, nm))
+        Dm[:, :s] = L
+        return LinearEstimator(mode, np.eye(ns) - L @ M, Dm, model.Ad.copy(), model.Bd.copy(),
+                               np.concatenate([system.x0, system.w0]), uses_truth=False,
+                               gain=(L, M))
+    if mode == "classical":
+        rank = np.linalg.matrix_rank(system.C)
+        if rank < n:
+            raise ModelError(f"{where}: the classical estimator needs C with full column rank "
+                             f"to recover the state from y (C has rank {rank} < {n})")
+        Ce = np.zeros((ns, r))
+        Ce[n:] = np.eye(r)
+        Dm = np.zeros((ns, nm))
+        Dm[:n, :s] = np.linalg.pinv(system.C)
+        Aq = np.zeros((r, ns))
+        Aq[:, n:] = model.Ad[n:, n:]
+        return LinearEstimator(mode, Ce, Dm, Aq, np.zeros((r, system.m)), system.w0.copy(),
+                               uses_truth=False)
+    if mode == "ideal":
+        Dm = np.zeros((ns, nm))
+        Dm[:, s:] = np.eye(ns)
         return LinearEstimator(mode, np.zeros((ns, 0)), Dm, np.zeros((0, ns)),
                                np.zeros((0, system.m)), np.zeros(0), uses_truth=True)
     raise ModelError(f"unknown estimator mode {mode!r}; expected one of "

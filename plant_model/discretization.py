@@ -104,6 +104,9 @@ class DiscreteModel:
     #: independent noise streams: per stream the positions it fills in a noise row
     #: [v; n; n_z] (a fleet whose vehicles draw their own noise); None: one stream
     noise_blocks: tuple[tuple[int, ...], ...] | None = None
+    #: the key of each stream's generator (seeded [seed, key]); None: 1..N for the blocks
+    #: before the last, 0 for the last (the leader) (plant_model.plant.NoiseStream)
+    noise_keys: tuple[int, ...] | None = None
 
     @property
     def ns(self) -> int:
@@ -177,15 +180,44 @@ def discretize(system: LinearSystem, h: float) -> DiscreteModel:
     check_step(Ac, h)
     key = (h, Ac, Bc, Wc, system.V_y, system.V_ybar, system.noise_convention,
            system.measurement_matrix(), system.error_matrix(), system.n, system.r, system.l,
-           system.p, repr(system.meta.get("noise_blocks")))
+           system.p, repr(system.meta.get("noise_blocks")),
+           repr(system.meta.get("noise_keys")))
     return _DISCRETE_CACHE.get(key, lambda: _discretize(system, h, Ac, Bc, Wc))
+
+
+def _blockwise_van_loan(Ac: np.ndarray, Wc: np.ndarray, h: float,
+                        blocks: tuple[tuple[int, ...], ...]) -> np.ndarray:
+    """Qd of a system whose noise streams are independent blocks, one Van Loan per block.
+
+    Each block's state positions (those below ns) must be closed under Ac (no coupling in
+    the physics, the consensus protocol as a force); then Qd is block diagonal and block b
+    is van_loan(Ac[b, b], Wc[b, b], h): the same numbers, bit for bit, as sampling that
+    vehicle alone (:func:`plant_model.per_vehicle.sample_vehicle`), so a per-vehicle plant
+    draws exactly the stacked plant's noise.
+    """
+    ns = Ac.shape[0]
+    Qd = np.zeros((ns, ns))
+    for block in blocks:
+        st = np.array([i for i in block if i < ns], dtype=np.int64)
+        if not st.size:
+            continue
+        rest = np.setdiff1d(np.arange(ns), st)
+        if rest.size and (np.any(Ac[np.ix_(st, rest)]) or np.any(Ac[np.ix_(rest, st)])):
+            raise ModelError("a noise stream's states are coupled to other states in the "
+                             "physics: the noise cannot be drawn per vehicle")
+        Qd[np.ix_(st, st)] = van_loan(Ac[np.ix_(st, st)], Wc[np.ix_(st, st)], h)
+    return Qd
 
 
 def _discretize(system: LinearSystem, h: float, Ac: np.ndarray, Bc: np.ndarray,
                 Wc: np.ndarray) -> DiscreteModel:
     Ad, Bd = zoh(Ac, Bc, h)
     V = block_diag(system.V_y, system.V_ybar)
-    if system.noise_convention == "intensity":
+    blocks = system.meta.get("noise_blocks")
+    if system.noise_convention == "intensity" and blocks:
+        Qd = _blockwise_van_loan(Ac, Wc, h, blocks)
+        Rd = V / h
+    elif system.noise_convention == "intensity":
         Qd = van_loan(Ac, Wc, h)
         Rd = V / h
     else:
@@ -198,4 +230,5 @@ def _discretize(system: LinearSystem, h: float, Ac: np.ndarray, Bc: np.ndarray,
         )
     return DiscreteModel(h=h, Ad=Ad, Bd=Bd, Qd=Qd, Rd=Rd, M=system.measurement_matrix(),
                          E=system.error_matrix(), n=system.n, r=system.r, l=system.l,
-                         p=system.p, noise_blocks=system.meta.get("noise_blocks"))
+                         p=system.p, noise_blocks=system.meta.get("noise_blocks"),
+                         noise_keys=system.meta.get("noise_keys"))

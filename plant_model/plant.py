@@ -51,7 +51,8 @@ def _noise_factors(model: DiscreteModel) -> tuple[np.ndarray, np.ndarray]:
 
 def _streams(model: DiscreteModel) -> list[tuple[int, np.ndarray, np.ndarray]] | None:
     """(seed key, positions, transposed factor) per independent stream of ``model`` (its
-    ``noise_blocks``: vehicles 1..N keyed 1..N, the leader keyed 0), or None for one stream.
+    ``noise_blocks``: vehicles 1..N keyed 1..N, the leader keyed 0, unless ``noise_keys``
+    says otherwise), or None for one stream.
 
     Raises
     ------
@@ -72,7 +73,10 @@ def _streams(model: DiscreteModel) -> list[tuple[int, np.ndarray, np.ndarray]] |
         if others.size and np.abs(full[np.ix_(idx, others)]).max() > 1e-12 * scale:
             raise ValueError(f"noise stream {k + 1} is correlated with the others: the noise "
                              "cannot be drawn per vehicle")
-        key = k + 1 if k < len(blocks) - 1 else 0
+        if model.noise_keys is not None:
+            key = int(model.noise_keys[k])
+        else:
+            key = k + 1 if k < len(blocks) - 1 else 0
         out.append((key, idx, psd_factor(full[np.ix_(idx, idx)]).T.copy()))
     return out
 

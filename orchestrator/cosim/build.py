@@ -28,7 +28,7 @@ from fmu_common.interface import UNIT_DEFINITIONS, ArraySpec, expand
 
 from ..atomic import copy_atomically
 
-__all__ = ["FMU_KINDS", "FmuKind", "build_fmus", "build_key", "cached_fmu", "fmu_cache_dir",
+__all__ = ["FMU_KINDS", "STACKED_KINDS", "FmuKind", "build_fmus", "build_key", "cached_fmu", "fmu_cache_dir",
            "fmu_config", "interface_of",
            "patch_model_description", "variables_markdown"]
 
@@ -60,7 +60,26 @@ FMU_KINDS: dict[str, FmuKind] = {
     "controller": FmuKind("AuvController", "controller_fmu.auv_controller_slave",
                           ("controller_fmu", "plant_model", "fmu_common"),
                           "auv_controller_config.json", True),
+    # the per-vehicle deployment (orchestrator.cosim.per_vehicle)
+    "vehicle": FmuKind("AuvVehicle", "plant_model.auv_vehicle_slave",
+                       ("plant_model", "fmu_common"), "auv_vehicle_config.json", False),
+    "leader": FmuKind("AuvLeader", "plant_model.auv_leader_slave",
+                      ("plant_model", "fmu_common"), "auv_leader_config.json", False),
+    "vehicle_estimator": FmuKind("AuvVehicleEstimator", "estimator_fmu.auv_vehicle_estimator_slave",
+                                 ("estimator_fmu", "plant_model", "fmu_common"),
+                                 "auv_vehicle_estimator_config.json", False),
+    "vehicle_controller": FmuKind("AuvVehicleController",
+                                  "controller_fmu.auv_vehicle_controller_slave",
+                                  ("controller_fmu", "plant_model", "fmu_common"),
+                                  "auv_vehicle_controller_config.json", False),
+    "central_controller": FmuKind("AuvCentralController",
+                                  "controller_fmu.auv_central_controller_slave",
+                                  ("controller_fmu", "plant_model", "fmu_common"),
+                                  "auv_central_controller_config.json", True),
 }
+
+#: the FMUs of the stacked deployment (one plant, one estimator, one controller)
+STACKED_KINDS = ("plant", "estimator", "controller")
 
 
 def fmu_config(system_mapping: dict[str, Any], dims: dict[str, int], h: float, T: float,
@@ -379,7 +398,8 @@ def cached_fmu(kind: FmuKind, config: dict[str, Any], cache: Path | None = None)
 
 
 def build_fmus(config: dict[str, Any], out_dir: Path | str, *,
-               cache: bool = True) -> dict[str, Path]:
+               cache: bool = True,
+               kinds: dict[str, dict[str, Any]] | None = None) -> dict[str, Path]:
     """The plant, estimator and controller FMUs for one configuration, in ``out_dir``.
 
     Parameters
@@ -392,22 +412,27 @@ def build_fmus(config: dict[str, Any], out_dir: Path | str, *,
     cache : bool, optional
         Take identical builds from :func:`fmu_cache_dir` (a rebuild costs about 0.1 s per
         FMU); False builds afresh (a new GUID).
+    kinds : dict[str, dict[str, Any]] or None, optional
+        Key of :data:`FMU_KINDS` -> its own configuration (the per-vehicle deployment);
+        default the stacked FMUs (:data:`STACKED_KINDS`), all built with ``config``.
 
     Returns
     -------
     dict[str, Path]
-        'plant', 'estimator', 'controller' -> the .fmu path.
+        'plant', 'estimator', 'controller' (or the keys of ``kinds``) -> the .fmu path.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths: dict[str, Path] = {}
-    for name, kind in FMU_KINDS.items():
+    todo = kinds if kinds is not None else dict.fromkeys(STACKED_KINDS, config)
+    for name, cfg in todo.items():
+        kind = FMU_KINDS[name]
         dst = out / f"{kind.model}.fmu"
         if cache:
-            copy_atomically(cached_fmu(kind, config), dst)
+            copy_atomically(cached_fmu(kind, cfg), dst)
         else:
             with tempfile.TemporaryDirectory(prefix="auv_build_") as tmp:
-                copy_atomically(build_fmu(kind, config, Path(tmp)), dst)
+                copy_atomically(build_fmu(kind, cfg, Path(tmp)), dst)
         paths[name] = dst
     return paths
 
@@ -438,7 +463,8 @@ def variables_markdown(config: dict[str, Any]) -> str:
         Markdown, one section per FMU.
     """
     lines = []
-    for key, kind in FMU_KINDS.items():
+    for key in STACKED_KINDS:
+        kind = FMU_KINDS[key]
         lines += [f"### {kind.model}.fmu ({key})", "",
                   "| name | causality | variability | unit | start | description |",
                   "|---|---|---|---|---|---|"]

@@ -1,0 +1,86 @@
+"""FMI 2.0 co-simulation slave of one vehicle's centralized controller (per-vehicle deployment).
+
+The paper's stacked law cut by vehicle (controller_fmu.vehicle_law.centralized_rows): vehicle
+i applies its rows u_i = u0 - K [xhat_1..N; what_1..N; z] of the stacked gain, consensus
+force included. It reads every vehicle's estimate and the leader's state: O(N) inputs, the
+one FMU of the per-vehicle deployment whose size grows with the fleet (all-to-all
+information is what the centralized architecture means). The stacked Riccati and
+Sylvester equations are solved once by whoever builds the system; K and u0 are parameters.
+Static law: any communication step works.
+"""
+from typing import Any
+
+import numpy as np
+
+from fmu_common.interface import ArraySpec
+
+# pythonfmu's loader looks for "class X(Fmi2Slave):"
+from fmu_common.slave_base import ArraySlave as Fmi2Slave
+
+
+def vehicle_inputs(N: int, what: str) -> list[str]:
+    """The input arrays ``vehicle[j].<what>``, j = 1..N."""
+    return [f"vehicle[{j}].{what}" for j in range(1, N + 1)]
+
+
+class AuvCentralController(Fmi2Slave):
+    """u_i = u0 - K [xhat_1..N; what_1..N; z]: one vehicle's rows of the stacked law."""
+
+    config_file = "auv_central_controller_config.json"
+    description = ("Centralized consensus tracking controller of one AUV: its rows of the "
+                   "paper's stacked LQ feedforward-feedback law (all-to-all information)")
+    author = "auv-cosim"
+
+    @staticmethod
+    def interface(config: dict[str, Any]) -> list[ArraySpec]:
+        """Parameters K, u0; inputs every vehicle's estimates and z; output u.
+
+        Parameters
+        ----------
+        config : dict[str, Any]
+            The build configuration (``dims``, ``vehicles`` N, ``gain``, ``u0``).
+
+        Returns
+        -------
+        list[ArraySpec]
+            K (m x (N n + N r + l)), u0 (m,), inputs vehicle[j].xhat (n,), vehicle[j].what
+            (r,), z (l,); output u (m,), which feeds through from every input.
+        """
+        d = config["dims"]
+        n, m, r, l_ = d["n"], d["m"], d["r"], d["l"]
+        N = int(config["vehicles"])
+        cols = N * (n + r) + l_
+        ins = vehicle_inputs(N, "xhat") + vehicle_inputs(N, "what")
+        return [
+            ArraySpec("K", (m, cols), "parameter", "the vehicle's rows of the stacked gain on "
+                      "[xhat_1..N; what_1..N; z]", start=np.asarray(config["gain"], float)),
+            ArraySpec("u0", (m,), "parameter", "constant force (formation offsets)",
+                      start=np.asarray(config["u0"], float)),
+            *(ArraySpec(name, (n,), "input", f"vehicle {j}'s state estimate")
+              for j, name in enumerate(vehicle_inputs(N, "xhat"), start=1)),
+            *(ArraySpec(name, (r,), "input", f"vehicle {j}'s disturbance estimate")
+              for j, name in enumerate(vehicle_inputs(N, "what"), start=1)),
+            ArraySpec("z", (l_,), "input", "the leader's state"),
+            ArraySpec("u", (m,), "output", "u = u0 - K [xhat_1..N; what_1..N; z]",
+                      depends_on=tuple(ins) + ("z",)),
+        ]
+
+    def setup(self) -> None:
+        """Take the gain as set (nothing to solve)."""
+        self._negK = -np.ascontiguousarray(self.par["K"], dtype=float)
+        self._u0 = np.array(self.par["u0"], dtype=float)
+
+    def compute_outputs(self) -> None:
+        """u = u0 - K [xhat_1..N; what_1..N; z] into the output buffer."""
+        self._negK.dot(self._in, out=self._out)
+        self._out += self._u0
+
+    def advance(self, step: float) -> None:
+        """Nothing to do: the law is static.
+
+        Parameters
+        ----------
+        step : float
+            The communication step, s (any step works).
+        """
+        pass

@@ -1,0 +1,129 @@
+"""FMI 2.0 co-simulation slave of one vehicle's estimator (per-vehicle deployment).
+
+Inputs y (the vehicle's own measurement), the truth x, w (read only in mode 'ideal'), then
+u; outputs the estimate xhat, what of sample k, which already includes y[k] (direct
+feedthrough). The mathematics is estimator_fmu.estimators.make_vehicle_estimator on the
+vehicle sampled alone (plant_model.per_vehicle). FMU state: q, plus what the base class
+saves.
+"""
+from typing import Any
+
+import numpy as np
+
+from estimator_fmu.estimators import ESTIMATOR_MODES, make_vehicle_estimator
+from fmu_common.interface import ArraySpec
+
+# pythonfmu's loader looks for "class X(Fmi2Slave):"
+from fmu_common.slave_base import ArraySlave as Fmi2Slave
+from plant_model.parameters import (
+    noise_convention_spec,
+    sample_period_spec,
+    system_mapping_from_parameters,
+    system_parameter_specs,
+)
+from plant_model.per_vehicle import sample_vehicle, vehicle_view
+
+ESTIMATOR_PARAMETERS = ("A", "B1", "B2", "C", "K", "x0", "w0", "W_x", "W_w", "V_y")
+MEASUREMENTS = ("y", "x", "w")
+
+
+class AuvVehicleEstimator(Fmi2Slave):
+    """One vehicle's steady-state Kalman filter on [x; w] from its own y (or the truth)."""
+
+    config_file = "auv_vehicle_estimator_config.json"
+    step_parameter = "h"
+    description = ("Estimator of one AUV (per-vehicle deployment): steady-state Kalman filter "
+                   "on the vehicle and its ocean current from its own position fixes")
+    author = "auv-cosim"
+
+    @staticmethod
+    def interface(config: dict[str, Any]) -> list[ArraySpec]:
+        """The estimator's FMU interface: model parameters, h, noise convention, mode, I/O.
+
+        Parameters
+        ----------
+        config : dict[str, Any]
+            The build configuration (``dims``, ``system``, ``h``, ``mode``).
+
+        Returns
+        -------
+        list[ArraySpec]
+            Parameters, the inputs y (p,), x (n,), w (r,), u (m,) and the outputs xhat (n,),
+            what (r,), which feed through from the measurements.
+        """
+        d = config["dims"]
+        n, m, r, p = d["n"], d["m"], d["r"], d["p"]
+        return system_parameter_specs(config, ESTIMATOR_PARAMETERS) + [
+            sample_period_spec(config, "sample period the filter is designed for"),
+            noise_convention_spec(config),
+            ArraySpec("mode", (), "parameter", "estimator: " + ", ".join(ESTIMATOR_MODES),
+                      start=config["mode"], type="String"),
+            ArraySpec("y", (p,), "input", "the vehicle's measured output y"),
+            ArraySpec("x", (n,), "input", "true vehicle state (read only in mode 'ideal')"),
+            ArraySpec("w", (r,), "input", "true disturbance state (read only in mode 'ideal')"),
+            ArraySpec("u", (m,), "input", "force applied over the coming step"),
+            ArraySpec("xhat", (n,), "output", "estimate of the vehicle state x",
+                      depends_on=MEASUREMENTS),
+            ArraySpec("what", (r,), "output", "estimate of the disturbance state w",
+                      depends_on=MEASUREMENTS),
+        ]
+
+    def setup(self) -> None:
+        """Sample the vehicle at h and make the estimator of the chosen mode.
+
+        Raises
+        ------
+        ModelError
+            If the parameters do not make a valid vehicle or the estimator does not exist.
+        """
+        mp = system_mapping_from_parameters(self.par, ESTIMATOR_PARAMETERS)
+        l0 = int(self.config["dims"]["l"])
+        view = vehicle_view(**mp, F=np.zeros((l0, l0)), H=np.zeros((mp["C"].shape[0], l0)),
+                            noise_convention=self.par["noise_convention"])
+        model = sample_vehicle(view, float(self.par["h"]), 1)
+        self.estimator = make_vehicle_estimator(view, model, self.par["mode"])
+        self._mvec = self._in[:view.p + model.ns]
+        self._u = self.io["u"]
+
+    def compute_outputs(self) -> None:
+        """est[k] = Ce q[k] + Dm mvec[k] into the output buffer [xhat, what]."""
+        self.estimator.estimate(self._mvec, out=self._out)
+
+    def advance(self, step: float) -> None:
+        """One sample period: q[k+1] = Aq est[k] + Bu u[k].
+
+        Parameters
+        ----------
+        step : float
+            The communication step, s (checked against h by the base class).
+        """
+        self.estimator.update(self._outputs_view(self._out), self._u)
+
+    def evolving(self) -> np.ndarray:
+        """The estimator state q (checked to stay finite after every step)."""
+        return self.estimator.q
+
+    def model_state(self) -> dict[str, Any]:
+        """The estimator's evolving state (:meth:`LinearEstimator.get_state`).
+
+        Returns
+        -------
+        dict[str, Any]
+            The mode and the internal state q.
+        """
+        return self.estimator.get_state()
+
+    def restore_model_state(self, state: Any) -> None:
+        """Restore a :meth:`model_state` result into the estimator.
+
+        Parameters
+        ----------
+        state : Any
+            The dict :meth:`model_state` returned.
+
+        Raises
+        ------
+        ValueError
+            If the mode differs or q has the wrong shape.
+        """
+        self.estimator.set_state(state)

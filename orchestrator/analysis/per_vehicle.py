@@ -1,0 +1,122 @@
+"""Predictions and the monolithic reference of a per-vehicle fleet run.
+
+``centralized``: the stacked law cut by vehicle is the same sampled loop as the stacked
+deployment in the protocol form (block-diagonal physics and noise, so the stacked Kalman
+filter is the N vehicle filters), and its prediction is the stacked one
+(:func:`orchestrator.analysis.prediction.predict_stationary`).
+
+``distributed``: the stacked loop of the per-vehicle pieces
+(:func:`orchestrator.analysis.distributed.distributed_closed_loop`) built with the very laws
+the controller FMUs solve (:func:`controller_fmu.vehicle_law.vehicle_law`), its stability
+verdict per eigenvalue of L + G and its Lyapunov cost prediction
+(:mod:`orchestrator.analysis.distributed_verdict`); :func:`distributed_reference` simulates
+that loop as one matrix recursion, X[k+1] = Phi X + Gam zeta[k], with each vehicle's noise
+drawn from its own stream ([seed, i], :func:`plant_model.per_vehicle.sample_vehicle`): the
+FMUs must reproduce it to rounding.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from controller_fmu.distributed import sampled_observer
+from controller_fmu.vehicle_law import vehicle_law
+from plant_model.per_vehicle import sample_vehicle, vehicle_views
+from plant_model.plant import NoiseStream
+
+from .distributed import DistributedLoop, agents_from_fleet_spec, distributed_closed_loop
+
+__all__ = ["distributed_loop_of", "distributed_initial_state", "distributed_reference"]
+
+
+def distributed_loop_of(sc: Any, mode: str, tracking: str, settings: Any) -> DistributedLoop:
+    """The stacked sampled loop of a fleet scenario under the distributed law.
+
+    Parameters
+    ----------
+    sc : Scenario
+        A fleet scenario (h, fleet spec, noise convention).
+    mode : str
+        Estimator mode: ``ideal`` or ``kalman``.
+    tracking : str
+        ``lq`` or ``regulator``.
+    settings : DistributedSettings
+        Observer gain mu (1/s), cohesion c, regulator form.
+
+    Returns
+    -------
+    DistributedLoop
+        Phi, Gam, W, Gx, Geta, Ce and the pieces.
+    """
+    agents, graph, leader = agents_from_fleet_spec(sc.fleet)
+    laws = [vehicle_law(A=a.A, B1=a.B, B2=a.E, C=a.C, K=a.Kw, Q=a.Q, R=a.R, F=leader["F"],
+                        H=leader["H"], offset=a.offset, tracking=tracking,
+                        regulator=settings.regulator, h=sc.h, where=f"vehicle {i}: ")
+            for i, a in enumerate(agents, start=1)]
+    obs = sampled_observer(leader["F"], sc.h, settings.mu)
+    return distributed_closed_loop(agents, laws, graph, obs, leader["H"],
+                                   cohesion=settings.cohesion, estimator=mode,
+                                   convention=sc.system.noise_convention)
+
+
+def distributed_initial_state(sc: Any, loop: DistributedLoop) -> np.ndarray:
+    """X(0) of the loop as the FMUs start: leader z0, vehicles at x0, w0 (the stacked
+    system's), Kalman q(0) = [x0; w0], observers at 0.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The fleet scenario.
+    loop : DistributedLoop
+        Its loop (:func:`distributed_loop_of`).
+
+    Returns
+    -------
+    np.ndarray
+        X(0).
+    """
+    views = vehicle_views(sc.fleet)
+    z0 = np.asarray(sc.fleet["leader"].get("z0"), dtype=float)
+    return loop.initial_state(z0, [v.x0 for v in views], [v.w0 for v in views])
+
+
+def distributed_reference(sc: Any, loop: DistributedLoop, seed: int,
+                          steps: int) -> dict[str, np.ndarray]:
+    """The loop simulated as one recursion with the FMUs' noise: traces x, u, e, eta.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The fleet scenario.
+    loop : DistributedLoop
+        Its loop.
+    seed : int
+        The noise seed (vehicle i draws from [seed, i]).
+    steps : int
+        Number of samples.
+
+    Returns
+    -------
+    dict[str, np.ndarray]
+        ``x`` (steps, N p), ``u`` (steps, N q), ``e`` (steps, N s) and ``eta`` (steps, N l),
+        in the stacked layout of :func:`orchestrator.cosim.per_vehicle.stacked_traces`.
+    """
+    views = vehicle_views(sc.fleet)
+    nu, nn = [], []
+    for i, view in enumerate(views, start=1):
+        rows = NoiseStream.all_rows(sample_vehicle(view, sc.h, i), seed, steps)
+        ns = view.n + view.r
+        nu.append(rows[:, :ns])
+        nn.append(rows[:, ns:ns + view.p])
+    zeta = np.hstack(nu + nn)
+    X = distributed_initial_state(sc, loop)
+    Xs = np.empty((steps, X.size))
+    for k in range(steps):
+        Xs[k] = X
+        X = loop.Phi @ X + loop.Gam @ zeta[k]
+    p = views[0].n
+    x = np.hstack([Xs[:, sl][:, :p] for sl in loop.index["s"]])
+    eta = np.hstack([Xs[:, sl] for sl in loop.index["eta"]])
+    return {"x": x, "u": Xs @ loop.Gx.T + zeta @ loop.Geta.T, "e": Xs @ loop.Ce.T,
+            "eta": eta}

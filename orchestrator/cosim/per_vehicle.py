@@ -1,0 +1,278 @@
+"""The per-vehicle deployment as a system: one vehicle, estimator and controller FMU per AUV.
+
+Components (``deployment = "per-vehicle"``): ``leader`` (AuvLeader), and per vehicle
+i = 1..N ``vehicle_i`` (AuvVehicle), ``estimator_i`` (AuvVehicleEstimator) and
+``controller_i`` (AuvVehicleController for ``architecture = "distributed"``,
+AuvCentralController for ``"centralized"``). One FMU per kind serves every vehicle: what
+differs per vehicle is parameter values (model, offset, slot weights, gain rows). Wiring::
+
+    vehicle_i.y (x, w only in mode ideal) -> estimator_i.y (x, w)
+    estimator_i.xhat, what                 -> controller_i.xhat, what
+    controller_i.u                         -> vehicle_i.u, estimator_i.u
+    distributed:  controller_j.eta, eps    -> controller_i.nbr[k].eta, eps  (slot k: j -> i)
+                  leader.z                 -> controller_i.z                (pinned i only)
+    centralized:  estimator_j.xhat, what   -> controller_i.vehicle[j].xhat, what  (all j)
+                  leader.z                 -> controller_i.z                (all i)
+
+Every input is connected, as SSP and OSP hosts expect: an unused neighbour slot (weight 0)
+and the leader input of a vehicle that is not pinned (a0 = 0) are fed from the vehicle's
+own controller (its eta and eps), which they do not weigh.
+
+:func:`stacked_traces` puts the per-vehicle traces back into the stacked layout (y, x, w,
+z, e, u, xhat, what of the fleet; e_i = H_l z_l + d_i - C_i x_i from the truth), so the
+statistics, formation figures and recording of the stacked deployment apply unchanged.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from controller_fmu.vehicle_law import centralized_rows
+from plant_model.fleet import fleet_graph
+from plant_model.per_vehicle import vehicle_views
+from plant_model.system import LinearSystem
+
+from .build import FMU_KINDS, interface_of
+from .system import Component, Connection, SystemDescription, component_parameters
+
+__all__ = ["ARCHITECTURES", "DEPLOYMENTS", "DistributedSettings", "FleetSlots",
+           "fleet_slots", "per_vehicle_configs", "per_vehicle_system", "stacked_traces"]
+
+#: where each vehicle's law gets its information (issue: centralized = the paper's stacked
+#: law cut by vehicle, distributed = neighbour-only)
+ARCHITECTURES = ("centralized", "distributed")
+#: one set of FMUs for the stacked fleet, or one per vehicle
+DEPLOYMENTS = ("stacked", "per-vehicle")
+
+
+@dataclass(frozen=True)
+class DistributedSettings:
+    """The distributed law's gains: observer mu (1/s), cohesion c (dimensionless, 0: off),
+    regulator equations continuous or sampled."""
+
+    mu: float = 2.0
+    cohesion: float = 0.0
+    regulator: str = "continuous"
+
+
+@dataclass(frozen=True)
+class FleetSlots:
+    """Neighbour slots of every vehicle: S = max(1, largest in-degree)."""
+
+    neighbours: np.ndarray       #: (N, S) 1-based vehicle heard in slot k (own number if unused)
+    weights: np.ndarray          #: (N, S) a_ij (0: unused)
+    pinning: np.ndarray          #: (N,) a_i0
+
+    @property
+    def S(self) -> int:
+        """Slots per vehicle."""
+        return int(self.weights.shape[1])
+
+
+def fleet_slots(spec: Mapping[str, Any]) -> FleetSlots:
+    """The graph of a fleet spec as fixed-size neighbour slots.
+
+    Parameters
+    ----------
+    spec : Mapping[str, Any]
+        The fleet spec (its graph is validated: every vehicle reachable from the leader).
+
+    Returns
+    -------
+    FleetSlots
+        Slots in the order of the edges; unused ones name the vehicle itself, weight 0.
+    """
+    graph = fleet_graph(spec)
+    N = graph.N
+    heard: list[list[tuple[int, float]]] = [[] for _ in range(N)]
+    for j, i, a in graph.edges:
+        heard[int(i) - 1].append((int(j), float(a)))
+    S = max([1] + [len(h) for h in heard])
+    nb = np.tile(np.arange(1, N + 1)[:, None], (1, S))
+    w = np.zeros((N, S))
+    for i, h in enumerate(heard):
+        for k, (j, a) in enumerate(h):
+            nb[i, k], w[i, k] = j, a
+    pin = np.zeros(N)
+    for i, a in graph.pinning:
+        pin[int(i) - 1] = float(a)
+    return FleetSlots(neighbours=nb, weights=w, pinning=pin)
+
+
+def _leader(spec: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    ld = spec["leader"]
+    F = np.asarray(ld["F"], dtype=float)
+    l0 = F.shape[0]
+    W = ld.get("W_z", 0.0)
+    return {"F": F, "H": np.asarray(ld["H"], dtype=float),
+            "z0": np.asarray(ld.get("z0", np.zeros(l0)), dtype=float),
+            "W_z": float(W) * np.eye(l0) if np.ndim(W) == 0 else np.asarray(W, dtype=float)}
+
+
+def _mapping(view: LinearSystem, leader: Mapping[str, np.ndarray]) -> dict[str, Any]:
+    """The FMU start values of one vehicle: its own matrices, the leader's F, H, z0, W_z."""
+    keys = ("A", "B1", "B2", "C", "K", "x0", "w0", "Q", "R", "W_x", "W_w", "V_y", "V_ybar")
+    out = {k: np.asarray(getattr(view, k)).tolist() for k in keys}
+    out.update({k: np.asarray(v).tolist() for k, v in leader.items()})
+    out["noise_convention"] = view.noise_convention
+    return out
+
+
+def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tracking: str,
+                        settings: DistributedSettings | None = None,
+                        gain: np.ndarray | None = None) -> list[dict[str, dict[str, Any]]]:
+    """Per vehicle, the configuration of each FMU kind (vehicle 1's are the build's).
+
+    Parameters
+    ----------
+    sc : Scenario
+        A fleet scenario.
+    architecture : str
+        One of :data:`ARCHITECTURES`.
+    mode, seed, tracking : str, int, str
+        Estimator mode, noise seed, tracking law.
+    settings : DistributedSettings or None, optional
+        Gains of the distributed law (default :class:`DistributedSettings`).
+    gain : np.ndarray or None, optional
+        The stacked gain Ks (centralized; from
+        :func:`controller_fmu.regulator.tracking_law` of the scenario's system).
+
+    Returns
+    -------
+    list[dict[str, dict[str, Any]]]
+        Index 0 the leader's {'leader': config}, then per vehicle {'vehicle', 'vehicle_estimator',
+        'vehicle_controller' | 'central_controller'} -> config.
+    """
+    if architecture not in ARCHITECTURES:
+        raise ValueError(f"architecture {architecture!r} is not one of "
+                         f"{', '.join(ARCHITECTURES)}")
+    spec = sc.fleet
+    settings = settings or DistributedSettings()
+    views = vehicle_views(spec)
+    leader = _leader(spec)
+    l0 = leader["F"].shape[0]
+    v0 = views[0]
+    dims = {"n": v0.n, "m": v0.m, "r": v0.r, "p": v0.p, "l": l0}
+    base = {"dims": dims, "h": float(sc.h), "T": float(sc.T), "seed": int(seed),
+            "mode": mode, "tracking": tracking, "fleet": None}
+    slots = fleet_slots(spec)
+    N = len(views)
+    rows = (centralized_rows(gain, N, v0.n, v0.r, v0.m, l0)
+            if architecture == "centralized" else None)
+    out: list[dict[str, dict[str, Any]]] = [{"leader": dict(base, system=_mapping(v0, leader))}]
+    for i, view in enumerate(views):
+        cfg = dict(base, system=_mapping(view, leader))
+        one = {"vehicle": dict(cfg, vehicle=i + 1), "vehicle_estimator": cfg}
+        if rows is not None:
+            K, u0 = rows[i]
+            one["central_controller"] = dict(cfg, vehicles=N, gain=K.tolist(), u0=u0.tolist())
+        else:
+            d = np.asarray(spec["vehicles"][i].get("offset", np.zeros(view.p)), float)
+            one["vehicle_controller"] = dict(
+                cfg, slots=slots.S, offset=d.tolist(), weights=slots.weights[i].tolist(),
+                pinning=float(slots.pinning[i]), mu=settings.mu, cohesion=settings.cohesion,
+                regulator=settings.regulator, eta0=np.zeros(l0).tolist())
+        out.append(one)
+    return out
+
+
+def build_configs(configs: list[dict[str, dict[str, Any]]]) -> dict[str, dict[str, Any]]:
+    """The configuration each FMU kind is built with: the leader's and vehicle 1's."""
+    return {**configs[0], **configs[1]}
+
+
+def _component(name: str, key: str, config: dict[str, Any]) -> Component:
+    specs = tuple(interface_of(FMU_KINDS[key], config))
+    return Component(name, key, specs, component_parameters(specs))
+
+
+def per_vehicle_system(sc: Any, configs: list[dict[str, dict[str, Any]]],
+                       architecture: str) -> SystemDescription:
+    """The per-vehicle system of a fleet scenario (module docstring).
+
+    Parameters
+    ----------
+    sc : Scenario
+        The fleet scenario (h, T, name, graph).
+    configs : list[dict[str, dict[str, Any]]]
+        :func:`per_vehicle_configs` of the run.
+    architecture : str
+        One of :data:`ARCHITECTURES`.
+
+    Returns
+    -------
+    SystemDescription
+        1 + 3 N components and their connections.
+    """
+    N = len(configs) - 1
+    comps = [_component("leader", "leader", configs[0]["leader"])]
+    conns: list[Connection] = []
+    ctrl_key = "central_controller" if architecture == "centralized" else "vehicle_controller"
+    slots = fleet_slots(sc.fleet)
+    for i in range(1, N + 1):
+        v, e, c = f"vehicle_{i}", f"estimator_{i}", f"controller_{i}"
+        comps += [_component(v, "vehicle", configs[i]["vehicle"]),
+                  _component(e, "vehicle_estimator", configs[i]["vehicle_estimator"]),
+                  _component(c, ctrl_key, configs[i][ctrl_key])]
+        conns += [Connection(v, "y", e, "y"),
+                  *(Connection(v, s, e, s, (e, "mode", "ideal")) for s in ("x", "w")),
+                  Connection(c, "u", v, "u"), Connection(c, "u", e, "u")]
+        if architecture == "centralized":
+            conns.append(Connection("leader", "z", c, "z"))
+            for j in range(1, N + 1):
+                for s in ("xhat", "what"):
+                    conns.append(Connection(f"estimator_{j}", s, c, f"vehicle[{j}].{s}"))
+            continue
+        conns += [Connection(e, "xhat", c, "xhat"), Connection(e, "what", c, "what")]
+        pinned = slots.pinning[i - 1] > 0.0
+        conns.append(Connection("leader", "z", c, "z") if pinned
+                     else Connection(c, "eta", c, "z"))
+        for k in range(slots.S):
+            j = int(slots.neighbours[i - 1, k]) if slots.weights[i - 1, k] > 0.0 else i
+            for s in ("eta", "eps"):
+                conns.append(Connection(f"controller_{j}", s, c, f"nbr[{k + 1}].{s}"))
+    return SystemDescription(name=sc.name, components=tuple(comps), connections=tuple(conns),
+                             h=float(sc.h), T=float(sc.T))
+
+
+def stacked_traces(sc: Any, system: SystemDescription,
+                   traces: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The per-vehicle traces in the stacked deployment's layout.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The fleet scenario (offsets, leader output).
+    system : SystemDescription
+        The per-vehicle system that produced ``traces``.
+    traces : Mapping[str, np.ndarray]
+        Keyed by :meth:`SystemDescription.trace_names`.
+
+    Returns
+    -------
+    dict[str, np.ndarray]
+        y, x, w, z (with the constant c = 1 column when the stacked z has one), e, u, xhat,
+        what; and eta (N l, the observers) for the distributed architecture.
+    """
+    names = system.trace_names()
+    N = sum(1 for c in system.components if c.fmu == "vehicle")
+
+    def cat(prefix: str, out: str) -> np.ndarray:
+        return np.hstack([traces[names[(f"{prefix}_{i}", out)]] for i in range(1, N + 1)])
+
+    z_l = traces[names[("leader", "z")]]
+    out = {"y": cat("vehicle", "y"), "x": cat("vehicle", "x"), "w": cat("vehicle", "w"),
+           "u": cat("controller", "u"), "xhat": cat("estimator", "xhat"),
+           "what": cat("estimator", "what")}
+    z = z_l
+    if sc.system.l > z_l.shape[1]:
+        z = np.hstack([z_l, np.ones((z_l.shape[0], sc.system.l - z_l.shape[1]))])
+    out["z"] = z
+    # e = H z - C x of the stacked system (offsets in its last column), from the truth
+    out["e"] = z @ sc.system.H.T - out["x"] @ sc.system.C.T
+    if ("controller_1", "eta") in names:
+        out["eta"] = cat("controller", "eta")
+    return out

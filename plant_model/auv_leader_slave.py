@@ -1,0 +1,113 @@
+"""FMI 2.0 co-simulation slave of the virtual leader (per-vehicle deployment).
+
+The leader's exosystem alone, z[k+1] = expm(F h) z[k] + v_z[k] (plant_model.per_vehicle);
+output z. No input. Its noise (zero for a planned path) comes from the generator seeded
+[seed, 0]. FMU state: s = z, k, the noise row and stream, plus what the base class saves.
+"""
+from typing import Any
+
+import numpy as np
+
+from fmu_common.interface import ArraySpec
+
+# pythonfmu's loader looks for "class X(Fmi2Slave):"
+from fmu_common.slave_base import ArraySlave as Fmi2Slave
+from plant_model.parameters import (
+    noise_convention_spec,
+    sample_period_spec,
+    system_parameter_specs,
+)
+from plant_model.per_vehicle import leader_system, sample_leader
+from plant_model.plant import Plant
+
+LEADER_PARAMETERS = ("F", "z0", "W_z")
+
+
+class AuvLeader(Fmi2Slave):
+    """The virtual leader: a reference exosystem (a planned survey path or a noisy one)."""
+
+    config_file = "auv_leader_config.json"
+    step_parameter = "h"
+    description = ("Virtual leader of an AUV fleet (per-vehicle deployment): the reference "
+                   "exosystem z' = F z + m_z, exactly sampled")
+    author = "auv-cosim"
+
+    @staticmethod
+    def interface(config: dict[str, Any]) -> list[ArraySpec]:
+        """The leader's FMU interface: F, z0, W_z, h, seed, noise convention; output z.
+
+        Parameters
+        ----------
+        config : dict[str, Any]
+            The build configuration (``dims``, ``system``, ``h``, ``seed``).
+
+        Returns
+        -------
+        list[ArraySpec]
+            Parameters and the output z (l,).
+        """
+        return system_parameter_specs(config, LEADER_PARAMETERS) + [
+            sample_period_spec(config, "sample period the leader is discretized for"),
+            ArraySpec("seed", (), "parameter", "seed of the fleet's noise (the leader draws "
+                      "from the generator seeded [seed, 0])", start=config["seed"],
+                      type="Integer", min=0, max=2**31 - 1),
+            noise_convention_spec(config),
+            ArraySpec("z", (config["dims"]["l"],), "output", "the leader's state z"),
+        ]
+
+    def setup(self) -> None:
+        """Sample the leader at h and start it at z0.
+
+        Raises
+        ------
+        ModelError
+            If F, z0 or W_z are invalid or h is not positive.
+        """
+        conv = self.par["noise_convention"]
+        F, z0, W = leader_system(self.par["F"], self.par["z0"], self.par["W_z"], conv)
+        self.model = sample_leader(F, W, float(self.par["h"]), conv)
+        self.plant = Plant(self.model, z0, int(self.par["seed"]), out=self._out)
+        self._u = np.zeros(0)
+
+    def compute_outputs(self) -> None:
+        """Nothing to do: the plant keeps z of sample k in the output buffer."""
+        pass
+
+    def advance(self, step: float) -> None:
+        """One sample period: z <- Phi z + v_z[k].
+
+        Parameters
+        ----------
+        step : float
+            The communication step, s (checked against h by the base class).
+        """
+        self.plant.step(self._u)
+
+    def evolving(self) -> np.ndarray:
+        """The leader's state z (checked to stay finite after every step)."""
+        return self.plant.s
+
+    def model_state(self) -> dict[str, Any]:
+        """The leader's evolving state (:meth:`Plant.get_state`).
+
+        Returns
+        -------
+        dict[str, Any]
+            k, seed, s, the current noise row and the noise stream's state.
+        """
+        return self.plant.get_state()
+
+    def restore_model_state(self, state: Any) -> None:
+        """Restore a :meth:`model_state` result.
+
+        Parameters
+        ----------
+        state : Any
+            The dict :meth:`model_state` returned.
+
+        Raises
+        ------
+        ValueError
+            If the state does not fit this leader.
+        """
+        self.plant.set_state(state)

@@ -1,0 +1,139 @@
+"""FMI 2.0 co-simulation slave of one vehicle (per-vehicle deployment; plant_model.per_vehicle).
+
+Input u (the total force the vehicle's controller applies, held over the step); outputs the
+measured y = C x + n and the truth x, w (for scoring and the ``ideal`` estimator). Only the
+vehicle's own physics and its own ocean current: no consensus term, no leader. Its noise
+stream is the generator seeded [seed, vehicle], the same numbers as vehicle ``vehicle`` of
+the stacked fleet. FMU state: the plant's s, k, current noise row and noise stream, plus what
+the base class saves.
+"""
+from typing import Any
+
+import numpy as np
+
+from fmu_common.interface import ArraySpec
+
+# pythonfmu's loader looks for "class X(Fmi2Slave):"
+from fmu_common.slave_base import ArraySlave as Fmi2Slave
+from plant_model.parameters import (
+    noise_convention_spec,
+    sample_period_spec,
+    system_mapping_from_parameters,
+    system_parameter_specs,
+)
+from plant_model.per_vehicle import sample_vehicle, vehicle_view
+from plant_model.plant import Plant
+
+VEHICLE_PARAMETERS = ("A", "B1", "B2", "C", "K", "x0", "w0", "W_x", "W_w", "V_y", "V_ybar")
+
+
+class AuvVehicle(Fmi2Slave):
+    """One AUV: its dynamics, its ocean current and its position sensor, sampled at h."""
+
+    config_file = "auv_vehicle_config.json"
+    step_parameter = "h"
+    description = ("One AUV of a fleet (per-vehicle deployment): linear vehicle, its own "
+                   "ocean current, noisy position sensor, its own noise stream; exact sampling")
+    author = "auv-cosim"
+
+    @staticmethod
+    def interface(config: dict[str, Any]) -> list[ArraySpec]:
+        """The vehicle's FMU interface: model parameters, h, seed, vehicle number, u, outputs.
+
+        Parameters
+        ----------
+        config : dict[str, Any]
+            The build configuration (``dims``, ``system``, ``h``, ``seed``, ``vehicle``).
+
+        Returns
+        -------
+        list[ArraySpec]
+            Parameters, the input u (m,) and the outputs y (p,), x (n,), w (r,).
+        """
+        d = config["dims"]
+        n, m, r, p = d["n"], d["m"], d["r"], d["p"]
+        return system_parameter_specs(config, VEHICLE_PARAMETERS) + [
+            sample_period_spec(config, "sample period: the communication step the vehicle "
+                               "is discretized for"),
+            ArraySpec("seed", (), "parameter", "seed of the fleet's noise (numpy PCG64; this "
+                      "vehicle draws from the generator seeded [seed, vehicle])",
+                      start=config["seed"], type="Integer", min=0, max=2**31 - 1),
+            ArraySpec("vehicle", (), "parameter", "the vehicle's number in the fleet, 1..N "
+                      "(keys its noise stream)", start=config.get("vehicle", 1),
+                      type="Integer", min=1, max=2**31 - 1),
+            noise_convention_spec(config),
+            ArraySpec("u", (m,), "input", "total force u held over the step (control and "
+                      "consensus)"),
+            ArraySpec("y", (p,), "output", "measured output y = C x + n"),
+            ArraySpec("x", (n,), "output", "true vehicle state x"),
+            ArraySpec("w", (r,), "output", "true disturbance (ocean current) state w"),
+        ]
+
+    def setup(self) -> None:
+        """Sample the vehicle at h and start it at [x0; w0] with its own noise stream.
+
+        Raises
+        ------
+        ModelError
+            If the parameters do not make a valid vehicle or h is not positive.
+        """
+        mp = system_mapping_from_parameters(self.par, VEHICLE_PARAMETERS)
+        l0 = int(self.config["dims"]["l"])
+        view = vehicle_view(**mp, F=np.zeros((l0, l0)), H=np.zeros((mp["C"].shape[0], l0)),
+                            noise_convention=self.par["noise_convention"])
+        self.model = sample_vehicle(view, float(self.par["h"]), int(self.par["vehicle"]))
+        self._buf = np.empty(3 * view.p + self.model.ns)      # [y, ybar, x, w, e]
+        self.plant = Plant(self.model, np.concatenate([view.x0, view.w0]),
+                           int(self.par["seed"]), out=self._buf)
+        s, ns = view.p, self.model.ns
+        self._from = np.r_[0:s, 2 * s:2 * s + ns]             # y, then x and w
+        self._u = self.io["u"]
+        self._copy()
+
+    def _copy(self) -> None:
+        np.take(self._buf, self._from, out=self._out)
+
+    def compute_outputs(self) -> None:
+        """Nothing to do: the outputs of sample k are copied when the step ends."""
+        pass
+
+    def advance(self, step: float) -> None:
+        """One sample period: s <- Ad s + Bd u + v[k], then the outputs of sample k + 1.
+
+        Parameters
+        ----------
+        step : float
+            The communication step, s (checked against h by the base class).
+        """
+        self.plant.step(self._u)
+        self._copy()
+
+    def evolving(self) -> np.ndarray:
+        """The sampled state s = [x; w] (checked to stay finite after every step)."""
+        return self.plant.s
+
+    def model_state(self) -> dict[str, Any]:
+        """The plant's evolving state (:meth:`Plant.get_state`).
+
+        Returns
+        -------
+        dict[str, Any]
+            k, seed, s, the current noise row and the noise stream's state.
+        """
+        return self.plant.get_state()
+
+    def restore_model_state(self, state: Any) -> None:
+        """Restore a :meth:`model_state` result into the plant.
+
+        Parameters
+        ----------
+        state : Any
+            The dict :meth:`model_state` returned.
+
+        Raises
+        ------
+        ValueError
+            If the state does not fit this vehicle (seed, shapes).
+        """
+        self.plant.set_state(state)
+        self._copy()
