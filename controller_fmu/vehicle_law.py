@@ -24,6 +24,7 @@ whoever builds the system, not in each vehicle.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -34,7 +35,24 @@ from plant_model.per_vehicle import vehicle_view
 from .distributed import REGULATOR_FORMS, VehicleLaw, design_vehicle_law
 from .regulator import TRACKING_MODES, tracking_law
 
-__all__ = ["vehicle_law", "centralized_rows"]
+__all__ = ["ARCHITECTURES", "DEPLOYMENTS", "DistributedSettings", "vehicle_law",
+           "centralized_rows"]
+
+#: where each vehicle's law gets its information: the paper's stacked law cut by vehicle
+#: (every vehicle's estimate and the leader), or neighbour-only
+ARCHITECTURES = ("centralized", "distributed")
+#: one set of FMUs for the stacked fleet, or one vehicle, estimator and controller per AUV
+DEPLOYMENTS = ("stacked", "per-vehicle")
+
+
+@dataclass(frozen=True)
+class DistributedSettings:
+    """The distributed law's gains: observer gain ``mu`` (1/s), ``cohesion`` gain c
+    (dimensionless, 0: off) and the ``regulator`` equations (continuous or sampled)."""
+
+    mu: float = 2.0
+    cohesion: float = 0.0
+    regulator: str = "continuous"
 
 
 def vehicle_law(A: Any, B1: Any, B2: Any, C: Any, K: Any, Q: Any, R: Any, F: Any, H: Any,

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from controller_fmu.regulator import TRACKING_MODES
+from controller_fmu.vehicle_law import ARCHITECTURES, DEPLOYMENTS
 from estimator_fmu.estimators import ESTIMATOR_MODES
 from plant_model.linalg_checks import ModelError
 
@@ -85,7 +86,9 @@ def _scenario(args: argparse.Namespace) -> Scenario:
     sc = load_scenario(args.scenario)
     return sc.with_run(T=getattr(args, "T", None), h=getattr(args, "h", None),
                        seed=getattr(args, "seed", None), estimator=getattr(args, "estimator", None),
-                       tracking=getattr(args, "tracking", None))
+                       tracking=getattr(args, "tracking", None),
+                       deployment=getattr(args, "deployment", None),
+                       architecture=getattr(args, "architecture", None))
 
 
 def viewer_command() -> str:
@@ -175,7 +178,10 @@ def cmd_build(args: argparse.Namespace) -> int:
             write_fmu_readme(sc, out / "README.md")
         for k, p in paths.items():
             print(f"{k:>10s}: {p} ({p.stat().st_size} bytes)")
-        if not args.no_crosscheck:
+        if sc.deployment == "per-vehicle":
+            print("(no cross-check references for the per-vehicle FMUs: they are written "
+                  "for the stacked deployment's three FMUs)")
+        elif not args.no_crosscheck:
             from .interop.crosscheck import write_crosscheck
             from .workflow import scenario_config
             written = write_crosscheck(paths, scenario_config(sc), out / "crosscheck")
@@ -199,7 +205,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from .workflow import check_memory, method_list, simulate
     sc = _scenario(args)
     what = args.what or ("tracking" if sc.fleet is not None else "estimators")
-    choices = ESTIMATOR_MODES if what == "estimators" else TRACKING_MODES
+    if what == "architectures" and sc.deployment != "per-vehicle":
+        raise UsageError("--what architectures compares the centralized and distributed laws "
+                         "of the per-vehicle deployment: add --deployment per-vehicle (or set "
+                         "[simulation] deployment = \"per-vehicle\")")
+    choices = {"estimators": ESTIMATOR_MODES, "tracking": TRACKING_MODES,
+               "architectures": ARCHITECTURES}[what]
     picked = list(choices)
     if args.methods:
         picked = [m.strip() for m in args.methods.split(",") if m.strip()]
@@ -209,17 +220,23 @@ def cmd_compare(args: argparse.Namespace) -> int:
                 f"--methods {args.methods!r}: "
                 + (f"{', '.join(unknown)} is not one of the {what} ({', '.join(choices)})"
                    if unknown else "give each method once, separated by commas"))
-    modes, trackings = (picked, None) if what == "estimators" else (None, picked)
-    check_memory(sc, len(method_list(sc, modes, trackings)))
+    modes = picked if what == "estimators" else None
+    trackings = picked if what == "tracking" else None
+    architectures = picked if what == "architectures" else None
+    check_memory(sc, len(method_list(sc, modes, trackings, architectures)))
     with output_folder(args.out or f"out/{file_stem(sc.name)}_compare", "compare") as out:
         summary = simulate(sc, modes, args.seeds, out, progress=not args.quiet,
                            log=(lambda s: None) if args.quiet else print, trackings=trackings,
-                           workers=args.workers)
+                           workers=args.workers, architectures=architectures)
     return _print_summary(summary, out)
 
 
 def cmd_export(args: argparse.Namespace) -> int:
     sc = _scenario(args)
+    if sc.deployment == "per-vehicle":
+        raise UsageError("export --deployment per-vehicle is not implemented yet: the OSP and "
+                         "SSP exports write the stacked system; build, run and compare already "
+                         "take --deployment per-vehicle")
     with output_folder(args.out or f"out/{file_stem(sc.name)}_{args.format}", "export") as out:
         if args.format == "osp":
             from .interop.osp import export_osp
@@ -297,6 +314,14 @@ def build_parser() -> argparse.ArgumentParser:
                         help=f"built-in name ({', '.join(builtin_scenarios())}) or a .toml file "
                              "(default: paper)")
         if run:
+            sp.add_argument("--deployment", choices=DEPLOYMENTS,
+                            help="fleets: one set of FMUs for the stacked fleet, or a vehicle, "
+                                 "estimator and controller FMU per AUV (default: scenario's, "
+                                 "stacked unless it says otherwise)")
+            sp.add_argument("--architecture", choices=ARCHITECTURES,
+                            help="per-vehicle fleets: the paper's stacked law cut by vehicle "
+                                 "(centralized) or neighbour-only information (distributed) "
+                                 "(default: scenario's)")
             sp.add_argument("--T", type=_positive, help="simulated time, s (default: scenario's)")
             sp.add_argument("--h", type=_positive,
                             help="communication step, s (default: scenario's)")
@@ -324,9 +349,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("compare", help="the three estimator modes (or, for a fleet, the two "
                                         "tracking laws) on the same noise and seeds")
     common(sp)
-    sp.add_argument("--what", choices=("estimators", "tracking"),
-                    help="compare the estimator modes (default for a single system) or the "
-                         "tracking laws lq and regulator (default for a fleet)")
+    sp.add_argument("--what", choices=("estimators", "tracking", "architectures"),
+                    help="compare the estimator modes (default for a single system), the "
+                         "tracking laws lq and regulator (default for a fleet) or the "
+                         "centralized and distributed architectures (per-vehicle fleets)")
     sp.add_argument("--methods",
                     help="which of them, comma-separated, e.g. 'kalman,ideal' or 'lq' "
                          "(default: all; a mode impossible for the scenario is skipped and "

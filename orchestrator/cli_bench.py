@@ -124,6 +124,12 @@ def cmd_bench_campaign(args: argparse.Namespace) -> int:
 
 def cmd_bench(args: argparse.Namespace) -> int:
     from .bench import benchmark
+    if getattr(args, "deployment", None) == "per-vehicle":
+        from .cli import UsageError
+        raise UsageError("bench --deployment per-vehicle is not implemented yet: the "
+                         "per-vehicle benchmark (build, modelDescription size, initialization "
+                         "and us/step per N) is still open work; run and compare already take "
+                         "--deployment per-vehicle")
     if args.campaign:
         return cmd_bench_campaign(args)
     if args.fleet:

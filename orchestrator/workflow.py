@@ -152,32 +152,40 @@ def build(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
     dict
         FMU key (plant, estimator, controller) -> path.
     """
+    if sc.deployment == "per-vehicle":
+        from .per_vehicle_run import PerVehicleRuns
+        return PerVehicleRuns(sc, Path(out_dir)).fmus(sc.architecture)
     return build_fmus(scenario_config(sc), Path(out_dir))
 
 
 def method_list(sc: Scenario, estimators: Sequence[str] | None = None,
-                trackings: Sequence[str] | None = None) -> list[tuple[str, str, str]]:
-    """(name, estimator, tracking) of each method to run: names are the estimator when
-    only estimators vary, the tracking law when only the law varies, else both.
+                trackings: Sequence[str] | None = None,
+                architectures: Sequence[str] | None = None) -> list[tuple[str, str, str, str]]:
+    """(name, estimator, tracking, architecture) of each method to run: names are the
+    estimator when only estimators vary, the tracking law when only the law varies, the
+    architecture when only it varies, else the varying ones joined by '-'.
 
     Parameters
     ----------
     sc : Scenario
-        Gives the defaults (its estimator and tracking law).
-    estimators, trackings : sequence of str, optional
-        Estimator modes and tracking laws to combine.
+        Gives the defaults (its estimator, tracking law and architecture).
+    estimators, trackings, architectures : sequence of str, optional
+        Estimator modes, tracking laws and information architectures to combine.
 
     Returns
     -------
-    list of (str, str, str)
+    list of (str, str, str, str)
     """
     est = list(estimators or [sc.estimator])
     trk = list(trackings or [sc.tracking])
+    arc = list(architectures or [sc.architecture])
     out = []
-    for e in est:
-        for t in trk:
-            name = e if len(trk) == 1 else t if len(est) == 1 else f"{e}-{t}"
-            out.append((name, e, t))
+    for a in arc:
+        for e in est:
+            for t in trk:
+                parts = [x for x, many in ((a, len(arc) > 1), (e, len(est) > 1),
+                                           (t, len(trk) > 1)) if many]
+                out.append(("-".join(parts) or e, e, t, a))
     return out
 
 
@@ -294,7 +302,8 @@ def check_memory(sc: Scenario, n_methods: int, available: int | None = None) -> 
 def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], out_dir: Path | str,
              *, progress: bool = True, log: Callable[[str], None] = print,
              trackings: Sequence[str] | None = None,
-             record_hz: float | None = None, workers: int | None = None) -> dict[str, Any]:
+             record_hz: float | None = None, workers: int | None = None,
+             architectures: Sequence[str] | None = None) -> dict[str, Any]:
     """Co-simulate each method (estimator ``modes`` x tracking laws ``trackings``, each
     default the scenario's) on each seed; write ``<out>/<scenario>.rrd`` and summary.json.
 
@@ -320,6 +329,8 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
         Receives one line per run.
     trackings : sequence of str, optional
         Tracking laws (None: the scenario's).
+    architectures : sequence of str, optional
+        Information architectures of a per-vehicle fleet (None: the scenario's).
     record_hz : float, optional
         Recording rate of fleets, Hz (:func:`record_stride`).
     workers : int, optional
@@ -334,30 +345,42 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     from .recording.background import BackgroundWriter
 
     t0 = time.perf_counter()
-    check_memory(sc, len(method_list(sc, modes, trackings)))
+    check_memory(sc, len(method_list(sc, modes, trackings, architectures)))
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     # the .rrd writer imports Rerun in a child while we simulate; SIGINT / SIGTERM stop
     # the runs between steps and keep what was simulated
     from .parallel import seed_pool
-    runs = len(method_list(sc, modes, trackings))
+    runs = len(method_list(sc, modes, trackings, architectures))
+    # the per-vehicle runs stay in this process (their FMUs are many small instances)
+    workers = 1 if sc.deployment == "per-vehicle" else workers
     with BackgroundWriter() as writer, stop_on_signals() as stop, \
             seed_pool(sc.steps, len(seeds), runs, workers) as pool:
         return _simulate(sc, modes, seeds, out, writer, t0, progress=progress, log=log,
-                         trackings=trackings, record_hz=record_hz, stop=stop, pool=pool)
+                         trackings=trackings, record_hz=record_hz, stop=stop, pool=pool,
+                         architectures=architectures)
 
 
 def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], out: Path,
               writer: Any, t0: float, *, progress: bool, log: Callable[[str], None],
               trackings: Sequence[str] | None, record_hz: float | None,
-              stop: StopFlag, pool: Any = None) -> dict[str, Any]:
+              stop: StopFlag, pool: Any = None,
+              architectures: Sequence[str] | None = None) -> dict[str, Any]:
     from controller_fmu.regulator import tracking_law
 
+    from .per_vehicle_run import PerVehicleRuns
+
     cfg = scenario_config(sc)
-    fmus = build_fmus(cfg, out / "fmus")
-    methods_run = method_list(sc, modes, trackings)
+    methods_run = method_list(sc, modes, trackings, architectures)
+    pv = PerVehicleRuns(sc, out / "fmus") if sc.deployment == "per-vehicle" else None
+    if pv is None:
+        fmus = build_fmus(cfg, out / "fmus")
+    else:
+        for arch in dict.fromkeys(a for *_, a in methods_run):
+            pv.fmus(arch)
+        fmus = pv.all_fmus()
     model = discretize(sc.system, sc.h)
-    laws = {t: tracking_law(sc.system, t) for t in {t for _, _, t in methods_run}}
+    laws = {t: tracking_law(sc.system, t) for t in {t for _, _, t, _ in methods_run}}
     design = next(iter(laws.values())).design
     methods: dict[str, Any] = {}
     rrd_runs: dict[str, dict[str, np.ndarray]] = {}
@@ -374,33 +397,38 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
                  (layout.position_index, layout.offsets, layout.edges, sc.h))
     skipped: list[ModelError] = []
     notes: set[str] = set()
-    for name, mode, tracking in methods_run:
+    for name, mode, tracking, arch in methods_run:
         Ks = laws[tracking].Ks
         try:
-            est = make_estimator(sc.system, model, mode)
+            if pv is not None:
+                pred0, pred, pred_window, k0 = pv.predictions(arch, mode, tracking)
+            else:
+                est = make_estimator(sc.system, model, mode)
         except ModelError as exc:       # impossible for this scenario: run the others
             if len(methods_run) == 1:
                 raise
             skipped.append(exc)
             methods[name] = {"skipped": str(exc), "estimator": mode, "tracking": tracking,
-                             "seeds_completed": 0}
+                             "architecture": arch, "seeds_completed": 0}
             log(f"{name:>9s}: skipped: {exc}")
             continue
-        pred0 = predict_stationary(sc.system, model, est, Ks)
-        k0 = stats_window(sc.T, sc.h, pred0.settling_time)
+        if pv is None:
+            pred0 = predict_stationary(sc.system, model, est, Ks)
+            k0 = stats_window(sc.T, sc.h, pred0.settling_time)
+            pred = pred0
+            if pred0.cost_rate is not None and sc.fleet is not None:
+                pred = predict_stationary(sc.system, model, est, Ks, window=(k0, sc.steps))
+            pred_window = (None if pred0.cost_rate is None else predict_stationary(
+                sc.system, model, est, Ks, window=(k0, sc.steps), transient=True))
         window = (k0 * sc.h, sc.T)
-        pred = pred0
-        if pred0.cost_rate is not None and sc.fleet is not None:
-            pred = predict_stationary(sc.system, model, est, Ks, window=(k0, sc.steps))
-        pred_window = (None if pred0.cost_rate is None else predict_stationary(
-            sc.system, model, est, Ks, window=(k0, sc.steps), transient=True))
         note = stationarity_note(sc.T, k0 * sc.h, pred0.settling_time)
         if note is not None:
             notes.add(note)
         per_seed = []
         # the seeds after the first on local worker processes (orchestrator.parallel)
         pooled = {s: pool.submit(fmus, cfg, mode, s, sc.steps, tracking, k0, sc.system.Q,
-                                 sc.system.R, formation) for s in seeds[1:]} if pool else {}
+                                 sc.system.R, formation)
+                  for s in seeds[1:]} if pool and pv is None else {}
         for seed in seeds:
             if stop:
                 break
@@ -413,8 +441,9 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
                 log(f"{name:>9s} seed {seed}: cost rate {stats['cost_rate']:.4g} (worker "
                     f"process), {loop_s:.2f} s")
                 continue
-            res = run_cosimulation(fmus, cfg, mode=mode, seed=seed, steps=sc.steps,
-                                   progress=bar, tracking=tracking, stop=stop)
+            res = (pv.run(arch, mode, tracking, seed, progress=bar, stop=stop) if pv else
+                   run_cosimulation(fmus, cfg, mode=mode, seed=seed, steps=sc.steps,
+                                    progress=bar, tracking=tracking, stop=stop))
             if name not in rrd_runs and res.steps:
                 rrd_runs[name] = res.traces
             if res.info["interrupted_by"]:
@@ -437,6 +466,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
             methods[name]["rms_e"]["predicted_window"] = pred_window.rms_e
         methods[name]["estimator"] = mode
         methods[name]["tracking"] = tracking
+        methods[name]["architecture"] = arch
         methods[name]["seeds_completed"] = len(per_seed)
         if stop:
             break
@@ -465,6 +495,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         "noise_convention": sc.system.noise_convention,
         "consensus": None if sc.fleet is None else sc.fleet["graph"].get("consensus",
                                                                          "in-plant"),
+        "deployment": sc.deployment,
         "stats_window_s": list(window) if window else None,
         "stationary": not notes,
         "stationarity_note": "; ".join(sorted(notes)) or None,

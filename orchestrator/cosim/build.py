@@ -28,8 +28,8 @@ from fmu_common.interface import UNIT_DEFINITIONS, ArraySpec, expand
 
 from ..atomic import copy_atomically
 
-__all__ = ["FMU_KINDS", "STACKED_KINDS", "FmuKind", "build_fmus", "build_key", "cached_fmu", "fmu_cache_dir",
-           "fmu_config", "interface_of",
+__all__ = ["FMU_KINDS", "STACKED_KINDS", "FmuKind", "build_fmus", "build_key", "cached_fmu",
+           "fmu_cache_dir", "fmu_config", "interface_of",
            "patch_model_description", "variables_markdown"]
 
 ROOT = Path(__file__).resolve().parent.parent.parent

@@ -30,7 +30,12 @@ from typing import Any
 
 import numpy as np
 
-from controller_fmu.vehicle_law import centralized_rows
+from controller_fmu.vehicle_law import (
+    ARCHITECTURES,
+    DEPLOYMENTS,
+    DistributedSettings,
+    centralized_rows,
+)
 from plant_model.fleet import fleet_graph
 from plant_model.per_vehicle import vehicle_views
 from plant_model.system import LinearSystem
@@ -40,23 +45,6 @@ from .system import Component, Connection, SystemDescription, component_paramete
 
 __all__ = ["ARCHITECTURES", "DEPLOYMENTS", "DistributedSettings", "FleetSlots",
            "fleet_slots", "per_vehicle_configs", "per_vehicle_system", "stacked_traces"]
-
-#: where each vehicle's law gets its information (issue: centralized = the paper's stacked
-#: law cut by vehicle, distributed = neighbour-only)
-ARCHITECTURES = ("centralized", "distributed")
-#: one set of FMUs for the stacked fleet, or one per vehicle
-DEPLOYMENTS = ("stacked", "per-vehicle")
-
-
-@dataclass(frozen=True)
-class DistributedSettings:
-    """The distributed law's gains: observer mu (1/s), cohesion c (dimensionless, 0: off),
-    regulator equations continuous or sampled."""
-
-    mu: float = 2.0
-    cohesion: float = 0.0
-    regulator: str = "continuous"
-
 
 @dataclass(frozen=True)
 class FleetSlots:

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["TRACE_KEYS", "TRUE_COLOR", "VIEW_GROUPS", "FleetLayout", "axis_colors", "color_name",
-           "method_color"]
+__all__ = ["FLEET_TRACE_KEYS", "TRACE_KEYS", "TRUE_COLOR", "VIEW_GROUPS", "FleetLayout",
+           "axis_colors", "color_name", "method_color"]
 
 # (trace key, entity path template, series-name suffix, is an estimate)
 _SERIES: tuple[tuple[str, str, str, bool], ...] = (
@@ -31,6 +31,10 @@ _SERIES: tuple[tuple[str, str, str, bool], ...] = (
 #: the loop's system description (orchestrator.cosim.system.SystemDescription.trace_names)
 #: that this layout places.
 TRACE_KEYS: tuple[str, ...] = tuple(key for key, *_ in _SERIES)
+#: what a fleet recording places (the 3D scene and per-vehicle views): no ybar, no zhat,
+#: which the per-vehicle deployment does not have (no reference sensor; each vehicle its
+#: own estimate of the leader)
+FLEET_TRACE_KEYS: tuple[str, ...] = ("e", "u", "x", "xhat", "w", "what", "z")
 
 #: Blueprint view groups: (view name prefix == entity root, trace keys whose dims count).
 VIEW_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (

@@ -147,9 +147,11 @@ def _validate_fleet(fleet: FleetLayout, clean: dict[str, dict[str, np.ndarray]])
     )
 
 
-def _validate(runs: Mapping[str, Mapping[str, np.ndarray]],
-              h: float) -> tuple[dict[str, dict[str, np.ndarray]], int, int]:
-    """Check the runs and the step; return float64 traces, the step count and h in ns."""
+def _validate(runs: Mapping[str, Mapping[str, np.ndarray]], h: float,
+              keys: tuple[str, ...] = TRACE_KEYS
+              ) -> tuple[dict[str, dict[str, np.ndarray]], int, int]:
+    """Check the runs and the step; return float64 traces (``keys``: those the layout
+    places), the step count and h in ns."""
     if not isinstance(runs, Mapping) or len(runs) == 0:
         raise ValueError("write_rrd: runs must be a non-empty mapping method -> traces")
     h = float(h)
@@ -169,13 +171,13 @@ def _validate(runs: Mapping[str, Mapping[str, np.ndarray]],
         if not isinstance(traces, Mapping):
             raise ValueError(f"write_rrd: run {method!r} must be a mapping of traces, "
                              f"got {type(traces).__name__}")
-        missing = [k for k in TRACE_KEYS if k not in traces]
+        missing = [k for k in keys if k not in traces]
         if missing:
             raise ValueError(f"write_rrd: run {method!r} is missing trace key(s) "
                              f"{', '.join(repr(k) for k in missing)} "
-                             f"(needs {', '.join(TRACE_KEYS)})")
+                             f"(needs {', '.join(keys)})")
         clean[method] = {}
-        for key in TRACE_KEYS:
+        for key in keys:
             try:
                 arr = np.asarray(traces[key], dtype=np.float64)
             except (TypeError, ValueError) as exc:

@@ -16,6 +16,8 @@ from .layout import (
     _SERIES,
     _SIM_TIME,
     _STEP,
+    FLEET_TRACE_KEYS,
+    TRACE_KEYS,
     TRUE_COLOR,
     FleetLayout,
     _Fleet,
@@ -247,7 +249,8 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
     RuntimeError
         If Rerun logging is disabled (e.g. ``RERUN=off``), since the file would be empty.
     """
-    clean, steps, h_ns = _validate(runs, h)
+    clean, steps, h_ns = _validate(runs, h,
+                                   FLEET_TRACE_KEYS if fleet is not None else TRACE_KEYS)
     stride = _positive_int(stride, "stride")
     if scene_stride is not None:
         scene_stride = _positive_int(scene_stride, "scene_stride")

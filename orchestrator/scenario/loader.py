@@ -22,10 +22,11 @@ from __future__ import annotations
 
 import tomllib
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
+from controller_fmu.vehicle_law import DistributedSettings
 from plant_model.discretization import check_step
 from plant_model.linalg_checks import ModelError
 from plant_model.system import LinearSystem
@@ -56,6 +57,10 @@ class Scenario:
     source: str
     tracking: str = "lq"
     fleet: dict[str, Any] | None = None     #: the fleet spec (plant_model.fleet), if a fleet
+    deployment: str = "stacked"             #: "stacked" or "per-vehicle" (fleets)
+    architecture: str = "centralized"       #: "centralized" or "distributed" (per-vehicle)
+    #: gains of the distributed law ([distributed] of a fleet scenario)
+    distributed: DistributedSettings = field(default_factory=DistributedSettings)
 
     @property
     def steps(self) -> int:
@@ -64,17 +69,22 @@ class Scenario:
 
     def with_run(self, *, T: float | None = None, h: float | None = None,
                  seed: int | None = None, estimator: str | None = None,
-                 tracking: str | None = None) -> Scenario:
+                 tracking: str | None = None, deployment: str | None = None,
+                 architecture: str | None = None) -> Scenario:
         """A copy with run settings overridden, checked like the file's [simulation]."""
         new = replace(self, T=self.T if T is None else float(T),
                       h=self.h if h is None else float(h),
                       seed=self.seed if seed is None else int(seed),
                       estimator=self.estimator if estimator is None else estimator,
-                      tracking=self.tracking if tracking is None else tracking)
+                      tracking=self.tracking if tracking is None else tracking,
+                      deployment=self.deployment if deployment is None else deployment,
+                      architecture=self.architecture if architecture is None else architecture)
         run = {"T": new.T, "h": new.h, "seed": new.seed, "estimator": new.estimator,
-               "tracking": new.tracking}
+               "tracking": new.tracking, "deployment": new.deployment,
+               "architecture": new.architecture}
         validate_scenario(RunSettings, {"simulation": run}, new.source)
         _check_step(new)
+        _check_deployment(new)
         return new
 
 
@@ -84,6 +94,22 @@ def _check_step(sc: Scenario) -> None:
         check_step(sc.system.augmented()[0], sc.h)
     except ModelError as exc:
         raise ScenarioError(f"{sc.source}: [simulation] h: {exc}") from None
+
+
+def _check_deployment(sc: Scenario) -> None:
+    """A per-vehicle deployment needs a fleet whose consensus protocol is a force."""
+    if sc.deployment != "per-vehicle":
+        return
+    if sc.fleet is None:
+        raise ScenarioError(f"{sc.source}: [simulation] deployment = \"per-vehicle\" needs a "
+                            "fleet scenario (a [vehicles] count, a [graph] and a [leader]); "
+                            "this one is a single stacked system")
+    form = sc.fleet.get("graph", {}).get("consensus", "in-plant")
+    if form != "protocol":
+        raise ScenarioError(f"{sc.source}: [simulation] deployment = \"per-vehicle\" needs "
+                            f"[graph] consensus = \"protocol\" (the protocol as a force each "
+                            f"controller applies), not {form!r}: a vehicle's plant holds only "
+                            "its own physics")
 
 
 def builtin_scenarios() -> list[str]:
@@ -105,8 +131,14 @@ def _scenario(file: ScenarioFile, where: str, system: LinearSystem,
     sc = Scenario(name=file.name if file.name is not None else Path(where).stem,
                   description=file.description, system=system, T=sim.T, h=sim.h,
                   seed=sim.seed, estimator=sim.estimator, source=where,
-                  tracking=sim.tracking, fleet=fleet)
+                  tracking=sim.tracking, fleet=fleet, deployment=sim.deployment,
+                  architecture=sim.architecture)
+    dist = getattr(file, "distributed", None)
+    if dist is not None:
+        sc = replace(sc, distributed=DistributedSettings(
+            mu=dist.mu, cohesion=dist.cohesion, regulator=dist.regulator))
     _check_step(sc)
+    _check_deployment(sc)
     return sc
 
 

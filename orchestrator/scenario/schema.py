@@ -33,6 +33,7 @@ from pydantic import (
 )
 
 from controller_fmu.regulator import TRACKING_MODES
+from controller_fmu.vehicle_law import ARCHITECTURES, DEPLOYMENTS
 from estimator_fmu.estimators import ESTIMATOR_MODES
 from plant_model.linalg_checks import (
     as_matrix,
@@ -112,6 +113,10 @@ class SimulationSection(Section):
                            "32-bit FMI Integer)")] = 0
     estimator: Annotated[str, one_of(ESTIMATOR_MODES)] = "kalman"
     tracking: Annotated[str, one_of(TRACKING_MODES)] = "lq"
+    #: fleets: one set of FMUs for the stacked fleet, or one per vehicle
+    deployment: Annotated[str, one_of(DEPLOYMENTS)] = "stacked"
+    #: per-vehicle fleets: the stacked law cut by vehicle, or neighbour-only information
+    architecture: Annotated[str, one_of(ARCHITECTURES)] = "centralized"
 
     @field_validator("T", mode="wrap")
     @classmethod

@@ -20,7 +20,7 @@ from __future__ import annotations
 from typing import Annotated, Any, Self
 
 import numpy as np
-from annotated_types import Ge
+from annotated_types import Ge, Gt
 from pydantic import (
     AllowInfNan,
     BaseModel,
@@ -32,6 +32,7 @@ from pydantic import (
     model_validator,
 )
 
+from controller_fmu.distributed import REGULATOR_FORMS
 from plant_model.fleet import CONSENSUS_FORMS, fleet_vehicles
 from plant_model.graph import communication_graph
 from plant_model.leader import LeaderPath, make_leader
@@ -273,6 +274,17 @@ def _valid_vehicles(info: ValidationInfo) -> FleetVehiclesSection | None:
     return info.data.get("vehicles")
 
 
+class DistributedSection(Section):
+    """[distributed]: the distributed law's observer gain mu (1/s, > 0), cohesion gain c
+    (>= 0, 0: off) and regulator equations ("continuous" or "sampled")."""
+
+    mu: Annotated[float, Gt(0.0), AllowInfNan(False),
+                  expect("must be a positive number (1/s)")] = 2.0
+    cohesion: Annotated[float, Ge(0.0), AllowInfNan(False),
+                        expect("must be a non-negative number")] = 0.0
+    regulator: Annotated[str, one_of(REGULATOR_FORMS)] = "continuous"
+
+
 class FleetScenario(ScenarioFile):
     """A fleet of vehicles on a communication graph following a virtual leader."""
 
@@ -283,6 +295,7 @@ class FleetScenario(ScenarioFile):
     disturbance: FleetDisturbanceSection | None = None
     noise: FleetNoiseSection = Field(default_factory=FleetNoiseSection)
     cost: CostSection = Field(default_factory=CostSection)
+    distributed: DistributedSection = Field(default_factory=DistributedSection)
 
     @field_validator("leader")
     @classmethod

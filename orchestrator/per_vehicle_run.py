@@ -1,0 +1,148 @@
+"""Run a fleet scenario in the per-vehicle deployment: build, co-simulate, predict.
+
+The FMUs of each architecture are built once (one per kind, vehicle 1's values as start
+values); every run sets each vehicle's parameters (:mod:`orchestrator.cosim.per_vehicle`).
+Traces come back in the stacked layout, so the statistics, formation figures and recording
+of the stacked deployment apply unchanged; predictions are the stacked one (centralized)
+or the Lyapunov prediction of the distributed loop (:mod:`orchestrator.analysis.per_vehicle`).
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+from controller_fmu.regulator import tracking_law
+from estimator_fmu.estimators import make_estimator
+from plant_model.discretization import discretize
+
+from .analysis.distributed_verdict import predict_cost
+from .analysis.per_vehicle import distributed_initial_state, distributed_loop_of
+from .analysis.prediction import Prediction, predict_stationary
+from .analysis.summary import stats_window
+from .cosim.build import build_fmus
+from .cosim.master import RunResult, run_system
+from .cosim.per_vehicle import (
+    build_configs,
+    per_vehicle_configs,
+    per_vehicle_system,
+    stacked_traces,
+)
+
+__all__ = ["PerVehicleRuns"]
+
+
+def _prediction(p: Any) -> Prediction:
+    return Prediction(rms_e=p.rms_e, rms_u=p.rms_u, cost_rate=p.cost_rate,
+                      spectral_radius=p.spectral_radius, settling_time=p.settling_time)
+
+
+class PerVehicleRuns:
+    """The per-vehicle FMUs of a fleet scenario, their runs and their predictions."""
+
+    def __init__(self, sc: Any, fmu_dir: Path):
+        self.sc = sc
+        self.fmu_dir = Path(fmu_dir)
+        self._fmus: dict[str, dict[str, Path]] = {}
+
+    def _configs(self, architecture: str, mode: str, tracking: str,
+                 seed: int) -> list[dict[str, dict[str, Any]]]:
+        sc = self.sc
+        gain = tracking_law(sc.system, tracking).Ks if architecture == "centralized" else None
+        return per_vehicle_configs(sc, architecture, mode=mode, seed=seed, tracking=tracking,
+                                   settings=sc.distributed, gain=gain)
+
+    def fmus(self, architecture: str) -> dict[str, Path]:
+        """The FMUs of ``architecture`` (built into the FMU folder on first use).
+
+        Parameters
+        ----------
+        architecture : str
+            ``centralized`` or ``distributed``.
+
+        Returns
+        -------
+        dict[str, Path]
+            FMU kind -> .fmu path.
+        """
+        if architecture not in self._fmus:
+            sc = self.sc
+            cfgs = self._configs(architecture, sc.estimator, sc.tracking, sc.seed)
+            self._fmus[architecture] = build_fmus(None, self.fmu_dir,
+                                                  kinds=build_configs(cfgs))
+        return self._fmus[architecture]
+
+    def all_fmus(self) -> dict[str, Path]:
+        """Every FMU built so far, by kind."""
+        return {k: v for f in self._fmus.values() for k, v in f.items()}
+
+    def predictions(self, architecture: str, mode: str, tracking: str
+                    ) -> tuple[Prediction, Prediction, Prediction | None, int]:
+        """(stationary, over the window with the mean motion, window average from the
+        known start, first sample of the window) of one method.
+
+        Parameters
+        ----------
+        architecture, mode, tracking : str
+            The method.
+
+        Returns
+        -------
+        tuple
+            As :func:`orchestrator.analysis.prediction.predict_stationary` gives them for
+            the stacked deployment, and k0.
+
+        Raises
+        ------
+        ModelError
+            If the estimator or the design does not exist or the loop is unstable (named).
+        """
+        sc = self.sc
+        if architecture == "centralized":
+            model = discretize(sc.system, sc.h)
+            est = make_estimator(sc.system, model, mode)
+            Ks = tracking_law(sc.system, tracking).Ks
+            pred0 = predict_stationary(sc.system, model, est, Ks)
+            k0 = stats_window(sc.T, sc.h, pred0.settling_time)
+            if pred0.cost_rate is None:
+                return pred0, pred0, None, k0
+            win = (k0, sc.steps)
+            return (pred0, predict_stationary(sc.system, model, est, Ks, window=win),
+                    predict_stationary(sc.system, model, est, Ks, window=win, transient=True),
+                    k0)
+        loop = distributed_loop_of(sc, mode, tracking, sc.distributed)
+        pred0 = predict_cost(loop)
+        k0 = stats_window(sc.T, sc.h, pred0.settling_time)
+        X0 = distributed_initial_state(sc, loop)
+        win = (k0, sc.steps)
+        return (_prediction(pred0), _prediction(predict_cost(loop, win, X0)),
+                _prediction(predict_cost(loop, win, X0, transient=True)), k0)
+
+    def run(self, architecture: str, mode: str, tracking: str, seed: int, *,
+            progress: Any = False, stop: Any = None) -> RunResult:
+        """Co-simulate one method on one seed; traces in the stacked layout.
+
+        Parameters
+        ----------
+        architecture, mode, tracking : str
+            The method.
+        seed : int
+            Noise seed (vehicle i draws from [seed, i]).
+        progress, stop : Any, optional
+            As :func:`orchestrator.cosim.master.run_system`.
+
+        Returns
+        -------
+        RunResult
+            Stacked traces (and ``eta`` for the distributed architecture).
+        """
+        t0 = time.perf_counter()
+        sc = self.sc
+        cfgs = self._configs(architecture, mode, tracking, seed)
+        system = per_vehicle_system(sc, cfgs, architecture)
+        traces, loop_s, info = run_system(system, self.fmus(architecture), sc.steps,
+                                          progress=progress, stop=stop,
+                                          instance_suffix=f"_{mode}_{seed}")
+        return RunResult(mode=mode, seed=int(seed), h=sc.h,
+                         traces=stacked_traces(sc, system, traces),
+                         wall_s=time.perf_counter() - t0, loop_s=loop_s, info=info)
