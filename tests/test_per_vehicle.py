@@ -1,0 +1,158 @@
+"""The per-vehicle deployment: one vehicle, estimator and controller FMU per AUV plus a leader
+FMU, run by fmpy, against the stacked deployment and the monolithic distributed loop."""
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from controller_fmu.regulator import tracking_law
+from controller_fmu.vehicle_law import DistributedSettings
+from orchestrator.analysis.per_vehicle import distributed_loop_of, distributed_reference
+from orchestrator.cli import main
+from orchestrator.cosim.build import build_fmus
+from orchestrator.cosim.master import run_cosimulation, run_system
+from orchestrator.cosim.per_vehicle import (
+    build_configs,
+    fleet_slots,
+    per_vehicle_configs,
+    per_vehicle_system,
+    stacked_traces,
+)
+from orchestrator.scenario import ScenarioError, load_scenario
+from orchestrator.workflow import scenario_config
+from plant_model.discretization import discretize
+from plant_model.per_vehicle import sample_vehicle, vehicle_views
+from plant_model.plant import NoiseStream
+
+
+def _rel(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.abs(a - b).max() / np.abs(b).max())
+
+
+@pytest.fixture(scope="module")
+def f4():
+    return load_scenario("formation-4").with_run(T=20.0)
+
+
+def _per_vehicle(sc, arch, mode, seed, tmp, settings=None):
+    sc = replace(sc, distributed=settings) if settings else sc
+    gain = tracking_law(sc.system, sc.tracking).Ks if arch == "centralized" else None
+    cfgs = per_vehicle_configs(sc, arch, mode=mode, seed=seed, tracking=sc.tracking,
+                               settings=sc.distributed, gain=gain)
+    fmus = build_fmus(None, tmp, kinds=build_configs(cfgs))
+    system = per_vehicle_system(sc, cfgs, arch)
+    traces, _, info = run_system(system, fmus, sc.steps)
+    return stacked_traces(sc, system, traces), system
+
+
+def test_each_vehicle_draws_its_stacked_stream_alone(f4):
+    """Vehicle i sampled alone draws, number for number, its columns of the stacked
+    protocol form's noise (both sample the same block with one Van Loan exponential)."""
+    model = discretize(f4.system, f4.h)
+    rows = NoiseStream.all_rows(model, 11, 3000)
+    for i, view in enumerate(vehicle_views(f4.fleet), start=1):
+        alone = NoiseStream.all_rows(sample_vehicle(view, f4.h, i), 11, 3000)
+        assert np.array_equal(alone, rows[:, list(model.noise_blocks[i - 1])])
+    # and another vehicle number draws another stream
+    other = NoiseStream.all_rows(sample_vehicle(vehicle_views(f4.fleet)[0], f4.h, 2), 11, 3000)
+    assert not np.allclose(other, rows[:, list(model.noise_blocks[0])])
+
+
+def test_slots_hold_the_graph_with_unused_ones_weightless(f4):
+    slots = fleet_slots(f4.fleet)
+    assert slots.S == 2                                  # vehicle 4 hears 2 and 3
+    assert slots.pinning.tolist() == [1.0, 0.0, 0.0, 0.0]
+    assert slots.neighbours[3].tolist() == [2, 3] and slots.weights[3].tolist() == [0.5, 0.5]
+    assert slots.neighbours[0].tolist() == [1, 1] and slots.weights[0].tolist() == [0.0, 0.0]
+    assert slots.neighbours[1, 0] == 1 and slots.weights[1].tolist() == [1.0, 0.0]
+
+
+def test_the_system_is_constant_size_per_vehicle_for_the_distributed_law(f4, tmp_path):
+    cfgs = per_vehicle_configs(f4, "distributed", mode="kalman", seed=0, tracking="regulator")
+    system = per_vehicle_system(f4, cfgs, "distributed")
+    assert len(system.components) == 1 + 3 * 4
+    sizes = {c.name: sum(s.size for s in c.arrays("input")) for c in system.components}
+    assert len({sizes[f"controller_{i}"] for i in range(1, 5)}) == 1
+    # the leader reaches only the pinned vehicle
+    from_leader = {c.target for c in system.connections if c.source == "leader"}
+    assert from_leader == {"controller_1"}
+
+
+@pytest.mark.parametrize("mode, tol", [("ideal", 1e-9), ("kalman", 1e-6)])
+def test_centralized_per_vehicle_equals_the_stacked_protocol_form(f4, tmp_path, mode, tol):
+    """Ideal estimator: the same loop to rounding. Kalman: the stacked filter is block
+    diagonal in the protocol form, so the per-vehicle filters equal it to the Riccati
+    solver's precision."""
+    per, _ = _per_vehicle(f4, "centralized", mode, 3, tmp_path / "pv")
+    cfg = scenario_config(f4)
+    res = run_cosimulation(build_fmus(cfg, tmp_path / "st"), cfg, mode=mode, seed=3,
+                           steps=f4.steps, tracking=f4.tracking)
+    for key in ("x", "u", "e", "xhat"):
+        assert _rel(per[key], res.traces[key]) < tol, key
+    assert np.abs(per["u"]).max() > 1.0                   # a loop that does something
+
+
+@pytest.mark.parametrize("mode, cohesion", [("ideal", 0.0), ("kalman", 0.0), ("kalman", 0.5)])
+def test_distributed_fmus_equal_the_monolithic_loop(f4, tmp_path, mode, cohesion):
+    settings = DistributedSettings(mu=2.0, cohesion=cohesion)
+    per, _ = _per_vehicle(f4, "distributed", mode, 5, tmp_path, settings)
+    loop = distributed_loop_of(f4, mode, f4.tracking, settings)
+    ref = distributed_reference(f4, loop, 5, f4.steps)
+    for key in ("x", "u", "e", "eta"):
+        assert _rel(per[key], ref[key]) < 1e-9, key
+    # the observers converge on the leader: the last eta of every vehicle is the leader
+    l0 = np.asarray(f4.fleet["leader"]["F"]).shape[0]
+    z = per["z"][-1, :l0]
+    for i in range(4):
+        assert np.abs(per["eta"][-1, i * l0:(i + 1) * l0] - z).max() < 1e-3 * np.abs(z).max()
+
+
+def test_the_distributed_gains_change_the_loop(f4, tmp_path):
+    a, _ = _per_vehicle(f4, "distributed", "ideal", 5, tmp_path / "a",
+                        DistributedSettings(mu=2.0))
+    b, _ = _per_vehicle(f4, "distributed", "ideal", 5, tmp_path / "b",
+                        DistributedSettings(mu=0.5))
+    assert _rel(a["u"], b["u"]) > 1e-3
+
+
+def test_run_per_vehicle_writes_summary_and_recording(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["run", "--scenario", "formation-4", "--deployment", "per-vehicle",
+                 "--architecture", "distributed", "--T", "30", "--out", str(out),
+                 "--quiet"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["deployment"] == "per-vehicle"
+    m = s["methods"]["kalman"]
+    assert m["architecture"] == "distributed" and m["seeds_completed"] == 1
+    assert m["cost_rate"]["predicted"] > 0 and m["cost_rate"]["mean"] > 0
+    # the expected value over this short window, start-up included, is what it should match
+    assert abs(m["cost_rate"]["mean"] / m["cost_rate"]["predicted_window"] - 1) < 0.5
+    assert set(s["fmus"]) == {"leader", "vehicle", "vehicle_estimator", "vehicle_controller"}
+    assert (out / "formation-4.rrd").stat().st_size > 10_000
+
+
+def test_per_vehicle_refused_where_it_cannot_be(capsys, tmp_path):
+    def one_line(argv, *fragments):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1, err
+        for f in fragments:
+            assert f in err, err
+    one_line(["run", "--deployment", "per-vehicle", "--out", str(tmp_path / "a")],
+             'deployment = "per-vehicle" needs a fleet scenario')
+    one_line(["export", "osp", "--scenario", "formation-4", "--deployment", "per-vehicle",
+              "--out", str(tmp_path / "b")], "not implemented yet")
+    one_line(["compare", "--scenario", "formation-4", "--what", "architectures",
+              "--out", str(tmp_path / "c")], "add --deployment per-vehicle")
+    text = (Path(__file__).parent.parent / "orchestrator/scenario/builtin/formation-4.toml"
+            ).read_text().replace("[graph]", '[graph]\nconsensus = "in-plant"')
+    text = text.replace('tracking = "regulator"', 'tracking = "regulator"\n'
+                        'deployment = "per-vehicle"')
+    (tmp_path / "inplant.toml").write_text(text)
+    with pytest.raises(ScenarioError, match='needs \\[graph\\] consensus = "protocol"'):
+        load_scenario(tmp_path / "inplant.toml")
+    assert not (tmp_path / "a").exists() and not (tmp_path / "c").exists()
