@@ -146,6 +146,15 @@ def _print_summary(summary: dict, out: Path) -> int:
                      f"; closest approach {sep['m']:#.3g} m (vehicles {sep['vehicles'][0]} "
                      f"and {sep['vehicles'][1]} at t = {sep['time_s']:.4g} s, seed "
                      f"{sep['seed']})"))
+    if summary.get("cost_rate_full_information") is not None:
+        line = (f"full-information bound (every state known, the same cost) "
+                f"{summary['cost_rate_full_information']:#.4g}")
+        if summary.get("price_of_decentralization") is not None:
+            pred = summary.get("price_of_decentralization_predicted")
+            line += (f"; price of decentralization J_distributed / J_centralized "
+                     f"{summary['price_of_decentralization']:.4f}"
+                     + ("" if pred is None else f" (predicted {pred:.4f})"))
+        print(line)
     if summary.get("stationarity_note"):
         window = ", ".join(f"{n} {m['cost_rate']['predicted_window']:#.4g}"
                            for n, m in summary["methods"].items()

@@ -15,6 +15,7 @@ from plant_model.discretization import discretize
 from plant_model.linalg_checks import ModelError
 
 from .analysis.formation import formation_summary
+from .analysis.full_information import fleet_bound, fleet_comparison
 from .analysis.prediction import predict_stationary
 from .analysis.summary import (
     method_summary,
@@ -28,14 +29,15 @@ from .cosim.build import build_fmus, fmu_config, variables_markdown
 from .cosim.master import run_cosimulation
 from .cosim.system import SystemDescription, closed_loop_system
 from .interrupt import StopFlag, stop_on_signals
+from .memory import check_memory
 from .outputs import file_stem
-from .scenario import Scenario, ScenarioError
+from .scenario import Scenario
 
 if TYPE_CHECKING:
     from .recording import FleetLayout
 
 __all__ = ["scenario_config", "scenario_system", "build", "simulate", "write_fmu_readme",
-           "method_list",
+           "method_list", "check_memory",
            "fleet_layout", "record_stride"]
 
 FMU_README_HEAD = """# FMUs
@@ -247,58 +249,6 @@ def record_stride(sc: Scenario, record_hz: float | None = None) -> int:
     return max(1, int(round(1.0 / (record_hz * sc.h))))
 
 
-def available_memory() -> int | None:
-    """Bytes of memory available to a new allocation (``MemAvailable`` of /proc/meminfo),
-    or None where the kernel does not say."""
-    try:
-        with open("/proc/meminfo", encoding="ascii") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        return None
-    return None
-
-
-def check_memory(sc: Scenario, n_methods: int, available: int | None = None) -> int:
-    """Refuse a run whose traces cannot fit in memory, before anything is built.
-
-    The traces of one run are ``steps`` rows of every output of every FMU, 8 bytes each;
-    a run holds its own, plus the first seed's traces of every method for the .rrd, plus a
-    copy in the recording child: bytes = 8 steps width (n_methods + 2).
-
-    Parameters
-    ----------
-    sc : Scenario
-        The scenario (its T, h and system).
-    n_methods : int
-        Methods simulated (estimator modes x tracking laws).
-    available : int, optional
-        Bytes available (default :func:`available_memory`).
-
-    Returns
-    -------
-    int
-        The estimated bytes.
-
-    Raises
-    ------
-    ScenarioError
-        Naming T, h, the number of steps and both sizes, if the estimate exceeds 80 % of
-        the memory available.
-    """
-    width = sum(spec.size for _, spec in scenario_system(sc).outputs())
-    need = 8 * sc.steps * width * (n_methods + 2)
-    available = available_memory() if available is None else available
-    if available is not None and need > 0.8 * available:
-        raise ScenarioError(
-            f"T = {sc.T:g} s with h = {sc.h:g} s is {sc.steps:.4g} steps: the traces "
-            f"({width} values per step, {n_methods} method(s)) need about {need / 1e9:.3g} GB, "
-            f"more than the {available / 1e9:.3g} GB of memory available; shorten T or "
-            "lengthen h")
-    return need
-
-
 def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], out_dir: Path | str,
              *, progress: bool = True, log: Callable[[str], None] = print,
              trackings: Sequence[str] | None = None,
@@ -467,6 +417,8 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         methods[name]["estimator"] = mode
         methods[name]["tracking"] = tracking
         methods[name]["architecture"] = arch
+        if per_seed and sc.fleet is not None:
+            methods[name]["cost_rate_full_information"] = fleet_bound(sc, k0)
         methods[name]["seeds_completed"] = len(per_seed)
         if stop:
             break
@@ -496,6 +448,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         "consensus": None if sc.fleet is None else sc.fleet["graph"].get("consensus",
                                                                          "in-plant"),
         "deployment": sc.deployment,
+        **fleet_comparison(sc, methods),
         "stats_window_s": list(window) if window else None,
         "stationary": not notes,
         "stationarity_note": "; ".join(sorted(notes)) or None,

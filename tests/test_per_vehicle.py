@@ -156,3 +156,20 @@ def test_per_vehicle_refused_where_it_cannot_be(capsys, tmp_path):
     with pytest.raises(ScenarioError, match='needs \\[graph\\] consensus = "protocol"'):
         load_scenario(tmp_path / "inplant.toml")
     assert not (tmp_path / "a").exists() and not (tmp_path / "c").exists()
+
+
+def test_compare_architectures_reports_the_price_and_the_bound(tmp_path, capsys):
+    out = tmp_path / "cmp"
+    assert main(["compare", "--scenario", "formation-4", "--deployment", "per-vehicle",
+                 "--what", "architectures", "--seeds", "0", "--T", "30", "--out", str(out),
+                 "--quiet"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    c, d = s["methods"]["centralized"], s["methods"]["distributed"]
+    assert (c["architecture"], d["architecture"]) == ("centralized", "distributed")
+    assert s["price_of_decentralization"] == pytest.approx(
+        d["cost_rate"]["mean"] / c["cost_rate"]["mean"])
+    assert s["price_of_decentralization_predicted"] == pytest.approx(
+        d["cost_rate"]["predicted"] / c["cost_rate"]["predicted"])
+    assert 0 < s["cost_rate_full_information"] < min(c["cost_rate"]["predicted_window"],
+                                                     d["cost_rate"]["predicted_window"])
+    assert "price of decentralization" in capsys.readouterr().out
