@@ -1,9 +1,9 @@
 """FMI 2.0 co-simulation slave of one vehicle's centralized controller (per-vehicle deployment).
 
 The paper's stacked law cut by vehicle (controller_fmu.vehicle_law.centralized_rows): vehicle
-i applies its rows u_i = u0 - K [xhat_1..N; what_1..N; z] of the stacked gain, consensus
-force included. It reads every vehicle's estimate and the leader's state: O(N) inputs, the
-one FMU of the per-vehicle deployment whose size grows with the fleet (all-to-all
+i applies its rows u_i = u0 - K [xhat_1; what_1; ...; xhat_N; what_N; z] of the stacked
+gain, consensus force included. It reads every vehicle's estimate and the leader's state:
+O(N) inputs, the one FMU of the per-vehicle deployment whose size grows with the fleet (all-to-all
 information is what the centralized architecture means). The stacked Riccati and
 Sylvester equations are solved once by whoever builds the system; K and u0 are parameters.
 Static law: any communication step works.
@@ -24,7 +24,7 @@ def vehicle_inputs(N: int, what: str) -> list[str]:
 
 
 class AuvCentralController(Fmi2Slave):
-    """u_i = u0 - K [xhat_1..N; what_1..N; z]: one vehicle's rows of the stacked law."""
+    """u_i = u0 - K [xhat_1; what_1; ...; z]: one vehicle's rows of the stacked law."""
 
     config_file = "auv_central_controller_config.json"
     description = ("Centralized consensus tracking controller of one AUV: its rows of the "
@@ -53,15 +53,18 @@ class AuvCentralController(Fmi2Slave):
         ins = vehicle_inputs(N, "xhat") + vehicle_inputs(N, "what")
         return [
             ArraySpec("K", (m, cols), "parameter", "the vehicle's rows of the stacked gain on "
-                      "[xhat_1..N; what_1..N; z]", start=np.asarray(config["gain"], float)),
+                      "[xhat_1; what_1; ...; xhat_N; what_N; z]",
+                      start=np.asarray(config["gain"], float)),
             ArraySpec("u0", (m,), "parameter", "constant force (formation offsets)",
                       start=np.asarray(config["u0"], float)),
-            *(ArraySpec(name, (n,), "input", f"vehicle {j}'s state estimate")
-              for j, name in enumerate(vehicle_inputs(N, "xhat"), start=1)),
-            *(ArraySpec(name, (r,), "input", f"vehicle {j}'s disturbance estimate")
-              for j, name in enumerate(vehicle_inputs(N, "what"), start=1)),
+            # per vehicle xhat then what, the order of its estimator's outputs: one
+            # fmi2SetReal per vehicle
+            *(spec for j in range(1, N + 1) for spec in (
+                ArraySpec(f"vehicle[{j}].xhat", (n,), "input", f"vehicle {j}'s state estimate"),
+                ArraySpec(f"vehicle[{j}].what", (r,), "input",
+                          f"vehicle {j}'s disturbance estimate"))),
             ArraySpec("z", (l_,), "input", "the leader's state"),
-            ArraySpec("u", (m,), "output", "u = u0 - K [xhat_1..N; what_1..N; z]",
+            ArraySpec("u", (m,), "output", "u = u0 - K [xhat_1; what_1; ...; z]",
                       depends_on=tuple(ins) + ("z",)),
         ]
 
@@ -71,7 +74,7 @@ class AuvCentralController(Fmi2Slave):
         self._u0 = np.array(self.par["u0"], dtype=float)
 
     def compute_outputs(self) -> None:
-        """u = u0 - K [xhat_1..N; what_1..N; z] into the output buffer."""
+        """u = u0 - K [xhat_1; what_1; ...; xhat_N; what_N; z] into the output buffer."""
         self._negK.dot(self._in, out=self._out)
         self._out += self._u0
 

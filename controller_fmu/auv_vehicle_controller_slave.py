@@ -88,16 +88,18 @@ class AuvVehicleController(Fmi2Slave):
             ArraySpec("xhat", (n,), "input", "the vehicle's estimate of its state"),
             ArraySpec("what", (r,), "input", "the vehicle's estimate of its disturbance"),
             ArraySpec("z", (l_,), "input", "the leader's state (read when a0 > 0)"),
-            *(ArraySpec(name, (l_,), "input", f"neighbour slot {k}: its estimate of the leader")
-              for k, name in enumerate(slot_names(S, "eta"), start=1)),
-            *(ArraySpec(name, (n,), "input", f"neighbour slot {k}: its regulation error")
-              for k, name in enumerate(slot_names(S, "eps"), start=1)),
+            # per slot eta then eps, the order of the sender's outputs: one fmi2SetReal each
+            *(spec for k in range(1, S + 1) for spec in (
+                ArraySpec(f"nbr[{k}].eta", (l_,), "input",
+                          f"neighbour slot {k}: its estimate of the leader"),
+                ArraySpec(f"nbr[{k}].eps", (n,), "input",
+                          f"neighbour slot {k}: its regulation error"))),
             ArraySpec("u", (m,), "output", "total force of the distributed law",
                       depends_on=est + tuple(slot_names(S, "eps"))),
-            ArraySpec("eps", (n,), "output", "regulation error xhat - X eta - Xw what - xc "
-                      "(sent to the neighbours)", depends_on=est),
             ArraySpec("eta", (l_,), "output", "the vehicle's estimate of the leader's state "
                       "(sent to the neighbours)"),
+            ArraySpec("eps", (n,), "output", "regulation error xhat - X eta - Xw what - xc "
+                      "(sent to the neighbours)", depends_on=est),
         ]
 
     def setup(self) -> None:
@@ -131,9 +133,8 @@ class AuvVehicleController(Fmi2Slave):
         S, n, l_ = a.size, law.Kx.shape[1], self.eta.size
         io = self.io
         self._xhat, self._what, self._z = io["xhat"], io["what"], io["z"]
-        o = self._in.size - S * (l_ + n)          # the slots are the last inputs
-        self._nbr_eta = self._in[o:o + S * l_].reshape(S, l_)
-        self._nbr_eps = self._in[o + S * l_:].reshape(S, n)
+        slots = self._in[self._in.size - S * (l_ + n):].reshape(S, l_ + n)   # the last inputs
+        self._nbr_eta, self._nbr_eps = slots[:, :l_], slots[:, l_:]
         self._o_u, self._o_eps, self._o_eta = io["u"], io["eps"], io["eta"]
         self.law, self.observer = law, obs
         self.log(f"distributed law ({par['tracking']}, {par['regulator']}): slowest local "

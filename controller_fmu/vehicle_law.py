@@ -18,7 +18,7 @@ stacked meaning, on the vehicle's own view of the mission
   eps_i stays the deviation from the vehicle's steady state (what the cohesion term couples).
 
 ``centralized`` (the paper's stacked law, every vehicle's estimate and the leader's state):
-vehicle i applies its rows of the stacked gain, u_i = u0_i - K_i [xhat_1..N; what_1..N; z_l]
+vehicle i applies its rows of the stacked gain, u_i = u0_i - K_i [xhat_1; what_1; ...; z_l]
 (:func:`centralized_rows`); the stacked Riccati and Sylvester equations are solved once, by
 whoever builds the system, not in each vehicle.
 """
@@ -131,7 +131,8 @@ def centralized_rows(Ks: Any, N: int, p: int, r: int, q: int, l0: int
     Returns
     -------
     list[tuple[np.ndarray, np.ndarray]]
-        Per vehicle (K_i, u0_i): u_i = u0_i - K_i [xhat_1..N; what_1..N; z_l], K_i of shape
+        Per vehicle (K_i, u0_i): u_i = u0_i - K_i [xhat_1; what_1; ...; xhat_N; what_N; z_l]
+        (each vehicle's estimates together, as its estimator sends them), K_i of shape
         q x (N p + N r + l0), u0_i = -Ks[rows, c] (zeros without c).
 
     Raises
@@ -144,9 +145,11 @@ def centralized_rows(Ks: Any, N: int, p: int, r: int, q: int, l0: int
     if Ks.shape[0] != N * q or Ks.shape[1] not in (cols, cols + 1):
         raise ModelError(f"the stacked gain has shape {Ks.shape}; expected ({N * q}, {cols}) "
                          f"or ({N * q}, {cols + 1}) for {N} vehicles")
+    order = np.concatenate([np.r_[j * p:(j + 1) * p, N * p + j * r:N * p + (j + 1) * r]
+                            for j in range(N)] + [N * (p + r) + np.arange(l0)])
     out = []
     for i in range(N):
         rows = Ks[i * q:(i + 1) * q]
         u0 = -rows[:, cols] if Ks.shape[1] > cols else np.zeros(q)
-        out.append((np.ascontiguousarray(rows[:, :cols]), u0.copy()))
+        out.append((np.ascontiguousarray(rows[:, order]), u0.copy()))
     return out
