@@ -329,9 +329,12 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         for arch in dict.fromkeys(a for *_, a in methods_run):
             pv.fmus(arch)
         fmus = pv.all_fmus()
-    model = discretize(sc.system, sc.h)
-    laws = {t: tracking_law(sc.system, t) for t in {t for _, _, t, _ in methods_run}}
-    design = next(iter(laws.values())).design
+    # the stacked design only where a stacked or centralized law needs it (a distributed
+    # fleet of 100 vehicles designs per vehicle, in its controller FMUs)
+    stacked = {t for _, _, t, a in methods_run if pv is None or a == "centralized"}
+    model = discretize(sc.system, sc.h) if stacked else None
+    laws = {t: tracking_law(sc.system, t) for t in stacked}
+    design = next(iter(laws.values())).design if laws else None
     methods: dict[str, Any] = {}
     rrd_runs: dict[str, dict[str, np.ndarray]] = {}
     loop_us: list[float] = []
@@ -348,7 +351,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
     skipped: list[ModelError] = []
     notes: set[str] = set()
     for name, mode, tracking, arch in methods_run:
-        Ks = laws[tracking].Ks
+        Ks = laws[tracking].Ks if tracking in laws else None
         try:
             if pv is not None:
                 pred0, pred, pred_window, k0 = pv.predictions(arch, mode, tracking)
@@ -453,7 +456,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         "stationary": not notes,
         "stationarity_note": "; ".join(sorted(notes)) or None,
         "methods": methods,
-        "design": {
+        "design": None if design is None else {
             "closed_loop_poles": [[float(z.real), float(z.imag)] for z in design.closed_loop_poles],
             "residuals": design.residuals,
             "Kx": design.Kx.tolist(), "Kz": design.Kz.tolist(), "Kw": design.Kw.tolist(),
@@ -468,7 +471,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         "wall_s": time.perf_counter() - t0,
         "versions": versions(),
     }
-    if sc.fleet is not None:
+    if sc.fleet is not None and design is not None:
         summary["design"].pop("Kx")
         summary["design"].pop("Kz")
         summary["design"].pop("Kw")

@@ -41,3 +41,24 @@ def test_formation_20_loads_with_20_remus_vehicles():
     assert len(sc.fleet["vehicles"]) == 20
     assert {v["model"] for v in sc.fleet["vehicles"]} == {"remus100"}
     assert sc.tracking == "regulator"
+
+
+def test_formation_100_file_matches_the_generator():
+    from orchestrator.scenario.generator import survey_grid_fleet
+    shipped = tomllib.loads((SCENARIO_DIR / "formation-100.toml").read_text())
+    assert shipped == tomllib.loads(scenario_toml(survey_grid_fleet(100, name="formation-100")))
+
+
+def test_formation_100_hears_at_most_four_nearer_neighbours():
+    sc = load_scenario("formation-100")
+    assert (sc.deployment, sc.architecture) == ("per-vehicle", "distributed")
+    g = fleet_graph(sc.fleet)
+    pinned = {i for i, _ in g.pinning}
+    assert pinned == set(range(1, 11))                     # the front row
+    heard: dict[int, list[int]] = {}
+    for j, i, _ in g.edges:
+        heard.setdefault(int(i), []).append(int(j))
+    assert max(len(v) for v in heard.values()) == 4
+    # every neighbour is in a row nearer the leader (row = (k - 1) // 10)
+    assert all((j - 1) // 10 < (i - 1) // 10 for i, js in heard.items() for j in js)
+    assert set(heard) | pinned == set(range(1, 101))

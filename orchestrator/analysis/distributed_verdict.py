@@ -14,17 +14,19 @@ window and an initial state the deterministic mean motion is added, as in
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
-from scipy.linalg import solve_discrete_lyapunov
 
 from controller_fmu.distributed import consensus_eigenvalues, min_observer_gain
 from plant_model.linalg_checks import ModelError
 
+from .block_stein import stein
 from .distributed import DistributedLoop, _assemble, _fmt
 from .prediction import window_average_covariance
 
-__all__ = ["DistributedPrediction", "StabilityVerdict", "predict_cost", "stability_verdict"]
+__all__ = ["DistributedPrediction", "StabilityVerdict", "predict_cost", "stability_verdict",
+           "vehicle_blocks"]
 
 def _identical(loop: DistributedLoop) -> bool:
     a0, l0 = loop.sampled[0], loop.laws[0]
@@ -126,6 +128,41 @@ class DistributedPrediction:
     settling_time: float      #: 5 time constants of the slowest error mode, s
 
 
+def vehicle_blocks(loop: DistributedLoop) -> list[np.ndarray]:
+    """Per vehicle the positions of its states (s_i, q_i, eta_i) in the error part of X.
+
+    Parameters
+    ----------
+    loop : DistributedLoop
+        The loop.
+
+    Returns
+    -------
+    list[np.ndarray]
+        One index array per vehicle, in the coordinates of X without [v; c].
+    """
+    R = np.flatnonzero(~loop.deterministic)
+    where = {int(x): k for k, x in enumerate(R)}
+    out = []
+    for i in range(len(loop.index["s"])):
+        idx = [x for key in ("s", "q", "eta") if loop.index[key]
+               for x in range(*loop.index[key][i].indices(loop.Phi.shape[0]))]
+        out.append(np.array([where[x] for x in idx], dtype=np.int64))
+    return out
+
+
+@lru_cache(maxsize=4)
+def _stationary(loop: DistributedLoop) -> np.ndarray:
+    """Sigma_R = Phi_R Sigma_R Phi_R' + Gam_R W Gam_R' on the error part, solved vehicle by
+    vehicle when the graph has no cycle (:func:`orchestrator.analysis.block_stein.stein`);
+    kept for the loop's other predictions (a loop is immutable)."""
+    R = ~loop.deterministic
+    GR = loop.Gam[R]
+    S = stein(loop.Phi[np.ix_(R, R)], GR @ loop.W @ GR.T, vehicle_blocks(loop))
+    S.setflags(write=False)
+    return S
+
+
 def predict_cost(loop: DistributedLoop, window: tuple[int, int] | None = None,
                  X0: np.ndarray | None = None, *, transient: bool = False
                  ) -> DistributedPrediction:
@@ -161,23 +198,26 @@ def predict_cost(loop: DistributedLoop, window: tuple[int, int] | None = None,
     stability_verdict(loop, check=True)
     R = ~loop.deterministic
     PhiR = loop.Phi[np.ix_(R, R)]
-    GR = loop.Gam[R]
     Sigma = np.zeros_like(loop.Phi)
-    SR = solve_discrete_lyapunov(PhiR, GR @ loop.W @ GR.T)
+    SR = _stationary(loop)
     if transient and window is not None:
         SR = window_average_covariance(PhiR, SR, *window)
     Sigma[np.ix_(R, R)] = SR
     See = loop.Ce @ Sigma @ loop.Ce.T
     Suu = loop.Gx @ Sigma @ loop.Gx.T + loop.Geta @ loop.W @ loop.Geta.T
     if window is not None and X0 is not None:
+        from scipy.sparse import csr_matrix
         k0, K = window
-        X = np.linalg.matrix_power(loop.Phi, k0) @ X0
+        Phi = csr_matrix(loop.Phi)             # each vehicle hears a few others: sparse
+        X = np.asarray(X0, dtype=float)
+        for _ in range(k0):
+            X = Phi @ X
         ee, uu = np.zeros_like(See), np.zeros_like(Suu)
         for _ in range(k0, K):
             e, u = loop.Ce @ X, loop.Gx @ X
             ee += np.outer(e, e)
             uu += np.outer(u, u)
-            X = loop.Phi @ X
+            X = Phi @ X
         See, Suu = See + ee / max(K - k0, 1), Suu + uu / max(K - k0, 1)
     rho = float(np.max(np.abs(np.linalg.eigvals(PhiR)))) if PhiR.size else 0.0
     tau = -loop.h / np.log(rho) if rho > 0 else loop.h

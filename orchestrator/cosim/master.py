@@ -164,28 +164,36 @@ def plan_steps(system: SystemDescription, inst: Mapping[str, FmuInstance],
     active = system.active_connections()
 
     def set_ops(source: str, outputs: set[str]) -> list[tuple]:
-        """Sets fed by these outputs of ``source``: per target, runs of consecutive columns."""
-        per_target: dict[str, list[tuple[int, str, str]]] = {}
+        """Sets fed by these outputs of ``source``: per target, one call per run of
+        connections whose source columns follow each other (an output feeding two inputs
+        of one target is two calls, not one per element)."""
+        per_target: dict[str, list[list[tuple[int, str, str]]]] = {}
         for c in active:
             if c.source != source or c.output not in outputs:
                 continue
             tgt = system.component(c.target)
             dst = element_names(c.input, tgt.array(c.input).shape)
             src_cols = cols[source][c.output]       # sizes match: checked before the plan
-            per_target.setdefault(c.target, []).extend(
-                (col, name, c.input) for col, name in zip(src_cols, dst))
+            per_target.setdefault(c.target, []).append(
+                [(col, name, c.input) for col, name in zip(src_cols, dst)])
         ops = []
         buf = rec[source]
-        for target, items in per_target.items():
-            items.sort()
+        for target, conns in per_target.items():
+            conns.sort(key=lambda items: items[0][0])
+            groups: list[list[tuple[int, str, str]]] = []
+            for items in conns:
+                if groups and groups[-1][-1][0] + 1 == items[0][0]:
+                    groups[-1].extend(items)
+                else:
+                    groups.append(list(items))
             fmu = inst[target]
-            columns = [col for col, _, _ in items]
-            for a, b in _runs(columns):
-                ins = ", ".join(dict.fromkeys(arr for _, _, arr in items[a:b]))
+            for items in groups:
+                ins = ", ".join(dict.fromkeys(arr for _, _, arr in items))
+                col0 = items[0][0]
                 ops.append((fmu.set_real, fmu.component,
-                            vr_array(fmu, [n for _, n, _ in items[a:b]]), b - a,
-                            buf.ctypes.data + columns[a] * _DOUBLE, buf.strides[0], fmu,
-                            f"fmi2SetReal ({ins} from {source})", columns[a] * _DOUBLE))
+                            vr_array(fmu, [n for _, n, _ in items]), len(items),
+                            buf.ctypes.data + col0 * _DOUBLE, buf.strides[0], fmu,
+                            f"fmi2SetReal ({ins} from {source})", col0 * _DOUBLE))
         return ops
 
     stepping = [(inst[c].do_step, inst[c].component, inst[c]) for c in system.names]

@@ -13,7 +13,7 @@ import json
 import math
 from typing import Any
 
-__all__ = ["grid_fleet", "scenario_toml"]
+__all__ = ["grid_fleet", "survey_grid_fleet", "scenario_toml"]
 
 #: the second-order consensus coupling of formation-4: acceleration from relative
 #: position (0.02 1/s^2) and relative velocity (0.2 1/s)
@@ -59,6 +59,76 @@ def grid_fleet(N: int, *, columns: int = 5, spacing: float = 10.0, T: float = 30
         "vehicles": {"count": N, "model": "remus100", "params": {"cruise_speed": 1.5},
                      "offsets": offsets, "positions": positions},
         "graph": {"edges": edges, "pinning": [[leader, 1.0]], "coupling": SECOND_ORDER_COUPLING},
+        "current": {"time_constant": 30.0, "sigma": 0.1, "w0": [0.1, -0.05, 0.0]},
+        "noise": {"convention": "intensity", "process": 1e-4, "position": 0.25, "reference": 0.0},
+        "cost": {"Q": 1.0, "R": 0.01},
+    }
+
+
+def survey_grid_fleet(N: int = 100, *, columns: int = 10, spacing: float = 10.0,
+                      T: float = 300.0, h: float = 0.01,
+                      name: str | None = None) -> dict[str, Any]:
+    """A fleet scenario mapping of N vehicles in a ``columns``-wide grid behind a leader on a
+    survey (lawnmower) path, deployed per vehicle with the distributed law.
+
+    Rows are ``spacing`` m apart behind the leader, columns ``spacing`` m apart across,
+    centred on the leader's track. The front row hears the leader (a_i0 = 1); a vehicle in
+    row r > 0 hears the (up to three) vehicles of row r - 1 in the columns c - 1, c, c + 1
+    (weights 0.25, 0.5, 0.25) and the vehicle two rows ahead in its column (0.25): at most
+    four neighbours, all nearer the leader, so information flows backwards and every
+    vehicle has a path from the leader. The survey legs (600 m north, 200 m apart) are wide
+    enough that the outer vehicles of a 90 m wide formation turn at about 2.2 m/s.
+
+    Parameters
+    ----------
+    N : int, optional
+        Number of vehicles (at least 1).
+    columns : int, optional
+        Vehicles per row.
+    spacing : float, optional
+        Distance between rows and between columns, m.
+    T, h : float, optional
+        Horizon and communication step, s.
+    name : str or None, optional
+        Scenario name (default ``survey-<N>``).
+
+    Returns
+    -------
+    dict[str, Any]
+        The scenario as parsed from TOML.
+    """
+    if N < 1:
+        raise ValueError(f"N = {N} must be at least 1")
+    cols = min(columns, N)
+    centre = (cols - 1) / 2.0
+    index = {}
+    offsets, positions = [], []
+    for k in range(N):
+        row, col = divmod(k, cols)
+        index[(row, col)] = k + 1
+        off = [-spacing * (row + 1) + 0.0, spacing * (col - centre) + 0.0, 0.0]
+        offsets.append(off)
+        positions.append([round(off[0] + 2.0 * math.sin(1.7 * k) - 3.0, 3),
+                          round(off[1] + 2.0 * math.cos(1.3 * k), 3),
+                          round(20.0 + 1.0 * math.sin(0.9 * k), 3)])
+    edges = []
+    for (row, col), i in index.items():
+        for dr, dc, a in ((1, -1, 0.25), (1, 0, 0.5), (1, 1, 0.25), (2, 0, 0.25)):
+            j = index.get((row - dr, col + dc))
+            if row > 0 and j is not None:
+                edges.append([j, i, a])
+    pinning = [[i, 1.0] for (row, _), i in index.items() if row == 0]
+    return {
+        "name": name or f"survey-{N}",
+        "description": (f"{N} REMUS 100 AUVs in a {cols}-wide grid behind a leader on a "
+                        "lawnmower survey; the front row hears the leader"),
+        "simulation": {"T": T, "h": h, "seed": 0, "estimator": "kalman", "tracking": "regulator",
+                       "deployment": "per-vehicle", "architecture": "distributed"},
+        "leader": {"path": "lawnmower", "leg_length": 600.0, "spacing": 200.0, "speed": 1.5,
+                   "harmonics": 3, "start": [0.0, 0.0, 20.0], "noise": 0.0},
+        "vehicles": {"count": N, "model": "remus100", "params": {"cruise_speed": 1.5},
+                     "offsets": offsets, "positions": positions},
+        "graph": {"edges": edges, "pinning": pinning, "coupling": SECOND_ORDER_COUPLING},
         "current": {"time_constant": 30.0, "sigma": 0.1, "w0": [0.1, -0.05, 0.0]},
         "noise": {"convention": "intensity", "process": 1e-4, "position": 0.25, "reference": 0.0},
         "cost": {"Q": 1.0, "R": 0.01},
