@@ -242,10 +242,6 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def cmd_export(args: argparse.Namespace) -> int:
     sc = _scenario(args)
-    if sc.deployment == "per-vehicle":
-        raise UsageError("export --deployment per-vehicle is not implemented yet: the OSP and "
-                         "SSP exports write the stacked system; build, run and compare already "
-                         "take --deployment per-vehicle")
     with output_folder(args.out or f"out/{file_stem(sc.name)}_{args.format}", "export") as out:
         if args.format == "osp":
             from .interop.osp import export_osp

@@ -118,8 +118,14 @@ def scenario_system(sc: Scenario) -> SystemDescription:
     Returns
     -------
     SystemDescription
-        The paper's loop of plant, estimator and controller, named after the scenario.
+        The paper's loop of plant, estimator and controller, named after the scenario; for
+        ``deployment = "per-vehicle"`` the leader and one vehicle, estimator and controller
+        per AUV (:mod:`orchestrator.cosim.per_vehicle`) in the scenario's architecture.
     """
+    if sc.deployment == "per-vehicle":
+        from .per_vehicle_run import PerVehicleRuns
+        return PerVehicleRuns(sc, Path(".")).system(sc.architecture, sc.estimator,
+                                                    sc.tracking, sc.seed)
     return closed_loop_system(scenario_config(sc), name=sc.name)
 
 

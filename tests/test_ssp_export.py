@@ -297,3 +297,36 @@ def test_string_parameters_fmpy_cannot_set_are_checked(paper_ssp, tmp_path):
     assert len(fmpy_parameter_set(bad, strings="drop").parameters) == len(ps.parameters)
 
 
+
+
+def test_a_per_vehicle_archive_runs_in_fmpy_with_each_vehicles_values(tmp_path):
+    """formation-4 per vehicle as SSP: fmpy's simulate_ssp runs the 13 components with each
+    vehicle's parameter set; the uncontrolled parts (each vehicle's current, its sensor noise)
+    are the numbers of our run, one sample later (fmpy's row j holds sample j + 1)."""
+    from orchestrator.cosim.master import run_system
+    from orchestrator.scenario import load_scenario
+    sc = load_scenario("formation-4").with_run(deployment="per-vehicle",
+                                                architecture="distributed")
+    ssp = export_ssp(sc, tmp_path / "f4.ssp")
+    with zipfile.ZipFile(ssp) as z:
+        names = set(z.namelist())
+    assert {f"resources/vehicle_{i}.ssv" for i in range(1, 5)} <= names
+    assert "resources/AuvVehicleController.fmu" in names
+    steps = 200
+    result = simulate(ssp, sc.h, steps, parameter_set=fmpy_parameter_set(ssp))
+    system = scenario_system(sc)
+    from orchestrator.workflow import build
+    fmus = build(sc, tmp_path / "fmus")
+    ours, _, _ = run_system(system, fmus, steps)
+    from plant_model.per_vehicle import vehicle_views
+    C = vehicle_views(sc.fleet)[0].C
+    for i in range(1, 5):
+        w = np.column_stack([result[f"vehicle_{i}.w[{k}]"] for k in range(1, 4)])[:steps - 1]
+        assert np.abs(w - ours[f"vehicle_{i}.w"][1:steps]).max() < 1e-12, i
+        x = np.column_stack([result[f"vehicle_{i}.x[{k}]"] for k in range(1, 7)])[:steps - 1]
+        y = np.column_stack([result[f"vehicle_{i}.y[{k}]"] for k in range(1, 4)])[:steps - 1]
+        noise = y - x @ C.T
+        ours_noise = ours[f"vehicle_{i}.y"][1:steps] - ours[f"vehicle_{i}.x"][1:steps] @ C.T
+        assert np.abs(noise - ours_noise).max() < 1e-12, i
+    # and the vehicles' currents are their own (different streams)
+    assert not np.allclose(ours["vehicle_1.w"], ours["vehicle_2.w"])
