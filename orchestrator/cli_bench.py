@@ -27,6 +27,37 @@ def _fleet_sizes(text: str) -> list[int]:
     return sizes
 
 
+def cmd_bench_per_vehicle(args: argparse.Namespace) -> int:
+    from .bench_per_vehicle import benchmark_per_vehicle
+    arch = args.architecture or "distributed"
+    rows = []
+    print(f"per-vehicle deployment, {arch} architecture (generated survey grids)")
+    print(f"{'N':>4s} {'FMUs':>5s} {'design s':>9s} {'build s':>8s} {'max mD kB':>10s} "
+          f"{'init s':>7s} {'cosim us':>9s} {'us/veh':>7s} {'mono us':>8s} {'ratio':>6s} "
+          f"{'max diff':>9s} {'pred s':>7s}")
+    for N in args.fleet:
+        r = benchmark_per_vehicle(N, architecture=arch, T=args.T or 20.0,
+                                  mode=args.estimator or "kalman",
+                                  tracking=args.tracking or "regulator", seed=args.seed or 0)
+        rows.append(r)
+        md = max(r["model_description_bytes"].values()) / 1e3
+
+        def opt(key: str, fmt: str, r: dict = r) -> str:
+            return format(r[key], fmt) if key in r else "-"
+        print(f"{N:4d} {r['fmu_instances']:5d} {r['design_s']:9.3f} {r['build_s']:8.2f} "
+              f"{md:10.1f} {r['setup_s']:7.2f} {r['cosim_us_per_step']:9.0f} "
+              f"{r['cosim_us_per_step'] / N:7.0f} {opt('monolithic_us_per_step', '8.1f')} "
+              f"{opt('ratio', '6.0f')} {opt('max_abs_difference_u', '9.1e')} "
+              f"{opt('prediction_s', '7.1f')}", flush=True)
+    r = rows[-1]
+    print(f"({r['steps']} steps of {r['h']} s each; load average {r['loadavg'][0]:.2f} on "
+          f"{r['cpus']} CPUs; 'init s': extract, instantiate and initialize every FMU; "
+          f"'pred s': the stacked Lyapunov prediction, timed apart)")
+    if args.json:
+        print(json.dumps(rows, indent=2))
+    return 0
+
+
 def cmd_bench_fleet(args: argparse.Namespace) -> int:
     from .bench import benchmark_fleet
     rows = []
@@ -125,11 +156,11 @@ def cmd_bench_campaign(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     from .bench import benchmark
     if getattr(args, "deployment", None) == "per-vehicle":
-        from .cli import UsageError
-        raise UsageError("bench --deployment per-vehicle is not implemented yet: the "
-                         "per-vehicle benchmark (build, modelDescription size, initialization "
-                         "and us/step per N) is still open work; run and compare already take "
-                         "--deployment per-vehicle")
+        if not args.fleet:
+            from .cli import UsageError
+            raise UsageError("bench --deployment per-vehicle times fleets of several sizes: "
+                             "give them with --fleet, e.g. --fleet 4,20,50,100")
+        return cmd_bench_per_vehicle(args)
     if args.campaign:
         return cmd_bench_campaign(args)
     if args.fleet:

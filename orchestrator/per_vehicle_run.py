@@ -15,6 +15,7 @@ from typing import Any
 from controller_fmu.regulator import tracking_law
 from estimator_fmu.estimators import make_estimator
 from plant_model.discretization import discretize
+from plant_model.linalg_checks import ModelError
 
 from .analysis.distributed_verdict import predict_cost
 from .analysis.per_vehicle import distributed_initial_state, distributed_loop_of
@@ -30,10 +31,58 @@ from .cosim.per_vehicle import (
 )
 from .cosim.system import SystemDescription
 
-__all__ = ["PerVehicleRuns", "TRANSIENT_LIMIT"]
+__all__ = ["MAX_CENTRALIZED_DESIGN_S", "PerVehicleRuns", "TRANSIENT_LIMIT",
+           "centralized_design_estimate", "check_centralized"]
 
 #: largest loop state for which the window-average prediction from the start is computed
 TRANSIENT_LIMIT = 1500
+#: the stacked design's time measured on the project's 2-core reference machine: 1.2 s for
+#: 366 states of [x; w; z] (40 vehicles), growing as the cube of the state size
+DESIGN_REFERENCE = (366, 1.2)
+#: the longest stacked design the centralized architecture starts, estimated, s
+MAX_CENTRALIZED_DESIGN_S = 60.0
+
+
+def centralized_design_estimate(sc: Any) -> tuple[int, float]:
+    """(states of the stacked design, its estimated seconds) for a fleet scenario.
+
+    Parameters
+    ----------
+    sc : Scenario
+        A fleet scenario.
+
+    Returns
+    -------
+    tuple[int, float]
+        n + r + l of the stacked system and DESIGN_REFERENCE scaled by the cube.
+    """
+    n = sc.system.n + sc.system.r + sc.system.l
+    n0, t0 = DESIGN_REFERENCE
+    return n, t0 * (n / n0) ** 3
+
+
+def check_centralized(sc: Any) -> None:
+    """Refuse, before trying, a centralized fleet whose stacked design would take too long.
+
+    Parameters
+    ----------
+    sc : Scenario
+        A fleet scenario.
+
+    Raises
+    ------
+    ModelError
+        One line with N, the state size and the estimate.
+    """
+    n, est = centralized_design_estimate(sc)
+    if est > MAX_CENTRALIZED_DESIGN_S:
+        N = len(sc.fleet["vehicles"])
+        raise ModelError(
+            f"the centralized architecture solves one stacked design for all {N} vehicles "
+            f"({n} states): about {est:.0f} s (estimated from {DESIGN_REFERENCE[1]:g} s at "
+            f"{DESIGN_REFERENCE[0]} states on a 2-core machine, growing as the cube), more "
+            f"than the {MAX_CENTRALIZED_DESIGN_S:g} s allowed; use --architecture distributed "
+            "(designed per vehicle, independent of N)")
 
 
 def _prediction(p: Any) -> Prediction:
@@ -52,6 +101,8 @@ class PerVehicleRuns:
     def _configs(self, architecture: str, mode: str, tracking: str,
                  seed: int) -> list[dict[str, dict[str, Any]]]:
         sc = self.sc
+        if architecture == "centralized":
+            check_centralized(sc)
         gain = tracking_law(sc.system, tracking).Ks if architecture == "centralized" else None
         return per_vehicle_configs(sc, architecture, mode=mode, seed=seed, tracking=tracking,
                                    settings=sc.distributed, gain=gain)
@@ -103,6 +154,7 @@ class PerVehicleRuns:
         """
         sc = self.sc
         if architecture == "centralized":
+            check_centralized(sc)
             model = discretize(sc.system, sc.h)
             est = make_estimator(sc.system, model, mode)
             Ks = tracking_law(sc.system, tracking).Ks

@@ -338,6 +338,9 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
     # the stacked design only where a stacked or centralized law needs it (a distributed
     # fleet of 100 vehicles designs per vehicle, in its controller FMUs)
     stacked = {t for _, _, t, a in methods_run if pv is None or a == "centralized"}
+    if pv is not None and any(a == "centralized" for *_, a in methods_run):
+        from .per_vehicle_run import check_centralized
+        check_centralized(sc)                   # before the stacked design is tried
     model = discretize(sc.system, sc.h) if stacked else None
     laws = {t: tracking_law(sc.system, t) for t in stacked}
     design = next(iter(laws.values())).design if laws else None

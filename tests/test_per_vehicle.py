@@ -173,3 +173,48 @@ def test_compare_architectures_reports_the_price_and_the_bound(tmp_path, capsys)
     assert 0 < s["cost_rate_full_information"] < min(c["cost_rate"]["predicted_window"],
                                                      d["cost_rate"]["predicted_window"])
     assert "price of decentralization" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("mode", ["ideal", "kalman"])
+def test_the_distributed_prediction_agrees_with_simulation_over_seeds(mode):
+    """The Lyapunov prediction over the window (mean motion included) against the window
+    cost of 8 seeds of the monolithic loop (which the FMUs reproduce to 1e-9, above)."""
+    from orchestrator.analysis.distributed_verdict import predict_cost
+    from orchestrator.analysis.per_vehicle import distributed_initial_state
+    from orchestrator.analysis.summary import stats_window
+    sc = load_scenario("formation-4").with_run(T=200.0)
+    loop = distributed_loop_of(sc, mode, sc.tracking, sc.distributed)
+    k0 = stats_window(sc.T, sc.h, predict_cost(loop).settling_time)
+    pred = predict_cost(loop, (k0, sc.steps), distributed_initial_state(sc, loop)).cost_rate
+    Q, R = sc.system.Q, sc.system.R
+    costs = []
+    for seed in range(8):
+        tr = distributed_reference(sc, loop, seed, sc.steps)
+        e, u = tr["e"][k0:], tr["u"][k0:]
+        costs.append(float(np.mean(np.einsum("ki,ij,kj->k", e, Q, e)
+                                   + np.einsum("ki,ij,kj->k", u, R, u))))
+    mean, sem = np.mean(costs), np.std(costs, ddof=1) / np.sqrt(len(costs))
+    assert abs(mean - pred) < 4 * sem + 1e-3 * pred, (mean, sem, pred)
+
+
+def test_an_unstable_observer_gain_is_one_line_naming_the_eigenvalue(tmp_path, capsys):
+    text = (Path(__file__).parent.parent / "orchestrator/scenario/builtin/formation-4.toml"
+            ).read_text() + "\n[distributed]\nmu = 500.0\n"
+    (tmp_path / "fast.toml").write_text(text)
+    assert main(["run", "--scenario", str(tmp_path / "fast.toml"), "--deployment",
+                 "per-vehicle", "--architecture", "distributed", "--T", "1",
+                 "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert "unstable" in err and "L + G" in err and "mu = 500" in err
+
+
+def test_a_centralized_fleet_too_large_is_refused_before_trying(tmp_path, capsys):
+    from orchestrator.scenario.generator import scenario_toml, survey_grid_fleet
+    (tmp_path / "big.toml").write_text(scenario_toml(survey_grid_fleet(200, T=1.0)))
+    assert main(["run", "--scenario", str(tmp_path / "big.toml"), "--architecture",
+                 "centralized", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert "200 vehicles" in err and "use --architecture distributed" in err
+    assert not any((tmp_path / "o").glob("*.fmu")) and not (tmp_path / "o" / "fmus").exists()
