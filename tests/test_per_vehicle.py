@@ -173,6 +173,13 @@ def test_compare_architectures_reports_the_price_and_the_bound(tmp_path, capsys)
     assert 0 < s["cost_rate_full_information"] < min(c["cost_rate"]["predicted_window"],
                                                      d["cost_rate"]["predicted_window"])
     assert "price of decentralization" in capsys.readouterr().out
+    # the recording shows the architectures side by side: a 3D view each, both in the plots
+    from support.rrd_readback import read_rrd_blueprint_views, read_rrd_series_styles
+    views = {path for _, path in read_rrd_blueprint_views(out / "formation-4.rrd").values()}
+    assert {"/world/centralized", "/world/distributed"} <= views
+    series = read_rrd_series_styles(out / "formation-4.rrd")
+    for arch in ("centralized", "distributed"):
+        assert f"vehicles/4/error/{arch}" in series
 
 
 @pytest.mark.parametrize("mode", ["ideal", "kalman"])
