@@ -19,7 +19,7 @@ from numpy.testing import assert_array_equal
 
 from fmu_common.interface import element_names
 from fmu_common.slave_base import STATE_MAGIC, decode_state
-from orchestrator.cosim.build import FMU_KINDS, build_fmu
+from orchestrator.cosim.build import FMU_KINDS, STACKED_KINDS, build_fmu
 from orchestrator.cosim.instance import Extracted, FmuInstance
 from orchestrator.scenario import load_scenario
 from orchestrator.workflow import scenario_config
@@ -148,7 +148,7 @@ def _three(hosts, cfg):
 
 
 def test_model_descriptions_declare_fmu_state(fmus):
-    for key in FMU_KINDS:
+    for key in STACKED_KINDS:
         cs = read_model_description(str(fmus[key])).coSimulation
         assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate, key
 

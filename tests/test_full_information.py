@@ -23,8 +23,10 @@ def _pieces(sc):
     return v, model, model.Ad[:p, :p], model.Bd[:p], expm(v.F * sc.h)
 
 
-def test_the_steady_motion_is_a_motion_and_costs_what_it_says(f4):
-    v, model, Ad, Bd, Phi = _pieces(f4)
+@pytest.mark.parametrize("name", ["formation-4", "formation-20"])   # lawnmower, circle
+def test_the_steady_motion_is_a_motion_and_costs_what_it_says(name):
+    sc = load_scenario(name)
+    v, model, Ad, Bd, Phi = _pieces(sc)
     k0, K = 1000, 4000
     z = np.linalg.matrix_power(Phi, k0) @ v.z0
     zs = []
@@ -34,6 +36,7 @@ def test_the_steady_motion_is_a_motion_and_costs_what_it_says(f4):
     zs = np.array(zs)
     Zbar = zs.T @ zs / len(zs)
     X, U, cost = best_steady_motion(Ad, Bd, v.C, v.H, v.Q, v.R, Phi, Zbar)
+    assert np.abs(X @ Phi - Ad @ X - Bd @ U).max() < 1e-9 * (1 + np.abs(X).max())
     # simulate it: start on the motion, apply u = U z, noise-free
     x, J = X @ zs[0], 0.0
     for zk in zs:
@@ -47,7 +50,7 @@ def test_the_steady_motion_is_a_motion_and_costs_what_it_says(f4):
     rng = np.random.default_rng(0)
     p, l_ = X.shape
     for _ in range(5):
-        dU = rng.standard_normal(U.shape) * 0.1 * np.abs(U).max()
+        dU = rng.standard_normal(U.shape) * 0.1 * max(np.abs(U).max(), 1e-3)
         # X' solving X' Phi - Ad X' = Bd (U + dU) (the constraint) by vectorisation
         M = np.kron(Phi.T, np.eye(p)) - np.kron(np.eye(l_), Ad)
         Xn = np.linalg.lstsq(M, (Bd @ (U + dU)).reshape(-1, order="F"),

@@ -82,3 +82,28 @@ def test_an_unstable_design_is_refused_in_the_controller_fmu(built):
     with pytest.raises(CosimError) as exc:
         _instance(built, "controller_2", "unstabilizable", **zero)
     assert "stabilizable" in str(exc.value)
+
+
+def test_every_per_vehicle_fmu_validates_and_declares_its_structure(built, tmp_path):
+    from fmpy import read_model_description
+    from fmpy.validation import validate_fmu
+
+    from orchestrator.per_vehicle_run import PerVehicleRuns
+    fmus = dict(built[0])
+    sc = load_scenario("formation-4").with_run(T=10.0)
+    fmus.update(PerVehicleRuns(sc, tmp_path).fmus("centralized"))
+    assert set(fmus) == {"leader", "vehicle", "vehicle_estimator", "vehicle_controller",
+                         "central_controller"}
+    for key, path in fmus.items():
+        assert validate_fmu(str(path)) == [], key
+        md = read_model_description(str(path))
+        assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
+        assert all(v.description for v in md.modelVariables), key
+    # the distributed controller: u feeds through from the estimates and the slots' eps,
+    # eta (the observer's state) from nothing
+    md = read_model_description(str(fmus["vehicle_controller"]))
+    deps = {u.variable.name: {d.name for d in (u.dependencies or [])}
+            for u in md.outputs}
+    assert deps["eta[1]"] == set()
+    assert {"xhat[1]", "what[1]", "nbr[2].eps[6]"} <= deps["u[1]"]
+    assert "nbr[1].eta[1]" not in deps["u[1]"]

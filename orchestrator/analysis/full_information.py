@@ -14,9 +14,8 @@ offset, z[k] = Phi^k z0 a planned path) split the motion into its mean and the n
 - **mean**: the best steady motion the leader admits, x = X z, u = U z with
   X Phi = Ad_x X + Bd_x U (Ad_x, Bd_x the vehicle rows; the current's mean decays), chosen to
   minimize the window average tr(M Zbar), M = (H - C X)' Q (H - C X) + U' R U,
-  Zbar = mean over the window of z z'. Its first-order conditions are linear
-  (-C'Q(H - C X) Zbar + Lam Phi' - Ad_x' Lam = 0, R U Zbar - Bd_x' Lam / 2 = 0 and the
-  constraint), solved as one least-squares system.
+  Zbar = mean over the window of z z': a linear least-squares problem on the null space of
+  the constraint.
 
 Cross terms vanish (the noise has zero mean), so J_FI = sum_i tr(P_i Qd_i) + min_i tr(M_i
 Zbar). A law held over the step, with estimates, neighbour-only information or a consensus
@@ -63,6 +62,11 @@ def best_steady_motion(Ad: np.ndarray, Bd: np.ndarray, C: np.ndarray, H: np.ndar
                        Zbar: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """(X, U, cost): min tr(M Zbar) s.t. X Phi = Ad X + Bd U (module docstring).
 
+    Solved as a least-squares problem on the constraint's null space (so the motion is
+    one to machine precision, however singular Zbar or the constraint): with
+    S = Zbar^(1/2), Q = Qh' Qh, R = Rh' Rh the cost is
+    ||Qh (H - C X) S||_F^2 + ||Rh U S||_F^2, linear in (X, U).
+
     Parameters
     ----------
     Ad, Bd : np.ndarray
@@ -81,23 +85,29 @@ def best_steady_motion(Ad: np.ndarray, Bd: np.ndarray, C: np.ndarray, H: np.ndar
     tuple[np.ndarray, np.ndarray, float]
         X (p x l), U (q x l) and the window-average cost tr(M Zbar).
     """
+    from scipy.linalg import cholesky, null_space
+
     p, q, l_ = Ad.shape[0], Bd.shape[1], Phi.shape[0]
-    I_l, I_p = np.eye(l_), np.eye(p)
+    w, V = np.linalg.eigh(0.5 * (Zbar + Zbar.T))
+    S = (V * np.sqrt(np.clip(w, 0.0, None))) @ V.T
+    Qh, Rh = cholesky(Q), cholesky(R)
     nx, nu = p * l_, q * l_
-    # unknowns vec(X), vec(U), vec(Lam) (column-major); vec(A X B) = (B' kron A) vec X
-    CQC = C.T @ Q @ C
-    rows_x = np.hstack([2 * np.kron(Zbar.T, CQC), np.zeros((nx, nu)),
-                        np.kron(Phi, I_p) - np.kron(I_l, Ad.T)])
-    rows_u = np.hstack([np.zeros((nu, nx)), 2 * np.kron(Zbar.T, R), -np.kron(I_l, Bd.T)])
-    rows_c = np.hstack([np.kron(Phi.T, I_p) - np.kron(I_l, Ad), -np.kron(I_l, Bd),
-                        np.zeros((nx, nx))])
-    rhs = np.concatenate([(2 * C.T @ Q @ H @ Zbar).reshape(-1, order="F"), np.zeros(nu),
-                          np.zeros(nx)])
-    sol = np.linalg.lstsq(np.vstack([rows_x, rows_u, rows_c]), rhs, rcond=None)[0]
+    # unknowns vec(X), vec(U) (column-major); vec(A X B) = (B' kron A) vec X
+    A = np.zeros((Qh.shape[0] * l_ + Rh.shape[0] * l_, nx + nu))
+    A[:Qh.shape[0] * l_, :nx] = -np.kron(S.T, Qh @ C)
+    A[Qh.shape[0] * l_:, nx:] = np.kron(S.T, Rh)
+    b = np.zeros(A.shape[0])
+    b[:Qh.shape[0] * l_] = -(Qh @ H @ S).reshape(-1, order="F")
+    G = np.hstack([np.kron(Phi.T, np.eye(p)) - np.kron(np.eye(l_), Ad),
+                   -np.kron(np.eye(l_), Bd)])
+    N = null_space(G)
+    y = np.linalg.lstsq(A @ N, b, rcond=None)[0]
+    sol = N @ y
     X = sol[:nx].reshape((p, l_), order="F")
-    U = sol[nx:nx + nu].reshape((q, l_), order="F")
-    E = H - C @ X
-    cost = float(np.trace((E.T @ Q @ E + U.T @ R @ U) @ Zbar))
+    U = sol[nx:].reshape((q, l_), order="F")
+    # the cost in the whitened form: tr(M Zbar) itself loses digits to cancellation
+    # between the large entries of Zbar (positions of hundreds of metres)
+    cost = float(np.sum((Qh @ (H - C @ X) @ S) ** 2) + np.sum((Rh @ U @ S) ** 2))
     return X, U, cost
 
 
