@@ -434,6 +434,8 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         methods[name]["estimator"] = mode
         methods[name]["tracking"] = tracking
         methods[name]["architecture"] = arch
+        #: the sampled closed loop's stability margin: largest |eigenvalue| of its error part
+        methods[name]["spectral_radius"] = pred0.spectral_radius
         if per_seed and sc.fleet is not None:
             methods[name]["cost_rate_full_information"] = fleet_bound(sc, k0)
         methods[name]["seeds_completed"] = len(per_seed)

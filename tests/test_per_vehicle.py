@@ -144,8 +144,8 @@ def test_per_vehicle_refused_where_it_cannot_be(capsys, tmp_path):
             assert f in err, err
     one_line(["run", "--deployment", "per-vehicle", "--out", str(tmp_path / "a")],
              'deployment = "per-vehicle" needs a fleet scenario')
-    one_line(["export", "osp", "--scenario", "formation-4", "--deployment", "per-vehicle",
-              "--out", str(tmp_path / "b")], "not implemented yet")
+    one_line(["bench", "--scenario", "formation-4", "--deployment", "per-vehicle"],
+             "give them with --fleet")
     one_line(["compare", "--scenario", "formation-4", "--what", "architectures",
               "--out", str(tmp_path / "c")], "add --deployment per-vehicle")
     text = (Path(__file__).parent.parent / "orchestrator/scenario/builtin/formation-4.toml"
