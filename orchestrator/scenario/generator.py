@@ -99,6 +99,13 @@ def survey_grid_fleet(N: int = 100, *, columns: int = 10, spacing: float = 10.0,
     """
     if N < 1:
         raise ValueError(f"N = {N} must be at least 1")
+    from plant_model.leader import make_leader
+
+    leader = {"leg_length": 600.0, "spacing": 200.0, "speed": 1.5, "harmonics": 3,
+              "start": [0.0, 0.0, 20.0]}
+    # the lawnmower starts in the middle of its rounded turn, spacing / 2 west of start:
+    # the vehicles are launched around where the leader is at t = 0
+    lead0 = make_leader("lawnmower", leader).position(0.0).reshape(-1)
     cols = min(columns, N)
     centre = (cols - 1) / 2.0
     index = {}
@@ -108,9 +115,9 @@ def survey_grid_fleet(N: int = 100, *, columns: int = 10, spacing: float = 10.0,
         index[(row, col)] = k + 1
         off = [-spacing * (row + 1) + 0.0, spacing * (col - centre) + 0.0, 0.0]
         offsets.append(off)
-        positions.append([round(off[0] + 2.0 * math.sin(1.7 * k) - 3.0, 3),
-                          round(off[1] + 2.0 * math.cos(1.3 * k), 3),
-                          round(20.0 + 1.0 * math.sin(0.9 * k), 3)])
+        positions.append([round(float(lead0[0]) + off[0] + 2.0 * math.sin(1.7 * k) - 3.0, 3),
+                          round(float(lead0[1]) + off[1] + 2.0 * math.cos(1.3 * k), 3),
+                          round(float(lead0[2]) + 1.0 * math.sin(0.9 * k), 3)])
     edges = []
     for (row, col), i in index.items():
         for dr, dc, a in ((1, -1, 0.25), (1, 0, 0.5), (1, 1, 0.25), (2, 0, 0.25)):
@@ -124,8 +131,7 @@ def survey_grid_fleet(N: int = 100, *, columns: int = 10, spacing: float = 10.0,
                         "lawnmower survey; the front row hears the leader"),
         "simulation": {"T": T, "h": h, "seed": 0, "estimator": "kalman", "tracking": "regulator",
                        "deployment": "per-vehicle", "architecture": "distributed"},
-        "leader": {"path": "lawnmower", "leg_length": 600.0, "spacing": 200.0, "speed": 1.5,
-                   "harmonics": 3, "start": [0.0, 0.0, 20.0], "noise": 0.0},
+        "leader": {"path": "lawnmower", **leader, "noise": 0.0},
         "vehicles": {"count": N, "model": "remus100", "params": {"cruise_speed": 1.5},
                      "offsets": offsets, "positions": positions},
         "graph": {"edges": edges, "pinning": pinning, "coupling": SECOND_ORDER_COUPLING},
