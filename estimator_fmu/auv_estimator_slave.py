@@ -6,13 +6,11 @@ FMU state: the estimator's q (LinearEstimator.get_state), plus what the base cla
 """
 from typing import Any
 
-import numpy as np
-
 from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
-from fmu_common.interface import ArraySpec
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.slave_base import ArraySlave as Fmi2Slave
+from estimator_fmu.slave_common import EstimatorSlave as Fmi2Slave
+from fmu_common.interface import ArraySpec
 from plant_model.discretization import discretize
 from plant_model.parameters import (
     model_parameter_specs,
@@ -89,46 +87,3 @@ class AuvEstimator(Fmi2Slave):
         nm = 2 * system.p + model.ns
         self._mvec = self._in[:nm]
         self._u = self.io["u"]
-
-    def compute_outputs(self) -> None:
-        """est[k] = Ce q[k] + Dm mvec[k] into the output buffer [xhat, what, zhat]."""
-        self.estimator.estimate(self._mvec, out=self._out)
-
-    def advance(self, step: float) -> None:
-        """One sample period: q[k+1] = Aq est[k] + Bu u[k].
-
-        Parameters
-        ----------
-        step : float
-            The communication step, s (checked against h by the base class).
-        """
-        self.estimator.update(self._outputs_view(self._out), self._u)
-
-    def evolving(self) -> np.ndarray:
-        """The estimator state q (checked to stay finite after every step)."""
-        return self.estimator.q
-
-    def model_state(self) -> dict[str, Any]:
-        """The estimator's evolving state (:meth:`LinearEstimator.get_state`).
-
-        Returns
-        -------
-        dict[str, Any]
-            The mode and the internal state q.
-        """
-        return self.estimator.get_state()
-
-    def restore_model_state(self, state: Any) -> None:
-        """Restore a :meth:`model_state` result into the estimator.
-
-        Parameters
-        ----------
-        state : Any
-            The dict :meth:`model_state` returned (decoded from a serialized FMU state).
-
-        Raises
-        ------
-        ValueError
-            If the mode differs or q has the wrong shape.
-        """
-        self.estimator.set_state(state)

@@ -37,7 +37,8 @@ if TYPE_CHECKING:
     from pythonfmu.variables import ScalarVariable
 
 # the state names are re-exported: slaves and tests import them from here
-__all__ = ["STATE_FORMAT", "STATE_MAGIC", "ArraySlave", "FmuState", "StateError",
+__all__ = ["STATE_FORMAT", "STATE_MAGIC", "ArraySlave", "DelegatedStateSlave", "FmuState",
+           "StateError",
            "decode_state", "encode_state", "load_config"]
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input,
@@ -423,3 +424,43 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
         self.log(f"{self._who()}: fmi2DoStep refused: {self._output_error}", Fmi2Status.error)
         return False
 
+
+
+class DelegatedStateSlave(ArraySlave):
+    """A slave whose evolving mathematics is one object, ``getattr(self, math_name)``, with
+    ``get_state()`` and ``set_state(state)`` (validating first) and the vector a step
+    advances as its attribute ``evolving_name``: the FMU state is that object's state."""
+
+    #: the attribute holding the mathematics (set in ``setup``)
+    math_name: str = "plant"
+    #: the mathematics' attribute that a step advances (checked to stay finite)
+    evolving_name: str = "s"
+
+    def evolving(self) -> np.ndarray:
+        """The vector the mathematics advances (checked to stay finite after every step)."""
+        return getattr(getattr(self, self.math_name), self.evolving_name)
+
+    def model_state(self) -> Any:
+        """The mathematics' own state (its ``get_state()``).
+
+        Returns
+        -------
+        Any
+            Plain values and copies of arrays.
+        """
+        return getattr(self, self.math_name).get_state()
+
+    def restore_model_state(self, state: Any) -> None:
+        """Restore a :meth:`model_state` result (the mathematics' ``set_state``).
+
+        Parameters
+        ----------
+        state : Any
+            The value :meth:`model_state` returned.
+
+        Raises
+        ------
+        ValueError
+            If the state does not fit this instance (named by the mathematics).
+        """
+        getattr(self, self.math_name).set_state(state)

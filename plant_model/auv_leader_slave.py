@@ -11,7 +11,7 @@ import numpy as np
 from fmu_common.interface import ArraySpec
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.slave_base import ArraySlave as Fmi2Slave
+from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
 from plant_model.parameters import (
     noise_convention_spec,
     sample_period_spec,
@@ -82,32 +82,3 @@ class AuvLeader(Fmi2Slave):
             The communication step, s (checked against h by the base class).
         """
         self.plant.step(self._u)
-
-    def evolving(self) -> np.ndarray:
-        """The leader's state z (checked to stay finite after every step)."""
-        return self.plant.s
-
-    def model_state(self) -> dict[str, Any]:
-        """The leader's evolving state (:meth:`Plant.get_state`).
-
-        Returns
-        -------
-        dict[str, Any]
-            k, seed, s, the current noise row and the noise stream's state.
-        """
-        return self.plant.get_state()
-
-    def restore_model_state(self, state: Any) -> None:
-        """Restore a :meth:`model_state` result.
-
-        Parameters
-        ----------
-        state : Any
-            The dict :meth:`model_state` returned.
-
-        Raises
-        ------
-        ValueError
-            If the state does not fit this leader.
-        """
-        self.plant.set_state(state)

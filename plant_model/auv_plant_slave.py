@@ -7,12 +7,10 @@ what the base class saves (parameters, buffers, flags).
 """
 from typing import Any
 
-import numpy as np
-
 from fmu_common.interface import ArraySpec
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.slave_base import ArraySlave as Fmi2Slave
+from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
 from plant_model.discretization import discretize
 from plant_model.parameters import (
     model_parameter_specs,
@@ -97,32 +95,3 @@ class AuvPlant(Fmi2Slave):
             The communication step, s (checked against h by the base class).
         """
         self.plant.step(self._u)
-
-    def evolving(self) -> np.ndarray:
-        """The sampled state s = [x; w; z] (checked to stay finite after every step)."""
-        return self.plant.s
-
-    def model_state(self) -> dict[str, Any]:
-        """The plant's evolving state (:meth:`Plant.get_state`).
-
-        Returns
-        -------
-        dict[str, Any]
-            k, seed, s, the current noise row and the noise stream's state.
-        """
-        return self.plant.get_state()
-
-    def restore_model_state(self, state: Any) -> None:
-        """Restore a :meth:`model_state` result into the plant.
-
-        Parameters
-        ----------
-        state : Any
-            The dict :meth:`model_state` returned (decoded from a serialized FMU state).
-
-        Raises
-        ------
-        ValueError
-            If the state does not fit this plant (seed, shapes).
-        """
-        self.plant.set_state(state)

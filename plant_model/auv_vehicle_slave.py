@@ -14,7 +14,7 @@ import numpy as np
 from fmu_common.interface import ArraySpec
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.slave_base import ArraySlave as Fmi2Slave
+from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
 from plant_model.parameters import (
     noise_convention_spec,
     sample_period_spec,
@@ -108,22 +108,8 @@ class AuvVehicle(Fmi2Slave):
         self.plant.step(self._u)
         self._copy()
 
-    def evolving(self) -> np.ndarray:
-        """The sampled state s = [x; w] (checked to stay finite after every step)."""
-        return self.plant.s
-
-    def model_state(self) -> dict[str, Any]:
-        """The plant's evolving state (:meth:`Plant.get_state`).
-
-        Returns
-        -------
-        dict[str, Any]
-            k, seed, s, the current noise row and the noise stream's state.
-        """
-        return self.plant.get_state()
-
     def restore_model_state(self, state: Any) -> None:
-        """Restore a :meth:`model_state` result into the plant.
+        """Restore the plant's state (:meth:`Plant.set_state`) and its outputs.
 
         Parameters
         ----------
@@ -135,5 +121,5 @@ class AuvVehicle(Fmi2Slave):
         ValueError
             If the state does not fit this vehicle (seed, shapes).
         """
-        self.plant.set_state(state)
+        super().restore_model_state(state)
         self._copy()
