@@ -186,7 +186,7 @@ def cmd_build(args: argparse.Namespace) -> int:
         if out.resolve() == (ROOT / "fmus").resolve():
             write_fmu_readme(sc, out / "README.md")
         for k, p in paths.items():
-            print(f"{k:>10s}: {p} ({p.stat().st_size} bytes)")
+            print(f"{k:>18s}: {p} ({p.stat().st_size} bytes)")
         if sc.deployment == "per-vehicle":
             print("(no cross-check references for the per-vehicle FMUs: they are written "
                   "for the stacked deployment's three FMUs)")
