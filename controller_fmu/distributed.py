@@ -56,8 +56,8 @@ Vehicle i (continuous time, its own physics only; the consensus is control, not 
 
    solved with :func:`controller_fmu.regulator.solve_regulator_equations` (a transmission
    zero of (A_i, B_i, C_i) at an eigenvalue of F is refused, naming it). For ``remus100``
-   X_i = [H; H F] (:func:`plant_model.vehicles.leader_state_map`) and xc_i = [d_i; 0]
-   (:func:`plant_model.vehicles.state_offset`): the offset is a state shift at rest with
+   X_i = [H; H F] (:func:`plant_model.vehicle_targets.leader_state_map`) and xc_i = [d_i; 0]
+   (:func:`plant_model.vehicle_targets.state_offset`): the offset is a state shift at rest with
    uc_i = 0; for other models xc_i is the equilibrium with output d_i (which state_offset's
    least-squares delta need not be). With ``regulator="sampled"`` the same equations are
    solved for the ZOH-sampled vehicle (X Phi = Ad X + Bd U, ...; section 5 of theory.md),

@@ -9,7 +9,7 @@ the state (identity by default) and formation offsets delta_i (state space) / d_
     y_i  = C_i x_i + n_i,      target of vehicle i: H_l z_l + d_i
 
 where x_0 = T_i z_l is the leader's state in the vehicle's state space
-(:func:`plant_model.vehicles.leader_state_map`). Stacked (L the in-degree Laplacian,
+(:func:`plant_model.vehicle_targets.leader_state_map`). Stacked (L the in-degree Laplacian,
 G = diag(a_i0), :mod:`plant_model.graph`):
 
     A  = blkdiag(A_ii) - (L + G) kron Gamma
@@ -52,7 +52,8 @@ from scipy.linalg import block_diag
 from .graph import CommunicationGraph, communication_graph
 from .linalg_checks import ModelError, as_matrix, as_vector
 from .system import LinearSystem
-from .vehicles import VehicleModel, leader_state_map, make_vehicle, state_offset
+from .vehicle_targets import leader_state_map, state_offset
+from .vehicles import VehicleModel, make_vehicle
 
 __all__ = ["CONSENSUS_FORMS", "ConsensusProtocol", "FleetInfo", "consensus_force_gain",
            "fleet_vehicles", "fleet_graph", "fleet_system", "fleet_info", "disturbance_of",

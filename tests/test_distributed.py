@@ -44,7 +44,8 @@ from orchestrator.scenario.fleet import fleet_spec_from_dict
 from plant_model.graph import communication_graph
 from plant_model.leader import circle, lawnmower, straight
 from plant_model.linalg_checks import ModelError
-from plant_model.vehicles import leader_state_map, remus100, state_offset
+from plant_model.vehicle_targets import leader_state_map, state_offset
+from plant_model.vehicles import remus100
 
 
 # --------------------------------------------------------------------------------------

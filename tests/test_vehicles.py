@@ -8,14 +8,13 @@ import pytest
 
 from plant_model.leader import circle, straight
 from plant_model.linalg_checks import ModelError
+from plant_model.vehicle_targets import leader_state_map, state_offset
 from plant_model.vehicles import (
     VEHICLE_MODELS,
     generic,
-    leader_state_map,
     make_vehicle,
     remus100,
     remus100_parameters,
-    state_offset,
 )
 
 RHO, L, DIAM, CD = 1026.0, 1.6, 0.19, 0.42

@@ -6,7 +6,7 @@ checks what it knows, called from the validator of the section it belongs to:
 - [vehicles]: :func:`plant_model.fleet.fleet_vehicles` (known models and parameters, one
   state and output size for all), offsets / positions / x0 rows, per-vehicle overrides;
 - [leader]: :func:`plant_model.leader.make_leader` (known path, its parameters), then
-  :func:`plant_model.vehicles.leader_state_map` against every vehicle model;
+  :func:`plant_model.vehicle_targets.leader_state_map` against every vehicle model;
 - [graph]: :func:`plant_model.graph.communication_graph` (weights, self-loops,
   duplicates, a path from the leader to every vehicle), the coupling p x p;
 - [current] / [disturbance] / [noise] / [cost]: sizes from the vehicle models, covariances
@@ -38,7 +38,8 @@ from plant_model.graph import communication_graph
 from plant_model.leader import LeaderPath, make_leader
 from plant_model.linalg_checks import ModelError, as_matrix, as_vector
 from plant_model.system import NOISE_CONVENTIONS
-from plant_model.vehicles import VehicleModel, leader_state_map, state_offset
+from plant_model.vehicle_targets import leader_state_map, state_offset
+from plant_model.vehicles import VehicleModel
 
 from .schema import (
     CostSection,
