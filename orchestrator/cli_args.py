@@ -1,0 +1,60 @@
+"""Command-line argument types of ``auv-cosim``: seed lists, positive seconds, counts.
+
+Each raises :class:`argparse.ArgumentTypeError` with one line naming the value.
+"""
+from __future__ import annotations
+
+import argparse
+from collections import Counter
+
+__all__ = ["parse_seeds"]
+
+
+def parse_seeds(text: str) -> list[int]:
+    """'0-9' -> 0..9, '1,4,7' -> [1, 4, 7], '3' -> [3]."""
+    seeds: list[int] = []
+    try:
+        for part in text.split(","):
+            part = part.strip()
+            if "-" in part:
+                a, b = (int(x) for x in part.split("-", 1))
+                if b < a:
+                    raise ValueError
+                seeds.extend(range(a, b + 1))
+            else:
+                seeds.append(int(part))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"seeds {text!r}: expected a range '0-9', a list '1,4,7' or one seed") from None
+    if any(s < 0 or s > 2**31 - 1 for s in seeds):
+        raise argparse.ArgumentTypeError(
+            f"seeds {text!r}: seeds must be from 0 to 2^31 - 1 (a 32-bit FMI Integer)")
+    if len(seeds) > 100_000:
+        raise argparse.ArgumentTypeError(f"seeds {text!r}: {len(seeds)} seeds is too many "
+                                         "for one compare (at most 100000)")
+    repeated = sorted(s for s, c in Counter(seeds).items() if c > 1)
+    if repeated:
+        raise argparse.ArgumentTypeError(
+            f"seeds {text!r}: seed(s) {', '.join(map(str, repeated))} given more than once "
+            "(each would count twice in the statistics)")
+    return seeds
+
+
+def _positive(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not v > 0 or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number of seconds")
+    return v
+
+
+def _count(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} must be at least 1")
+    return v
