@@ -35,8 +35,8 @@ from plant_model.per_vehicle import vehicle_view
 from .distributed import REGULATOR_FORMS, VehicleLaw, design_vehicle_law
 from .regulator import TRACKING_MODES, tracking_law
 
-__all__ = ["ARCHITECTURES", "DEPLOYMENTS", "DistributedSettings", "vehicle_law",
-           "centralized_rows"]
+__all__ = ["ARCHITECTURES", "DEPLOYMENTS", "DistributedSettings", "LEADER_INFORMATION",
+           "centralized_rows", "observer_start", "vehicle_law"]
 
 #: where each vehicle's law gets its information: the paper's stacked law cut by vehicle
 #: (every vehicle's estimate and the leader), or neighbour-only
@@ -45,14 +45,42 @@ ARCHITECTURES = ("centralized", "distributed")
 DEPLOYMENTS = ("stacked", "per-vehicle")
 
 
+#: how the vehicles learn the leader's state: its messages reach the pinned vehicles and
+#: spread through the observers, or the path is planned and known to every vehicle from
+#: the start (no leader messages: every observer starts on it and stays there)
+LEADER_INFORMATION = ("messages", "planned")
+
+
 @dataclass(frozen=True)
 class DistributedSettings:
     """The distributed law's gains: observer gain ``mu`` (1/s), ``cohesion`` gain c
-    (dimensionless, 0: off) and the ``regulator`` equations (continuous or sampled)."""
+    (dimensionless, 0: off), the ``regulator`` equations (continuous or sampled) and how the
+    vehicles learn the leader's state (``leader``: one of :data:`LEADER_INFORMATION`)."""
 
     mu: float = 2.0
     cohesion: float = 0.0
     regulator: str = "continuous"
+    leader: str = "messages"
+
+
+def observer_start(z0: Any, settings: DistributedSettings) -> np.ndarray:
+    """A vehicle's first estimate of the leader's state, eta(0): 0 when it learns the leader
+    from messages, the leader's z0 for a planned path every vehicle knows.
+
+    Parameters
+    ----------
+    z0 : Any
+        The leader's initial state (l,).
+    settings : DistributedSettings
+        Its ``leader`` says which.
+
+    Returns
+    -------
+    np.ndarray
+        eta(0), shape (l,).
+    """
+    z0 = np.asarray(z0, dtype=float).reshape(-1)
+    return z0.copy() if settings.leader == "planned" else np.zeros_like(z0)
 
 
 def vehicle_law(A: Any, B1: Any, B2: Any, C: Any, K: Any, Q: Any, R: Any, F: Any, H: Any,

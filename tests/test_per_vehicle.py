@@ -225,3 +225,25 @@ def test_a_centralized_fleet_too_large_is_refused_before_trying(tmp_path, capsys
     assert len(err.splitlines()) == 1, err
     assert "200 vehicles" in err and "use --architecture distributed" in err
     assert not any((tmp_path / "o").glob("*.fmu")) and not (tmp_path / "o" / "fmus").exists()
+
+
+def test_a_planned_leader_path_needs_no_leader_messages(f4, tmp_path):
+    """leader = "planned": every observer starts on the path and stays on it (eta = z to
+    rounding), nothing flows from the leader FMU to a controller, and the loop is the
+    monolithic one started there."""
+    settings = DistributedSettings(mu=2.0, leader="planned")
+    sc = replace(f4, distributed=settings)
+    per, system = _per_vehicle(sc, "distributed", "kalman", 4, tmp_path, settings)
+    assert not [c for c in system.connections if c.source == "leader"]
+    l0 = np.asarray(f4.fleet["leader"]["F"]).shape[0]
+    z = per["z"][:, :l0]
+    for i in range(4):
+        assert np.abs(per["eta"][:, i * l0:(i + 1) * l0] - z).max() < 1e-9 * np.abs(z).max()
+    loop = distributed_loop_of(sc, "kalman", sc.tracking, settings)
+    ref = distributed_reference(sc, loop, 4, sc.steps)
+    for key in ("x", "u", "eta"):
+        assert _rel(per[key], ref[key]) < 1e-9, key
+    # with messages instead, the observers start at 0 and the start differs
+    msgs, _ = _per_vehicle(f4, "distributed", "kalman", 4, tmp_path / "m",
+                           DistributedSettings(mu=2.0))
+    assert np.abs(msgs["u"][:50] - per["u"][:50]).max() > 1.0

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from controller_fmu.distributed import sampled_observer
-from controller_fmu.vehicle_law import vehicle_law
+from controller_fmu.vehicle_law import observer_start, vehicle_law
 from plant_model.per_vehicle import sample_vehicle, vehicle_views
 from plant_model.plant import NoiseStream
 
@@ -62,7 +62,10 @@ def distributed_loop_of(sc: Any, mode: str, tracking: str, settings: Any) -> Dis
 
 def distributed_initial_state(sc: Any, loop: DistributedLoop) -> np.ndarray:
     """X(0) of the loop as the FMUs start: leader z0, vehicles at x0, w0 (the stacked
-    system's), Kalman q(0) = [x0; w0], observers at 0.
+    system's), Kalman q(0) = [x0; w0], observers at
+    :func:`controller_fmu.vehicle_law.observer_start` (0, or z0 for a planned path: the
+    observer error starts and stays at 0, so the loop with the leader's messages is the
+    loop without them).
 
     Parameters
     ----------
@@ -78,7 +81,9 @@ def distributed_initial_state(sc: Any, loop: DistributedLoop) -> np.ndarray:
     """
     views = vehicle_views(sc.fleet)
     z0 = np.asarray(sc.fleet["leader"].get("z0"), dtype=float)
-    return loop.initial_state(z0, [v.x0 for v in views], [v.w0 for v in views])
+    eta0 = observer_start(z0, sc.distributed)
+    return loop.initial_state(z0, [v.x0 for v in views], [v.w0 for v in views],
+                              [eta0] * len(views))
 
 
 def distributed_reference(sc: Any, loop: DistributedLoop, seed: int,

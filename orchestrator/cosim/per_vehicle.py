@@ -10,7 +10,8 @@ differs per vehicle is parameter values (model, offset, slot weights, gain rows)
     estimator_i.xhat, what                 -> controller_i.xhat, what
     controller_i.u                         -> vehicle_i.u, estimator_i.u
     distributed:  controller_j.eta, eps    -> controller_i.nbr[k].eta, eps  (slot k: j -> i)
-                  leader.z                 -> controller_i.z                (pinned i only)
+                  leader.z                 -> controller_i.z                (pinned i only;
+                                              none for a planned path every vehicle knows)
     centralized:  estimator_j.xhat, what   -> controller_i.vehicle[j].xhat, what  (all j)
                   leader.z                 -> controller_i.z                (all i)
 
@@ -35,6 +36,7 @@ from controller_fmu.vehicle_law import (
     DEPLOYMENTS,
     DistributedSettings,
     centralized_rows,
+    observer_start,
 )
 from plant_model.fleet import fleet_graph
 from plant_model.per_vehicle import vehicle_views
@@ -150,6 +152,7 @@ def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tra
     N = len(views)
     rows = (centralized_rows(gain, N, v0.n, v0.r, v0.m, l0)
             if architecture == "centralized" else None)
+    eta0 = observer_start(leader["z0"], settings)
     out: list[dict[str, dict[str, Any]]] = [{"leader": dict(base, system=_mapping(v0, leader))}]
     for i, view in enumerate(views):
         cfg = dict(base, system=_mapping(view, leader))
@@ -162,7 +165,7 @@ def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tra
             one["vehicle_controller"] = dict(
                 cfg, slots=slots.S, offset=d.tolist(), weights=slots.weights[i].tolist(),
                 pinning=float(slots.pinning[i]), mu=settings.mu, cohesion=settings.cohesion,
-                regulator=settings.regulator, eta0=np.zeros(l0).tolist())
+                regulator=settings.regulator, eta0=eta0.tolist())
         out.append(one)
     return out
 
@@ -196,6 +199,7 @@ def per_vehicle_system(sc: Any, configs: list[dict[str, dict[str, Any]]],
         1 + 3 N components and their connections.
     """
     N = len(configs) - 1
+    planned = sc.distributed.leader == "planned"
     comps = [_component("leader", "leader", configs[0]["leader"])]
     conns: list[Connection] = []
     ctrl_key = "central_controller" if architecture == "centralized" else "vehicle_controller"
@@ -215,7 +219,8 @@ def per_vehicle_system(sc: Any, configs: list[dict[str, dict[str, Any]]],
                     conns.append(Connection(f"estimator_{j}", s, c, f"vehicle[{j}].{s}"))
             continue
         conns += [Connection(e, "xhat", c, "xhat"), Connection(e, "what", c, "what")]
-        pinned = slots.pinning[i - 1] > 0.0
+        # a planned path: every observer starts on it and no leader message is sent
+        pinned = slots.pinning[i - 1] > 0.0 and not planned
         conns.append(Connection("leader", "z", c, "z") if pinned
                      else Connection(c, "eta", c, "z"))
         for k in range(slots.S):

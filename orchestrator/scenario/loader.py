@@ -136,7 +136,7 @@ def _scenario(file: ScenarioFile, where: str, system: LinearSystem,
     dist = getattr(file, "distributed", None)
     if dist is not None:
         sc = replace(sc, distributed=DistributedSettings(
-            mu=dist.mu, cohesion=dist.cohesion, regulator=dist.regulator))
+            mu=dist.mu, cohesion=dist.cohesion, regulator=dist.regulator, leader=dist.leader))
     _check_step(sc)
     _check_deployment(sc)
     return sc

@@ -33,6 +33,7 @@ from pydantic import (
 )
 
 from controller_fmu.distributed import REGULATOR_FORMS
+from controller_fmu.vehicle_law import LEADER_INFORMATION
 from plant_model.fleet import CONSENSUS_FORMS, fleet_vehicles
 from plant_model.graph import communication_graph
 from plant_model.leader import LeaderPath, make_leader
@@ -277,13 +278,16 @@ def _valid_vehicles(info: ValidationInfo) -> FleetVehiclesSection | None:
 
 class DistributedSection(Section):
     """[distributed]: the distributed law's observer gain mu (1/s, > 0), cohesion gain c
-    (>= 0, 0: off) and regulator equations ("continuous" or "sampled")."""
+    (>= 0, 0: off), regulator equations ("continuous" or "sampled") and leader information
+    ("messages": the pinned vehicles hear the leader; "planned": a path every vehicle
+    knows from the start, no leader messages)."""
 
     mu: Annotated[float, Gt(0.0), AllowInfNan(False),
                   expect("must be a positive number (1/s)")] = 2.0
     cohesion: Annotated[float, Ge(0.0), AllowInfNan(False),
                         expect("must be a non-negative number")] = 0.0
     regulator: Annotated[str, one_of(REGULATOR_FORMS)] = "continuous"
+    leader: Annotated[str, one_of(LEADER_INFORMATION)] = "messages"
 
 
 class FleetScenario(ScenarioFile):
