@@ -91,3 +91,33 @@ def test_a_signal_while_the_rrd_is_written(tmp_path, sig, status):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["interrupted"] is True and summary["rrd"]["recorded_steps"] == 100_000
     assert not [p for p in out.iterdir() if p.name.endswith(".part")]
+
+
+def test_a_signal_keeps_what_a_per_vehicle_run_simulated(tmp_path):
+    """The same for 13 FMUs of the per-vehicle deployment: one line, the traces up to the
+    stop in the .rrd (read back), the summary marked."""
+    out = tmp_path / "pv"
+    proc = subprocess.Popen([sys.executable, "-m", "orchestrator", "run", "--scenario",
+                             "formation-4", "--deployment", "per-vehicle", "--architecture",
+                             "distributed", "--T", "600", "--quiet", "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not (out / "fmus" / "AuvVehicleController.fmu").exists():
+            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()
+            time.sleep(0.05)
+        time.sleep(10.0)         # past the prediction, inside the loop (60,000 steps: 40 s+)
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, stderr
+    assert len(stderr.strip().splitlines()) == 1, stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["interrupted"] is True and summary["deployment"] == "per-vehicle"
+    steps = summary["rrd"]["recorded_steps"]
+    assert 0 < steps < 60_000 and steps % 200 == 0
+    series = read_rrd_scalars(out / "formation-4.rrd")
+    k, _, e = series["vehicles/4/error/kalman"]
+    assert len(k) == len(range(0, steps, summary["rrd"]["recorded_every_steps"]))
+    assert np.all(np.isfinite(e))
