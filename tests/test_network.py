@@ -110,3 +110,72 @@ def test_bad_link_settings_are_one_line_naming_the_link(args, fragment):
         check_link("link 2 -> 4", *args)
     msg = str(exc.value)
     assert msg.startswith("link 2 -> 4: ") and fragment in msg and "\n" not in msg
+
+
+# ------------------------------------------------------------------ a fleet's links
+EDGES = [(1, 2, 1.0), (1, 3, 1.0), (2, 4, 0.5), (3, 4, 0.5)]      # formation-4
+PINS = [(1, 1.0)]
+
+
+def test_defaults_overrides_and_tdma_give_every_link_its_timing():
+    from plant_model.network import resolve_links
+    perfect = resolve_links(4, EDGES, PINS, None, 0.01)
+    assert set(perfect) == {(1, 2), (1, 3), (2, 4), (3, 4), ("leader", 1)}
+    assert all((t.latency, t.period, t.loss) == (0.0, 0.01, 0.0) for t in perfect.values())
+    net = {"latency": 1.0, "period": 2.0, "loss": 0.2,
+           "links": [{"from": 3, "to": 4, "loss": 0.5}, {"from": "leader", "to": 1,
+                                                          "latency": 0.2}]}
+    links = resolve_links(4, EDGES, PINS, net, 0.01)
+    assert (links[(1, 2)].latency, links[(1, 2)].period, links[(1, 2)].loss) == (1.0, 2.0, 0.2)
+    assert links[(3, 4)].loss == 0.5 and links[(3, 4)].latency == 1.0
+    assert links[("leader", 1)].latency == 0.2 and links[("leader", 1)].loss == 0.2
+    assert all(t.offset == 0.0 for t in links.values())
+    tdma = resolve_links(4, EDGES, PINS, dict(net, tdma=True), 0.01)
+    # the leader first, then vehicles 1..4: five slots of 0.4 s in the 2 s cycle
+    assert tdma[("leader", 1)].offset == 0.0 and tdma[(1, 2)].offset == pytest.approx(0.4)
+    assert tdma[(3, 4)].offset == pytest.approx(1.2) and tdma[(2, 4)].offset == pytest.approx(0.8)
+
+
+@pytest.mark.parametrize("net, fragment", [
+    ({"latency": -1.0}, "[network]: latency = -1 s is negative"),
+    ({"loss": 1.2}, "[network]: loss = 1.2 is not a probability"),
+    ({"period": 0.0}, "[network]: period = 0 s must be positive"),
+    ({"links": [{"from": 2, "to": 3}]}, "network link 2 -> 3: no such communication edge "
+                                        "(vehicle 3 hears 1)"),
+    ({"links": [{"from": 7, "to": 2}]}, "[network] links entry 1: vehicle 7 does not exist"),
+    ({"links": [{"from": 1, "to": 2, "loss": -0.5}]}, "network link 1 -> 2: loss = -0.5"),
+    ({"links": [{"from": 1, "to": 2, "delay": 1}]}, "links entry 1: unknown key(s) delay"),
+    ({"tdma": True, "period": 2.0, "links": [{"from": 1, "to": 2, "period": 1.0}]},
+     "tdma = true needs one period for every link"),
+    ({"latency": 1.0, "speed": 3}, "[network]: unknown key(s) speed"),
+])
+def test_a_bad_network_table_is_one_line_naming_the_link_or_entry(net, fragment):
+    from plant_model.network import resolve_links
+    with pytest.raises(ModelError) as exc:
+        resolve_links(4, EDGES, PINS, net, 0.01)
+    assert fragment in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_a_switching_schedule_in_order():
+    from plant_model.network import check_schedule
+    sched = check_schedule([{"t": 0.0, "edges": [[1, 2, 1.0]]},
+                            {"t": 60.0, "edges": [[1, 2, 1.0], [2, 3, 0.5]]}], 3)
+    assert sched == [(0.0, [(1, 2, 1.0)]), (60.0, [(1, 2, 1.0), (2, 3, 0.5)])]
+
+
+@pytest.mark.parametrize("entries, fragment", [
+    ([{"t": 5.0, "edges": []}], "entry 1: the first graph must start at t = 0"),
+    ([{"t": 0.0, "edges": []}, {"t": 0.0, "edges": []}],
+     "entry 2: t = 0 s does not come after the previous switch at 0 s"),
+    ([{"t": 0.0, "edges": []}, {"t": 30.0, "edges": []}, {"t": 20.0, "edges": []}],
+     "entry 3: t = 20 s does not come after"),
+    ([{"t": 0.0, "edges": [[1, 9, 1.0]]}], "entry 1, edge [1, 9, 1.0]: vehicle 9 does not "
+                                           "exist (vehicles are 1..3)"),
+    ([{"t": 0.0, "edges": [[2, 2, 1.0]]}], "a self-loop"),
+    ([{"t": 0.0, "edges": [[1, 2, -1.0]]}], "negative weight -1"),
+])
+def test_a_bad_schedule_is_one_line_naming_the_entry(entries, fragment):
+    from plant_model.network import check_schedule
+    with pytest.raises(ModelError) as exc:
+        check_schedule(entries, 3)
+    assert fragment in str(exc.value) and "\n" not in str(exc.value)
