@@ -8,8 +8,6 @@ saves.
 """
 from typing import Any
 
-import numpy as np
-
 from estimator_fmu.estimators import ESTIMATOR_MODES, make_vehicle_estimator
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
@@ -21,7 +19,7 @@ from plant_model.parameters import (
     system_mapping_from_parameters,
     system_parameter_specs,
 )
-from plant_model.per_vehicle import sample_vehicle, vehicle_view
+from plant_model.per_vehicle import sample_vehicle, vehicle_alone
 
 ESTIMATOR_PARAMETERS = ("A", "B1", "B2", "C", "K", "x0", "w0", "W_x", "W_w", "V_y")
 MEASUREMENTS = ("y", "x", "w")
@@ -77,9 +75,7 @@ class AuvVehicleEstimator(Fmi2Slave):
             If the parameters do not make a valid vehicle or the estimator does not exist.
         """
         mp = system_mapping_from_parameters(self.par, ESTIMATOR_PARAMETERS)
-        l0 = int(self.config["dims"]["l"])
-        view = vehicle_view(**mp, F=np.zeros((l0, l0)), H=np.zeros((mp["C"].shape[0], l0)),
-                            noise_convention=self.par["noise_convention"])
+        view = vehicle_alone(mp, int(self.config["dims"]["l"]), self.par["noise_convention"])
         model = sample_vehicle(view, float(self.par["h"]), 1)
         self.estimator = make_vehicle_estimator(view, model, self.par["mode"])
         self._mvec = self._in[:view.p + model.ns]

@@ -30,33 +30,6 @@ def _md_bytes(fmu: Path) -> int:
         return z.getinfo("modelDescription.xml").file_size
 
 
-def _monolithic(sc: Any, loop: Any, seed: int, steps: int) -> tuple[dict[str, np.ndarray], float]:
-    """The distributed loop as one sparse recursion; its traces and loop seconds."""
-    from scipy.sparse import csr_matrix
-
-    from plant_model.per_vehicle import sample_vehicle, vehicle_views
-    from plant_model.plant import NoiseStream
-
-    from .analysis.per_vehicle import distributed_initial_state
-
-    views = vehicle_views(sc.fleet)
-    nu, nn = [], []
-    for i, v in enumerate(views, start=1):
-        rows = NoiseStream.all_rows(sample_vehicle(v, sc.h, i), seed, steps)
-        nu.append(rows[:, :v.n + v.r])
-        nn.append(rows[:, v.n + v.r:v.n + v.r + v.p])
-    zeta = np.hstack(nu + nn)
-    Phi, Gam = csr_matrix(loop.Phi), csr_matrix(loop.Gam)
-    Gx, Geta = csr_matrix(loop.Gx), csr_matrix(loop.Geta)
-    X = distributed_initial_state(sc, loop)
-    u = np.empty((steps, loop.Gx.shape[0]))
-    t = time.perf_counter()
-    for k in range(steps):
-        u[k] = Gx @ X + Geta @ zeta[k]
-        X = Phi @ X + Gam @ zeta[k]
-    return {"u": u}, time.perf_counter() - t
-
-
 def benchmark_per_vehicle(N: int, *, architecture: str = "distributed", T: float = 20.0,
                           mode: str = "kalman", tracking: str = "regulator",
                           seed: int = 0, predict: bool = True) -> dict[str, Any]:
@@ -123,7 +96,10 @@ def benchmark_per_vehicle(N: int, *, architecture: str = "distributed", T: float
         t = time.perf_counter()
         loop = distributed_loop_of(sc, mode, tracking, sc.distributed)
         out["loop_assembly_s"] = time.perf_counter() - t
-        ref, loop_s = _monolithic(sc, loop, seed, sc.steps)
+        from .analysis.per_vehicle import distributed_reference
+        timing: dict[str, float] = {}
+        ref = distributed_reference(sc, loop, seed, sc.steps, timing)
+        loop_s = timing["loop_s"]
         out["monolithic_us_per_step"] = loop_s / sc.steps * 1e6
         out["ratio"] = res.loop_s / loop_s
         out["max_abs_difference_u"] = float(np.max(np.abs(ref["u"] - res.traces["u"])))

@@ -19,7 +19,7 @@ from plant_model.linalg_checks import ModelError
 
 from .analysis.distributed_verdict import predict_cost
 from .analysis.per_vehicle import distributed_initial_state, distributed_loop_of
-from .analysis.prediction import Prediction, predict_stationary
+from .analysis.prediction import Prediction, method_predictions
 from .analysis.summary import stats_window
 from .cosim.build import build_fmus
 from .cosim.master import RunResult, run_system
@@ -153,19 +153,11 @@ class PerVehicleRuns:
             If the estimator or the design does not exist or the loop is unstable (named).
         """
         sc = self.sc
-        if architecture == "centralized":
+        if architecture == "centralized":            # the stacked loop's predictions
             check_centralized(sc)
             model = discretize(sc.system, sc.h)
-            est = make_estimator(sc.system, model, mode)
-            Ks = tracking_law(sc.system, tracking).Ks
-            pred0 = predict_stationary(sc.system, model, est, Ks)
-            k0 = stats_window(sc.T, sc.h, pred0.settling_time)
-            if pred0.cost_rate is None:
-                return pred0, pred0, None, k0
-            win = (k0, sc.steps)
-            return (pred0, predict_stationary(sc.system, model, est, Ks, window=win),
-                    predict_stationary(sc.system, model, est, Ks, window=win, transient=True),
-                    k0)
+            return method_predictions(sc, model, make_estimator(sc.system, model, mode),
+                                      tracking_law(sc.system, tracking).Ks)
         loop = distributed_loop_of(sc, mode, tracking, sc.distributed)
         pred0 = predict_cost(loop)
         k0 = stats_window(sc.T, sc.h, pred0.settling_time)

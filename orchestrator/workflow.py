@@ -16,12 +16,11 @@ from plant_model.linalg_checks import ModelError
 
 from .analysis.formation import formation_summary
 from .analysis.full_information import fleet_bound, fleet_comparison
-from .analysis.prediction import predict_stationary
+from .analysis.prediction import method_predictions
 from .analysis.summary import (
     method_summary,
     run_stats,
     stationarity_note,
-    stats_window,
     versions,
 )
 from .atomic import write_text_atomically
@@ -343,9 +342,6 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
     # the stacked design only where a stacked or centralized law needs it (a distributed
     # fleet of 100 vehicles designs per vehicle, in its controller FMUs)
     stacked = {t for _, _, t, a in methods_run if pv is None or a == "centralized"}
-    if pv is not None and any(a == "centralized" for *_, a in methods_run):
-        from .per_vehicle_run import check_centralized
-        check_centralized(sc)                   # before the stacked design is tried
     model = discretize(sc.system, sc.h) if stacked else None
     laws = {t: tracking_law(sc.system, t) for t in stacked}
     design = next(iter(laws.values())).design if laws else None
@@ -363,6 +359,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
     formation = (None if layout is None else
                  (layout.position_index, layout.offsets, layout.edges, sc.h))
     skipped: list[ModelError] = []
+    bounds: dict[int, float | None] = {}
     notes: set[str] = set()
     for name, mode, tracking, arch in methods_run:
         Ks = laws[tracking].Ks if tracking in laws else None
@@ -380,13 +377,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
             log(f"{name:>9s}: skipped: {exc}")
             continue
         if pv is None:
-            pred0 = predict_stationary(sc.system, model, est, Ks)
-            k0 = stats_window(sc.T, sc.h, pred0.settling_time)
-            pred = pred0
-            if pred0.cost_rate is not None and sc.fleet is not None:
-                pred = predict_stationary(sc.system, model, est, Ks, window=(k0, sc.steps))
-            pred_window = (None if pred0.cost_rate is None else predict_stationary(
-                sc.system, model, est, Ks, window=(k0, sc.steps), transient=True))
+            pred0, pred, pred_window, k0 = method_predictions(sc, model, est, Ks)
         window = (k0 * sc.h, sc.T)
         note = stationarity_note(sc.T, k0 * sc.h, pred0.settling_time)
         if note is not None:
@@ -437,7 +428,9 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         #: the sampled closed loop's stability margin: largest |eigenvalue| of its error part
         methods[name]["spectral_radius"] = pred0.spectral_radius
         if per_seed and sc.fleet is not None:
-            methods[name]["cost_rate_full_information"] = fleet_bound(sc, k0)
+            if k0 not in bounds:                # one per window, not one per method
+                bounds[k0] = fleet_bound(sc, k0)
+            methods[name]["cost_rate_full_information"] = bounds[k0]
         methods[name]["seeds_completed"] = len(per_seed)
         if stop:
             break

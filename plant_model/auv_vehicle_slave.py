@@ -21,7 +21,7 @@ from plant_model.parameters import (
     system_mapping_from_parameters,
     system_parameter_specs,
 )
-from plant_model.per_vehicle import sample_vehicle, vehicle_view
+from plant_model.per_vehicle import sample_vehicle, vehicle_alone
 from plant_model.plant import Plant
 
 VEHICLE_PARAMETERS = ("A", "B1", "B2", "C", "K", "x0", "w0", "W_x", "W_w", "V_y", "V_ybar")
@@ -78,9 +78,7 @@ class AuvVehicle(Fmi2Slave):
             If the parameters do not make a valid vehicle or h is not positive.
         """
         mp = system_mapping_from_parameters(self.par, VEHICLE_PARAMETERS)
-        l0 = int(self.config["dims"]["l"])
-        view = vehicle_view(**mp, F=np.zeros((l0, l0)), H=np.zeros((mp["C"].shape[0], l0)),
-                            noise_convention=self.par["noise_convention"])
+        view = vehicle_alone(mp, int(self.config["dims"]["l"]), self.par["noise_convention"])
         self.model = sample_vehicle(view, float(self.par["h"]), int(self.par["vehicle"]))
         self._buf = np.empty(3 * view.p + self.model.ns)      # [y, ybar, x, w, e]
         self.plant = Plant(self.model, np.concatenate([view.x0, view.w0]),

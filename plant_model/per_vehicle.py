@@ -37,8 +37,8 @@ from .discretization import DiscreteModel, check_step, van_loan, zoh
 from .linalg_checks import ModelError, as_matrix, as_vector
 from .system import LinearSystem
 
-__all__ = ["vehicle_views", "vehicle_view", "sample_vehicle", "sample_leader",
-           "leader_system"]
+__all__ = ["vehicle_views", "vehicle_view", "vehicle_alone", "sample_vehicle",
+           "sample_leader", "leader_system"]
 
 
 def vehicle_view(A: Any, B1: Any, B2: Any, C: Any, K: Any, F: Any, H: Any,
@@ -108,7 +108,9 @@ def vehicle_views(spec: Mapping[str, Any]) -> list[LinearSystem]:
     from .fleet import disturbance_of, fleet_system, fleet_vehicles
 
     models = fleet_vehicles(spec)
-    stacked = fleet_system(spec)
+    # a resolved spec (plant_model.fleet.resolve_fleet_spec) holds every x0; else the
+    # stacked system derives them (leader state plus offset)
+    stacked = None if all("x0" in v for v in spec["vehicles"]) else fleet_system(spec)
     leader = spec["leader"]
     F = as_matrix("leader F", leader["F"])
     l0 = F.shape[0]
@@ -118,11 +120,36 @@ def vehicle_views(spec: Mapping[str, Any]) -> list[LinearSystem]:
         K, W_w, w0 = disturbance_of(v, mdl.r, f"vehicle {i + 1}")
         views.append(vehicle_view(
             mdl.A, mdl.B1, mdl.B2, mdl.C, K, F, leader["H"], v.get("offset"),
-            x0=stacked.x0[i * p:(i + 1) * p], w0=w0, z0=leader.get("z0", np.zeros(l0)),
+            x0=v["x0"] if stacked is None else stacked.x0[i * p:(i + 1) * p], w0=w0,
+            z0=leader.get("z0", np.zeros(l0)),
             Q=v.get("Q", 1.0), R=v.get("R", 1.0), W_x=v.get("W_x", 0.0), W_w=W_w,
             W_z=leader.get("W_z", 0.0), V_y=v.get("V_y", 0.0), V_ybar=v.get("V_ybar", 0.0),
             noise_convention=spec.get("noise_convention", "intensity")))
     return views
+
+
+def vehicle_alone(mapping: dict[str, Any], l: int,  # noqa: E741 - the leader's size
+                  noise_convention: str = "intensity") -> LinearSystem:
+    """A vehicle's :func:`vehicle_view` from its own matrices only (an FMU's parameters):
+    the leader part is zero, unread by :func:`sample_vehicle` and the vehicle's estimator.
+
+    Parameters
+    ----------
+    mapping : dict[str, Any]
+        A, B1, B2, C, K and any of x0, w0, W_x, W_w, V_y, V_ybar.
+    l : int
+        The leader's state size.
+    noise_convention : str, optional
+        ``intensity`` or ``per_sample``.
+
+    Returns
+    -------
+    LinearSystem
+        The validated view.
+    """
+    s = np.asarray(mapping["C"]).shape[0]
+    return vehicle_view(**mapping, F=np.zeros((l, l)), H=np.zeros((s, l)),
+                        noise_convention=noise_convention)
 
 
 def _physics(system: LinearSystem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -16,6 +16,7 @@ FMUs must reproduce it to rounding.
 """
 from __future__ import annotations
 
+import time
 from typing import Any
 
 import numpy as np
@@ -27,7 +28,8 @@ from plant_model.plant import NoiseStream
 
 from .distributed import DistributedLoop, agents_from_fleet_spec, distributed_closed_loop
 
-__all__ = ["distributed_loop_of", "distributed_initial_state", "distributed_reference"]
+__all__ = ["distributed_loop_of", "distributed_initial_state", "distributed_noise",
+           "distributed_reference"]
 
 
 def distributed_loop_of(sc: Any, mode: str, tracking: str, settings: Any) -> DistributedLoop:
@@ -86,9 +88,39 @@ def distributed_initial_state(sc: Any, loop: DistributedLoop) -> np.ndarray:
                               [eta0] * len(views))
 
 
-def distributed_reference(sc: Any, loop: DistributedLoop, seed: int,
-                          steps: int) -> dict[str, np.ndarray]:
+def distributed_noise(sc: Any, seed: int, steps: int) -> np.ndarray:
+    """zeta[k] = [nu_1..N; n_1..N] of the loop: each vehicle's process and sensor noise,
+    drawn from its own stream ([seed, i], :func:`plant_model.per_vehicle.sample_vehicle`).
+
+    Parameters
+    ----------
+    sc : Scenario
+        The fleet scenario.
+    seed : int
+        The noise seed.
+    steps : int
+        Number of samples.
+
+    Returns
+    -------
+    np.ndarray
+        (steps, sum of the vehicles' (n + r) + sum of their s).
+    """
+    nu, nn = [], []
+    for i, view in enumerate(vehicle_views(sc.fleet), start=1):
+        rows = NoiseStream.all_rows(sample_vehicle(view, sc.h, i), seed, steps)
+        ns = view.n + view.r
+        nu.append(rows[:, :ns])
+        nn.append(rows[:, ns:ns + view.p])
+    return np.hstack(nu + nn)
+
+
+def distributed_reference(sc: Any, loop: DistributedLoop, seed: int, steps: int,
+                          timing: dict[str, float] | None = None) -> dict[str, np.ndarray]:
     """The loop simulated as one recursion with the FMUs' noise: traces x, u, e, eta.
+
+    The step matrices are sparse (each vehicle hears a few others), so this is also the
+    monolithic loop the benchmark times.
 
     Parameters
     ----------
@@ -100,6 +132,8 @@ def distributed_reference(sc: Any, loop: DistributedLoop, seed: int,
         The noise seed (vehicle i draws from [seed, i]).
     steps : int
         Number of samples.
+    timing : dict or None, optional
+        Receives ``loop_s``, the seconds of the recursion.
 
     Returns
     -------
@@ -107,20 +141,19 @@ def distributed_reference(sc: Any, loop: DistributedLoop, seed: int,
         ``x`` (steps, N p), ``u`` (steps, N q), ``e`` (steps, N s) and ``eta`` (steps, N l),
         in the stacked layout of :func:`orchestrator.cosim.per_vehicle.stacked_traces`.
     """
-    views = vehicle_views(sc.fleet)
-    nu, nn = [], []
-    for i, view in enumerate(views, start=1):
-        rows = NoiseStream.all_rows(sample_vehicle(view, sc.h, i), seed, steps)
-        ns = view.n + view.r
-        nu.append(rows[:, :ns])
-        nn.append(rows[:, ns:ns + view.p])
-    zeta = np.hstack(nu + nn)
+    from scipy.sparse import csr_matrix
+
+    zeta = distributed_noise(sc, seed, steps)
+    Phi, Gam = csr_matrix(loop.Phi), csr_matrix(loop.Gam)
     X = distributed_initial_state(sc, loop)
     Xs = np.empty((steps, X.size))
+    t = time.perf_counter()
     for k in range(steps):
         Xs[k] = X
-        X = loop.Phi @ X + loop.Gam @ zeta[k]
-    p = views[0].n
+        X = Phi @ X + Gam @ zeta[k]
+    if timing is not None:
+        timing["loop_s"] = time.perf_counter() - t
+    p = loop.laws[0].Kx.shape[1]
     x = np.hstack([Xs[:, sl][:, :p] for sl in loop.index["s"]])
     eta = np.hstack([Xs[:, sl] for sl in loop.index["eta"]])
     return {"x": x, "u": Xs @ loop.Gx.T + zeta @ loop.Geta.T, "e": Xs @ loop.Ce.T,

@@ -26,6 +26,7 @@ a run of that length computes, which short runs can be compared with.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.linalg import block_diag, solve_discrete_lyapunov
@@ -34,8 +35,8 @@ from estimator_fmu.estimators import LinearEstimator
 from plant_model.discretization import DiscreteModel
 from plant_model.system import LinearSystem
 
-__all__ = ["Prediction", "closed_loop", "deterministic_states", "predict_stationary",
-           "window_average_covariance"]
+__all__ = ["Prediction", "closed_loop", "deterministic_states", "method_predictions",
+           "predict_stationary", "window_average_covariance"]
 
 
 @dataclass(frozen=True)
@@ -256,3 +257,40 @@ def predict_stationary(system: LinearSystem, model: DiscreteModel, est: LinearEs
         cost_rate=cost, spectral_radius=rho, settling_time=float(5 * tau),
         rms_e_mean=rms_e_mean,
     )
+
+
+def method_predictions(sc: Any, model: DiscreteModel, est: LinearEstimator, Ks: np.ndarray
+                       ) -> tuple[Prediction, Prediction, Prediction | None, int]:
+    """The predictions a run's summary gives for one method of the stacked law.
+
+    (stationary, over the statistics window with the mean motion (fleets; the stationary
+    one otherwise), the window average from the known start, k0), k0 the first sample of
+    the window (:func:`orchestrator.analysis.summary.stats_window`). Without a stationary
+    prediction the last two are the stationary one and None.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario (system, T, h, steps, fleet).
+    model : DiscreteModel
+        Its sampled model.
+    est : LinearEstimator
+        The estimator.
+    Ks : np.ndarray
+        The law's gain, u = -Ks [x; w; z].
+
+    Returns
+    -------
+    tuple[Prediction, Prediction, Prediction | None, int]
+        As above.
+    """
+    from .summary import stats_window
+    pred0 = predict_stationary(sc.system, model, est, Ks)
+    k0 = stats_window(sc.T, sc.h, pred0.settling_time)
+    if pred0.cost_rate is None:
+        return pred0, pred0, None, k0
+    win = (k0, sc.steps)
+    pred = (pred0 if sc.fleet is None
+            else predict_stationary(sc.system, model, est, Ks, window=win))
+    return (pred0, pred,
+            predict_stationary(sc.system, model, est, Ks, window=win, transient=True), k0)

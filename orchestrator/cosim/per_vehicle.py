@@ -39,7 +39,7 @@ from controller_fmu.vehicle_law import (
     observer_start,
 )
 from plant_model.fleet import fleet_graph
-from plant_model.per_vehicle import vehicle_views
+from plant_model.per_vehicle import leader_system, vehicle_views
 from plant_model.system import LinearSystem
 
 from .build import FMU_KINDS, interface_of
@@ -94,12 +94,9 @@ def fleet_slots(spec: Mapping[str, Any]) -> FleetSlots:
 
 def _leader(spec: Mapping[str, Any]) -> dict[str, np.ndarray]:
     ld = spec["leader"]
-    F = np.asarray(ld["F"], dtype=float)
-    l0 = F.shape[0]
-    W = ld.get("W_z", 0.0)
-    return {"F": F, "H": np.asarray(ld["H"], dtype=float),
-            "z0": np.asarray(ld.get("z0", np.zeros(l0)), dtype=float),
-            "W_z": float(W) * np.eye(l0) if np.ndim(W) == 0 else np.asarray(W, dtype=float)}
+    l0 = np.asarray(ld["F"]).shape[0]
+    F, z0, W = leader_system(ld["F"], ld.get("z0", np.zeros(l0)), ld.get("W_z", 0.0))
+    return {"F": F, "H": np.asarray(ld["H"], dtype=float), "z0": z0, "W_z": W}
 
 
 def _mapping(view: LinearSystem, leader: Mapping[str, np.ndarray]) -> dict[str, Any]:
