@@ -11,15 +11,19 @@ the co-simulation's fixed step h, all times in seconds:
   message from the link's own generator, seeded [seed, 1_000_000 + key] (apart from every
   vehicle's noise stream, [seed, i]);
 - a message that is not lost arrives ``latency`` later, at the first step at or after
-  t_send + latency (ceil((t_send + latency) / h)); at most ceil(latency / period) + 1 are
-  in flight at once;
-- the receiver keeps the newest message that has arrived (its value and send time). It
-  either holds that value, or propagates it to the current time with the sender's model,
-  x(t) = Phi^(k - k_send) x(t_send) (:func:`propagate`). Both are fixed-gain receivers.
+  t_send + latency and at the earliest the next step (:func:`arrival_step`: the co-simulation
+  couples at h, so information sent at t_k is used from t_(k+1) on and no receiver feeds
+  through); at most ceil(latency / period) + 1 are in flight at once;
+- the receiver keeps the newest message that has arrived, ``rx``, with its send time. It
+  either holds that value (M = I), or propagates it with the sender's model, rx <- M rx at
+  every step, so that rx(t_k) = M^(k - k_send) rx(t_send) (:func:`propagate`; a message
+  [x; u] with M = [[Phi, Gam], [0, I]] carries the sender's estimate and its control). Both
+  are fixed-gain receivers. Before the first arrival it holds the value exchanged before
+  launch (sent at t = 0).
 
-The age of information is t - t_send of the newest arrived message (infinite before the
-first). :func:`resolve_links` gives every link of a fleet its timing from a ``[network]``
-table (fleet-wide defaults, per-link overrides, TDMA), :func:`check_schedule` validates a
+The age of information is t - t_send of the message the receiver holds. :func:`resolve_links`
+gives every link of a fleet its timing from a ``[network]`` table (fleet-wide defaults,
+per-link overrides, TDMA), :func:`check_schedule` validates a
 switching topology. This module is the mathematics only: the FMU and the predictions build
 on it.
 """
@@ -35,8 +39,8 @@ import numpy as np
 
 from .linalg_checks import ModelError
 
-__all__ = ["LinkTiming", "LinkChannel", "check_link", "check_schedule", "propagate",
-           "resolve_links", "tdma_offsets"]
+__all__ = ["LinkTiming", "LinkChannel", "arrival_step", "check_link", "check_schedule",
+           "link_key", "propagate", "resolve_links", "send_steps", "tdma_offsets"]
 
 #: added to the seed key of a link's generator (vehicles use 1..N, the leader 0)
 LINK_KEY_BASE = 1_000_000
@@ -142,75 +146,154 @@ def propagate(value: np.ndarray, steps: int, Phi: np.ndarray) -> np.ndarray:
     return np.linalg.matrix_power(np.asarray(Phi, dtype=float), int(steps)) @ value
 
 
-class LinkChannel:
-    """One directed link, stepped with the co-simulation (module docstring)."""
+def link_key(sender: int | str, receiver: int) -> int:
+    """The key of a link's loss stream [seed, LINK_KEY_BASE + key]: 10000 j + i (leader j = 0).
 
-    def __init__(self, timing: LinkTiming, h: float, seed: int, key: int, size: int):
-        self.timing, self.h, self.size = timing, float(h), int(size)
+    Parameters
+    ----------
+    sender : int or str
+        Vehicle number, or "leader".
+    receiver : int
+        Vehicle number (1..9999).
+
+    Returns
+    -------
+    int
+        The key.
+    """
+    j = 0 if sender == "leader" else int(sender)
+    return 10_000 * j + int(receiver)
+
+
+def arrival_step(k_send: int, h: float, latency: float) -> int:
+    """The step at which a message sent at step k_send is heard: ceil((t_send + latency)/h),
+    and at the earliest the next step (information sent at t_k is used from t_(k+1): the
+    co-simulation couples at h, and a receiver's output never feeds through)."""
+    return max(k_send + 1, math.ceil((k_send * h + latency) / h - 1e-9))
+
+
+def send_steps(timing: LinkTiming, h: float, k_end: int) -> list[int]:
+    """The steps k < k_end at which a link transmits: round((offset + m period) / h)."""
+    out, m = [], 0
+    while True:
+        k = round((timing.offset + m * timing.period) / h)
+        if k >= k_end:
+            return out
+        if not out or k > out[-1]:
+            out.append(k)
+        m += 1
+
+
+class LinkChannel:
+    """One directed link stepped with the co-simulation (module docstring).
+
+    State: the message the receiver holds, ``rx`` (its value now: held, or propagated by M
+    every step) with its send step, and the messages in flight (value, send step, arrival
+    step, lost). A message lost on the way is counted as lost at its arrival step (when the
+    receiver would have heard it). Before the first arrival the receiver holds ``rx0``, the
+    value exchanged before launch, sent at t = 0.
+    """
+
+    def __init__(self, timing: LinkTiming, h: float, seed: int, key: int,
+                 rx0: np.ndarray, M: np.ndarray | None = None):
+        self.timing, self.h = timing, float(h)
+        self.rx = np.array(rx0, dtype=float).reshape(-1)
+        self.size = self.rx.size
+        self.M = None if M is None else np.asarray(M, dtype=float)
+        if self.M is not None and self.M.shape != (self.size, self.size):
+            raise ModelError(f"propagation matrix of shape {self.M.shape} for a message of "
+                             f"{self.size} values")
         self.rng = np.random.default_rng([int(seed), LINK_KEY_BASE + int(key)])
         self._first = round(timing.offset / self.h)
         self._every = timing.period / self.h
         self._m = 0                                  # next message number
-        self.in_flight: deque[tuple[int, int, np.ndarray]] = deque()
-        self.held: np.ndarray | None = None
-        self.held_sent: int | None = None
+        #: (arrival step, send step, lost, value in the representation of the current step)
+        self.in_flight: deque[tuple[int, int, bool, np.ndarray]] = deque()
+        self.rx_sent = 0
         self.sent = self.lost = self.delivered = 0
 
     def _next_send(self) -> int:
         return self._first + round(self._m * self._every)
 
-    def step(self, k: int, value: np.ndarray) -> None:
-        """At step k: transmit ``value`` if k is a send step (unless lost), then deliver
-        every message due by k.
+    def advance(self, k: int, value: np.ndarray) -> None:
+        """The transition from step k to k + 1.
+
+        1. if k is a send step: ``value`` (the sender's message at t_k) leaves, lost with
+           probability ``loss`` (one uniform draw of the link's stream per message);
+        2. a message due at k + 1 (:func:`arrival_step`) replaces ``rx`` unless lost;
+        3. with M: ``rx`` and the messages in flight are propagated one step (M x).
 
         Parameters
         ----------
         k : int
             The step (t = k h), visited in increasing order.
         value : np.ndarray
-            What the sender would send now, shape (size,).
+            What the sender sends at t_k, shape (size,).
         """
         while self._next_send() < k:                 # steps skipped: their messages never left
             self._m += 1
         if self._next_send() == k:
             self._m += 1
             self.sent += 1
-            if self.rng.random() < self.timing.loss:
+            lost = bool(self.rng.random() < self.timing.loss)
+            self.in_flight.append((arrival_step(k, self.h, self.timing.latency), k, lost,
+                                   np.array(value, dtype=float).reshape(self.size)))
+        while self.in_flight and self.in_flight[0][0] <= k + 1:
+            _, k_sent, lost, v = self.in_flight.popleft()
+            if lost:
                 self.lost += 1
             else:
-                t_send = k * self.h
-                arrive = math.ceil((t_send + self.timing.latency) / self.h - 1e-9)
-                self.in_flight.append((arrive, k, np.array(value, dtype=float)))
-        while self.in_flight and self.in_flight[0][0] <= k:
-            _, k_sent, v = self.in_flight.popleft()
-            self.held, self.held_sent = v, k_sent
-            self.delivered += 1
+                self.rx, self.rx_sent = v.copy(), k_sent
+                self.delivered += 1
+        if self.M is not None:
+            self.rx = self.M @ self.rx
+            self.in_flight = deque((a, s, lo, self.M @ v) for a, s, lo, v in self.in_flight)
 
     def age(self, k: int) -> float:
-        """t - t_send of the newest message arrived by step k, s (inf before the first)."""
-        return math.inf if self.held_sent is None else (k - self.held_sent) * self.h
+        """t_k - t_send of the message the receiver holds at step k, s."""
+        return (k - self.rx_sent) * self.h
 
-    def received(self, k: int, Phi: np.ndarray | None = None) -> np.ndarray | None:
-        """What the receiver uses at step k: the held value, or with ``Phi`` the held value
-        propagated to k (None before the first message).
+    def get_state(self) -> np.ndarray:
+        """Everything that evolves, as one flat array (FMU state)."""
+        head = [self._m, self.rx_sent, self.sent, self.lost, self.delivered,
+                len(self.in_flight)]
+        body = [np.r_[a, s, float(lo), v] for a, s, lo, v in self.in_flight]
+        return np.concatenate([np.asarray(head, float), self.rx, *body, _rng_state(self.rng)])
 
-        Parameters
-        ----------
-        k : int
-            The step.
-        Phi : np.ndarray or None, optional
-            The sender's one-step map (propagating receiver).
+    def set_state(self, state: np.ndarray) -> None:
+        """Restore :meth:`get_state`."""
+        s = np.asarray(state, dtype=float)
+        self._m, self.rx_sent, self.sent, self.lost, self.delivered, n = (
+            int(x) for x in s[:6])
+        pos = 6
+        self.rx = s[pos:pos + self.size].copy()
+        pos += self.size
+        self.in_flight = deque()
+        for _ in range(n):
+            a, k_s, lo = s[pos:pos + 3]
+            self.in_flight.append((int(a), int(k_s), bool(lo), s[pos + 3:pos + 3 + self.size]
+                                   .copy()))
+            pos += 3 + self.size
+        _set_rng_state(self.rng, s[pos:])
 
-        Returns
-        -------
-        np.ndarray or None
-            The value.
-        """
-        if self.held is None:
-            return None
-        if Phi is None:
-            return self.held
-        return propagate(self.held, k - self.held_sent, Phi)
+
+def _rng_state(rng: np.random.Generator) -> np.ndarray:
+    """The PCG64 state as floats (4 x 32-bit halves of state and inc, has_uint32, uinteger)."""
+    st = rng.bit_generator.state
+    words = []
+    for key in ("state", "inc"):
+        v = int(st["state"][key])
+        words += [(v >> (32 * i)) & 0xFFFFFFFF for i in range(4)]
+    return np.asarray(words + [st["has_uint32"], st["uinteger"]], dtype=float)
+
+
+def _set_rng_state(rng: np.random.Generator, words: np.ndarray) -> None:
+    w = [int(x) for x in words]
+    st = rng.bit_generator.state
+    st["state"] = {"state": sum(w[i] << (32 * i) for i in range(4)),
+                   "inc": sum(w[4 + i] << (32 * i) for i in range(4))}
+    st["has_uint32"], st["uinteger"] = w[8], w[9]
+    rng.bit_generator.state = st
 
 
 # ------------------------------------------------------------------------------------

@@ -7,49 +7,65 @@ import numpy as np
 import pytest
 
 from plant_model.linalg_checks import ModelError
-from plant_model.network import LinkChannel, check_link, propagate, tdma_offsets
+from plant_model.network import (
+    LinkChannel,
+    arrival_step,
+    check_link,
+    link_key,
+    propagate,
+    send_steps,
+    tdma_offsets,
+)
 
 
 def _run(ch: LinkChannel, steps: int, size: int = 2):
-    ages, held = [], []
+    """Step a link whose sender sends k at step k; the receiver's value and age per step."""
+    ages, rx = [], []
     for k in range(steps):
-        ch.step(k, np.full(size, float(k)))
         ages.append(ch.age(k))
-        held.append(None if ch.held is None else ch.held[0])
-    return ages, held
+        rx.append(ch.rx[0])
+        ch.advance(k, np.full(size, float(k)))
+    return ages, rx
+
+
+def _link(latency, period, loss, h, offset=0.0, key=1, size=2, M=None, seed=0):
+    return LinkChannel(check_link("link 1 -> 2", latency, period, loss, offset), h, seed=seed,
+                       key=key, rx0=np.full(size, -1.0), M=M)
 
 
 def test_period_and_latency_set_what_arrives_when():
     """period 2 s, latency 1 s, h = 0.01 s, no loss: messages leave at 0, 2, 4 s and arrive
-    at 1, 3, 5 s; the age of information saws between 1 s and 3 s."""
-    ch = LinkChannel(check_link("link 1 -> 2", 1.0, 2.0, 0.0), 0.01, seed=0, key=1, size=2)
-    ages, held = _run(ch, 650)
-    assert math.isinf(ages[99]) and held[99] is None          # nothing arrived before 1 s
-    assert held[100] == 0.0 and ages[100] == pytest.approx(1.0)
-    assert held[299] == 0.0 and ages[299] == pytest.approx(2.99)
-    assert held[300] == 200.0 and ages[300] == pytest.approx(1.0)
-    assert held[500] == 400.0
-    finite = [a for a in ages if math.isfinite(a)]
-    assert min(finite) == pytest.approx(1.0) and max(finite) == pytest.approx(2.99)
+    at 1, 3, 5 s; before 1 s the receiver holds the launch value; the age saws 1 s .. 3 s."""
+    ch = _link(1.0, 2.0, 0.0, 0.01)
+    ages, rx = _run(ch, 650)
+    assert rx[99] == -1.0 and ages[99] == pytest.approx(0.99)   # launch value, sent at t = 0
+    assert rx[100] == 0.0 and ages[100] == pytest.approx(1.0)
+    assert rx[299] == 0.0 and ages[299] == pytest.approx(2.99)
+    assert rx[300] == 200.0 and ages[300] == pytest.approx(1.0)
+    assert rx[500] == 400.0
+    assert min(ages[100:]) == pytest.approx(1.0) and max(ages[100:]) == pytest.approx(2.99)
     assert (ch.sent, ch.lost, ch.delivered) == (4, 0, 3)     # sent at 0, 2, 4, 6 s
 
 
 def test_a_long_latency_keeps_at_most_ceil_latency_over_period_plus_one_in_flight():
     timing = check_link("link 3 -> 4", 5.0, 2.0, 0.0)
     assert timing.max_in_flight == 4
-    ch = LinkChannel(timing, 0.05, seed=0, key=2, size=1)
+    ch = LinkChannel(timing, 0.05, seed=0, key=2, rx0=np.zeros(1))
     most = 0
     for k in range(2000):
-        ch.step(k, np.array([float(k)]))
+        ch.advance(k, np.array([float(k)]))
         most = max(most, len(ch.in_flight))
     assert most <= timing.max_in_flight and most == 3      # 5 s / 2 s: three on the way
-    assert ch.age(1999) >= 5.0
+    assert ch.age(2000) >= 5.0
 
 
-def test_zero_latency_delivers_in_the_same_step():
-    ch = LinkChannel(check_link("leader -> 1", 0.0, 0.5, 0.0), 0.1, seed=0, key=0, size=1)
-    ages, held = _run(ch, 12, size=1)
-    assert held[0] == 0.0 and ages[0] == 0.0 and held[5] == 5.0 and ages[4] == pytest.approx(0.4)
+def test_zero_latency_is_heard_at_the_next_step():
+    """No receiver feeds through: latency 0 means the message of t_k is used at t_(k+1)."""
+    ch = _link(0.0, 0.5, 0.0, 0.1, size=1)
+    ages, rx = _run(ch, 12, size=1)
+    assert rx[0] == -1.0 and rx[1] == 0.0 and rx[5] == 0.0 and rx[6] == 5.0
+    assert ages[1] == pytest.approx(0.1) and ages[5] == pytest.approx(0.5)
+    assert arrival_step(7, 0.1, 0.0) == 8 and arrival_step(7, 0.1, 0.25) == 10
 
 
 def test_losses_are_independent_draws_of_the_links_own_stream():
@@ -57,11 +73,11 @@ def test_losses_are_independent_draws_of_the_links_own_stream():
     timing = check_link("link 1 -> 2", 0.0, 0.01, p)
 
     def lost(seed: int, key: int) -> np.ndarray:
-        ch = LinkChannel(timing, 0.01, seed=seed, key=key, size=1)
+        ch = LinkChannel(timing, 0.01, seed=seed, key=key, rx0=np.zeros(1))
         out = []
         for k in range(n):
             before = ch.lost
-            ch.step(k, np.zeros(1))
+            ch.advance(k, np.zeros(1))
             out.append(ch.lost > before)
         return np.array(out)
 
@@ -72,28 +88,50 @@ def test_losses_are_independent_draws_of_the_links_own_stream():
     assert np.array_equal(a, lost(7, 1))                     # the seed fixes every draw
     assert not np.array_equal(a, lost(7, 2))                 # another link, another stream
     assert not np.array_equal(a, lost(8, 1))
+    assert link_key("leader", 3) == 3 and link_key(2, 3) == 20_003
 
 
 def test_tdma_gives_each_sender_its_slot():
     offsets = tdma_offsets([1, 2, 3, 4], 2.0)
     assert offsets == {1: 0.0, 2: 0.5, 3: 1.0, 4: 1.5}
-    ch = LinkChannel(check_link("link 3 -> 4", 0.0, 2.0, 0.0, offsets[3]), 0.01, 0, 3, 1)
-    _, held = _run(ch, 400, size=1)
-    assert held[99] is None and held[100] == 100.0 and held[300] == 300.0
+    ch = _link(0.0, 2.0, 0.0, 0.01, offset=offsets[3], size=1)
+    _, rx = _run(ch, 400, size=1)
+    assert rx[100] == -1.0 and rx[101] == 100.0 and rx[301] == 300.0
+    assert send_steps(ch.timing, 0.01, 401) == [100, 300]
 
 
 def test_the_propagating_receiver_carries_the_message_forward():
     Phi = np.array([[1.0, 0.1], [0.0, 1.0]])                 # position and velocity, h = 0.1
-    ch = LinkChannel(check_link("link 1 -> 2", 0.3, 1.0, 0.0), 0.1, seed=0, key=1, size=2)
+    ch = LinkChannel(check_link("link 1 -> 2", 0.3, 1.0, 0.0), 0.1, seed=0, key=1,
+                     rx0=np.array([0.0, 2.0]), M=Phi)
     truth = np.array([0.0, 2.0])
-    for k in range(8):
-        ch.step(k, truth)
+    for k in range(25):
+        # the sender's model is exact here: the propagated message is the truth, always
+        assert np.allclose(ch.rx, truth, atol=1e-12)
         if k >= 3:
-            # held: the state at its send time (the message of t = 0, the next leaves at 1 s)
-            assert np.allclose(ch.received(k), [0.0, 2.0])
-            assert np.allclose(ch.received(k, Phi), propagate(ch.held, k - ch.held_sent, Phi))
+            assert np.allclose(ch.rx, propagate(truth_at(ch.rx_sent, Phi), k - ch.rx_sent, Phi))
+        ch.advance(k, truth)
         truth = Phi @ truth
-    assert np.allclose(ch.received(7, Phi), np.linalg.matrix_power(Phi, 7) @ [0.0, 2.0])
+    assert ch.rx_sent == 20 and ch.age(25) == pytest.approx(0.5)  # sent at 2.0 s, heard at 2.3 s
+
+
+def truth_at(k: int, Phi: np.ndarray) -> np.ndarray:
+    return np.linalg.matrix_power(Phi, k) @ np.array([0.0, 2.0])
+
+
+def test_state_round_trip_replays_the_same_future():
+    ch = _link(1.0, 0.5, 0.3, 0.1, size=2, M=np.array([[1.0, 0.1], [0.0, 1.0]]))
+    for k in range(17):
+        ch.advance(k, np.array([k, -k], float))
+    saved = ch.get_state()
+    twin = _link(1.0, 0.5, 0.3, 0.1, size=2, M=np.array([[1.0, 0.1], [0.0, 1.0]]), seed=5)
+    twin.set_state(saved)
+    for k in range(17, 80):
+        ch.advance(k, np.array([k, -k], float))
+        twin.advance(k, np.array([k, -k], float))
+        assert np.array_equal(ch.rx, twin.rx) and ch.rx_sent == twin.rx_sent
+    assert (ch.sent, ch.lost, ch.delivered) == (twin.sent, twin.lost, twin.delivered)
+    assert ch.lost > 0
 
 
 @pytest.mark.parametrize("args, fragment", [
