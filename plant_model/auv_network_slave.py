@@ -1,0 +1,187 @@
+"""FMI 2.0 co-simulation slave of one vehicle's acoustic modem inbox (plant_model.inbox).
+
+One FMU per receiving vehicle: its S neighbour links ``link[1..S]`` (messages made of the
+build configuration's ``fields``, e.g. eta and eps) and, if ``leader_size`` > 0, its leader
+link ``leader`` (message z). Inputs ``<link>.tx.<field>``: what the sender sends at t_k;
+outputs ``<link>.rx.<field>``: what the receiver uses at t_k (the newest message that has
+arrived, held or propagated by M, the launch value rx0 before the first arrival), the age
+of information ``<link>.age`` (s) and the counts ``delivered``, ``lost``, ``in_flight``.
+Timing, loss and the loss streams: plant_model.network. No direct feedthrough: a message
+sent at t_k is heard at t_(k+1) at the earliest. FMU state: the inbox's state (step
+counter, every link's messages and loss stream), plus what the base class saves.
+"""
+from typing import Any
+
+import numpy as np
+
+from fmu_common.interface import ArraySpec
+
+# pythonfmu's loader looks for "class X(Fmi2Slave):"
+from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
+from plant_model.inbox import Inbox, LinkSettings
+from plant_model.linalg_checks import ModelError
+from plant_model.network import check_link
+from plant_model.parameters import sample_period_spec
+
+_STATS = (("age", "age of information: t - t_send of the message held", "s"),
+          ("delivered", "messages that arrived so far", None),
+          ("lost", "messages lost so far (counted when they would have arrived)", None),
+          ("in_flight", "messages sent and not yet arrived", None))
+
+
+def link_layout(config: dict[str, Any]) -> list[tuple[str, str, list[tuple[str, int]], dict]]:
+    """(prefix, label, fields, start values) of every link: link[1..S], then the leader's.
+
+    Parameters
+    ----------
+    config : dict[str, Any]
+        The build configuration (``receiver``, ``slots``, ``fields``, ``leader_size``,
+        ``links``, ``leader``).
+
+    Returns
+    -------
+    list[tuple[str, str, list[tuple[str, int]], dict]]
+        FMI name prefix, the link's name in messages, [(field, size), ...], its start values.
+
+    Raises
+    ------
+    ModelError
+        One line naming the configuration entry that does not fit.
+    """
+    where = "auv_network_config.json"
+    S, nl, i = config["slots"], config["leader_size"], config["receiver"]
+    fields = [(str(f), int(n)) for f, n in config["fields"]] if S else []
+    if any(n < 1 for _, n in fields) or len({f for f, _ in fields}) != len(fields):
+        raise ModelError(f"{where}: fields {config['fields']} need distinct names, sizes >= 1")
+    if S < 0 or nl < 0 or len(config["links"]) != S:
+        raise ModelError(f"{where}: slots = {S}, leader_size = {nl} and "
+                         f"{len(config['links'])} links do not fit")
+    out = [(f"link[{k}]", f"link[{k}] of vehicle {i}", fields, st)
+           for k, st in enumerate(config["links"], start=1)]
+    if nl:
+        if not isinstance(config.get("leader"), dict):
+            raise ModelError(f"{where}: leader_size = {nl} needs the leader link's settings")
+        out.append(("leader", f"leader link of vehicle {i}", [("z", nl)], config["leader"]))
+    return out
+
+
+def _finite(name: str, value: np.ndarray) -> np.ndarray:
+    """``value`` if finite, else a one-line ModelError naming the first bad FMI variable."""
+    bad = np.argwhere(~np.isfinite(value))
+    if bad.size:
+        ix = tuple(int(j) for j in bad[0])
+        raise ModelError(f"{name}[{','.join(str(j + 1) for j in ix)}] = {value[ix]} is not "
+                         "finite")
+    return value
+
+
+class AuvNetwork(Fmi2Slave):
+    """One vehicle's acoustic inbox: neighbour and leader links with latency and loss."""
+
+    config_file = "auv_network_config.json"
+    step_parameter = "h"
+    math_name = "inbox"
+    evolving_name = "s"
+    description = ("Acoustic modem inbox of one AUV: the links it hears (message schedule, "
+                   "latency, independent losses), the receiver holding or propagating the "
+                   "newest message")
+    author = "auv-cosim"
+
+    @staticmethod
+    def interface(config: dict[str, Any]) -> list[ArraySpec]:
+        """Per link: timing, loss, key, M, rx0; tx inputs; rx and statistics outputs.
+
+        Parameters
+        ----------
+        config : dict[str, Any]
+            The build configuration (:func:`link_layout`, ``h``, ``seed``).
+
+        Returns
+        -------
+        list[ArraySpec]
+            Parameters, inputs and outputs of every link, then h and seed.
+        """
+        specs = []
+        for p, label, fields, st in link_layout(config):
+            w = sum(n for _, n in fields)
+            specs += [
+                ArraySpec(f"{p}.latency", (), "parameter", f"{label}: time a message "
+                          "travels", start=st["latency"], unit="s", min=0.0),
+                ArraySpec(f"{p}.period", (), "parameter", f"{label}: one message per period",
+                          start=st["period"], unit="s"),
+                ArraySpec(f"{p}.loss", (), "parameter", f"{label}: probability a message is "
+                          "lost, in [0, 1)", start=st["loss"], min=0.0, max=1.0),
+                ArraySpec(f"{p}.offset", (), "parameter", f"{label}: time of the first "
+                          "transmission, in [0, period)", start=st["offset"], unit="s"),
+                ArraySpec(f"{p}.key", (), "parameter", f"{label}: key of its loss stream "
+                          "[seed, 1000000 + key]", start=st["key"], type="Integer", min=0,
+                          max=2**31 - 1),
+                ArraySpec(f"{p}.M", (w, w), "parameter", f"{label}: the receiver propagates "
+                          "the message it holds, rx <- M rx, every step (I: hold)",
+                          start=st["M"]),
+                ArraySpec(f"{p}.rx0", (w,), "parameter", f"{label}: the message exchanged "
+                          "before launch (sent at t = 0)", start=st["rx0"]),
+            ]
+            specs += [ArraySpec(f"{p}.tx.{f}", (n,), "input", f"{label}: {f} the sender "
+                                "sends at t_k") for f, n in fields]
+            specs += [ArraySpec(f"{p}.rx.{f}", (n,), "output", f"{label}: {f} the receiver "
+                                "uses at t_k") for f, n in fields]
+            specs += [ArraySpec(f"{p}.{s}", (), "output", f"{label}: {d}", unit=u)
+                      for s, d, u in _STATS]
+        return specs + [
+            sample_period_spec(config, "communication step the links are stepped at"),
+            ArraySpec("seed", (), "parameter", "seed of the fleet's noise (each link draws "
+                      "its losses from the generator seeded [seed, 1000000 + key])",
+                      start=config["seed"], type="Integer", min=0, max=2**31 - 1),
+        ]
+
+    def setup(self) -> None:
+        """Validate every link and build the inbox at the experiment's first step.
+
+        Raises
+        ------
+        ModelError
+            One line naming the link or the variable: a bad timing, h not positive, a
+            non-finite entry of M or rx0.
+        """
+        par = self.par
+        h = float(par["h"])
+        if not h > 0.0 or not np.isfinite(h):
+            raise ModelError(f"h = {h} s must be a positive number")
+        links, starts = [], {s.name: 0 for s in self.specs}
+        pos = {"input": 0, "output": 0}
+        for s in self.specs:
+            if s.causality in pos:
+                starts[s.name], pos[s.causality] = pos[s.causality], pos[s.causality] + s.size
+        self._tx, self._blocks = [], []
+        for p, label, fields, _ in link_layout(self.config):
+            w = sum(n for _, n in fields)
+            timing = check_link(label, *(float(par[f"{p}.{v}"])
+                                         for v in ("latency", "period", "loss", "offset")))
+            M = _finite(f"{p}.M", par[f"{p}.M"])
+            rx0 = _finite(f"{p}.rx0", par[f"{p}.rx0"])
+            hold = np.array_equal(M, np.eye(w))
+            links.append(LinkSettings(label, timing, int(par[f"{p}.key"]), rx0.copy(),
+                                      None if hold else M.copy()))
+            i, o = starts[f"{p}.tx.{fields[0][0]}"], starts[f"{p}.rx.{fields[0][0]}"]
+            self._tx.append(self._in[i:i + w])
+            self._blocks.append(self._out[o:o + w + len(_STATS)])
+        self.inbox = Inbox(links, h, int(par["seed"]), k0=round(self._start_time / h))
+
+    def compute_outputs(self) -> None:
+        """Per link: rx, then age (s), delivered, lost, in flight, at the inbox's step."""
+        ib = self.inbox
+        stats = (ib.age(ib.k), ib.delivered, ib.lost, ib.in_flight)
+        for j, (block, rx) in enumerate(zip(self._blocks, ib.rx)):
+            block[:rx.size] = rx
+            block[rx.size:] = [s[j] for s in stats]
+
+    def advance(self, step: float) -> None:
+        """One communication step: every link from step k to k + 1 with the tx inputs of t_k.
+
+        Parameters
+        ----------
+        step : float
+            The communication step, s (checked against h by the base class).
+        """
+        self.inbox.advance(self.inbox.k, self._tx)

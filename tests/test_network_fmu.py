@@ -1,0 +1,218 @@
+"""The AuvNetwork FMU (one vehicle's acoustic inbox) under fmpy, against LinkChannel."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from orchestrator.cosim.build import build_fmus
+from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
+from plant_model.inbox import Inbox, LinkSettings
+from plant_model.network import LinkChannel, check_link, link_key
+
+H, RECEIVER, SEED = 0.1, 3, 11
+FIELDS = [["eta", 3], ["eps", 2]]
+#: a propagating receiver: eta as a double integrator chain, eps decaying
+M_PROP = np.block([[np.array([[1.0, H, 0.0], [0.0, 1.0, H], [0.0, 0.0, 1.0]]), np.zeros((3, 2))],
+                   [np.zeros((2, 3)), np.array([[0.9, 0.1], [0.0, 0.95]])]])
+M_LEADER = np.array([[1.0, H], [-0.05 * H, 1.0]])
+
+
+def _link(key, M, rx0, offset=0.0, latency=1.0, period=2.0, loss=0.3):
+    return {"latency": latency, "period": period, "loss": loss, "offset": offset, "key": key,
+            "M": np.asarray(M).tolist(), "rx0": list(rx0)}
+
+
+CONFIG = {
+    "h": H, "T": 30.0, "seed": SEED, "receiver": RECEIVER, "slots": 2, "fields": FIELDS,
+    "leader_size": 2,
+    "links": [_link(link_key(1, RECEIVER), np.eye(5), [0.5, -1.0, 2.0, 0.1, 0.2]),
+              _link(link_key(2, RECEIVER), M_PROP, [1.0, 0.0, -0.5, 0.3, -0.3], offset=0.5)],
+    "leader": _link(link_key("leader", RECEIVER), M_LEADER, [0.4, 0.5]),
+}
+#: one link, a message every step: many messages for the loss statistics
+STATS_CONFIG = {"h": H, "T": 500.0, "seed": 5, "receiver": 1, "slots": 1,
+                "fields": [["x", 1]], "leader_size": 0, "leader": None,
+                "links": [_link(link_key(2, 1), [[1.0]], [0.0], latency=0.0, period=H,
+                                loss=0.2)]}
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    fmus = build_fmus(None, tmp_path_factory.mktemp("net"),
+                      kinds={"network": CONFIG})
+    stats = build_fmus(None, tmp_path_factory.mktemp("net_stats"),
+                       kinds={"network": STATS_CONFIG})
+    ex = Extracted({"network": fmus["network"], "stats": stats["network"]})
+    yield {"network": fmus["network"], "stats": stats["network"]}, ex
+    ex.cleanup()
+
+
+def _instance(built, name, key="network", **override):
+    fmus, ex = built
+    inst = FmuInstance("network", fmus[key], ex.dirs[key], name)
+    inst.initialize(override, T=30.0)
+    return inst
+
+
+def _names(inst, causality):
+    return [v.name for v in inst.md.modelVariables if v.causality == causality]
+
+
+def _drive(inst, inputs, k0):
+    """Set the tx inputs of each row, read every output, step; the outputs per step."""
+    s = inst.slave
+    vin = [inst.vr[n] for n in _names(inst, "input")]
+    vout = [inst.vr[n] for n in _names(inst, "output")]
+    rec = []
+    for j, row in enumerate(inputs):
+        s.setReal(vin, list(row))
+        rec.append(s.getReal(vout))
+        s.doStep((k0 + j) * H, H)
+    return np.array(rec)
+
+
+def _reference(config, inputs):
+    """The same links as bare LinkChannels (M = I held without M): outputs per step."""
+    layout = [(st, [n for _, n in config["fields"]]) for st in config["links"]]
+    if config["leader_size"]:
+        layout.append((config["leader"], [config["leader_size"]]))
+    chans = []
+    for st, _ in layout:
+        M = np.array(st["M"])
+        chans.append(LinkChannel(check_link("ref", st["latency"], st["period"], st["loss"],
+                                            st["offset"]), config["h"], config["seed"],
+                                 st["key"], np.array(st["rx0"]),
+                                 None if np.array_equal(M, np.eye(len(M))) else M))
+    widths = [sum(sizes) for _, sizes in layout]
+    rec = []
+    for k, row in enumerate(inputs):
+        out, pos = [], 0
+        for ch, w in zip(chans, widths):
+            out += [*ch.rx, ch.age(k), ch.delivered, ch.lost, len(ch.in_flight)]
+            ch.advance(k, row[pos:pos + w])
+            pos += w
+        rec.append(out)
+    return np.array(rec), chans
+
+
+def test_the_interface_names_every_link_field_and_statistic(built):
+    inst = _instance(built, "names")
+    ins, outs = _names(inst, "input"), _names(inst, "output")
+    assert ins[:6] == ["link[1].tx.eta[1]", "link[1].tx.eta[2]", "link[1].tx.eta[3]",
+                       "link[1].tx.eps[1]", "link[1].tx.eps[2]", "link[2].tx.eta[1]"]
+    assert ins[-2:] == ["leader.tx.z[1]", "leader.tx.z[2]"] and len(ins) == 12
+    assert outs[5:9] == ["link[1].age", "link[1].delivered", "link[1].lost", "link[1].in_flight"]
+    assert outs[-6:] == ["leader.rx.z[1]", "leader.rx.z[2]", "leader.age", "leader.delivered",
+                         "leader.lost", "leader.in_flight"]
+    params = set(_names(inst, "parameter"))
+    assert {"link[2].latency", "link[2].period", "link[2].loss", "link[2].offset",
+            "link[2].key", "link[2].M[5,5]", "link[2].rx0[5]", "leader.M[2,2]",
+            "leader.key", "h", "seed"} <= params
+    assert inst.types["link[1].key"] == "Integer" and inst.types["seed"] == "Integer"
+    inst.close()
+
+
+def test_every_output_equals_the_link_channels_bit_for_bit(built):
+    inst = _instance(built, "bits")
+    inputs = np.random.default_rng(3).standard_normal((300, 12))
+    got = _drive(inst, inputs, 0)
+    want, chans = _reference(CONFIG, inputs)
+    assert got.shape == want.shape and np.array_equal(got, want)
+    assert all(ch.lost > 0 and ch.delivered > 0 for ch in chans)     # both kinds happened
+    assert got[-1, 5] == pytest.approx(chans[0].age(299))
+    inst.close()
+
+
+def test_the_fmu_validates_and_has_no_direct_feedthrough(built):
+    from fmpy import read_model_description
+    from fmpy.validation import validate_fmu
+    for path in built[0].values():
+        assert validate_fmu(str(path)) == []
+        md = read_model_description(str(path))
+        assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
+        assert not md.coSimulation.canHandleVariableCommunicationStepSize
+        assert all(v.description for v in md.modelVariables)
+        assert md.outputs and all(not u.dependencies for u in md.outputs)
+    md = read_model_description(str(built[0]["network"]))
+    units = {v.name: v.unit for v in md.modelVariables}
+    assert units["link[1].age"] == units["link[2].latency"] == units["h"] == "s"
+
+
+def test_fmu_state_round_trip_is_bit_identical(built):
+    inst = _instance(built, "state")
+    inputs = np.random.default_rng(4).standard_normal((300, 12))
+    _drive(inst, inputs[:120], 0)
+    state = inst.slave.getFMUState()
+    first = _drive(inst, inputs[120:], 120)
+    inst.slave.setFMUState(state)
+    assert np.array_equal(_drive(inst, inputs[120:], 120), first)
+    blob = inst.slave.serializeFMUState(state)
+    inst.slave.setFMUState(inst.slave.deserializeFMUState(blob))
+    assert np.array_equal(_drive(inst, inputs[120:], 120), first)
+    assert np.std(first[:, 0]) > 0 and first[-1, 7] > 0               # rx moved, losses
+    inst.slave.freeFMUState(state)
+    inst.close()
+
+
+@pytest.mark.parametrize("name, value, fragment", [
+    ("link[2].loss", 1.5, "link[2].loss"),
+    ("link[1].M[2,3]", float("nan"), "link[1].M[2,3] = nan is not finite"),
+    ("leader.rx0[2]", float("inf"), "leader.rx0[2] = inf is not finite"),
+    ("link[1].period", 0.0, "link[1] of vehicle 3: period = 0 s must be positive"),
+    ("leader.offset", 2.5, "leader link of vehicle 3: offset = 2.5 s is not within"),
+])
+def test_a_bad_parameter_fails_initialization_naming_it(built, name, value, fragment):
+    with pytest.raises(CosimError) as exc:
+        _instance(built, f"bad_{name}", **{name: value})
+    msg = str(exc.value)
+    assert "initialization failed" in msg and fragment in msg
+
+
+def test_the_lost_fraction_matches_the_loss_probability(built):
+    """4000 messages at loss 0.2: the fraction lost within 4 standard errors."""
+    inst = _instance(built, "stats", key="stats")
+    n, p = 4000, 0.2
+    out = _drive(inst, np.zeros((n + 1, 1)), 0)[-1]        # outputs at step n
+    names = _names(inst, "output")
+    lost, delivered = out[names.index("link[1].lost")], out[names.index("link[1].delivered")]
+    assert lost + delivered == n
+    assert abs(lost / n - p) < 4 * math.sqrt(p * (1 - p) / n)
+    inst.close()
+
+
+# ---------------------------------------------------------------- the Inbox alone
+def _inbox(seed=SEED):
+    links = [LinkSettings(f"link[{j}]", check_link("x", 0.3, 0.5, 0.3), j, np.zeros(2),
+                          None if j == 1 else np.array([[1.0, H], [0.0, 1.0]]))
+             for j in (1, 2)]
+    return Inbox(links, H, seed)
+
+
+def test_inbox_state_round_trip_and_mismatches_are_named():
+    ib = _inbox()
+    for k in range(37):
+        ib.advance(k, [np.array([k, 1.0]), np.array([-k, 2.0])])
+    saved = ib.get_state()
+    twin = _inbox(seed=99)
+    twin.set_state(saved)
+    assert twin.k == 37 and np.array_equal(twin.s, ib.s)
+    for k in range(37, 90):
+        for b in (ib, twin):
+            b.advance(k, [np.array([k, 1.0]), np.array([-k, 2.0])])
+    assert np.array_equal(twin.s, ib.s) and np.array_equal(twin.lost, ib.lost)
+    assert np.array_equal(twin.age(90), ib.age(90)) and ib.lost.sum() > 0
+    before = twin.get_state()
+    one = Inbox([LinkSettings("a", check_link("x", 0, 1, 0), 1, np.zeros(2))], H, 0)
+    with pytest.raises(ValueError, match="holds 2 links, this inbox has 1"):
+        one.set_state(saved)
+    with pytest.raises(ValueError, match="do not match the link lengths"):
+        twin.set_state(saved[:-1])
+    bad = saved.copy()
+    bad[2], bad[3] = bad[2] + 1, bad[3] - 1            # lengths shifted between the links
+    with pytest.raises(ValueError, match="inbox state: link\\[1\\]"):
+        twin.set_state(bad)
+    assert np.array_equal(twin.get_state(), before)     # unchanged after a refusal
+    with pytest.raises(ValueError, match="2 messages for 1 links"):
+        one.advance(0, [np.zeros(2)] * 2)
