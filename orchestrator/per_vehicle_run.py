@@ -12,6 +12,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from controller_fmu.regulator import tracking_law
 from estimator_fmu.estimators import make_estimator
 from plant_model.discretization import discretize
@@ -24,12 +26,16 @@ from .analysis.summary import stats_window
 from .cosim.build import build_fmus
 from .cosim.master import RunResult, run_system
 from .cosim.per_vehicle import (
+    LINK_STATISTICS,
     build_configs,
+    link_traces,
     per_vehicle_configs,
     per_vehicle_system,
     stacked_traces,
 )
+from .cosim.per_vehicle_network import network_configs
 from .cosim.system import SystemDescription
+from .network_run import NetworkSetup, network_predictions, network_setup
 
 __all__ = ["MAX_CENTRALIZED_DESIGN_S", "PerVehicleRuns", "TRANSIENT_LIMIT",
            "centralized_design_estimate", "check_centralized"]
@@ -97,6 +103,7 @@ class PerVehicleRuns:
         self.sc = sc
         self.fmu_dir = Path(fmu_dir)
         self._fmus: dict[str, dict[str, Path]] = {}
+        self._network: dict[tuple[str, str, str], NetworkSetup] = {}
 
     def _configs(self, architecture: str, mode: str, tracking: str,
                  seed: int) -> list[dict[str, dict[str, Any]]]:
@@ -104,8 +111,31 @@ class PerVehicleRuns:
         if architecture == "centralized":
             check_centralized(sc)
         gain = tracking_law(sc.system, tracking).Ks if architecture == "centralized" else None
+        net = None
+        if sc.network is not None:
+            setup = self.network(architecture, mode, tracking)
+            net = network_configs(setup.form.senders, setup.links, setup.slot_senders,
+                                  setup.net.receiver, setup.launch, setup.leader_size)
         return per_vehicle_configs(sc, architecture, mode=mode, seed=seed, tracking=tracking,
-                                   settings=sc.distributed, gain=gain)
+                                   settings=sc.distributed, gain=gain, network=net)
+
+    def network(self, architecture: str, mode: str, tracking: str) -> NetworkSetup:
+        """The loop over the scenario's acoustic links for one method (built once).
+
+        Parameters
+        ----------
+        architecture, mode, tracking : str
+            The method.
+
+        Returns
+        -------
+        NetworkSetup
+            Its message form, networked loop, links and launch values.
+        """
+        key = (architecture, mode, tracking)
+        if key not in self._network:
+            self._network[key] = network_setup(self.sc, architecture, mode, tracking)
+        return self._network[key]
 
     def fmus(self, architecture: str) -> dict[str, Path]:
         """The FMUs of ``architecture`` (built into the FMU folder on first use).
@@ -153,6 +183,8 @@ class PerVehicleRuns:
             If the estimator or the design does not exist or the loop is unstable (named).
         """
         sc = self.sc
+        if sc.network is not None:
+            return network_predictions(sc, self.network(architecture, mode, tracking))
         if architecture == "centralized":            # the stacked loop's predictions
             check_centralized(sc)
             model = discretize(sc.system, sc.h)
@@ -213,6 +245,12 @@ class PerVehicleRuns:
         traces, loop_s, info = run_system(system, self.fmus(architecture), sc.steps,
                                           progress=progress, stop=stop,
                                           instance_suffix=f"_{mode}_{seed}")
-        return RunResult(mode=mode, seed=int(seed), h=sc.h,
-                         traces=stacked_traces(sc, system, traces),
+        stacked = stacked_traces(sc, system, traces)
+        links = link_traces(system, traces)
+        if links:                   # per link (in info["links"] order) its network statistics
+            order = sorted(links, key=lambda k: (k[1], str(k[0])))
+            info["links"] = [f"{j} -> {i}" for j, i in order]
+            for s in LINK_STATISTICS:
+                stacked[f"link_{s}"] = np.column_stack([links[k][s] for k in order])
+        return RunResult(mode=mode, seed=int(seed), h=sc.h, traces=stacked,
                          wall_s=time.perf_counter() - t0, loop_s=loop_s, info=info)

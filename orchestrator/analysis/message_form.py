@@ -24,19 +24,19 @@ the form, so the networked loop (:mod:`orchestrator.analysis.networked`) needs n
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 from scipy.linalg import block_diag
 
+from controller_fmu.vehicle_law import RECEIVERS
+
 from .distributed import DistributedLoop, SampledAgent, _assemble
 
 __all__ = ["MessageForm", "Sender", "Link", "RECEIVERS", "centralized_message_form",
-           "distributed_message_form", "perfect_links"]
+           "distributed_message_form", "perfect_links", "without_leader_links"]
 
-#: what a receiver does with the newest message between arrivals
-RECEIVERS = ("hold", "propagate")
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,6 +86,27 @@ class MessageForm:
     senders: dict[int | str, Sender]
     links: dict[tuple[int | str, int], Link]
     architecture: str
+    #: the states of the loop it was cut from that it keeps (None: all)
+    keep: np.ndarray | None = None
+
+    def state_of(self, X_loop: np.ndarray) -> np.ndarray:
+        """This form's state from a state of the loop it was cut from."""
+        return X_loop if self.keep is None else X_loop[self.keep]
+
+
+def without_leader_links(form: MessageForm) -> MessageForm:
+    """The distributed form for a planned path every vehicle knows: no leader messages; a
+    pinned vehicle's leader input is its own observer (its weight then adds nothing)."""
+    Phi = form.Phi.copy()
+    links = {}
+    for key, lk in form.links.items():
+        if key[0] == "leader":
+            own = form.senders[lk.receiver].Cm[:lk.B.shape[1]]
+            Phi += lk.B @ own
+        else:
+            links[key] = lk
+    senders = {k: s for k, s in form.senders.items() if k != "leader"}
+    return replace(form, Phi=Phi, links=links, senders=senders)
 
 
 def perfect_links(form: MessageForm) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -325,7 +346,7 @@ def centralized_message_form(loop: DistributedLoop, rows: Sequence[tuple[np.ndar
     det[:l_ + 1] = True
     return MessageForm(Phi=Phi, Gam=Gam, W=loop.W, Gx=Gx, Geta=Geta, Ce=loop.Ce[:, keep],
                        Qc=loop.Qc, Rc=loop.Rc, deterministic=det, h=loop.h, senders=senders,
-                       links=links, architecture="centralized")
+                       links=links, architecture="centralized", keep=keep)
 
 
 def _r(loop: DistributedLoop, j: int) -> int:

@@ -43,10 +43,12 @@ from plant_model.per_vehicle import leader_system, vehicle_views
 from plant_model.system import LinearSystem
 
 from .build import FMU_KINDS, interface_of
+from .per_vehicle_network import network_connections
 from .system import Component, Connection, SystemDescription, component_parameters
 
 __all__ = ["ARCHITECTURES", "DEPLOYMENTS", "DistributedSettings", "FleetSlots",
-           "fleet_slots", "per_vehicle_configs", "per_vehicle_system", "stacked_traces"]
+           "fleet_slots", "link_traces", "per_vehicle_configs", "per_vehicle_system",
+           "stacked_traces"]
 
 @dataclass(frozen=True)
 class FleetSlots:
@@ -110,7 +112,9 @@ def _mapping(view: LinearSystem, leader: Mapping[str, np.ndarray]) -> dict[str, 
 
 def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tracking: str,
                         settings: DistributedSettings | None = None,
-                        gain: np.ndarray | None = None) -> list[dict[str, dict[str, Any]]]:
+                        gain: np.ndarray | None = None,
+                        network: list[dict[str, Any]] | None = None
+                        ) -> list[dict[str, dict[str, Any]]]:
     """Per vehicle, the configuration of each FMU kind (vehicle 1's are the build's).
 
     Parameters
@@ -126,12 +130,16 @@ def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tra
     gain : np.ndarray or None, optional
         The stacked gain Ks (centralized; from
         :func:`controller_fmu.regulator.tracking_law` of the scenario's system).
+    network : list[dict[str, Any]] or None, optional
+        Per vehicle its ``AuvNetwork`` entries
+        (:func:`orchestrator.cosim.per_vehicle_network.network_configs`; None: perfect links).
 
     Returns
     -------
     list[dict[str, dict[str, Any]]]
         Index 0 the leader's {'leader': config}, then per vehicle {'vehicle', 'vehicle_estimator',
-        'vehicle_controller' | 'central_controller'} -> config.
+        'vehicle_controller' | 'central_controller', and 'network' over acoustic links}
+        -> config.
     """
     if architecture not in ARCHITECTURES:
         raise ValueError(f"architecture {architecture!r} is not one of "
@@ -163,6 +171,8 @@ def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tra
                 cfg, slots=slots.S, offset=d.tolist(), weights=slots.weights[i].tolist(),
                 pinning=float(slots.pinning[i]), mu=settings.mu, cohesion=settings.cohesion,
                 regulator=settings.regulator, eta0=eta0.tolist())
+        if network is not None:
+            one["network"] = dict(base, **network[i])
         out.append(one)
     return out
 
@@ -197,6 +207,7 @@ def per_vehicle_system(sc: Any, configs: list[dict[str, dict[str, Any]]],
     """
     N = len(configs) - 1
     planned = sc.distributed.leader == "planned"
+    networked = "network" in configs[1]
     comps = [_component("leader", "leader", configs[0]["leader"])]
     conns: list[Connection] = []
     ctrl_key = "central_controller" if architecture == "centralized" else "vehicle_controller"
@@ -209,6 +220,12 @@ def per_vehicle_system(sc: Any, configs: list[dict[str, dict[str, Any]]],
         conns += [Connection(v, "y", e, "y"),
                   *(Connection(v, s, e, s, (e, "mode", "ideal")) for s in ("x", "w")),
                   Connection(c, "u", v, "u"), Connection(c, "u", e, "u")]
+        if networked:
+            comps.append(_component(f"network_{i}", "network", configs[i]["network"]))
+            conns += _networked(i, architecture, configs[i]["network"], slots,
+                                pinned=architecture == "centralized" or (
+                                    slots.pinning[i - 1] > 0.0 and not planned))
+            continue
         if architecture == "centralized":
             conns.append(Connection("leader", "z", c, "z"))
             for j in range(1, N + 1):
@@ -226,6 +243,67 @@ def per_vehicle_system(sc: Any, configs: list[dict[str, dict[str, Any]]],
                 conns.append(Connection(f"controller_{j}", s, c, f"nbr[{k + 1}].{s}"))
     return SystemDescription(name=sc.name, components=tuple(comps), connections=tuple(conns),
                              h=float(sc.h), T=float(sc.T))
+
+
+def _networked(i: int, architecture: str, cfg: Mapping[str, Any], slots: FleetSlots,
+               pinned: bool) -> list[Connection]:
+    """Vehicle i's messages through its network FMU; its own estimates direct."""
+    c, e = f"controller_{i}", f"estimator_{i}"
+    row = [st["sender"] for st in cfg["links"]]
+    fields = cfg["fields"]
+    conns = network_connections(i, architecture, row, fields, pinned,
+                                {"slot": "nbr[{k}].{f}"})
+    if architecture == "centralized":
+        return conns + [Connection(e, s, c, f"vehicle[{i}].{s}") for s in ("xhat", "what")]
+    conns += [Connection(e, "xhat", c, "xhat"), Connection(e, "what", c, "what")]
+    carried = {f for f, _ in fields}
+    for k, j in enumerate(row, start=1):
+        for f in ("eta", "eps"):
+            if j is None or f not in carried:        # unused slot, or eps not carried
+                conns.append(Connection(c, f, c, f"nbr[{k}].{f}"))
+    if not pinned:
+        conns.append(Connection(c, "eta", c, "z"))
+    return conns
+
+
+def link_traces(system: SystemDescription, traces: Mapping[str, np.ndarray]
+                ) -> dict[tuple[Any, int], dict[str, np.ndarray]]:
+    """Per acoustic link (sender, receiver) its network FMU's ``age`` (s), ``delivered``,
+    ``lost`` and ``in_flight`` traces (empty without a network).
+
+    Parameters
+    ----------
+    system : SystemDescription
+        A per-vehicle system.
+    traces : Mapping[str, np.ndarray]
+        Its traces.
+
+    Returns
+    -------
+    dict[tuple[Any, int], dict[str, np.ndarray]]
+        The sender is a vehicle number or "leader".
+    """
+    names = system.trace_names()
+    out: dict[tuple[Any, int], dict[str, np.ndarray]] = {}
+    for comp in system.components:
+        if comp.fmu != "network":
+            continue
+        i = int(comp.name.rsplit("_", 1)[1])
+        k = 1
+        while f"link[{k}].key" in comp.parameters:
+            key = int(comp.parameters[f"link[{k}].key"])
+            if key:
+                out[(key // 10_000, i)] = {s: traces[names[(comp.name, f"link[{k}].{s}")]][:, 0]
+                                           for s in LINK_STATISTICS}
+            k += 1
+        if int(comp.parameters.get("leader.key", 0)):
+            out[("leader", i)] = {s: traces[names[(comp.name, f"leader.{s}")]][:, 0]
+                                  for s in LINK_STATISTICS}
+    return out
+
+
+#: the per-link outputs of a network FMU
+LINK_STATISTICS = ("age", "delivered", "lost", "in_flight")
 
 
 def stacked_traces(sc: Any, system: SystemDescription,

@@ -61,6 +61,8 @@ class Scenario:
     architecture: str = "centralized"       #: "centralized" or "distributed" (per-vehicle)
     #: gains of the distributed law ([distributed] of a fleet scenario)
     distributed: DistributedSettings = field(default_factory=DistributedSettings)
+    #: the acoustic links' [network] table (per-vehicle fleets; None: perfect links)
+    network: dict[str, Any] | None = None
 
     @property
     def steps(self) -> int:
@@ -99,6 +101,10 @@ def _check_step(sc: Scenario) -> None:
 def _check_deployment(sc: Scenario) -> None:
     """A per-vehicle deployment needs a fleet whose consensus protocol is a force."""
     if sc.deployment != "per-vehicle":
+        if sc.network is not None:
+            raise ScenarioError(f"{sc.source}: [network] needs [simulation] deployment = "
+                                "\"per-vehicle\" (acoustic links join the vehicles' own "
+                                f"FMUs), not {sc.deployment!r}")
         return
     if sc.fleet is None:
         raise ScenarioError(f"{sc.source}: [simulation] deployment = \"per-vehicle\" needs a "
@@ -137,6 +143,8 @@ def _scenario(file: ScenarioFile, where: str, system: LinearSystem,
     if dist is not None:
         sc = replace(sc, distributed=DistributedSettings(
             mu=dist.mu, cohesion=dist.cohesion, regulator=dist.regulator, leader=dist.leader))
+    if getattr(file, "network", None) is not None:
+        sc = replace(sc, network=dict(file.network))
     _check_step(sc)
     _check_deployment(sc)
     return sc

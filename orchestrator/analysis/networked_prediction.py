@@ -1,0 +1,309 @@
+"""Predictions of the loop over acoustic links: expected cost, mean-square stability, the
+critical loss probability.
+
+The second moment X2 = E[Z Z'] of :class:`~orchestrator.analysis.networked.NetworkedLoop`
+evolves exactly as X2+ = Abar X2 Abar' + sum_l p_l (1 - p_l) D_l X2 D_l' + noise, with one
+loss term per link arriving at that step. A run of steps without arrivals is an affine map
+of X2 with a cost functional, a :class:`Segment` (G, W, S, c)::
+
+    X2 -> G X2 G' + W,   sum of the run's expected step costs = tr(S X2) + c
+
+and two runs compose as G = Gb Ga, W = Gb Wa Gb' + Wb, S = Sa + Ga' Sb Ga,
+c = ca + cb + tr(Sb Wa); a run of m equal steps by doubling. Steps with arrivals are
+applied as they are. Over the message cycle (the hyperperiod of every link's period) the
+sequence repeats, so it is compiled once and a long window costs a few dense products per
+cycle.
+
+- :func:`predict_window`: the expected cost rate over samples k0 <= k < K from the known
+  start, the statistic a run computes (leader motion and transient included);
+- :func:`ms_spectral_radius`: the spectral radius of the cycle map of X2 on the error
+  coordinates (the loop without the leader's state, which need not be bounded); below 1 iff
+  the loop is mean-square stable;
+- :func:`critical_loss`: the loss probability, the same on every link, at which that radius
+  reaches 1, or None when it stays below 1 up to loss -> 1.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import LinearOperator, eigs
+
+from .networked import NetworkedLoop
+
+__all__ = ["NetworkPrediction", "Segment", "critical_loss", "ms_spectral_radius",
+           "predict_window"]
+
+
+@dataclass(frozen=True, eq=False)
+class Segment:
+    """X2 -> G X2 G' + W over a run of deterministic steps; its cost tr(S X2) + c."""
+
+    G: np.ndarray
+    W: np.ndarray
+    S: np.ndarray
+    c: float
+    length: int
+
+    def then(self, b: Segment) -> Segment:
+        """This run followed by ``b``."""
+        GW = b.G @ self.W
+        return Segment(G=b.G @ self.G, W=GW @ b.G.T + b.W,
+                       S=self.S + self.G.T @ b.S @ self.G,
+                       c=self.c + b.c + float(np.sum(b.S * self.W)), length=self.length + b.length)
+
+    def power(self, m: int) -> Segment:
+        """m runs in a row, by doubling."""
+        out, base = None, self
+        while m:
+            if m & 1:
+                out = base if out is None else out.then(base)
+            m >>= 1
+            if m:
+                base = base.then(base)
+        assert out is not None
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class Event:
+    """A step with arrivals: Abar, its noise, and per link (p(1 - p), D_Z, D_zeta)."""
+
+    A: sp.csr_matrix
+    Gam: sp.csr_matrix
+    terms: tuple[tuple[float, sp.csr_matrix, sp.csr_matrix], ...]
+
+
+def _sandwich(A: Any, X: np.ndarray) -> np.ndarray:
+    """A X A' for a sparse or dense A."""
+    AX = A @ X
+    return np.asarray((A @ AX.T).T if sp.issparse(A) else AX @ A.T)
+
+
+class _Compiler:
+    """Segments and events of a networked loop, optionally with every link's loss set to p
+    and restricted to the error coordinates."""
+
+    def __init__(self, net: NetworkedLoop, loss: float | None = None,
+                 error_only: bool = False):
+        self.net = net
+        self.loss = loss
+        keep = ~net.deterministic if error_only else np.ones(net.n, dtype=bool)
+        self.keep = np.flatnonzero(keep)
+        self.error_only = error_only
+        self._cache: dict[Any, Any] = {}
+        W = net.form.W
+        self.W = W
+        k = self.keep
+        self.Qz = net.Qz[np.ix_(k, k)]
+        self.c0 = 0.0 if error_only else net.c0
+
+    def _restrict(self, M: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+        n = self.net.n
+        MZ, Mz = M[:, :n], M[:, n:]
+        return MZ[self.keep][:, self.keep].tocsr(), Mz[self.keep].tocsr()
+
+    def step(self, pattern: Any) -> Segment | Event:
+        """The map of one transition of the given pattern."""
+        if pattern in self._cache:
+            return self._cache[pattern]
+        A0, D = self.net.matrices(pattern)
+        if not D:
+            A, Gam = self._restrict(A0)
+            Gd = Gam.toarray()
+            out: Segment | Event = Segment(
+                G=A.toarray(), W=Gd @ self.W @ Gd.T, S=self.Qz.copy(), c=self.c0, length=1)
+        else:
+            Abar, terms = A0, []
+            for key, Dl in D.items():
+                p = self.net.loss[key] if self.loss is None else self.loss
+                Abar = Abar + (1.0 - p) * Dl
+                DA, DG = self._restrict(Dl)
+                terms.append((p * (1.0 - p), DA, DG))
+            A, Gam = self._restrict(Abar)
+            out = Event(A=A, Gam=Gam, terms=tuple(terms))
+        self._cache[pattern] = out
+        return out
+
+    def plan(self, ka: int, kb: int) -> list[Segment | Event]:
+        """The maps of transitions ka..kb-1: runs of equal deterministic steps doubled."""
+        out: list[Segment | Event] = []
+        k = ka
+        while k < kb:
+            pat = self.net.pattern(k)
+            m = 1
+            while k + m < kb and self.net.pattern(k + m) == pat:
+                m += 1
+            s = self.step(pat)
+            if isinstance(s, Event):
+                out += [s] * m
+            else:
+                key = (pat, m)
+                if key not in self._cache:
+                    self._cache[key] = s.power(m)
+                seg = self._cache[key]
+                if out and isinstance(out[-1], Segment):
+                    out[-1] = out[-1].then(seg)
+                else:
+                    out.append(seg)
+            k += m
+        return out
+
+    def apply(self, plan: Sequence[Segment | Event], X: np.ndarray, noise: bool = True
+              ) -> tuple[np.ndarray, float]:
+        """X2 after the plan, and the plan's expected cost summed over its steps."""
+        cost = 0.0
+        for s in plan:
+            if isinstance(s, Segment):
+                cost += float(np.sum(s.S * X)) + (s.c if noise else 0.0)
+                X = s.G @ X @ s.G.T + (s.W if noise else 0.0)
+            else:
+                cost += float(np.sum(self.Qz * X)) + (self.c0 if noise else 0.0)
+                Y = _sandwich(s.A, X)
+                if noise:
+                    Gd = s.Gam.toarray()
+                    Y = Y + Gd @ self.W @ Gd.T
+                for c, DA, DG in s.terms:
+                    Y = Y + c * _sandwich(DA, X)
+                    if noise:
+                        Gd = DG.toarray()
+                        Y = Y + c * (Gd @ self.W @ Gd.T)
+                X = Y
+        return X, cost
+
+    def cycle(self) -> list[Segment | Event]:
+        """The compiled message cycle after start-up (transitions b..b + period - 1, b the
+        first multiple of the period at or after every link's first arrival)."""
+        if "cycle" not in self._cache:
+            b = self.first_cycle()
+            self._cache["cycle"] = self.plan(b, b + self.net.period)
+        return self._cache["cycle"]
+
+    def first_cycle(self) -> int:
+        P = self.net.period
+        return -(-self.net.startup // P) * P
+
+
+@dataclass(frozen=True)
+class NetworkPrediction:
+    """Expected cost rate over a window from the known start, and the stability verdict."""
+
+    cost_rate: float
+    spectral_radius: float          #: of the cycle map of X2 on the error coordinates
+    cycle_s: float                  #: the message cycle (hyperperiod), s
+
+
+def predict_window(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int) -> NetworkPrediction:
+    """E[J] / (K - k0) over samples k0 <= k < K from Z(0) = Z0 (module docstring).
+
+    Parameters
+    ----------
+    net : NetworkedLoop
+        The loop.
+    Z0 : np.ndarray
+        Its initial state (:meth:`NetworkedLoop.initial_state`).
+    k0, K : int
+        The window.
+
+    Returns
+    -------
+    NetworkPrediction
+        The expected cost rate and the verdict.
+    """
+    comp = _Compiler(net)
+    X = np.outer(Z0, Z0)
+    b, P = comp.first_cycle(), net.period
+    cost = 0.0
+    for ka, kb, counted in _pieces(0, k0, b, P, False) + _pieces(k0, K, b, P, True):
+        if ka >= b and (ka - b) % P == 0 and (kb - ka) % P == 0:
+            plan, times = comp.cycle(), (kb - ka) // P
+        else:
+            plan, times = comp.plan(ka, kb), 1
+        for _ in range(times):
+            X, c = comp.apply(plan, X)
+            cost += c if counted else 0.0
+    return NetworkPrediction(cost_rate=cost / max(K - k0, 1),
+                             spectral_radius=ms_spectral_radius(net), cycle_s=P * net.h)
+
+
+def _pieces(ka: int, kb: int, b: int, P: int, counted: bool) -> list[tuple[int, int, bool]]:
+    """[ka, kb) split at the cycle boundaries b + m P: a head, whole cycles, a tail."""
+    if ka >= kb:
+        return []
+    first = b if ka <= b else b + -(-(ka - b) // P) * P
+    if first >= kb:
+        return [(ka, kb, counted)]
+    whole = first + ((kb - first) // P) * P
+    return [p for p in ((ka, first, counted), (first, whole, counted), (whole, kb, counted))
+            if p[0] < p[1]]
+
+
+def ms_spectral_radius(net: NetworkedLoop, loss: float | None = None) -> float:
+    """Spectral radius of the cycle map of X2 on the error coordinates (no noise).
+
+    The map is positive (it keeps X2 positive semidefinite), so its dominant eigenvalue is
+    real and found by Arnoldi iteration (scipy's eigs) on vec(X2).
+
+    Parameters
+    ----------
+    net : NetworkedLoop
+        The loop.
+    loss : float or None, optional
+        The same loss probability on every link instead of the links' own.
+
+    Returns
+    -------
+    float
+        The radius per message cycle (below 1: mean-square stable).
+    """
+    comp = _Compiler(net, loss=loss, error_only=True)
+    cyc = comp.cycle()
+    n = comp.keep.size
+
+    def mv(v: np.ndarray) -> np.ndarray:
+        X = v.reshape(n, n)
+        X = 0.5 * (X + X.T)
+        return comp.apply(cyc, X, noise=False)[0].reshape(-1)
+
+    op = LinearOperator((n * n, n * n), matvec=mv, dtype=float)
+    v0 = np.eye(n).reshape(-1)
+    vals = eigs(op, k=1, which="LM", v0=v0, tol=1e-10, return_eigenvectors=False,
+                maxiter=5000)
+    return float(np.max(np.abs(vals)))
+
+
+def critical_loss(net: NetworkedLoop, tol: float = 1e-3, p_max: float = 0.999
+                  ) -> float | None:
+    """The loss probability p, the same on every link, at which the loop stops being
+    mean-square stable: ms_spectral_radius(p) = 1, by bisection.
+
+    Parameters
+    ----------
+    net : NetworkedLoop
+        The loop.
+    tol : float, optional
+        Width of the final bracket.
+    p_max : float, optional
+        The largest loss probed: if the loop is stable there, there is no critical loss
+        below 1 (each vehicle's own loop is stable with its neighbours' data frozen).
+
+    Returns
+    -------
+    float or None
+        The critical loss, or None.
+    """
+    if ms_spectral_radius(net, 0.0) >= 1.0:
+        return 0.0
+    if ms_spectral_radius(net, p_max) < 1.0:
+        return None
+    lo, hi = 0.0, p_max
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        if ms_spectral_radius(net, mid) < 1.0:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)

@@ -1,0 +1,189 @@
+"""The acoustic network of a per-vehicle fleet: which links exist, their FMU configurations
+and how they are wired.
+
+Each vehicle has one ``AuvNetwork`` FMU (:mod:`plant_model.auv_network_slave`): its modem's
+inbox, every link that ends at it. One FMU per receiver rather than one per link keeps the
+component count at 1 + 4 N and gives every vehicle's links one place for their state (in
+flight, held, loss streams); one FMU for the whole fleet would put every vehicle's inbox in
+one process and grow with N^2 inputs in the centralized architecture.
+
+Links of an architecture (:func:`fleet_links`):
+
+- distributed: the graph's edges j -> i, carrying [eta_j; eps_j] (eps only with cohesion),
+  and leader -> i for the pinned vehicles (none for a planned path);
+- centralized: every ordered pair j -> i, carrying [xhat_j; what_j; u_j], and leader -> i
+  for every vehicle.
+
+Their timing comes from the scenario's ``[network]`` table
+(:func:`plant_model.network.resolve_links`), the message layouts, launch values and
+propagation matrices from the loop's message form
+(:mod:`orchestrator.analysis.message_form`), so the FMUs and the predictions share them.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from plant_model.network import LinkTiming, link_key, resolve_links
+
+from .system import Connection
+
+__all__ = ["fleet_links", "network_configs", "network_connections", "receiver_slots"]
+
+
+def fleet_links(sc: Any, architecture: str) -> dict[tuple[Any, int], LinkTiming]:
+    """Every link that carries a message in this architecture, with its timing.
+
+    Parameters
+    ----------
+    sc : Scenario
+        A per-vehicle fleet scenario with a ``network`` table.
+    architecture : str
+        ``centralized`` or ``distributed``.
+
+    Returns
+    -------
+    dict[tuple[Any, int], LinkTiming]
+        (sender, receiver) -> timing; the sender a vehicle number or "leader".
+    """
+    g = sc.fleet["graph"]
+    N = len(sc.fleet["vehicles"])
+    if architecture == "centralized":
+        edges = [(j, i, 1.0) for i in range(1, N + 1) for j in range(1, N + 1) if j != i]
+        pins = [(i, 1.0) for i in range(1, N + 1)]
+    else:
+        edges = [(int(j), int(i), float(a)) for j, i, a in g["edges"]]
+        pins = ([] if sc.distributed.leader == "planned" else
+                [(int(i), float(a)) for i, a in g.get("pinning", [])])
+    return resolve_links(N, edges, pins, network_table(sc.network), sc.h)
+
+
+def network_table(table: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The timing keys of a ``[network]`` table (without ``receiver``)."""
+    return {k: v for k, v in dict(table or {}).items() if k != "receiver"}
+
+
+def receiver_slots(sc: Any, architecture: str, slots: Any) -> list[list[int | None]]:
+    """Per vehicle, the sender of each neighbour slot (None: unused).
+
+    distributed: the controller's slots (:func:`orchestrator.cosim.per_vehicle.fleet_slots`);
+    centralized: the other vehicles in order, N - 1 slots.
+    """
+    N = len(sc.fleet["vehicles"])
+    if architecture == "centralized":
+        return [[j for j in range(1, N + 1) if j != i] for i in range(1, N + 1)]
+    return [[int(slots.neighbours[i, k]) if slots.weights[i, k] > 0.0 else None
+             for k in range(slots.S)] for i in range(N)]
+
+
+def _settings(sender: Any, timing: LinkTiming | None, key: int, M: np.ndarray,
+              rx0: np.ndarray) -> dict[str, Any]:
+    t = timing or LinkTiming(latency=0.0, period=1.0, loss=0.0)
+    return {"sender": sender, "latency": t.latency, "period": t.period, "loss": t.loss,
+            "offset": t.offset, "key": int(key), "M": np.asarray(M, float).tolist(),
+            "rx0": np.asarray(rx0, float).tolist()}
+
+
+def network_configs(senders: Mapping[Any, Any], links: Mapping[tuple[Any, int], LinkTiming],
+                    slot_senders: list[list[Any]], receiver: str,
+                    launch: Mapping[tuple[Any, int], np.ndarray], leader_size: int
+                    ) -> list[dict[str, Any]]:
+    """The ``AuvNetwork`` build configuration of every vehicle (all of one interface).
+
+    Parameters
+    ----------
+    senders : Mapping[Any, Sender]
+        The message form's senders (fields, propagation matrix).
+    links : Mapping[tuple[Any, int], LinkTiming]
+        :func:`fleet_links`.
+    slot_senders : list[list[Any]]
+        :func:`receiver_slots`.
+    receiver : str
+        ``hold`` or ``propagate``.
+    launch : Mapping[tuple[Any, int], np.ndarray]
+        Per link the value exchanged before launch.
+    leader_size : int
+        Size of the leader's state (the leader link's message).
+
+    Returns
+    -------
+    list[dict[str, Any]]
+        Vehicle i's entries at index i - 1 (without ``h``, ``T``, ``seed``, which
+        :func:`orchestrator.cosim.per_vehicle.per_vehicle_configs` adds). An unused slot or
+        leader link (no such link) gets neutral settings; nothing is wired to its output.
+    """
+    vehicle = next(s for k, s in senders.items() if k != "leader")
+    fields = [list(f) for f in vehicle.fields]
+    w = vehicle.width
+    lead = senders.get("leader")
+    out = []
+    for i, row in enumerate(slot_senders, start=1):
+        slots = []
+        for j in row:
+            key = (j, i)
+            if key in links:
+                s = senders[j]
+                slots.append(_settings(j, links[key], link_key(j, i), s.M(receiver), launch[key]))
+            else:
+                slots.append(_settings(None, None, 0, np.eye(w), np.zeros(w)))
+        lk = ("leader", i)
+        leader = (_settings("leader", links[lk], link_key("leader", i), lead.M(receiver),
+                            launch[lk]) if lk in links and lead is not None else
+                  _settings(None, None, 0, np.eye(leader_size), np.zeros(leader_size)))
+        out.append(dict(receiver=i, slots=len(row), fields=fields, leader_size=leader_size,
+                        links=slots, leader=leader))
+    return out
+
+
+def network_connections(i: int, architecture: str, row: list[Any], fields: list[Any],
+                        has_leader_link: bool, controller_inputs: Mapping[str, str]
+                        ) -> list[Connection]:
+    """Vehicle i's network wiring: senders -> ``network_i`` -> ``controller_i``.
+
+    Parameters
+    ----------
+    i : int
+        The receiving vehicle.
+    architecture : str
+        ``centralized`` or ``distributed``.
+    row : list[Any]
+        The sender of each slot (None: unused).
+    fields : list[Any]
+        [(field, size), ...] of a neighbour message.
+    has_leader_link : bool
+        Whether the leader's state reaches this vehicle.
+    controller_inputs : Mapping[str, str]
+        For the distributed controller, its input name of a slot's field: "nbr[{k}].{f}".
+
+    Returns
+    -------
+    list[Connection]
+        Into the network FMU (every input) and out of it (the used links).
+    """
+    net, ctrl = f"network_{i}", f"controller_{i}"
+    conns: list[Connection] = []
+    names = [f for f, _ in fields]
+    for k, j in enumerate(row, start=1):
+        for f in names:
+            src = _source(j if j is not None else i, f, architecture)
+            conns.append(Connection(*src, net, f"link[{k}].tx.{f}"))
+            if j is None or f == "u":
+                continue
+            dst = (f"vehicle[{j}].{f}" if architecture == "centralized"
+                   else controller_inputs["slot"].format(k=k, f=f))
+            conns.append(Connection(net, f"link[{k}].rx.{f}", ctrl, dst))
+    if has_leader_link:
+        conns += [Connection("leader", "z", net, "leader.tx.z"),
+                  Connection(net, "leader.rx.z", ctrl, "z")]
+    else:
+        conns.append(Connection(ctrl, "eta", net, "leader.tx.z"))
+    return conns
+
+
+def _source(j: int, field: str, architecture: str) -> tuple[str, str]:
+    """Which component output sends a message field of vehicle j."""
+    if field in ("xhat", "what"):
+        return f"estimator_{j}", field
+    return f"controller_{j}", field
