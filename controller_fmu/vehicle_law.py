@@ -35,7 +35,7 @@ from plant_model.per_vehicle import vehicle_view
 from .distributed import REGULATOR_FORMS, VehicleLaw, design_vehicle_law
 from .regulator import TRACKING_MODES, tracking_law
 
-__all__ = ["ARCHITECTURES", "DEPLOYMENTS", "DistributedSettings", "LEADER_INFORMATION", "RECEIVERS",
+__all__ = ["ARCHITECTURES", "DEPLOYMENTS", "DistributedSettings", "LEADER_INFORMATION",
            "centralized_rows", "observer_start", "vehicle_law"]
 
 #: where each vehicle's law gets its information: the paper's stacked law cut by vehicle
@@ -49,10 +49,6 @@ DEPLOYMENTS = ("stacked", "per-vehicle")
 #: spread through the observers, or the path is planned and known to every vehicle from
 #: the start (no leader messages: every observer starts on it and stays there)
 LEADER_INFORMATION = ("messages", "planned")
-
-#: what a receiver of an acoustic link does with the newest message between arrivals: hold
-#: it, or carry it forward with the sender's model (plant_model.network)
-RECEIVERS = ("hold", "propagate")
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,7 @@ from controller_fmu.regulator import TRACKING_MODES
 from controller_fmu.vehicle_law import ARCHITECTURES, DEPLOYMENTS
 from estimator_fmu.estimators import ESTIMATOR_MODES
 from plant_model.linalg_checks import ModelError
+from plant_model.network import RECEIVERS
 
 from .cli_args import _count, _positive, parse_seeds
 from .cli_bench import _fleet_sizes, cmd_bench
@@ -38,7 +39,9 @@ def _scenario(args: argparse.Namespace) -> Scenario:
                        seed=getattr(args, "seed", None), estimator=getattr(args, "estimator", None),
                        tracking=getattr(args, "tracking", None),
                        deployment=getattr(args, "deployment", None),
-                       architecture=getattr(args, "architecture", None))
+                       architecture=getattr(args, "architecture", None),
+                       network={k: v for k in ("latency", "period", "loss", "receiver")
+                                if (v := getattr(args, k, None)) is not None})
 
 
 def viewer_command() -> str:
@@ -277,6 +280,15 @@ def build_parser() -> argparse.ArgumentParser:
                             help="per-vehicle fleets: the paper's stacked law cut by vehicle "
                                  "(centralized) or neighbour-only information (distributed) "
                                  "(default: scenario's)")
+            net = sp.add_argument_group(
+                "acoustic links (per-vehicle fleets; override or start the scenario's "
+                "[network])")
+            net.add_argument("--latency", type=float, help="every link's latency, s")
+            net.add_argument("--period", type=float, help="every link's message period, s")
+            net.add_argument("--loss", type=float, help="every link's loss probability")
+            net.add_argument("--receiver", choices=RECEIVERS,
+                             help="what a receiver does between messages: propagate the "
+                                  "newest with the sender's model (default) or hold it")
             sp.add_argument("--T", type=_positive, help="simulated time, s (default: scenario's)")
             sp.add_argument("--h", type=_positive,
                             help="communication step, s (default: scenario's)")

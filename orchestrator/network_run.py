@@ -11,7 +11,6 @@ predictions (:func:`network_predictions`) share one description. Age of informat
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -143,13 +142,7 @@ def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True
         "cycle_s": setup.net.period * setup.net.h,
     }
     if critical:
-        p = critical_loss(setup.net)
-        out["critical_loss"] = p
-        out["critical_loss_note"] = (
-            "none below 1: the loop stays mean-square stable up to loss 0.99 (with every "
-            "message lost, each vehicle's loop runs on frozen neighbour data)"
-            if p is None else "the loss on every link at which the loop stops being "
-            "mean-square stable")
+        out["critical_loss"], out["critical_loss_note"] = critical_loss(setup.net)
     return out
 
 
@@ -180,16 +173,16 @@ def network_reference(sc: Any, setup: NetworkSetup, seed: int, steps: int
             "e": Z @ setup.net.Ce.T}
 
 
-def age_summary(ages: Mapping[tuple[Any, int], np.ndarray], k0: int, setup: NetworkSetup
+def age_summary(runs: list[tuple[list[str], np.ndarray]], k0: int, setup: NetworkSetup
                 ) -> dict[str, dict[str, dict[str, float]]]:
     """Per receiving vehicle and sender the age of the newest information it holds over the
-    window: mean and max (s), and the mean predicted for independent losses,
+    window, over every seed: mean and max (s), and the mean predicted for independent losses,
     D h + (P - 1) h / 2 + P h p / (1 - p) (D the delay and P the period in steps).
 
     Parameters
     ----------
-    ages : Mapping[tuple[Any, int], np.ndarray]
-        Per link (sender, receiver) the age at every step, s.
+    runs : list[tuple[list[str], np.ndarray]]
+        Per seed the links ("j -> i") and the ``link_age`` traces (steps, links), s.
     k0 : int
         First sample of the window.
     setup : NetworkSetup
@@ -200,13 +193,19 @@ def age_summary(ages: Mapping[tuple[Any, int], np.ndarray], k0: int, setup: Netw
     dict
         {receiver: {sender: {"mean", "max", "predicted_mean"}}}.
     """
-    out: dict[str, dict[str, dict[str, float]]] = {}
     net = setup.net
-    for (j, i), a in sorted(ages.items(), key=lambda kv: (kv[0][1], str(kv[0][0]))):
-        g = net.groups[net.link_group[(j, i)]]
-        p = net.loss[(j, i)]
-        pred = (g.D + (g.P - 1) / 2 + g.P * p / (1 - p)) * net.h
-        w = np.asarray(a[k0:], float)
-        out.setdefault(str(i), {})[str(j)] = {"mean": float(w.mean()), "max": float(w.max()),
-                                              "predicted_mean": pred}
+    by_link: dict[str, list[np.ndarray]] = {}
+    for names, ages in runs:
+        for c, name in enumerate(names):
+            by_link.setdefault(name, []).append(np.asarray(ages[k0:, c], float))
+    out: dict[str, dict[str, dict[str, float]]] = {}
+    for name, parts in by_link.items():
+        j, i = (x.strip() for x in name.split("->"))
+        key = ("leader" if j == "leader" else int(j), int(i))
+        g = net.groups[net.link_group[key]]
+        p = net.loss[key]
+        w = np.concatenate(parts)
+        out.setdefault(i, {})[j] = {
+            "mean": float(w.mean()), "max": float(w.max()),
+            "predicted_mean": (g.D + (g.P - 1) / 2 + g.P * p / (1 - p)) * net.h}
     return out

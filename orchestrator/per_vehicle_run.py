@@ -35,7 +35,13 @@ from .cosim.per_vehicle import (
 )
 from .cosim.per_vehicle_network import network_configs
 from .cosim.system import SystemDescription
-from .network_run import NetworkSetup, network_predictions, network_setup
+from .network_run import (
+    NetworkSetup,
+    age_summary,
+    network_predictions,
+    network_setup,
+    network_summary,
+)
 
 __all__ = ["MAX_CENTRALIZED_DESIGN_S", "PerVehicleRuns", "TRANSIENT_LIMIT",
            "centralized_design_estimate", "check_centralized"]
@@ -201,6 +207,29 @@ class PerVehicleRuns:
         transient = (_prediction(predict_cost(loop, win, X0, transient=True))
                      if loop.Phi.shape[0] <= TRANSIENT_LIMIT else None)
         return _prediction(pred0), _prediction(predict_cost(loop, win, X0)), transient, k0
+
+    def network_entries(self, architecture: str, mode: str, tracking: str,
+                        runs: list[tuple[list[str], np.ndarray]], k0: int) -> dict[str, Any]:
+        """The summary's ``network`` and ``age_of_information`` of a method over links.
+
+        Parameters
+        ----------
+        architecture, mode, tracking : str
+            The method.
+        runs : list[tuple[list[str], np.ndarray]]
+            Per seed its links and their ``link_age`` traces.
+        k0 : int
+            First sample of the statistics window.
+
+        Returns
+        -------
+        dict[str, Any]
+            ``network`` (latency, period, loss, receiver, critical loss, ...) and
+            ``age_of_information`` ({receiver: {sender: mean, max, predicted_mean}}).
+        """
+        setup = self.network(architecture, mode, tracking)
+        return {"network": network_summary(self.sc, setup),
+                "age_of_information": age_summary(runs, k0, setup)}
 
     def system(self, architecture: str, mode: str, tracking: str, seed: int
                ) -> SystemDescription:

@@ -382,7 +382,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         note = stationarity_note(sc.T, k0 * sc.h, pred0.settling_time)
         if note is not None:
             notes.add(note)
-        per_seed = []
+        per_seed, link_ages = [], []
         # the seeds after the first on local worker processes (orchestrator.parallel)
         pooled = {s: pool.submit(fmus, cfg, mode, s, sc.steps, tracking, k0, sc.system.Q,
                                  sc.system.R, formation)
@@ -411,6 +411,8 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
                 break
             loop_us.append(res.loop_s / sc.steps * 1e6)
             per_seed.append(run_stats(res.traces, sc.system.Q, sc.system.R, k0, formation))
+            if "link_age" in res.traces:
+                link_ages.append((res.info["links"], res.traces["link_age"]))
             log(f"{name:>9s} seed {seed}: cost rate {per_seed[-1]['cost_rate']:.4g} "
                 f"(predicted {None if pred.cost_rate is None else round(pred.cost_rate, 4)}), "
                 f"{res.loop_s:.2f} s")
@@ -419,6 +421,8 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         if per_seed and formation is not None:
             methods[name].update(formation_summary(
                 [st["formation"] for st in per_seed], list(seeds[:len(per_seed)])))
+        if link_ages:
+            methods[name].update(pv.network_entries(arch, mode, tracking, link_ages, k0))
         if per_seed and pred_window is not None:
             methods[name]["cost_rate"]["predicted_window"] = pred_window.cost_rate
             methods[name]["rms_e"]["predicted_window"] = pred_window.rms_e

@@ -39,11 +39,16 @@ import numpy as np
 
 from .linalg_checks import ModelError
 
-__all__ = ["LinkTiming", "LinkChannel", "arrival_step", "check_link", "check_schedule",
-           "link_key", "propagate", "resolve_links", "send_steps", "tdma_offsets"]
+__all__ = ["LINK_KEY_BASE", "RECEIVERS", "LinkTiming", "LinkChannel", "arrival_step",
+           "check_link", "check_network", "check_schedule", "link_key", "propagate",
+           "resolve_links", "send_steps", "tdma_offsets"]
 
 #: added to the seed key of a link's generator (vehicles use 1..N, the leader 0)
 LINK_KEY_BASE = 1_000_000
+
+#: what a receiver does with the newest message between arrivals: hold it, or carry it
+#: forward with the sender's model
+RECEIVERS = ("hold", "propagate")
 
 
 @dataclass(frozen=True)
@@ -390,6 +395,42 @@ def resolve_links(N: int, edges: Sequence[tuple[int, int, float]],
         offsets = {("leader" if s == 0 else s): o for s, o in offsets.items()}
     return {k: check_link(_link_name(*k), s["latency"], s["period"], s["loss"],
                           offsets.get(k[0], 0.0)) for k, s in settings.items()}
+
+
+def check_network(table: Any, N: int, h: float) -> dict[str, Any]:
+    """A ``[network]`` table checked for a fleet of N vehicles: its ``receiver`` (one of
+    :data:`RECEIVERS`) and its timing; an override must name a link of at least one
+    architecture (every ordered pair of vehicles, the leader to any vehicle).
+
+    Parameters
+    ----------
+    table : Any
+        The table.
+    N : int
+        Number of vehicles.
+    h : float
+        Communication step, s.
+
+    Returns
+    -------
+    dict[str, Any]
+        The table as a dict.
+
+    Raises
+    ------
+    ModelError
+        One line naming the key, link or entry.
+    """
+    if not isinstance(table, dict):
+        raise ModelError(f"[network] must be a table, not {table!r}")
+    receiver = table.get("receiver", "propagate")
+    if receiver not in RECEIVERS:
+        raise ModelError(f"[network] receiver = {receiver!r} is not one of "
+                         f"{', '.join(RECEIVERS)}")
+    timing = {k: v for k, v in table.items() if k != "receiver"}
+    every = [(j, i, 1.0) for i in range(1, N + 1) for j in range(1, N + 1) if j != i]
+    resolve_links(N, every, [(i, 1.0) for i in range(1, N + 1)], timing, h)
+    return dict(table)
 
 
 def check_schedule(entries: Any, N: int) -> list[tuple[float, list[tuple[int, int, float]]]]:

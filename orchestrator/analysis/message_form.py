@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from scipy.linalg import block_diag
 
-from controller_fmu.vehicle_law import RECEIVERS
+from plant_model.network import RECEIVERS
 
 from .distributed import DistributedLoop, SampledAgent, _assemble
 

@@ -19,6 +19,10 @@ A fleet scenario file has these sections (SI units, NED frame; vehicles are numb
     [noise]      convention, process (W_x), position (V_y), reference (V_ybar): numbers (times
                  the identity) or matrices, the same for every vehicle
     [cost]       Q, R per vehicle (numbers or matrices)
+    [network]    acoustic links of the per-vehicle deployment (plant_model.network): fleet-wide
+                 latency (s), period (s), loss (probability), tdma (senders take turns),
+                 receiver ("propagate" | "hold"), links = [{from, to, latency, period,
+                 loss}, ...] per-link overrides (from: a vehicle or "leader")
 
 The sections are validated by :class:`.schema_fleet.FleetScenario`; the result is the
 JSON-ready fleet spec of :mod:`plant_model.fleet`.

@@ -29,6 +29,7 @@ from typing import Any, TypeVar
 from controller_fmu.vehicle_law import DistributedSettings
 from plant_model.discretization import check_step
 from plant_model.linalg_checks import ModelError
+from plant_model.network import check_network
 from plant_model.system import LinearSystem
 
 from .errors import ScenarioError, validate_scenario
@@ -72,8 +73,11 @@ class Scenario:
     def with_run(self, *, T: float | None = None, h: float | None = None,
                  seed: int | None = None, estimator: str | None = None,
                  tracking: str | None = None, deployment: str | None = None,
-                 architecture: str | None = None) -> Scenario:
-        """A copy with run settings overridden, checked like the file's [simulation]."""
+                 architecture: str | None = None,
+                 network: Mapping[str, Any] | None = None) -> Scenario:
+        """A copy with run settings overridden, checked like the file's [simulation];
+        ``network`` keys (latency, period, loss, receiver, ...) override or start the
+        [network] table."""
         new = replace(self, T=self.T if T is None else float(T),
                       h=self.h if h is None else float(h),
                       seed=self.seed if seed is None else int(seed),
@@ -81,6 +85,15 @@ class Scenario:
                       tracking=self.tracking if tracking is None else tracking,
                       deployment=self.deployment if deployment is None else deployment,
                       architecture=self.architecture if architecture is None else architecture)
+        if network:
+            if new.fleet is None:
+                raise ScenarioError(f"{self.source}: acoustic links (--latency, --period, "
+                                    "--loss, --receiver) need a fleet scenario")
+            try:
+                new = replace(new, network=check_network(
+                    {**(self.network or {}), **network}, len(new.fleet["vehicles"]), new.h))
+            except ModelError as exc:
+                raise ScenarioError(f"{self.source}: {exc}") from None
         run = {"T": new.T, "h": new.h, "seed": new.seed, "estimator": new.estimator,
                "tracking": new.tracking, "deployment": new.deployment,
                "architecture": new.architecture}

@@ -33,12 +33,12 @@ from pydantic import (
 )
 
 from controller_fmu.distributed import REGULATOR_FORMS
-from controller_fmu.vehicle_law import LEADER_INFORMATION, RECEIVERS
+from controller_fmu.vehicle_law import LEADER_INFORMATION
 from plant_model.fleet import CONSENSUS_FORMS, fleet_vehicles
 from plant_model.graph import communication_graph
 from plant_model.leader import LeaderPath, make_leader
 from plant_model.linalg_checks import ModelError, as_matrix, as_vector
-from plant_model.network import resolve_links
+from plant_model.network import check_network
 from plant_model.system import NOISE_CONVENTIONS
 from plant_model.vehicle_targets import leader_state_map, state_offset
 from plant_model.vehicles import VehicleModel
@@ -366,21 +366,10 @@ class FleetScenario(ScenarioFile):
         """[network]: latency (s), period (s), loss, tdma, receiver and per-link overrides
         naming communication edges (plant_model.network.resolve_links); every error one line
         naming the link or entry."""
-        if network is None:
-            return None
-        receiver = network.get("receiver", "propagate")
-        if receiver not in RECEIVERS:
-            raise ModelError(f"receiver = {receiver!r} is not one of {', '.join(RECEIVERS)}")
-        vehicles, graph = _valid_vehicles(info), info.data.get("graph")
-        sim = info.data.get("simulation")
-        if vehicles is not None and graph is not None and sim is not None:
-            N = vehicles.count
-            table = {k: v for k, v in network.items() if k != "receiver"}
-            # the distributed architecture's links are the graph's, the centralized one's
-            # every pair: an override must name a link of at least one of them
-            every = [(j, i, 1.0) for i in range(1, N + 1) for j in range(1, N + 1) if j != i]
-            resolve_links(N, every, [(i, 1.0) for i in range(1, N + 1)], table, sim.h)
-        return network
+        vehicles, sim = _valid_vehicles(info), info.data.get("simulation")
+        if network is None or vehicles is None or sim is None:
+            return network
+        return check_network(network, vehicles.count, sim.h)
 
     @field_validator("cost")
     @classmethod
