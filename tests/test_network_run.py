@@ -1,0 +1,124 @@
+"""Per-vehicle fleets over acoustic links end to end: the AuvNetwork FMUs in the system
+against the monolithic reference, libcosim against our Jacobi master, the summary's network
+keys, and bad input at the scenario loader and the CLI."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from orchestrator.network_run import network_reference
+from orchestrator.per_vehicle_run import PerVehicleRuns
+from orchestrator.scenario import ScenarioError, load_scenario
+
+NET = {"latency": 1.0, "period": 2.0, "loss": 0.3}
+
+
+def _scenario(architecture, receiver="propagate", **run):
+    return load_scenario("formation-4").with_run(
+        deployment="per-vehicle", architecture=architecture,
+        network=dict(NET, receiver=receiver), **run)
+
+
+@pytest.mark.parametrize("architecture, receiver", [
+    ("distributed", "propagate"), ("distributed", "hold"), ("centralized", "propagate")])
+def test_the_network_fmus_reproduce_the_monolithic_loop(tmp_path, architecture, receiver):
+    """1 + 4 N FMUs (leader; vehicle, estimator, controller, network per AUV) equal the
+    networked loop stepped as one recursion with the same noise and loss draws, and every
+    link's age of information equals the one the loss draws imply."""
+    sc = _scenario(architecture, receiver, T=30.0)
+    pv = PerVehicleRuns(sc, tmp_path / "fmus")
+    res = pv.run(architecture, "kalman", "regulator", 3)
+    setup = pv.network(architecture, "kalman", "regulator")
+    ref = network_reference(sc, setup, 3, sc.steps)
+    for key in ("u", "e"):
+        scale = np.abs(ref[key]).max()
+        assert np.abs(res.traces[key] - ref[key]).max() <= 1e-9 * scale, key
+    ages = setup.net.ages(sc.steps, 3)
+    want = np.column_stack([ages[(("leader" if j == "leader" else int(j)), int(i))]
+                            for j, _, i in (s.split() for s in res.info["links"])])
+    assert np.array_equal(res.traces["link_age"], want)
+    done = res.traces["link_delivered"][-1] + res.traces["link_lost"][-1]
+    assert np.all(done == 15)                        # 15 messages in 30 s, all accounted
+    assert res.traces["link_lost"][-1].sum() > 0
+    system = pv.system(architecture, "kalman", "regulator", 3)
+    assert sum(c.fmu == "network" for c in system.components) == 4
+
+
+@pytest.mark.parametrize("architecture", ["distributed", "centralized"])
+def test_libcosim_runs_the_networked_export_like_our_jacobi_master(tmp_path, architecture):
+    pytest.importorskip("libcosimpy")
+    from orchestrator.cosim.master import run_system
+    from orchestrator.interop import libcosim
+    from orchestrator.interop.osp import export_osp
+    from orchestrator.workflow import scenario_system
+    libcosim.quiet_libcosim()
+    sc = _scenario(architecture)
+    paths = export_osp(sc, tmp_path)
+    system = scenario_system(sc)
+    assert "network" in paths and len(system.components) == 17
+    steps = 500
+    lc = libcosim.run_libcosim(paths["system"], system, steps)
+    traces, _, _ = run_system(system, {c.fmu: paths[c.fmu] for c in system.components},
+                              steps, coupling="jacobi")
+    assert set(lc["traces"]) == set(traces)
+    for key, arr in lc["traces"].items():
+        assert np.array_equal(arr, traces[key]), key
+    assert lc["traces"]["network_4.link[1].delivered"][-1, 0] >= 1
+
+
+def test_the_summary_reports_the_network_and_the_age_of_information(tmp_path):
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "orchestrator", "run", "--scenario",
+                        "formation-4", "--deployment", "per-vehicle", "--architecture",
+                        "distributed", "--latency", "1", "--period", "2", "--loss", "0.2",
+                        "--T", "40", "--h", "0.05", "--out", str(out), "--quiet"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    m = json.loads((out / "summary.json").read_text())["methods"]["kalman"]
+    net = m["network"]
+    assert (net["latency"], net["period"], net["loss"]) == (1.0, 2.0, 0.2)
+    assert net["receiver"] == "propagate" and net["links"] == 5 and net["cycle_s"] == 2.0
+    assert net["critical_loss"] is None and "none" in net["critical_loss_note"]
+    assert m["cost_rate"]["predicted"] > 0
+    age = m["age_of_information"]
+    assert set(age) == {"1", "2", "3", "4"} and set(age["4"]) == {"2", "3"}
+    a = age["1"]["leader"]
+    assert 1.0 <= a["mean"] <= a["max"] and a["predicted_mean"] == pytest.approx(
+        1.0 + 0.975 / 2 * 2 + 2.0 * 0.25, rel=1e-9)     # D h + (P - 1) h / 2 + P h p/(1-p)
+
+
+@pytest.mark.parametrize("network, fragment", [
+    ({"latency": -1.0}, "[network]: latency = -1 s is negative"),
+    ({"loss": 1.5}, "[network]: loss = 1.5 is not a probability in [0, 1)"),
+    ({"period": 0.0}, "[network]: period = 0 s must be positive"),
+    ({"receiver": "guess"}, "[network] receiver = 'guess' is not one of hold, propagate"),
+    ({"links": [{"from": 9, "to": 1, "loss": 0.1}]},
+     "vehicle 9 does not exist (vehicles are 1..4)"),
+    ({"links": [{"from": 2, "to": 2}]}, "network link 2 -> 2: no such communication edge"),
+    ({"colour": "blue"}, "[network]: unknown key(s) colour"),
+])
+def test_bad_network_settings_are_one_line_naming_the_entry(network, fragment):
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario("formation-4").with_run(deployment="per-vehicle", network=network)
+    msg = str(exc.value)
+    assert fragment in msg and "\n" not in msg
+
+
+def test_a_network_needs_the_per_vehicle_deployment():
+    with pytest.raises(ScenarioError, match=r"\[network\] needs \[simulation\] deployment"):
+        load_scenario("formation-4").with_run(network={"loss": 0.1})
+
+
+def test_the_cli_refuses_a_bad_loss_in_one_line(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "orchestrator", "run", "--scenario",
+                        "formation-4", "--deployment", "per-vehicle", "--loss", "1.2",
+                        "--out", str(tmp_path / "x")], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "loss = 1.2 is not a probability" in lines[0]
+    assert not (tmp_path / "x").exists()

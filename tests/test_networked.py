@@ -1,0 +1,229 @@
+"""orchestrator.analysis.message_form, .networked, .networked_prediction: the per-vehicle loop
+over acoustic links, its exact second moment, mean-square stability and critical loss."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.linalg import solve_discrete_lyapunov
+
+from controller_fmu.regulator import tracking_law
+from controller_fmu.vehicle_law import centralized_rows
+from estimator_fmu.estimators import make_estimator
+from orchestrator.analysis.message_form import (
+    centralized_message_form,
+    distributed_message_form,
+    perfect_links,
+)
+from orchestrator.analysis.networked import NetworkedLoop
+from orchestrator.analysis.networked_prediction import (
+    _Compiler,
+    critical_loss,
+    frozen_radius,
+    ms_spectral_radius,
+    ms_stable,
+    predict_window,
+)
+from orchestrator.analysis.per_vehicle import (
+    distributed_initial_state,
+    distributed_loop_of,
+    distributed_noise,
+)
+from orchestrator.analysis.prediction import method_predictions
+from orchestrator.scenario import load_scenario
+from plant_model.discretization import discretize
+from plant_model.network import LinkChannel, check_link, link_key
+
+DATA = __import__("pathlib").Path(__file__).parent / "data"
+
+
+@pytest.fixture(scope="module")
+def f4():
+    return load_scenario("formation-4").with_run(h=0.05)
+
+
+def _H_offsets(sc):
+    H = np.asarray(sc.fleet["leader"]["H"], float)
+    return H, [v.get("offset") for v in sc.fleet["vehicles"]]
+
+
+def _centralized(sc, mode):
+    loop = distributed_loop_of(sc, mode, "regulator", sc.distributed)
+    N, p = len(loop.sampled), loop.laws[0].Kx.shape[1]
+    r, m = loop.sampled[0].Ad.shape[0] - p, loop.sampled[0].Bd.shape[1]
+    rows = centralized_rows(tracking_law(sc.system, "regulator").Ks, N, p, r, m,
+                            loop.observer.Phi.shape[0])
+    return loop, centralized_message_form(loop, rows)
+
+
+@pytest.mark.parametrize("mode", ["ideal", "kalman"])
+@pytest.mark.parametrize("cohesion", [0.0, 0.5])
+def test_perfect_links_give_back_the_distributed_loop(f4, mode, cohesion):
+    loop = distributed_loop_of(f4, mode, "regulator",
+                               dataclasses.replace(f4.distributed, cohesion=cohesion))
+    form = distributed_message_form(loop, *_H_offsets(f4))
+    for got, want in zip(perfect_links(form), (loop.Phi, loop.Gam, loop.Gx, loop.Geta)):
+        assert np.allclose(got, want, rtol=0, atol=1e-12 * max(1.0, np.abs(want).max()))
+    assert len(form.links) == 5                      # 4 edges and the leader to vehicle 1
+    assert [f for f, _ in form.senders[1].fields] == (["eta", "eps"] if cohesion else ["eta"])
+
+
+@pytest.mark.parametrize("mode", ["ideal", "kalman"])
+def test_perfect_links_give_back_the_stacked_centralized_cost(f4, mode):
+    """The centralized per-vehicle loop cut at its messages, closed again, has the stacked
+    deployment's stationary cost (an independent construction: the stacked estimator)."""
+    _, form = _centralized(f4, mode)
+    Phi, Gam, Gx, Geta = perfect_links(form)
+    R = ~form.deterministic
+    S = solve_discrete_lyapunov(Phi[np.ix_(R, R)], Gam[R] @ form.W @ Gam[R].T)
+    Sig = np.zeros_like(Phi)
+    Sig[np.ix_(R, R)] = S
+    cost = (np.trace(form.Qc @ form.Ce @ Sig @ form.Ce.T)
+            + np.trace(form.Rc @ (Gx @ Sig @ Gx.T + Geta @ form.W @ Geta.T)))
+    model = discretize(f4.system, f4.h)
+    want = method_predictions(f4, model, make_estimator(f4.system, model, mode),
+                              tracking_law(f4.system, "regulator").Ks)[0].cost_rate
+    assert cost == pytest.approx(want, rel=1e-9)
+    assert len(form.links) == 16                     # 4 x 3 pairs and the leader to all
+
+
+def _channel_reference(form, net, X0, zeta, seed, receiver, timings):
+    """The cut loop stepped with one LinkChannel per link (plant_model.network)."""
+    ch = {k: LinkChannel(timings[k], form.h, seed, link_key(*k), form.senders[k[0]].Cm @ X0,
+                         form.senders[k[0]].M(receiver)) for k in form.links}
+    X, out = X0.copy(), []
+    for k in range(zeta.shape[0]):
+        R = {key: c.rx for key, c in ch.items()}
+        out.append(np.concatenate([X] + [R[key] for key in net.R]))
+        msgs = {j: s.Cm @ X + s.Dm @ zeta[k] + sum((Cr @ R[lk] for lk, Cr in s.Cr.items()),
+                                                   np.zeros(s.width))
+                for j, s in form.senders.items()}
+        X = form.Phi @ X + form.Gam @ zeta[k] + sum(lk.B @ R[key]
+                                                    for key, lk in form.links.items())
+        for key, c in ch.items():
+            c.advance(k, msgs[key[0]])
+    return np.array(out)
+
+
+@pytest.mark.parametrize("architecture", ["distributed", "centralized"])
+@pytest.mark.parametrize("receiver", ["hold", "propagate"])
+def test_the_augmented_loop_is_the_links_stepped_one_by_one(f4, architecture, receiver):
+    """Held and in-flight messages as states (shift registers, one per sender and timing)
+    reproduce LinkChannel objects stepped per link: latency 0.35 s over periods of 0.2 s
+    (two in flight), offsets, 30 % loss."""
+    if architecture == "distributed":
+        loop = distributed_loop_of(f4, "kalman", "regulator",
+                                   dataclasses.replace(f4.distributed, cohesion=0.5))
+        form = distributed_message_form(loop, *_H_offsets(f4))
+    else:
+        loop, form = _centralized(f4, "kalman")
+    X0 = form.state_of(distributed_initial_state(f4, loop))
+    timings = {k: check_link(str(k), 0.35, 0.2 if k[0] == 2 else 0.5, 0.3,
+                             0.1 if k[0] == 1 else 0.0) for k in form.links}
+    net = NetworkedLoop(form, timings, receiver)
+    zeta = np.random.default_rng(0).standard_normal((160, form.Gam.shape[1])) * 0.01
+    Z = net.simulate(net.initial_state(X0), zeta, seed=3)
+    order = np.r_[np.arange(form.Phi.shape[0]),
+                  np.concatenate([np.arange(sl.start, sl.stop) for sl in net.R.values()])]
+    ref = _channel_reference(form, net, X0, zeta, 3, receiver, timings)
+    assert np.allclose(Z[:, order], ref, rtol=0, atol=1e-11 * np.abs(ref).max())
+    assert max(len(g.slots) for g in net.groups.values()) == 2
+
+
+def _mc_cost(sc, net, form, Z0, k0, K, seeds):
+    out = []
+    for seed in seeds:
+        zeta = distributed_noise(sc, seed, K)
+        Z = net.simulate(Z0, zeta, seed)
+        e, u = Z @ net.Ce.T, Z @ net.Gx.T + zeta @ form.Geta.T
+        J = np.einsum("ki,ij,kj->k", e, form.Qc, e) + np.einsum("ki,ij,kj->k", u, form.Rc, u)
+        out.append(J[k0:K].mean())
+    return np.array(out)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("receiver", ["propagate", "hold"])
+def test_predicted_cost_matches_simulation_over_seeds(f4, receiver):
+    """formation-4 distributed over links of period 2 s, latency 1 s, loss 20 %: the exact
+    expected cost over the window agrees with 16 simulated seeds within 4 standard errors."""
+    sc = f4.with_run(T=100.0)
+    loop = distributed_loop_of(sc, "kalman", "regulator", sc.distributed)
+    form = distributed_message_form(loop, *_H_offsets(sc))
+    net = NetworkedLoop(form, {k: check_link(str(k), 1.0, 2.0, 0.2) for k in form.links},
+                        receiver)
+    Z0 = net.initial_state(distributed_initial_state(sc, loop))
+    k0, K = sc.steps // 2, sc.steps
+    pred = predict_window(net, Z0, k0, K)
+    sim = _mc_cost(sc, net, form, Z0, k0, K, range(16))
+    se = sim.std(ddof=1) / np.sqrt(sim.size)
+    assert abs(sim.mean() - pred.cost_rate) < 4 * se, (sim.mean(), se, pred.cost_rate)
+    assert 0.0 < pred.spectral_radius < 1.0
+
+
+def test_the_second_moment_plan_equals_step_by_step_application(f4):
+    """Doubling runs of deterministic steps is exact: the compiled message cycle equals the
+    per-step second-moment recursion."""
+    loop = distributed_loop_of(f4, "ideal", "regulator", f4.distributed)
+    form = distributed_message_form(loop, *_H_offsets(f4))
+    net = NetworkedLoop(form, {k: check_link(str(k), 0.5, 1.0, 0.25) for k in form.links},
+                        "propagate")
+    comp = _Compiler(net)
+    b = comp.first_cycle()
+    X0 = np.outer(*(2 * [net.initial_state(distributed_initial_state(f4, loop))]))
+    fast, cost_fast = comp.apply(comp.cycle(), X0)
+    slow, cost_slow = X0, 0.0
+    for k in range(b, b + net.period):
+        slow, c = comp.apply([comp.step(net.pattern(k))], slow)
+        cost_slow += c
+    assert np.allclose(fast, slow, rtol=1e-9, atol=1e-9 * np.abs(slow).max())
+    assert cost_fast == pytest.approx(cost_slow, rel=1e-9)
+
+
+def test_no_critical_loss_below_one_on_a_planned_survey(f4):
+    """Lawnmower leader (marginal exosystem): with every message lost each vehicle runs on
+    propagated data with radius 1; stable (certified) up to 0.99."""
+    loop = distributed_loop_of(f4, "kalman", "regulator", f4.distributed)
+    form = distributed_message_form(loop, *_H_offsets(f4))
+    net = NetworkedLoop(form, {k: check_link(str(k), 1.0, 2.0, 0.2) for k in form.links},
+                        "propagate")
+    assert frozen_radius(net) == pytest.approx(1.0, abs=1e-9)
+    p, note = critical_loss(net)
+    assert p is None and note.startswith("none up to 0.99")
+
+
+@pytest.mark.slow
+def test_a_critical_loss_below_one_checked_by_simulation_on_both_sides():
+    """The spiral leader (growth 0.05 1/s, tests/data/spiral-leader-network.toml): a
+    propagated message drifts like exp(0.05 t), so the critical loss is near exp(-0.2);
+    the second moment of the error coordinates decays below it and grows above it, in the
+    prediction and in 200 simulated loss sequences."""
+    sc = load_scenario(DATA / "spiral-leader-network.toml")
+    loop = distributed_loop_of(sc, "kalman", "regulator", sc.distributed)
+    form = distributed_message_form(loop, *_H_offsets(sc))
+
+    def net_at(p):
+        return NetworkedLoop(form, {k: check_link(str(k), 1.0, 2.0, p) for k in form.links},
+                             "propagate")
+
+    assert frozen_radius(net_at(0.2)) == pytest.approx(np.exp(0.1), rel=1e-6)
+    pc, _ = critical_loss(net_at(0.2))
+    assert pc is not None and abs(pc - np.exp(-0.2)) < 0.03
+    assert ms_stable(net_at(pc - 0.05)) is True and ms_stable(net_at(pc + 0.05)) is False
+    assert ms_spectral_radius(net_at(pc - 0.05)) < 1.0 < ms_spectral_radius(net_at(pc + 0.08))
+    Z0 = net_at(0.2).initial_state(form.state_of(distributed_initial_state(sc, loop)))
+    Z0[net_at(0.2).deterministic] = 0.0              # the error coordinates: no leader
+    cycles = 20
+    for p, grows in ((pc - 0.1, False), (pc + 0.1, True)):
+        net = net_at(p)
+        comp = _Compiler(net)
+        b = comp.first_cycle()
+        X, _ = comp.apply(comp.plan(0, b), np.outer(Z0, Z0), noise=False)
+        for _ in range(cycles):
+            X, _ = comp.apply(comp.cycle(), X, noise=False)
+        steps = b + cycles * net.period + 1
+        zeta = np.zeros((steps, form.Gam.shape[1]))
+        sims = np.array([np.sum(net.simulate(Z0, zeta, seed)[-1] ** 2) for seed in range(200)])
+        start = float(Z0 @ Z0)
+        assert bool(np.trace(X) > 2 * start) is grows and bool(sims.mean() > 2 * start) is grows
+        assert sims.mean() == pytest.approx(np.trace(X), rel=0.35)
