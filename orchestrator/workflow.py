@@ -347,6 +347,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
     design = next(iter(laws.values())).design if laws else None
     methods: dict[str, Any] = {}
     rrd_runs: dict[str, dict[str, np.ndarray]] = {}
+    rrd_links: dict[str, list[str]] = {}
     loop_us: list[float] = []
     window: tuple[float, float] | None = None
     bar = None
@@ -404,6 +405,8 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
                                     progress=bar, tracking=tracking, stop=stop))
             if name not in rrd_runs and res.steps:
                 rrd_runs[name] = res.traces
+                if "links" in res.info:
+                    rrd_links[name] = res.info["links"]
             if res.info["interrupted_by"]:
                 reached = res.steps * sc.h
                 log(f"{name:>9s} seed {seed}: interrupted by {res.info['interrupted_by']} at "
@@ -449,7 +452,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         rrd_runs = {m: {k: v[:recorded] for k, v in tr.items()} for m, tr in rrd_runs.items()}
         rrd_info = writer.write(rrd_path, rrd_runs, sc.h,
                                 recording_name=f"{sc.name} ({', '.join(rrd_runs)})",
-                                fleet=layout, stride=stride)
+                                fleet=layout, stride=stride, links=rrd_links or None)
     else:
         rrd_path.unlink(missing_ok=True)          # never leave an earlier run's .rrd
         rrd_info = {"bytes": 0, "signals": 0, "rrd_s": 0.0}

@@ -89,6 +89,19 @@ def test_the_summary_reports_the_network_and_the_age_of_information(tmp_path):
     a = age["1"]["leader"]
     assert 1.0 <= a["mean"] <= a["max"] and a["predicted_mean"] == pytest.approx(
         1.0 + 0.975 / 2 * 2 + 2.0 * 0.25, rel=1e-9)     # D h + (P - 1) h / 2 + P h p/(1-p)
+    # the recording: every link's counts, every vehicle's age of information, read back
+    from orchestrator.recording.reader import read_rrd_scalars
+    from support.rrd_readback import read_rrd_blueprint_views
+    rrd = out / "formation-4.rrd"
+    series = read_rrd_scalars(rrd)
+    counts = series["network/links/3-4/kalman"]
+    delivered, lost, in_flight = (counts[2][:, c] for c in range(3))
+    assert delivered[-1] + lost[-1] + in_flight[-1] == 20     # 20 messages sent in 40 s
+    assert np.all(np.diff(delivered) >= 0) and set(np.unique(in_flight)) <= {0.0, 1.0}
+    ages = series["vehicles/4/network/kalman/age"][2]
+    assert ages.shape[1] == 2 and ages.max() >= 3.0 - 1e-9     # hears 2 and 3, age saws
+    views = {path for _, path in read_rrd_blueprint_views(rrd).values()}
+    assert "/network/links" in views and "/vehicles/4/network" in views
 
 
 @pytest.mark.parametrize("network, fragment", [
@@ -122,3 +135,30 @@ def test_the_cli_refuses_a_bad_loss_in_one_line(tmp_path):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "loss = 1.2 is not a probability" in lines[0]
     assert not (tmp_path / "x").exists()
+
+
+def test_an_ssp_archive_with_the_network_runs_in_fmpy(tmp_path):
+    """fmpy's simulate_ssp runs the per-vehicle system with its 4 network FMUs, each with
+    its own parameter set: every link's deliveries and losses (its own loss stream, not
+    the wiring) are our run's, one sample later (fmpy's row j holds sample j + 1)."""
+    pytest.importorskip("fmpy.ssp.simulation")
+    from fmpy.ssp.simulation import simulate_ssp
+
+    from orchestrator.cosim.master import run_system
+    from orchestrator.interop.ssp import export_ssp, fmpy_parameter_set
+    from orchestrator.workflow import build, scenario_system
+    sc = load_scenario("formation-4").with_run(
+        deployment="per-vehicle", architecture="distributed",
+        network={"latency": 0.2, "period": 0.5, "loss": 0.3})
+    ssp = export_ssp(sc, tmp_path / "f4.ssp")
+    steps = 300
+    result = simulate_ssp(str(ssp), stop_time=steps * sc.h, step_size=sc.h,
+                          parameter_set=fmpy_parameter_set(ssp))
+    ours, _, _ = run_system(scenario_system(sc), build(sc, tmp_path / "fmus"), steps)
+    lost = 0.0
+    for i, k in ((1, "leader"), (2, "link[1]"), (4, "link[2]")):
+        for s in ("delivered", "lost"):
+            got = np.asarray(result[f"network_{i}.{k}.{s}"])[:steps - 1]
+            assert np.array_equal(got, ours[f"network_{i}.{k}.{s}"][1:steps, 0]), (i, k, s)
+        lost += ours[f"network_{i}.{k}.lost"][-1, 0]
+    assert lost > 0

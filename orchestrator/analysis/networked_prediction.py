@@ -71,11 +71,11 @@ class Segment:
 
 @dataclass(frozen=True, eq=False)
 class Event:
-    """A step with arrivals: Abar, its noise, and per link (p(1 - p), D_Z, D_zeta)."""
+    """A step with arrivals: X2 -> Abar X2 Abar' + sum_l p(1 - p) D_l X2 D_l' + noise."""
 
     A: sp.csr_matrix
-    Gam: sp.csr_matrix
-    terms: tuple[tuple[float, sp.csr_matrix, sp.csr_matrix], ...]
+    terms: tuple[tuple[float, sp.csr_matrix], ...]
+    noise: np.ndarray          #: Gbar W Gbar' + sum_l p(1 - p) D_zeta W D_zeta'
 
 
 def _sandwich(A: Any, X: np.ndarray) -> np.ndarray:
@@ -118,14 +118,21 @@ class _Compiler:
             out: Segment | Event = Segment(
                 G=A.toarray(), W=Gd @ self.W @ Gd.T, S=self.Qz.copy(), c=self.c0, length=1)
         else:
-            Abar, terms = A0, []
+            Abar, terms, noise_terms = A0, [], []
             for key, Dl in D.items():
                 p = self.net.loss[key] if self.loss is None else self.loss
                 Abar = Abar + (1.0 - p) * Dl
                 DA, DG = self._restrict(Dl)
-                terms.append((p * (1.0 - p), DA, DG))
+                terms.append((p * (1.0 - p), DA))
+                if DG.nnz:
+                    noise_terms.append((p * (1.0 - p), DG))
             A, Gam = self._restrict(Abar)
-            out = Event(A=A, Gam=Gam, terms=tuple(terms))
+            Gd = Gam.toarray()
+            noise = Gd @ self.W @ Gd.T
+            for c, DG in noise_terms:
+                Gl = DG.toarray()
+                noise += c * (Gl @ self.W @ Gl.T)
+            out = Event(A=A, terms=tuple(terms), noise=noise)
         self._cache[pattern] = out
         return out
 
@@ -163,15 +170,9 @@ class _Compiler:
                 X = s.G @ X @ s.G.T + (s.W if noise else 0.0)
             else:
                 cost += float(np.sum(self.Qz * X)) + (self.c0 if noise else 0.0)
-                Y = _sandwich(s.A, X)
-                if noise:
-                    Gd = s.Gam.toarray()
-                    Y = Y + Gd @ self.W @ Gd.T
-                for c, DA, DG in s.terms:
+                Y = _sandwich(s.A, X) + (s.noise if noise else 0.0)
+                for c, DA in s.terms:
                     Y = Y + c * _sandwich(DA, X)
-                    if noise:
-                        Gd = DG.toarray()
-                        Y = Y + c * (Gd @ self.W @ Gd.T)
                 X = Y
         return X, cost
 

@@ -177,7 +177,7 @@ def fleet_camera(points: np.ndarray) -> rrb.EyeControls3D:
 
 
 def _fleet_blueprint(methods: list[str], n: int, trail_ns: int, trail_steps: int,
-                     points: np.ndarray) -> rrb.Blueprint:
+                     points: np.ndarray, network: bool = False) -> rrb.Blueprint:
     """3D view(s) of the fleet on the left (framed by :func:`fleet_camera` on ``points``),
     per-vehicle error/control views on the right (whole run, legends hidden: the legend view
     on top names the colours)."""
@@ -209,6 +209,9 @@ def _fleet_blueprint(methods: list[str], n: int, trail_ns: int, trail_steps: int
             tabs.append(rrb.Grid(contents=[v for i in range(a, b + 1) for v in vehicle_views(i)],
                                  grid_columns=2, name=f"vehicles {a}-{b}"))
         right = rrb.Tabs(*tabs, active_tab=0, name="vehicles")
+    if network:                         # acoustic links: their own tab beside the vehicles
+        from .network import network_view
+        right = rrb.Tabs(right, network_view(n, _series_view), active_tab=0, name="vehicles")
     legend = rrb.TextDocumentView(origin=f"/{LEGEND_ENTITY}", name="legend")
     return rrb.Blueprint(
         rrb.Vertical(legend, rrb.Horizontal(left, right, column_shares=[1.0, 1.0]),

@@ -27,6 +27,7 @@ from .layout import (
     color_name,
     method_color,
 )
+from .network import send_links
 from .validation import _positive_int, _positive_ns, _validate, _validate_fleet
 
 __all__ = ["write_rrd"]
@@ -191,7 +192,8 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
               recording_name: str, application_id: str = "auv-cosim",
               fleet: FleetLayout | None = None, trail_seconds: float = 60.0,
               trail_sample_seconds: float = 0.5, stride: int = 1,
-              scene_stride: int | None = None) -> dict[str, float]:
+              scene_stride: int | None = None,
+              links: dict[str, list[str]] | None = None) -> dict[str, float]:
     """Write the traces of one or more runs to a Rerun .rrd file with a default blueprint.
 
     Parameters
@@ -228,6 +230,10 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
     scene_stride : int or None, optional
         Steps between two samples of the 3D edges (``world/{m}/edges``), a positive multiple
         of ``stride``; default (None) the trail stride.  Only used with ``fleet``.
+    links : dict[str, list[str]] or None, optional
+        Per method over acoustic links the link of each column of its ``link_*`` traces
+        ("j -> i"): each link's counts and each vehicle's age of information are recorded
+        (:mod:`orchestrator.recording.network`).  Only used with ``fleet``.
 
     Returns
     -------
@@ -274,7 +280,8 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
         points = np.concatenate(
             [np.concatenate([run["x"][:, fleet_v.position_index].reshape(-1, 3),
                              run["z"] @ fleet_v.leader_output.T]) for run in clean.values()])
-        blueprint = _fleet_blueprint(methods, fleet_v.n, trail_ns, trail_steps, points)
+        blueprint = _fleet_blueprint(methods, fleet_v.n, trail_ns, trail_steps, points,
+                                     network=bool(links))
 
     t0 = time.perf_counter()
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -321,6 +328,9 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
                                               index, stride, indexes)
                 _send_fleet_world(rec, method, clean[method], fleet_v, h_ns, stride,
                                   scene_stride, trail_stride)
+                if links and method in links:
+                    signals += send_links(rec, method, runs[method], links[method], stride,
+                                          indexes, index)
         rec.flush()
     except BaseException:
         rec.disconnect()
