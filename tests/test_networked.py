@@ -189,7 +189,7 @@ def test_no_critical_loss_below_one_on_a_planned_survey(f4):
                         "propagate")
     assert frozen_radius(net) == pytest.approx(1.0, abs=1e-9)
     p, note = critical_loss(net)
-    assert p is None and note.startswith("none up to 0.99")
+    assert p is None and note.startswith("none up to 0.9 ")
 
 
 @pytest.mark.slow

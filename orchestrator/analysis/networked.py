@@ -120,6 +120,7 @@ class NetworkedLoop:
         self.timings = dict(timings)
         self.period = int(np.lcm.reduce([g.P for g in groups.values()])) if groups else 1
         self.startup = max((g.first + g.D for g in groups.values()), default=0)
+        self._patterns: dict[int, tuple[frozenset, frozenset]] = {}
         nZ = form.Gam.shape[1]
         self.nZ = nZ
         # cost: e = Ce X, u = Gx_aug Z + Geta zeta
@@ -138,11 +139,16 @@ class NetworkedLoop:
 
     # --------------------------------------------------------------- one transition
     def pattern(self, k: int) -> tuple[frozenset, frozenset]:
-        """(groups sending, links receiving) in the transition k -> k+1."""
-        sends = frozenset(g for g, grp in self.groups.items() if grp.sends(k))
-        arr = frozenset(key for key, g in self.link_group.items()
-                        if self.groups[g].arrives(k) is not None)
-        return sends, arr
+        """(groups sending, links receiving) in the transition k -> k+1 (periodic with the
+        message cycle once every link has delivered its first message)."""
+        if k >= self.startup + self.period:
+            k = self.startup + (k - self.startup) % self.period
+        if k not in self._patterns:
+            sends = frozenset(g for g, grp in self.groups.items() if grp.sends(k))
+            arr = frozenset(key for key, g in self.link_group.items()
+                            if self.groups[g].arrives(k) is not None)
+            self._patterns[k] = (sends, arr)
+        return self._patterns[k]
 
     @lru_cache(maxsize=64)  # noqa: B019 - a loop lives as long as its predictions
     def matrices(self, pattern: tuple[frozenset, frozenset]
