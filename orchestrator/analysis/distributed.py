@@ -276,6 +276,58 @@ class DistributedLoop:
         return X
 
 
+def estimate_rows(sa: SampledAgent, s: slice, q: slice | None, n: slice, nX: int, nZ: int,
+                  dtype: Any = float) -> tuple[np.ndarray, np.ndarray]:
+    """est = [xhat; what] = Ex X + En zeta of one vehicle: the truth s (ideal, ``q`` None) or
+    its current Kalman estimate q + L (y - M q), y = M s + n.
+
+    Parameters
+    ----------
+    sa : SampledAgent
+        The vehicle.
+    s, q, n : slice, slice or None, slice
+        Its sampled state and Kalman state in X, its sensor noise in zeta.
+    nX, nZ : int
+        Sizes of X and zeta.
+    dtype : Any, optional
+        float, or complex for the per-eigenvalue blocks.
+
+    Returns
+    -------
+    tuple[np.ndarray, np.ndarray]
+        (Ex, En).
+    """
+    ns = sa.Ad.shape[0]
+    Ex, En = np.zeros((ns, nX), dtype), np.zeros((ns, nZ), dtype)
+    if q is not None:
+        Ex[:, q] = np.eye(ns) - sa.L @ sa.M
+        Ex[:, s] = sa.L @ sa.M
+        En[:, n] = sa.L
+    else:
+        Ex[:, s] = np.eye(ns)
+    return Ex, En
+
+
+def add_vehicle_rows(Phi: np.ndarray, Gam: np.ndarray, sampled: Sequence[SampledAgent],
+                     idx: Mapping[str, list[slice]], nu: Sequence[slice],
+                     Ux: Sequence[np.ndarray], Un: Sequence[np.ndarray],
+                     Estx: Sequence[np.ndarray], Estn: Sequence[np.ndarray],
+                     kalman: bool) -> None:
+    """Add every vehicle's rows to the loop, in place: s_i+ = Ad s_i + Bd u_i + nu_i and,
+    with Kalman estimates, q_i+ = Ad est_i + Bd u_i (u_i = Ux X + Un zeta, est_i = Estx X +
+    Estn zeta)."""
+    for i, sa in enumerate(sampled):
+        si = idx["s"][i]
+        Phi[si, si] += sa.Ad
+        Phi[si] += sa.Bd @ Ux[i]
+        Gam[si, nu[i]] += np.eye(sa.Ad.shape[0])
+        Gam[si] += sa.Bd @ Un[i]
+        if kalman:
+            qi = idx["q"][i]
+            Phi[qi] += sa.Ad @ Estx[i] + sa.Bd @ Ux[i]
+            Gam[qi] += sa.Ad @ Estn[i] + sa.Bd @ Un[i]
+
+
 def _assemble(sampled: Sequence[SampledAgent], laws: Sequence[VehicleLaw], LG: np.ndarray,
               g: np.ndarray, obs: SampledObserver, H: np.ndarray, offsets: Sequence[np.ndarray],
               cohesion: float, kalman: bool) -> dict[str, Any]:
@@ -319,14 +371,8 @@ def _assemble(sampled: Sequence[SampledAgent], laws: Sequence[VehicleLaw], LG: n
     Un = [np.zeros((m, nZ), dt) for m in ms]
     Estx, Estn = [], []
     for i, (sa, law) in enumerate(zip(sampled, laws)):
-        Ex = np.zeros((ns[i], nX), dt)
-        En = np.zeros((ns[i], nZ), dt)
-        if kalman:
-            Ex[:, idx["q"][i]] = np.eye(ns[i]) - sa.L @ sa.M
-            Ex[:, idx["s"][i]] = sa.L @ sa.M
-            En[:, nn[i]] = sa.L
-        else:
-            Ex[:, idx["s"][i]] = np.eye(ns[i])
+        Ex, En = estimate_rows(sa, idx["s"][i], idx["q"][i] if kalman else None, nn[i], nX,
+                               nZ, dt)
         Estx.append(Ex)
         Estn.append(En)
         T = np.hstack([np.eye(ps[i]), -law.Xw])
@@ -350,16 +396,8 @@ def _assemble(sampled: Sequence[SampledAgent], laws: Sequence[VehicleLaw], LG: n
     Phi[iv, iv] = obs.Phi
     Phi[ic, ic] = 1.0
     B = obs.B_nbr
-    for i, sa in enumerate(sampled):
-        si = idx["s"][i]
-        Phi[si, si] += sa.Ad
-        Phi[si] += sa.Bd @ Ux[i]
-        Gam[si, nu[i]] += np.eye(ns[i])
-        Gam[si] += sa.Bd @ Un[i]
-        if kalman:
-            qi = idx["q"][i]
-            Phi[qi] += sa.Ad @ Estx[i] + sa.Bd @ Ux[i]
-            Gam[qi] += sa.Ad @ Estn[i] + sa.Bd @ Un[i]
+    add_vehicle_rows(Phi, Gam, sampled, idx, nu, Ux, Un, Estx, Estn, kalman)
+    for i in range(N):
         ei = idx["eta"][i]
         Phi[ei, ei] += obs.Phi
         for j in np.flatnonzero(LG[i]):

@@ -32,7 +32,13 @@ from scipy.linalg import block_diag
 
 from plant_model.network import RECEIVERS
 
-from .distributed import DistributedLoop, SampledAgent, _assemble
+from .distributed import (
+    DistributedLoop,
+    SampledAgent,
+    _assemble,
+    add_vehicle_rows,
+    estimate_rows,
+)
 
 __all__ = ["MessageForm", "Sender", "Link", "RECEIVERS", "centralized_message_form",
            "distributed_message_form", "perfect_links", "without_leader_links"]
@@ -228,27 +234,13 @@ def _eps_rows(loop: DistributedLoop, j: int) -> tuple[np.ndarray, np.ndarray]:
     """eps_j = Ex X + En zeta (the regulation error vehicle j computes and sends)."""
     sa, law, idx = loop.sampled[j], loop.laws[j], loop.index
     nX, nZ = loop.Phi.shape[0], loop.Gam.shape[1]
-    Est, Esn = _estimate_rows(sa, dict(idx, n=_noise_slices(loop)), j, nX, nZ,
-                              loop.estimator == "kalman")
+    kalman = loop.estimator == "kalman"
+    Est, Esn = estimate_rows(sa, idx["s"][j], idx["q"][j] if kalman else None,
+                             _noise_slices(loop)[j], nX, nZ)
     T = np.hstack([np.eye(law.Kx.shape[1]), -law.Xw])
     Ex, En = T @ Est, T @ Esn
     Ex[:, idx["eta"][j]] -= law.X
     Ex[:, idx["c"][0].start] -= law.xc
-    return Ex, En
-
-
-def _estimate_rows(sa: SampledAgent, idx: dict[str, list[slice]], j: int, nX: int, nZ: int,
-                   kalman: bool) -> tuple[np.ndarray, np.ndarray]:
-    """est_j = [xhat_j; what_j] = Ex X + En zeta: the truth (ideal) or the current Kalman
-    estimate q + L (y - M q), y = M s + n (``idx`` has the slices s, q of X and n of zeta)."""
-    ns = sa.Ad.shape[0]
-    Ex, En = np.zeros((ns, nX)), np.zeros((ns, nZ))
-    if kalman:
-        Ex[:, idx["q"][j]] = np.eye(ns) - sa.L @ sa.M
-        Ex[:, idx["s"][j]] = sa.L @ sa.M
-        En[:, idx["n"][j]] = sa.L
-    else:
-        Ex[:, idx["s"][j]] = np.eye(ns)
     return Ex, En
 
 
@@ -297,7 +289,8 @@ def centralized_message_form(loop: DistributedLoop, rows: Sequence[tuple[np.ndar
     Phi, Gam = np.zeros((nX, nX)), np.zeros((nX, nZ))
     Phi[iv, iv] = loop.observer.Phi
     Phi[ic, ic] = 1.0
-    est = [_estimate_rows(sa, nidx, j, nX, nZ, kalman) for j, sa in enumerate(loop.sampled)]
+    est = [estimate_rows(sa, nidx["s"][j], nidx["q"][j] if kalman else None, nidx["n"][j],
+                         nX, nZ) for j, sa in enumerate(loop.sampled)]
     col = np.cumsum([0] + ns)
     Ux, Un = [], []
     for i, (K, u0) in enumerate(rows):
@@ -305,17 +298,8 @@ def centralized_message_form(loop: DistributedLoop, rows: Sequence[tuple[np.ndar
         Ux.append(-Kown @ est[i][0])
         Ux[i][:, ic] += u0
         Un.append(-Kown @ est[i][1])
-    nu = _process_slices(loop)
-    for i, sa in enumerate(loop.sampled):
-        si = nidx["s"][i]
-        Phi[si, si] += sa.Ad
-        Phi[si] += sa.Bd @ Ux[i]
-        Gam[si, nu[i]] += np.eye(ns[i])
-        Gam[si] += sa.Bd @ Un[i]
-        if kalman:
-            qi = nidx["q"][i]
-            Phi[qi] += sa.Ad @ est[i][0] + sa.Bd @ Ux[i]
-            Gam[qi] += sa.Ad @ est[i][1] + sa.Bd @ Un[i]
+    add_vehicle_rows(Phi, Gam, loop.sampled, nidx, _process_slices(loop), Ux, Un,
+                     [e[0] for e in est], [e[1] for e in est], kalman)
     Gx, Geta = np.vstack(Ux), np.vstack(Un)
     u_rows = np.cumsum([0] + ms)
     links: dict[tuple[int | str, int], Link] = {}
