@@ -18,6 +18,7 @@ import numpy as np
 
 from controller_fmu.regulator import tracking_law
 from controller_fmu.vehicle_law import centralized_rows
+from plant_model.fleet import fleet_vehicles
 
 from .analysis.message_form import (
     MessageForm,
@@ -33,8 +34,8 @@ from .analysis.summary import stats_window
 from .cosim.per_vehicle import fleet_slots
 from .cosim.per_vehicle_network import fleet_links, receiver_slots
 
-__all__ = ["NetworkSetup", "age_summary", "network_predictions", "network_reference",
-           "network_setup", "network_summary"]
+__all__ = ["NetworkSetup", "age_summary", "modem_settings", "network_predictions",
+           "network_reference", "network_setup", "network_summary"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,9 +93,43 @@ def network_setup(sc: Any, architecture: str, mode: str, tracking: str) -> Netwo
     links = fleet_links(sc, architecture)
     receiver = dict(sc.network).get("receiver", "propagate")
     net = NetworkedLoop(form, links, receiver)
+    modem = modem_settings(sc)
+    if modem is not None:
+        net.set_modem_range(modem["range"], _positions(sc, loop, form, net, modem))
     return NetworkSetup(form=form, net=net, links=links,
                         slot_senders=receiver_slots(sc, architecture, fleet_slots(sc.fleet)),
                         X0=form.state_of(X0), leader_size=loop.observer.Phi.shape[0])
+
+
+def modem_settings(sc: Any) -> dict[str, Any] | None:
+    """The network FMUs' modem range settings (None without ``[network] range``): the range
+    (m), the vehicles' state size and position states, the leader's position map H."""
+    table = dict(sc.network or {})
+    if "range" not in table:
+        return None
+    mdl = fleet_vehicles(sc.fleet)[0]
+    return {"range": float(table["range"]), "state_size": int(mdl.p),
+            "position_index": [int(i) for i in mdl.position_states],
+            "leader_H": np.asarray(sc.fleet["leader"]["H"], float).tolist()}
+
+
+def _positions(sc: Any, loop: Any, form: MessageForm, net: NetworkedLoop,
+               modem: dict[str, Any]) -> dict[Any, np.ndarray]:
+    """Per vehicle and the leader the 3 x n matrix of its true NED position in Z."""
+    keep = (np.flatnonzero(form.keep) if form.keep is not None
+            else np.arange(loop.Phi.shape[0]))
+    where = {int(x): c for c, x in enumerate(keep)}
+    out = {}
+    for i, sl in enumerate(loop.index["s"], start=1):
+        P = np.zeros((3, net.n))
+        for r, j in enumerate(modem["position_index"]):
+            P[r, where[sl.start + j]] = 1.0
+        out[i] = P
+    P = np.zeros((3, net.n))
+    v = loop.index["v"][0]
+    P[:, [where[x] for x in range(v.start, v.stop)]] = np.asarray(modem["leader_H"], float)
+    out["leader"] = P
+    return out
 
 
 def network_predictions(sc: Any, setup: NetworkSetup
@@ -118,6 +153,12 @@ def network_predictions(sc: Any, setup: NetworkSetup
                          f"{cycle:g} s message cycle")
     if rho >= 1.0:
         return verdict, verdict, None, k0
+    if net.modem is not None:
+        none = Prediction(rms_e=None, rms_u=None, cost_rate=None, spectral_radius=rho,
+                          settling_time=settling,
+                          reason="a modem range makes the links depend on the vehicles' "
+                                 "positions: simulation only, no prediction")
+        return verdict, none, None, k0
     win = predict_window(net, setup.Z0, k0, sc.steps)
     pred = Prediction(rms_e=None, rms_u=None, cost_rate=win.cost_rate, spectral_radius=rho,
                       settling_time=settling,
@@ -141,8 +182,13 @@ def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True
         "links": len(setup.links),
         "cycle_s": setup.net.period * setup.net.h,
     }
-    if critical:
+    if "range" in table:
+        out["range"] = float(table["range"])
+    if critical and setup.net.modem is None:
         out["critical_loss"], out["critical_loss_note"] = critical_loss(setup.net)
+    elif critical:
+        out["critical_loss"], out["critical_loss_note"] = None, (
+            "not computed with a modem range (the links depend on the vehicles' positions)")
     return out
 
 

@@ -38,6 +38,7 @@ from .cosim.system import SystemDescription
 from .network_run import (
     NetworkSetup,
     age_summary,
+    modem_settings,
     network_predictions,
     network_setup,
     network_summary,
@@ -121,7 +122,8 @@ class PerVehicleRuns:
         if sc.network is not None:
             setup = self.network(architecture, mode, tracking)
             net = network_configs(setup.form.senders, setup.links, setup.slot_senders,
-                                  setup.net.receiver, setup.launch, setup.leader_size)
+                                  setup.net.receiver, setup.launch, setup.leader_size,
+                                  modem_settings(sc))
         return per_vehicle_configs(sc, architecture, mode=mode, seed=seed, tracking=tracking,
                                    settings=sc.distributed, gain=gain, network=net)
 

@@ -20,7 +20,7 @@ from fmu_common.interface import ArraySpec
 from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
 from plant_model.inbox import Inbox, LinkSettings
 from plant_model.linalg_checks import ModelError
-from plant_model.network import check_link
+from plant_model.network import check_link, in_range
 from plant_model.parameters import sample_period_spec
 
 _STATS = (("age", "age of information: t - t_send of the message held", "s"),
@@ -128,6 +128,22 @@ class AuvNetwork(Fmi2Slave):
                                 "uses at t_k") for f, n in fields]
             specs += [ArraySpec(f"{p}.{s}", (), "output", f"{label}: {d}", unit=u)
                       for s, d, u in _STATS]
+            if config.get("range") and p != "leader":
+                specs.append(ArraySpec(f"{p}.tx.x", (config["state_size"],), "input",
+                                       f"{label}: the sender's true state (its position "
+                                       "decides whether it is in range)"))
+        if config.get("range"):
+            specs += [
+                ArraySpec("range", (), "parameter", "modem range: a message sent farther "
+                          "than this is lost", start=float(config["range"]), unit="m",
+                          min=0.0),
+                ArraySpec("x", (config["state_size"],), "input", "the receiver's true state "
+                          "(its position decides whether a sender is in range)"),
+            ]
+            if config["leader_size"]:
+                specs.append(ArraySpec("leader.H", (3, config["leader_size"]), "parameter",
+                                       "the leader's position H z, NED", unit="m",
+                                       start=np.asarray(config["leader_H"], float)))
         return specs + [
             sample_period_spec(config, "communication step the links are stepped at"),
             ArraySpec("seed", (), "parameter", "seed of the fleet's noise (each link draws "
@@ -153,7 +169,14 @@ class AuvNetwork(Fmi2Slave):
         for s in self.specs:
             if s.causality in pos:
                 starts[s.name], pos[s.causality] = pos[s.causality], pos[s.causality] + s.size
-        self._tx, self._blocks = [], []
+        self._tx, self._blocks, self._pos = [], [], []
+        self._range = float(par["range"]) if self.config.get("range") else None
+        if self._range is not None:
+            if not self._range > 0.0:
+                raise ModelError(f"range = {self._range} m must be positive")
+            self._where = np.asarray(self.config["position_index"], dtype=int)
+            n = self.config["state_size"]
+            self._own = self._in[starts["x"]:starts["x"] + n]
         for p, label, fields, _ in link_layout(self.config):
             w = sum(n for _, n in fields)
             timing = check_link(label, *(float(par[f"{p}.{v}"])
@@ -166,6 +189,14 @@ class AuvNetwork(Fmi2Slave):
             i, o = starts[f"{p}.tx.{fields[0][0]}"], starts[f"{p}.rx.{fields[0][0]}"]
             self._tx.append(self._in[i:i + w])
             self._blocks.append(self._out[o:o + w + len(_STATS)])
+            if self.config.get("range"):
+                n = self.config["state_size"]
+                if p == "leader":
+                    H = _finite("leader.H", par["leader.H"])
+                    self._pos.append(lambda tx=self._tx[-1], H=H: H @ tx)
+                else:
+                    j = starts[f"{p}.tx.x"]
+                    self._pos.append(lambda x=self._in[j:j + n]: x[self._where])
         self.inbox = Inbox(links, h, int(par["seed"]), k0=round(self._start_time / h))
 
     def compute_outputs(self) -> None:
@@ -184,4 +215,8 @@ class AuvNetwork(Fmi2Slave):
         step : float
             The communication step, s (checked against h by the base class).
         """
-        self.inbox.advance(self.inbox.k, self._tx)
+        heard = None
+        if self._range is not None:
+            own = self._own[self._where]
+            heard = [in_range(pos(), own, self._range) for pos in self._pos]
+        self.inbox.advance(self.inbox.k, self._tx, heard)

@@ -63,7 +63,8 @@ class Inbox:
         """All ``rx`` concatenated (the vector a step advances)."""
         return np.concatenate([ch.rx for ch in self.links]) if self.links else np.zeros(0)
 
-    def advance(self, k: int, tx_list: Sequence[np.ndarray]) -> None:
+    def advance(self, k: int, tx_list: Sequence[np.ndarray],
+                heard: Sequence[bool] | None = None) -> None:
         """The transition from step k to k + 1 of every link.
 
         Parameters
@@ -72,6 +73,9 @@ class Inbox:
             The step (t = k h), visited in increasing order.
         tx_list : Sequence[np.ndarray]
             What each link's sender sends at t_k, one array per link.
+        heard : Sequence[bool] or None, optional
+            Per link whether sender and receiver are within the modem's range at t_k
+            (None: all).
 
         Raises
         ------
@@ -80,8 +84,8 @@ class Inbox:
         """
         if len(tx_list) != len(self.links):
             raise ValueError(f"inbox: {len(tx_list)} messages for {len(self.links)} links")
-        for ch, tx in zip(self.links, tx_list):
-            ch.advance(k, tx)
+        for j, (ch, tx) in enumerate(zip(self.links, tx_list)):
+            ch.advance(k, tx, True if heard is None else bool(heard[j]))
         self.k = int(k) + 1
 
     def age(self, k: int) -> np.ndarray:

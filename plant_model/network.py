@@ -40,7 +40,8 @@ import numpy as np
 from .linalg_checks import ModelError
 
 __all__ = ["LINK_KEY_BASE", "RECEIVERS", "LinkTiming", "LinkChannel", "arrival_step",
-           "check_link", "check_network", "check_schedule", "link_key", "propagate",
+           "check_link", "check_network", "check_schedule", "in_range", "link_key",
+           "modem_range", "propagate",
            "resolve_links", "send_steps", "tdma_offsets"]
 
 #: added to the seed key of a link's generator (vehicles use 1..N, the leader 0)
@@ -220,11 +221,14 @@ class LinkChannel:
     def _next_send(self) -> int:
         return self._first + round(self._m * self._every)
 
-    def advance(self, k: int, value: np.ndarray) -> None:
+    def advance(self, k: int, value: np.ndarray, in_range: bool = True) -> None:
         """The transition from step k to k + 1.
 
         1. if k is a send step: ``value`` (the sender's message at t_k) leaves, lost with
-           probability ``loss`` (one uniform draw of the link's stream per message);
+           probability ``loss`` (one uniform draw of the link's stream per message), and
+           lost whatever the draw when the receiver is out of the modem's range
+           (``in_range`` False; the draw is made all the same, so a range never shifts the
+           other messages' draws);
         2. a message due at k + 1 (:func:`arrival_step`) replaces ``rx`` unless lost;
         3. with M: ``rx`` and the messages in flight are propagated one step (M x).
 
@@ -234,13 +238,15 @@ class LinkChannel:
             The step (t = k h), visited in increasing order.
         value : np.ndarray
             What the sender sends at t_k, shape (size,).
+        in_range : bool, optional
+            Whether sender and receiver are within the modem's range at t_k.
         """
         while self._next_send() < k:                 # steps skipped: their messages never left
             self._m += 1
         if self._next_send() == k:
             self._m += 1
             self.sent += 1
-            lost = bool(self.rng.random() < self.timing.loss)
+            lost = bool(self.rng.random() < self.timing.loss) or not in_range
             self.in_flight.append((arrival_step(k, self.h, self.timing.latency), k, lost,
                                    np.array(value, dtype=float).reshape(self.size)))
         while self.in_flight and self.in_flight[0][0] <= k + 1:
@@ -355,10 +361,12 @@ def resolve_links(N: int, edges: Sequence[tuple[int, int, float]],
         TDMA.
     """
     net = dict(network or {})
-    unknown = sorted(set(net) - {"latency", "period", "loss", "tdma", "links"})
+    unknown = sorted(set(net) - {"latency", "period", "loss", "tdma", "links", "range"})
     if unknown:
         raise ModelError(f"[network]: unknown key(s) {', '.join(unknown)} (expected latency, "
-                         "period, loss, tdma, links)")
+                         "period, loss, tdma, links, range)")
+    if "range" in net:
+        modem_range(net["range"])
     base = check_link("[network]", net.get("latency", 0.0), net.get("period", h),
                       net.get("loss", 0.0))
     keys = [(int(j), int(i)) for j, i, _ in edges] + [("leader", int(i)) for i, _ in pinning]
@@ -395,6 +403,21 @@ def resolve_links(N: int, edges: Sequence[tuple[int, int, float]],
         offsets = {("leader" if s == 0 else s): o for s, o in offsets.items()}
     return {k: check_link(_link_name(*k), s["latency"], s["period"], s["loss"],
                           offsets.get(k[0], 0.0)) for k, s in settings.items()}
+
+
+def modem_range(value: Any) -> float:
+    """The ``[network] range``: the distance (m, > 0) beyond which a message is not heard
+    (sender and receiver positions at its send time; simulation only: the predictions
+    assume every link in range)."""
+    r = _number("[network] range", value)
+    if r <= 0.0:
+        raise ModelError(f"[network] range = {r:g} m must be positive")
+    return r
+
+
+def in_range(a: np.ndarray, b: np.ndarray, limit: float | None) -> bool:
+    """Are two NED positions (m) within the modem range ``limit`` (None: no limit)?"""
+    return limit is None or float(np.linalg.norm(np.asarray(a) - np.asarray(b))) <= limit
 
 
 def check_network(table: Any, N: int, h: float) -> dict[str, Any]:

@@ -113,6 +113,7 @@ def test_the_summary_reports_the_network_and_the_age_of_information(tmp_path):
      "vehicle 9 does not exist (vehicles are 1..4)"),
     ({"links": [{"from": 2, "to": 2}]}, "network link 2 -> 2: no such communication edge"),
     ({"colour": "blue"}, "[network]: unknown key(s) colour"),
+    ({"range": -5.0}, "[network] range = -5 m must be positive"),
 ])
 def test_bad_network_settings_are_one_line_naming_the_entry(network, fragment):
     with pytest.raises(ScenarioError) as exc:
@@ -162,3 +163,33 @@ def test_an_ssp_archive_with_the_network_runs_in_fmpy(tmp_path):
             assert np.array_equal(got, ours[f"network_{i}.{k}.{s}"][1:steps, 0]), (i, k, s)
         lost += ours[f"network_{i}.{k}.lost"][-1, 0]
     assert lost > 0
+
+
+@pytest.mark.parametrize("architecture", ["distributed", "centralized"])
+def test_a_modem_range_loses_what_is_sent_out_of_range(tmp_path, architecture):
+    """[network] range = 14.5 m on formation-4 (10 m offsets: neighbours 14.1 m apart in
+    formation, launched up to 33 m apart): the FMUs equal the reference, every message sent
+    while its sender was out of range (true positions, computed here from the trajectory) is
+    lost, and the prediction says it does not cover a range."""
+    from plant_model.network import send_steps
+    sc = load_scenario("formation-4").with_run(
+        T=30.0, deployment="per-vehicle", architecture=architecture,
+        network={"latency": 1.0, "period": 2.0, "loss": 0.1, "range": 14.5})
+    pv = PerVehicleRuns(sc, tmp_path / "fmus")
+    res = pv.run(architecture, "kalman", "regulator", 3)
+    setup = pv.network(architecture, "kalman", "regulator")
+    ref = network_reference(sc, setup, 3, sc.steps)
+    assert np.abs(res.traces["u"] - ref["u"]).max() <= 1e-9 * np.abs(ref["u"]).max()
+    limit, pos = setup.net.modem
+    far_total = 0
+    for c, name in enumerate(res.info["links"]):
+        j, _, i = name.split()
+        key = ("leader" if j == "leader" else int(j), int(i))
+        sends = send_steps(setup.links[key], sc.h, sc.steps - 100)     # arrived by T
+        far = sum(np.linalg.norm(pos[key[0]] @ ref["Z"][k] - pos[key[1]] @ ref["Z"][k])
+                  > limit for k in sends)
+        assert res.traces["link_lost"][-1, c] >= far, name
+        far_total += far
+    assert far_total > 0
+    _, pred, _, _ = pv.predictions(architecture, "kalman", "regulator")
+    assert pred.cost_rate is None and "modem range" in pred.reason

@@ -37,7 +37,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from plant_model.linalg_checks import ModelError
-from plant_model.network import LINK_KEY_BASE, LinkTiming, arrival_step, link_key
+from plant_model.network import LINK_KEY_BASE, LinkTiming, arrival_step, in_range, link_key
 
 from .message_form import RECEIVERS, MessageForm
 
@@ -121,6 +121,7 @@ class NetworkedLoop:
         self.period = int(np.lcm.reduce([g.P for g in groups.values()])) if groups else 1
         self.startup = max((g.first + g.D for g in groups.values()), default=0)
         self._patterns: dict[int, tuple[frozenset, frozenset]] = {}
+        self.modem: tuple[float, dict[Any, np.ndarray]] | None = None
         nZ = form.Gam.shape[1]
         self.nZ = nZ
         # cost: e = Ce X, u = Gx_aug Z + Geta zeta
@@ -233,6 +234,12 @@ class NetworkedLoop:
             out[key] = rng.random(count) >= self.loss[key]
         return out
 
+    def set_modem_range(self, limit: float, positions: Mapping[Any, np.ndarray]) -> None:
+        """Simulation only: a message is lost when its sender and receiver are farther apart
+        than ``limit`` (m) at its send time; ``positions`` maps a vehicle number or "leader"
+        to the 3 x n matrix of its NED position in Z."""
+        self.modem = (float(limit), {k: np.asarray(v, float) for k, v in positions.items()})
+
     def simulate(self, Z0: np.ndarray, zeta: np.ndarray, seed: int) -> np.ndarray:
         """Z[k] for k = 0..steps-1 with each link's own loss draws (the FMUs' realisation).
 
@@ -256,6 +263,14 @@ class NetworkedLoop:
         Z = np.asarray(Z0, float)
         for k in range(steps):
             out[k] = Z
+            if self.modem is not None:           # out of range at its send time: lost
+                limit, pos = self.modem
+                for key, g in self.link_group.items():
+                    grp = self.groups[g]
+                    if grp.sends(k):
+                        m = (k - grp.first) // grp.P
+                        if not in_range(pos[key[0]] @ Z, pos[key[1]] @ Z, limit):
+                            ok[key][m] = False
             A0, D = self.matrices(self.pattern(k))
             ext = np.concatenate([Z, zeta[k]])
             Z = A0 @ ext

@@ -252,7 +252,7 @@ def _networked(i: int, architecture: str, cfg: Mapping[str, Any], slots: FleetSl
     row = [st["sender"] for st in cfg["links"]]
     fields = cfg["fields"]
     conns = network_connections(i, architecture, row, fields, pinned,
-                                {"slot": "nbr[{k}].{f}"})
+                                {"slot": "nbr[{k}].{f}"}, bool(cfg.get("range")))
     if architecture == "centralized":
         return conns + [Connection(e, s, c, f"vehicle[{i}].{s}") for s in ("xhat", "what")]
     conns += [Connection(e, "xhat", c, "xhat"), Connection(e, "what", c, "what")]

@@ -88,8 +88,8 @@ def _settings(sender: Any, timing: LinkTiming | None, key: int, M: np.ndarray,
 
 def network_configs(senders: Mapping[Any, Any], links: Mapping[tuple[Any, int], LinkTiming],
                     slot_senders: list[list[Any]], receiver: str,
-                    launch: Mapping[tuple[Any, int], np.ndarray], leader_size: int
-                    ) -> list[dict[str, Any]]:
+                    launch: Mapping[tuple[Any, int], np.ndarray], leader_size: int,
+                    modem: Mapping[str, Any] | None = None) -> list[dict[str, Any]]:
     """The ``AuvNetwork`` build configuration of every vehicle (all of one interface).
 
     Parameters
@@ -106,6 +106,9 @@ def network_configs(senders: Mapping[Any, Any], links: Mapping[tuple[Any, int], 
         Per link the value exchanged before launch.
     leader_size : int
         Size of the leader's state (the leader link's message).
+    modem : Mapping[str, Any] or None, optional
+        With a modem range: ``range`` (m), ``state_size``, ``position_index`` (the
+        vehicles' position states) and ``leader_H`` (the leader's position H z).
 
     Returns
     -------
@@ -133,13 +136,13 @@ def network_configs(senders: Mapping[Any, Any], links: Mapping[tuple[Any, int], 
                             launch[lk]) if lk in links and lead is not None else
                   _settings(None, None, 0, np.eye(leader_size), np.zeros(leader_size)))
         out.append(dict(receiver=i, slots=len(row), fields=fields, leader_size=leader_size,
-                        links=slots, leader=leader))
+                        links=slots, leader=leader, **dict(modem or {})))
     return out
 
 
 def network_connections(i: int, architecture: str, row: list[Any], fields: list[Any],
-                        has_leader_link: bool, controller_inputs: Mapping[str, str]
-                        ) -> list[Connection]:
+                        has_leader_link: bool, controller_inputs: Mapping[str, str],
+                        modem_range: bool = False) -> list[Connection]:
     """Vehicle i's network wiring: senders -> ``network_i`` -> ``controller_i``.
 
     Parameters
@@ -156,6 +159,9 @@ def network_connections(i: int, architecture: str, row: list[Any], fields: list[
         Whether the leader's state reaches this vehicle.
     controller_inputs : Mapping[str, str]
         For the distributed controller, its input name of a slot's field: "nbr[{k}].{f}".
+    modem_range : bool, optional
+        Whether the FMU decides range from the vehicles' true states (inputs ``x`` and
+        ``link[k].tx.x``).
 
     Returns
     -------
@@ -174,6 +180,10 @@ def network_connections(i: int, architecture: str, row: list[Any], fields: list[
             dst = (f"vehicle[{j}].{f}" if architecture == "centralized"
                    else controller_inputs["slot"].format(k=k, f=f))
             conns.append(Connection(net, f"link[{k}].rx.{f}", ctrl, dst))
+    if modem_range:
+        conns.append(Connection(f"vehicle_{i}", "x", net, "x"))
+        conns += [Connection(f"vehicle_{j if j is not None else i}", "x", net,
+                             f"link[{k}].tx.x") for k, j in enumerate(row, start=1)]
     if has_leader_link:
         conns += [Connection("leader", "z", net, "leader.tx.z"),
                   Connection(net, "leader.rx.z", ctrl, "z")]
