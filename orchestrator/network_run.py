@@ -35,7 +35,7 @@ from .cosim.per_vehicle import fleet_slots
 from .cosim.per_vehicle_network import fleet_links, receiver_slots
 
 __all__ = ["NetworkSetup", "age_summary", "modem_settings", "network_predictions",
-           "network_reference", "network_setup", "network_summary"]
+           "network_reference", "network_setup", "network_summary", "too_many_states"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,6 +168,13 @@ def network_predictions(sc: Any, setup: NetworkSetup
     return verdict, pred, pred, k0
 
 
+def too_many_states(n: int) -> str:
+    """Why a networked loop of n states gets no prediction."""
+    return (f"over acoustic links the loop has {n} states (messages in flight and held, per "
+            "link): its dense second moment (n^2 entries, products of n^3 per message cycle) "
+            "is not computed beyond 3000 states; simulation only")
+
+
 def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True
                     ) -> dict[str, Any]:
     """The summary's ``network`` entry of a method: the fleet-wide latency, period and loss,
@@ -189,6 +196,9 @@ def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True
     elif critical:
         out["critical_loss"], out["critical_loss_note"] = None, (
             "not computed with a modem range (the links depend on the vehicles' positions)")
+    else:
+        out["critical_loss"], out["critical_loss_note"] = None, (
+            "not computed: " + too_many_states(setup.net.n))
     return out
 
 
