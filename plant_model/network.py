@@ -333,7 +333,8 @@ def resolve_links(N: int, edges: Sequence[tuple[int, int, float]],
     no latency, a message every step h, no loss); ``links = [{from, to, latency, period,
     loss}, ...]`` overrides single links (``from`` a vehicle number or "leader"); with
     ``tdma = true`` the senders take turns within the period, the leader first, then
-    vehicles 1..N (:func:`tdma_offsets`), which needs one period for every link.
+    vehicles 1..N (:func:`tdma_offsets`, rounded to whole steps), which needs one period
+    for every link. Every period must be a whole number of steps h.
 
     Parameters
     ----------
@@ -400,9 +401,17 @@ def resolve_links(N: int, edges: Sequence[tuple[int, int, float]],
             raise ModelError("[network] tdma = true needs one period for every link; the "
                              f"links use {', '.join(f'{p:g}' for p in sorted(periods))} s")
         offsets = tdma_offsets(range(N + 1), base.period if not periods else periods.pop())
-        offsets = {("leader" if s == 0 else s): o for s, o in offsets.items()}
-    return {k: check_link(_link_name(*k), s["latency"], s["period"], s["loss"],
-                          offsets.get(k[0], 0.0)) for k, s in settings.items()}
+        # each slot starts on a step of the co-simulation
+        offsets = {("leader" if s == 0 else s): round(o / h) * h for s, o in offsets.items()}
+    out = {k: check_link(_link_name(*k), s["latency"], s["period"], s["loss"],
+                         offsets.get(k[0], 0.0)) for k, s in settings.items()}
+    for k, t in out.items():
+        n = t.period / h
+        if abs(n - round(n)) > 1e-9 * max(1.0, n):
+            raise ModelError(f"{_link_name(*k)}: period = {t.period:g} s is not a whole number "
+                             f"of steps h = {h:g} s (messages leave on the co-simulation's "
+                             "steps)")
+    return out
 
 
 def modem_range(value: Any) -> float:

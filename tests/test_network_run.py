@@ -114,6 +114,7 @@ def test_the_summary_reports_the_network_and_the_age_of_information(tmp_path):
     ({"links": [{"from": 2, "to": 2}]}, "network link 2 -> 2: no such communication edge"),
     ({"colour": "blue"}, "[network]: unknown key(s) colour"),
     ({"range": -5.0}, "[network] range = -5 m must be positive"),
+    ({"period": 2.005}, "period = 2.005 s is not a whole number of steps h = 0.01 s"),
 ])
 def test_bad_network_settings_are_one_line_naming_the_entry(network, fragment):
     with pytest.raises(ScenarioError) as exc:
