@@ -58,6 +58,7 @@ host must load libpython, see the README), so each FMU declares
 | `AuvPlant` | Python 3.11+, numpy, scipy (matrix exponential, Van Loan); networkx for fleet FMUs |
 | `AuvEstimator` | Python 3.11+, numpy, scipy (discrete Riccati equation); networkx for fleet FMUs |
 | `AuvController` | Python 3.11+, numpy, scipy (Riccati, Sylvester); networkx for fleet FMUs |
+| `AuvNetwork` (per-vehicle fleets over acoustic links, docs/network.md) | Python 3.11+, numpy |
 
 pythonfmu itself and this project's modules travel inside each FMU (`resources/`).
 All three support fmi2Get/SetFMUstate and fmi2Serialize/DeSerializeFMUstate.
