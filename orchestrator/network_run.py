@@ -169,10 +169,11 @@ def network_predictions(sc: Any, setup: NetworkSetup
 
 
 def too_many_states(n: int) -> str:
-    """Why a networked loop of n states gets no prediction."""
+    """What a networked loop of n states gets instead of the dense second moment."""
     return (f"over acoustic links the loop has {n} states (messages in flight and held, per "
-            "link): its dense second moment (n^2 entries, products of n^3 per message cycle) "
-            "is not computed beyond 3000 states; simulation only")
+            "link): the expected cost over the window is computed with the second moment in "
+            "blocks; the mean-square radius and the critical loss are not computed beyond "
+            "3000 states (the radius given is the perfect links')")
 
 
 def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True
@@ -198,7 +199,7 @@ def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True
             "not computed with a modem range (the links depend on the vehicles' positions)")
     else:
         out["critical_loss"], out["critical_loss_note"] = None, (
-            "not computed: " + too_many_states(setup.net.n))
+            f"not computed: {setup.net.n} states (beyond 3000)")
     return out
 
 

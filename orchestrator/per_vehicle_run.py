@@ -20,6 +20,7 @@ from plant_model.discretization import discretize
 from plant_model.linalg_checks import ModelError
 
 from .analysis.distributed_verdict import predict_cost
+from .analysis.networked_blocks import predict_window_blocks
 from .analysis.per_vehicle import distributed_initial_state, distributed_loop_of
 from .analysis.prediction import Prediction, method_predictions
 from .analysis.summary import stats_window
@@ -51,7 +52,8 @@ __all__ = ["MAX_CENTRALIZED_DESIGN_S", "PerVehicleRuns", "TRANSIENT_LIMIT",
 #: largest loop state for which the window-average prediction from the start is computed
 TRANSIENT_LIMIT = 1500
 #: largest networked loop (messages in flight and held as states) whose second moment is
-#: propagated densely: formation-20 distributed has 721, centralized 5271 (about an hour)
+#: propagated as one dense matrix, with its mean-square radius and critical loss; beyond,
+#: in blocks (formation-20 distributed has 721 states, centralized 5271)
 NETWORK_PREDICTION_LIMIT = 3000
 #: the stacked design's time measured on the project's 2-core reference machine: 1.2 s for
 #: 366 states of [x; w; z] (40 vehicles), growing as the cube of the state size
@@ -199,14 +201,15 @@ class PerVehicleRuns:
             setup = self.network(architecture, mode, tracking)
             if setup.net.n <= NETWORK_PREDICTION_LIMIT:
                 return network_predictions(sc, setup)
-            # too many messages as states for the dense second moment: the perfect links'
-            # window and margin, no prediction (said in the summary)
+            # many links: the second moment in blocks (held values apart), the perfect
+            # links' window; no mean-square radius (said in the summary)
             pred0, _, _, k0 = self._perfect(architecture, mode, tracking)
-            none = Prediction(rms_e=None, rms_u=None, cost_rate=None,
+            win = predict_window_blocks(setup.net, setup.Z0, k0, sc.steps, float("nan"))
+            pred = Prediction(rms_e=None, rms_u=None, cost_rate=win.cost_rate,
                               spectral_radius=pred0.spectral_radius,
                               settling_time=pred0.settling_time,
                               reason=too_many_states(setup.net.n))
-            return pred0, none, None, k0
+            return pred0, pred, pred, k0
         return self._perfect(architecture, mode, tracking)
 
     def _perfect(self, architecture: str, mode: str, tracking: str
