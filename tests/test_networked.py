@@ -235,3 +235,19 @@ def test_a_critical_loss_below_one_checked_by_simulation_on_both_sides():
         start = float(Z0 @ Z0)
         assert bool(np.trace(X) > 2 * start) is grows and bool(sims.mean() > 2 * start) is grows
         assert sims.mean() == pytest.approx(np.trace(X), rel=0.35)
+
+
+@pytest.mark.parametrize("architecture, receiver", [
+    ("centralized", "propagate"), ("centralized", "hold"), ("distributed", "propagate")])
+def test_the_second_moment_in_blocks_equals_the_dense_one(f4, architecture, receiver):
+    """networked_blocks keeps the held values apart (block-diagonal between arrivals): the
+    same expected window cost as the dense propagation."""
+    from orchestrator.analysis.networked_blocks import predict_window_blocks
+    from orchestrator.network_run import network_setup
+    sc = f4.with_run(T=60.0, deployment="per-vehicle", architecture=architecture,
+                     network={"latency": 1.0, "period": 2.0, "loss": 0.2,
+                              "receiver": receiver})
+    s = network_setup(sc, architecture, "kalman", "regulator")
+    dense = predict_window(s.net, s.Z0, 400, 1200).cost_rate
+    blocks = predict_window_blocks(s.net, s.Z0, 400, 1200, 0.0).cost_rate
+    assert blocks == pytest.approx(dense, rel=1e-10)
