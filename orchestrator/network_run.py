@@ -27,7 +27,7 @@ from .analysis.message_form import (
     without_leader_links,
 )
 from .analysis.networked import NetworkedLoop
-from .analysis.networked_prediction import critical_loss, predict_window
+from .analysis.networked_prediction import critical_loss, ms_spectral_radius, predict_window
 from .analysis.per_vehicle import distributed_initial_state, distributed_loop_of, distributed_noise
 from .analysis.prediction import Prediction
 from .analysis.summary import stats_window
@@ -140,7 +140,6 @@ def network_predictions(sc: Any, setup: NetworkSetup
     five time constants of the slowest mean-square mode, tau = -2 cycle / ln(rho).
     """
     net = setup.net
-    from .analysis.networked_prediction import ms_spectral_radius
     rho = ms_spectral_radius(net)
     cycle = net.period * net.h
     tau = -2.0 * cycle / math.log(rho) if 0.0 < rho < 1.0 else math.inf
@@ -159,7 +158,7 @@ def network_predictions(sc: Any, setup: NetworkSetup
                           reason="a modem range makes the links depend on the vehicles' "
                                  "positions: simulation only, no prediction")
         return verdict, none, None, k0
-    win = predict_window(net, setup.Z0, k0, sc.steps)
+    win = predict_window(net, setup.Z0, k0, sc.steps, rho)
     pred = Prediction(rms_e=None, rms_u=None, cost_rate=win.cost_rate, spectral_radius=rho,
                       settling_time=settling,
                       reason="over acoustic links: the expected cost over the window from the "
@@ -168,12 +167,15 @@ def network_predictions(sc: Any, setup: NetworkSetup
     return verdict, pred, pred, k0
 
 
-def too_many_states(n: int) -> str:
-    """What a networked loop of n states gets instead of the dense second moment."""
+def too_many_states(n: int, path: str | None, steps: int) -> str:
+    """What a large networked loop of n states gets instead of the dense second moment."""
+    what = ("the expected cost over the window is computed with the second moment in blocks"
+            if path == "blocks" else
+            f"even in blocks the second moment over {steps} steps is estimated beyond 1e13 "
+            "floating-point operations: no predicted cost")
     return (f"over acoustic links the loop has {n} states (messages in flight and held, per "
-            "link): the expected cost over the window is computed with the second moment in "
-            "blocks; the mean-square radius and the critical loss are not computed beyond "
-            "3000 states (the radius given is the perfect links')")
+            f"link): {what}; the mean-square radius and the critical loss are not computed "
+            "(the radius given is the perfect links')")
 
 
 def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True
@@ -199,7 +201,7 @@ def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True
             "not computed with a modem range (the links depend on the vehicles' positions)")
     else:
         out["critical_loss"], out["critical_loss_note"] = None, (
-            f"not computed: {setup.net.n} states (beyond 3000)")
+            f"not computed: {setup.net.n} states (the dense second moment is too large)")
     return out
 
 

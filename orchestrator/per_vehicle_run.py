@@ -21,6 +21,7 @@ from plant_model.linalg_checks import ModelError
 
 from .analysis.distributed_verdict import predict_cost
 from .analysis.networked_blocks import predict_window_blocks
+from .analysis.networked_prediction import prediction_work
 from .analysis.per_vehicle import distributed_initial_state, distributed_loop_of
 from .analysis.prediction import Prediction, method_predictions
 from .analysis.summary import stats_window
@@ -55,6 +56,20 @@ TRANSIENT_LIMIT = 1500
 #: propagated as one dense matrix, with its mean-square radius and critical loss; beyond,
 #: in blocks (formation-20 distributed has 721 states, centralized 5271)
 NETWORK_PREDICTION_LIMIT = 3000
+#: the most floating-point work a window prediction may take (about ten minutes here)
+NETWORK_PREDICTION_WORK = 1e13
+
+
+def prediction_path(net: Any, steps: int) -> str | None:
+    """How the window prediction of a networked loop is computed: "dense" (up to
+    NETWORK_PREDICTION_LIMIT states), "blocks", or None when the estimated work
+    (:func:`orchestrator.analysis.networked_prediction.prediction_work`) exceeds
+    NETWORK_PREDICTION_WORK (long latencies at a message every step, all-to-all links)."""
+    if net.n <= NETWORK_PREDICTION_LIMIT and prediction_work(net, steps) <= NETWORK_PREDICTION_WORK:
+        return "dense"
+    if prediction_work(net, steps, blocks=True) <= NETWORK_PREDICTION_WORK:
+        return "blocks"
+    return None
 #: the stacked design's time measured on the project's 2-core reference machine: 1.2 s for
 #: 366 states of [x; w; z] (40 vehicles), growing as the cube of the state size
 DESIGN_REFERENCE = (366, 1.2)
@@ -199,17 +214,19 @@ class PerVehicleRuns:
         sc = self.sc
         if sc.network is not None:
             setup = self.network(architecture, mode, tracking)
-            if setup.net.n <= NETWORK_PREDICTION_LIMIT:
+            path = prediction_path(setup.net, sc.steps)
+            if path == "dense":
                 return network_predictions(sc, setup)
-            # many links: the second moment in blocks (held values apart), the perfect
-            # links' window; no mean-square radius (said in the summary)
+            # many links: the second moment in blocks (held values apart), or none when
+            # even that is too long; the perfect links' window and margin
             pred0, _, _, k0 = self._perfect(architecture, mode, tracking)
-            win = predict_window_blocks(setup.net, setup.Z0, k0, sc.steps, float("nan"))
-            pred = Prediction(rms_e=None, rms_u=None, cost_rate=win.cost_rate,
+            cost = (predict_window_blocks(setup.net, setup.Z0, k0, sc.steps,
+                                          float("nan")).cost_rate if path == "blocks" else None)
+            pred = Prediction(rms_e=None, rms_u=None, cost_rate=cost,
                               spectral_radius=pred0.spectral_radius,
                               settling_time=pred0.settling_time,
-                              reason=too_many_states(setup.net.n))
-            return pred0, pred, pred, k0
+                              reason=too_many_states(setup.net.n, path, sc.steps))
+            return pred0, pred, (pred if cost is not None else None), k0
         return self._perfect(architecture, mode, tracking)
 
     def _perfect(self, architecture: str, mode: str, tracking: str
@@ -254,7 +271,8 @@ class PerVehicleRuns:
         """
         setup = self.network(architecture, mode, tracking)
         return {"network": network_summary(self.sc, setup,
-                                           critical=setup.net.n <= NETWORK_PREDICTION_LIMIT),
+                                           critical=prediction_path(setup.net, self.sc.steps)
+                                           == "dense"),
                 "age_of_information": age_summary(runs, k0, setup)}
 
     def system(self, architecture: str, mode: str, tracking: str, seed: int

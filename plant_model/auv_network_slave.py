@@ -20,7 +20,7 @@ from fmu_common.interface import ArraySpec
 from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
 from plant_model.inbox import Inbox, LinkSettings
 from plant_model.linalg_checks import ModelError
-from plant_model.network import check_link, in_range
+from plant_model.network import check_link, in_range, whole_steps
 from plant_model.parameters import sample_period_spec
 
 _STATS = (("age", "age of information: t - t_send of the message held", "s"),
@@ -181,6 +181,7 @@ class AuvNetwork(Fmi2Slave):
             w = sum(n for _, n in fields)
             timing = check_link(label, *(float(par[f"{p}.{v}"])
                                          for v in ("latency", "period", "loss", "offset")))
+            whole_steps(f"{label}: period", timing.period, h)
             M = _finite(f"{p}.M", par[f"{p}.M"])
             rx0 = _finite(f"{p}.rx0", par[f"{p}.rx0"])
             hold = np.array_equal(M, np.eye(w))

@@ -40,8 +40,8 @@ import numpy as np
 from .linalg_checks import ModelError
 
 __all__ = ["LINK_KEY_BASE", "RECEIVERS", "LinkTiming", "LinkChannel", "arrival_step",
-           "check_link", "check_network", "check_schedule", "in_range", "link_key",
-           "modem_range", "propagate",
+           "check_link", "check_network", "in_range", "link_key", "link_sender",
+           "modem_range", "propagate", "timing_table", "whole_steps",
            "resolve_links", "send_steps", "tdma_offsets"]
 
 #: added to the seed key of a link's generator (vehicles use 1..N, the leader 0)
@@ -113,7 +113,7 @@ def check_link(name: str, latency: Any, period: Any, loss: Any,
     return LinkTiming(latency=lat, period=per, loss=p, offset=off)
 
 
-def tdma_offsets(senders: Sequence[int], period: float) -> dict[int, float]:
+def tdma_offsets(senders: Sequence[Any], period: float) -> dict[Any, float]:
     """TDMA: S senders take turns in each period, sender number s at s period / S.
 
     Parameters
@@ -129,7 +129,7 @@ def tdma_offsets(senders: Sequence[int], period: float) -> dict[int, float]:
         Sender -> its transmission offset, s.
     """
     S = len(senders)
-    return {int(v): s * float(period) / S for s, v in enumerate(senders)}
+    return {v: s * float(period) / S for s, v in enumerate(senders)}
 
 
 def propagate(value: np.ndarray, steps: int, Phi: np.ndarray) -> np.ndarray:
@@ -150,6 +150,26 @@ def propagate(value: np.ndarray, steps: int, Phi: np.ndarray) -> np.ndarray:
         The state now.
     """
     return np.linalg.matrix_power(np.asarray(Phi, dtype=float), int(steps)) @ value
+
+
+def whole_steps(name: str, value: float, h: float) -> int:
+    """``value`` (s) as a whole number of steps h, or a one-line error naming it."""
+    n = float(value) / h
+    if abs(n - round(n)) > 1e-9 * max(1.0, abs(n)):
+        raise ModelError(f"{name} = {value:g} s is not a whole number of steps h = {h:g} s "
+                         "(messages leave on the co-simulation's steps)")
+    return int(round(n))
+
+
+def link_sender(key: int) -> int | str:
+    """The sender of a link from its key (:func:`link_key`): a vehicle, or "leader"."""
+    j = int(key) // 10_000
+    return "leader" if j == 0 else j
+
+
+def timing_table(table: Any) -> dict[str, Any]:
+    """The keys of a ``[network]`` table that :func:`resolve_links` reads (not ``receiver``)."""
+    return {k: v for k, v in dict(table or {}).items() if k != "receiver"}
 
 
 def link_key(sender: int | str, receiver: int) -> int:
@@ -400,17 +420,18 @@ def resolve_links(N: int, edges: Sequence[tuple[int, int, float]],
         if len(periods) > 1:
             raise ModelError("[network] tdma = true needs one period for every link; the "
                              f"links use {', '.join(f'{p:g}' for p in sorted(periods))} s")
-        offsets = tdma_offsets(range(N + 1), base.period if not periods else periods.pop())
+        period = base.period if not periods else periods.pop()
+        senders = sorted({k[0] for k in keys}, key=lambda v: -1 if v == "leader" else v)
+        if period < len(senders) * h * (1 - 1e-9):
+            raise ModelError(f"[network] tdma = true: {len(senders)} senders need a period of "
+                             f"at least {len(senders)} steps ({len(senders) * h:g} s), not "
+                             f"{period:g} s")
         # each slot starts on a step of the co-simulation
-        offsets = {("leader" if s == 0 else s): round(o / h) * h for s, o in offsets.items()}
+        offsets = {v: round(o / h) * h for v, o in tdma_offsets(senders, period).items()}
     out = {k: check_link(_link_name(*k), s["latency"], s["period"], s["loss"],
                          offsets.get(k[0], 0.0)) for k, s in settings.items()}
     for k, t in out.items():
-        n = t.period / h
-        if abs(n - round(n)) > 1e-9 * max(1.0, n):
-            raise ModelError(f"{_link_name(*k)}: period = {t.period:g} s is not a whole number "
-                             f"of steps h = {h:g} s (messages leave on the co-simulation's "
-                             "steps)")
+        whole_steps(f"{_link_name(*k)}: period", t.period, h)
     return out
 
 
@@ -459,60 +480,7 @@ def check_network(table: Any, N: int, h: float) -> dict[str, Any]:
     if receiver not in RECEIVERS:
         raise ModelError(f"[network] receiver = {receiver!r} is not one of "
                          f"{', '.join(RECEIVERS)}")
-    timing = {k: v for k, v in table.items() if k != "receiver"}
+    timing = timing_table(table)
     every = [(j, i, 1.0) for i in range(1, N + 1) for j in range(1, N + 1) if j != i]
     resolve_links(N, every, [(i, 1.0) for i in range(1, N + 1)], timing, h)
     return dict(table)
-
-
-def check_schedule(entries: Any, N: int) -> list[tuple[float, list[tuple[int, int, float]]]]:
-    """A switching topology: graphs with the times they take over (eq. 1's N_i^t).
-
-    Parameters
-    ----------
-    entries : Any
-        ``[{t, edges = [[j, i, a_ij], ...]}, ...]``, t in s strictly increasing from 0.
-    N : int
-        Number of vehicles.
-
-    Returns
-    -------
-    list[tuple[float, list[tuple[int, int, float]]]]
-        (switch time, edges) in order.
-
-    Raises
-    ------
-    ModelError
-        One line naming the entry: decreasing or repeated times, a first time other than 0,
-        a vehicle that does not exist, a self-loop or a negative weight.
-    """
-    if not isinstance(entries, (list, tuple)) or not entries:
-        raise ModelError("[network] schedule must be a non-empty list of {t, edges}")
-    out: list[tuple[float, list[tuple[int, int, float]]]] = []
-    for n, entry in enumerate(entries, start=1):
-        where = f"[network] schedule entry {n}"
-        if not isinstance(entry, dict) or "t" not in entry or "edges" not in entry:
-            raise ModelError(f"{where}: needs a table with t and edges")
-        t = _number(f"{where}: t", entry["t"])
-        if n == 1 and t != 0.0:
-            raise ModelError(f"{where}: the first graph must start at t = 0, not {t:g} s")
-        if out and t <= out[-1][0]:
-            raise ModelError(f"{where}: t = {t:g} s does not come after the previous "
-                             f"switch at {out[-1][0]:g} s (switch times must increase)")
-        edges = []
-        for e in entry["edges"]:
-            if not isinstance(e, (list, tuple)) or len(e) != 3:
-                raise ModelError(f"{where}: edge {e!r} is not [j, i, a_ij]")
-            j = _vehicle(N, e[0], f"{where}, edge {list(e)}")
-            i = _vehicle(N, e[1], f"{where}, edge {list(e)}")
-            if j == "leader" or i == "leader":
-                raise ModelError(f"{where}, edge {list(e)}: edges join vehicles; the leader's "
-                                 "links are the pinning")
-            if j == i:
-                raise ModelError(f"{where}, edge {list(e)}: a self-loop")
-            a = _number(f"{where}, edge {list(e)}: weight", e[2])
-            if a < 0.0:
-                raise ModelError(f"{where}, edge {list(e)}: negative weight {a:g}")
-            edges.append((int(j), int(i), a))
-        out.append((t, edges))
-    return out

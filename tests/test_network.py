@@ -169,9 +169,13 @@ def test_defaults_overrides_and_tdma_give_every_link_its_timing():
     assert links[("leader", 1)].latency == 0.2 and links[("leader", 1)].loss == 0.2
     assert all(t.offset == 0.0 for t in links.values())
     tdma = resolve_links(4, EDGES, PINS, dict(net, tdma=True), 0.01)
-    # the leader first, then vehicles 1..4: five slots of 0.4 s in the 2 s cycle
-    assert tdma[("leader", 1)].offset == 0.0 and tdma[(1, 2)].offset == pytest.approx(0.4)
-    assert tdma[(3, 4)].offset == pytest.approx(1.2) and tdma[(2, 4)].offset == pytest.approx(0.8)
+    # the leader first, then the vehicles that send (1, 2, 3; 4 sends to nobody): four
+    # slots of 0.5 s in the 2 s cycle
+    assert tdma[("leader", 1)].offset == 0.0 and tdma[(1, 2)].offset == pytest.approx(0.5)
+    assert tdma[(3, 4)].offset == pytest.approx(1.5) and tdma[(2, 4)].offset == pytest.approx(1.0)
+    with pytest.raises(ModelError, match=r"tdma = true: 4 senders need a period of at least "
+                                         r"4 steps \(0.04 s\), not 0.03 s"):
+        resolve_links(4, EDGES, PINS, dict(net, tdma=True, period=0.03), 0.01)
 
 
 @pytest.mark.parametrize("net, fragment", [
@@ -195,7 +199,7 @@ def test_a_bad_network_table_is_one_line_naming_the_link_or_entry(net, fragment)
 
 
 def test_a_switching_schedule_in_order():
-    from plant_model.network import check_schedule
+    from plant_model.network_schedule import check_schedule
     sched = check_schedule([{"t": 0.0, "edges": [[1, 2, 1.0]]},
                             {"t": 60.0, "edges": [[1, 2, 1.0], [2, 3, 0.5]]}], 3)
     assert sched == [(0.0, [(1, 2, 1.0)]), (60.0, [(1, 2, 1.0), (2, 3, 0.5)])]
@@ -213,7 +217,7 @@ def test_a_switching_schedule_in_order():
     ([{"t": 0.0, "edges": [[1, 2, -1.0]]}], "negative weight -1"),
 ])
 def test_a_bad_schedule_is_one_line_naming_the_entry(entries, fragment):
-    from plant_model.network import check_schedule
+    from plant_model.network_schedule import check_schedule
     with pytest.raises(ModelError) as exc:
         check_schedule(entries, 3)
     assert fragment in str(exc.value) and "\n" not in str(exc.value)

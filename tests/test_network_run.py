@@ -194,3 +194,19 @@ def test_a_modem_range_loses_what_is_sent_out_of_range(tmp_path, architecture):
     assert far_total > 0
     _, pred, _, _ = pv.predictions(architecture, "kalman", "regulator")
     assert pred.cost_rate is None and "modem range" in pred.reason
+
+
+def test_a_long_latency_at_a_message_every_step_is_not_predicted_and_does_not_crash(tmp_path):
+    """latency 5 s with a message every step h = 0.01: 500 messages in flight per link,
+    32233 states. The run works; the prediction is refused by its estimated work, said in
+    one reason, and nothing n x n is built."""
+    sc = load_scenario("formation-4").with_run(
+        T=1.0, deployment="per-vehicle", architecture="distributed",
+        network={"latency": 5.0})
+    pv = PerVehicleRuns(sc, tmp_path / "fmus")
+    setup = pv.network("distributed", "kalman", "regulator")
+    assert setup.net.n > 30000
+    _, pred, window, _ = pv.predictions("distributed", "kalman", "regulator")
+    assert pred.cost_rate is None and window is None and "1e13" in pred.reason
+    res = pv.run("distributed", "kalman", "regulator", 0)
+    assert np.all(res.traces["link_delivered"][-1] == 0)      # nothing arrives within 1 s

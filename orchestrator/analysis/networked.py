@@ -37,7 +37,14 @@ import numpy as np
 import scipy.sparse as sp
 
 from plant_model.linalg_checks import ModelError
-from plant_model.network import LINK_KEY_BASE, LinkTiming, arrival_step, in_range, link_key
+from plant_model.network import (
+    LINK_KEY_BASE,
+    LinkTiming,
+    arrival_step,
+    in_range,
+    link_key,
+    whole_steps,
+)
 
 from .message_form import RECEIVERS, MessageForm
 
@@ -71,14 +78,6 @@ class Group:
         return None
 
 
-def _steps(name: str, value: float, h: float) -> int:
-    n = value / h
-    if abs(n - round(n)) > 1e-6 * max(1.0, abs(n)):
-        raise ModelError(f"{name} = {value:g} s is not a whole number of steps h = {h:g} s "
-                         "(the networked loop's prediction needs them commensurate)")
-    return int(round(n))
-
-
 class NetworkedLoop:
     """The augmented loop of a message form and its links' timing (module docstring)."""
 
@@ -98,8 +97,8 @@ class NetworkedLoop:
         for key in form.links:
             t = timings[key]
             name = f"network link {key[0]} -> {key[1]}"
-            P = _steps(f"{name}: period", t.period, h)
-            first = _steps(f"{name}: offset", t.offset, h)
+            P = whole_steps(f"{name}: period", t.period, h)
+            first = whole_steps(f"{name}: offset", t.offset, h)
             D = arrival_step(0, h, t.latency)
             gk = (key[0], first, P, D)
             if gk not in groups:
@@ -122,6 +121,7 @@ class NetworkedLoop:
         self.startup = max((g.first + g.D for g in groups.values()), default=0)
         self._patterns: dict[int, tuple[frozenset, frozenset]] = {}
         self.modem: tuple[float, dict[Any, np.ndarray]] | None = None
+        self._Qz: np.ndarray | None = None
         nZ = form.Gam.shape[1]
         self.nZ = nZ
         # cost: e = Ce X, u = Gx_aug Z + Geta zeta
@@ -132,11 +132,19 @@ class NetworkedLoop:
         Ce = np.zeros((form.Ce.shape[0], self.n))
         Ce[:, :nX] = form.Ce
         self.Gx, self.Ce = Gx, Ce
-        self.Qz = Ce.T @ form.Qc @ Ce + Gx.T @ form.Rc @ Gx
         self.c0 = float(np.trace(form.Rc @ form.Geta @ form.W @ form.Geta.T))
         det = np.zeros(self.n, dtype=bool)
         det[:nX] = form.deterministic
         self.deterministic = det
+
+    @property
+    def Qz(self) -> np.ndarray:
+        """The step cost e'Q e + u'R u = Z' Qz Z (+ the noise part c0), n x n: built on
+        first use (the simulation and the FMU configurations never need it)."""
+        if self._Qz is None:
+            f = self.form
+            self._Qz = self.Ce.T @ f.Qc @ self.Ce + self.Gx.T @ f.Rc @ self.Gx
+        return self._Qz
 
     # --------------------------------------------------------------- one transition
     def pattern(self, k: int) -> tuple[frozenset, frozenset]:

@@ -79,7 +79,7 @@ class BlockEvent:
 
     A: sp.csr_matrix
     terms: tuple[tuple[float, np.ndarray, np.ndarray, slice], ...]
-    noise: np.ndarray                                     #: dense n x n, usually cc only
+    noise: tuple[np.ndarray | None, ...]                  #: (cc, cR, RR), None: zero
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> float:
@@ -147,7 +147,10 @@ class _BlockCompiler(_Compiler):
                     noise = (0 if noise is None else noise) + p * (1 - p) * (G @ self.W @ G.T)
             G = Abar[:, n:].toarray()
             noise = G @ self.W @ G.T + (0 if noise is None else noise)
-            out = BlockEvent(A=Abar[:, :n].tocsr(), terms=tuple(terms), noise=noise)
+            # kept as blocks, and only those that are not zero (noise reaches c alone)
+            blocks = tuple(b if np.any(b) else None for b in
+                           (noise[:nc, :nc], noise[:nc, nc:], noise[nc:, nc:]))
+            out = BlockEvent(A=Abar[:, :n].tocsr(), terms=tuple(terms), noise=blocks)
         self._cache[pattern] = out
         return out
 
@@ -197,9 +200,12 @@ class _BlockCompiler(_Compiler):
             PR = Acc @ XcR + AcR @ XRR
             Qc = np.asarray(ARc @ Xcc) + np.asarray(ARR @ XRc)   # rows R of A X
             QR = np.asarray(ARc @ XcR) + np.asarray(ARR @ XRR)
-            Ycc = Pc @ Acc.T + PR @ AcR.T + s.noise[:nc, :nc]
-            YcR = _right(ARc, Pc) + _right(ARR, PR) + s.noise[:nc, nc:]
-            YRR = _right(ARc, Qc) + _right(ARR, QR) + s.noise[nc:, nc:]
+            Ycc = Pc @ Acc.T + PR @ AcR.T
+            YcR = _right(ARc, Pc) + _right(ARR, PR)
+            YRR = _right(ARc, Qc) + _right(ARR, QR)
+            for Y, N in zip((Ycc, YcR, YRR), s.noise):
+                if N is not None:
+                    Y += N
             full = None
             for c, V, cols, sl in s.terms:                   # one small block per link
                 if full is None:

@@ -36,7 +36,7 @@ from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigs
 from .networked import NetworkedLoop
 
 __all__ = ["NetworkPrediction", "Segment", "critical_loss", "frozen_radius", "ms_spectral_radius",
-           "ms_stable", "predict_window"]
+           "ms_stable", "predict_window", "prediction_work"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,7 +198,8 @@ class NetworkPrediction:
     cycle_s: float                  #: the message cycle (hyperperiod), s
 
 
-def predict_window(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int) -> NetworkPrediction:
+def predict_window(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int,
+                   spectral_radius: float | None = None) -> NetworkPrediction:
     """E[J] / (K - k0) over samples k0 <= k < K from Z(0) = Z0 (module docstring).
 
     Parameters
@@ -209,6 +210,8 @@ def predict_window(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int) -> Netwo
         Its initial state (:meth:`NetworkedLoop.initial_state`).
     k0, K : int
         The window.
+    spectral_radius : float or None, optional
+        The verdict if already computed (:func:`ms_spectral_radius`).
 
     Returns
     -------
@@ -228,7 +231,21 @@ def predict_window(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int) -> Netwo
             X, c = comp.apply(plan, X)
             cost += c if counted else 0.0
     return NetworkPrediction(cost_rate=cost / max(K - k0, 1),
-                             spectral_radius=ms_spectral_radius(net), cycle_s=P * net.h)
+                             spectral_radius=(ms_spectral_radius(net) if spectral_radius
+                                              is None else spectral_radius),
+                             cycle_s=P * net.h)
+
+
+def prediction_work(net: NetworkedLoop, K: int, blocks: bool = False) -> float:
+    """Floating-point operations the window prediction takes, roughly: per message cycle
+    four products per run and per arrival step (dense: n^3 each; in blocks: nc nR^2), and
+    the cycles of K steps (a period of one step makes every step an arrival)."""
+    steps = [net.pattern(k) for k in range(net.startup, net.startup + net.period)]
+    events = sum(bool(p[1]) for p in steps)
+    runs = sum(1 for a, b in zip(steps, steps[1:] + steps[:1]) if a != b) or 1
+    nc = min((sl.start for sl in net.R.values()), default=net.n)
+    size = nc * (net.n - nc) ** 2 + nc ** 3 if blocks else float(net.n) ** 3
+    return 4.0 * size * (events + runs) * (K / net.period + 1)
 
 
 def _pieces(ka: int, kb: int, b: int, P: int, counted: bool) -> list[tuple[int, int, bool]]:
@@ -340,41 +357,57 @@ def frozen_radius(net: NetworkedLoop) -> float:
     return float(np.max(np.abs(np.linalg.eigvals(G))))
 
 
-def critical_loss(net: NetworkedLoop, tol: float = 0.01, p_max: float = 0.9
+def critical_loss(net: NetworkedLoop, tol: float = 0.01,
+                  grid: tuple[float, ...] = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
                   ) -> tuple[float | None, str]:
-    """The loss probability p, the same on every link, at which the loop stops being
-    mean-square stable, by bisection on :func:`ms_stable`.
+    """The smallest loss probability p, the same on every link, at which the loop stops
+    being mean-square stable: certified (:func:`ms_stable`) at 0 and on a grid of p, then
+    bisected between the last stable and the first unstable grid point.
+
+    Mean-square stability need not be monotone in p (with propagating receivers errors can
+    circulate at intermediate losses while the loop with every message lost is only
+    marginal), so no shortcut through the frozen loop is taken; its radius is reported.
 
     Parameters
     ----------
     net : NetworkedLoop
-        The loop (mean-square stable without loss).
+        The loop.
     tol : float, optional
         Width of the final bracket.
-    p_max : float, optional
-        The largest loss probed.
+    grid : tuple[float, ...], optional
+        The losses certified before bisecting.
 
     Returns
     -------
     tuple[float | None, str]
-        (p, how it was decided), p None when there is none up to ``p_max``.
+        (p, how it was decided); p None when the loop is stable on the whole grid, or not
+        stable even without loss, or a point stays undecided (the note says which).
     """
     rf = frozen_radius(net)
-    if rf < 1.0 - 1e-9:
-        return None, (f"none below 1: with every message lost each vehicle's loop on frozen "
-                      f"neighbour data is stable (radius {rf:.6g} per cycle)")
-    top = ms_stable(net, p_max)
-    if top:
-        return None, (f"none up to {p_max:g} (certified mean-square stable there); with "
-                      f"every message lost the loop is marginal (radius {rf:.6g} per cycle: "
-                      "the receivers' own model of the senders), so the radius tends to 1 "
-                      "as the loss tends to 1")
-    lo, hi = 0.0, p_max
+    frozen = f"with every message lost the radius is {rf:.6g} per cycle"
+    at0 = ms_stable(net, 0.0)
+    if at0 is not True:
+        return None, ("not mean-square stable without loss" if at0 is False else
+                      "undecided without loss (radius close to 1)") + f"; {frozen}"
+    lo = 0.0
+    for p in grid:
+        verdict = ms_stable(net, p)
+        if verdict is None:
+            return None, (f"certified stable up to {lo:g}, undecided at {p:g} (radius close "
+                          f"to 1); {frozen}")
+        if not verdict:
+            hi = p
+            break
+        lo = p
+    else:
+        return None, (f"none up to {grid[-1]:g}: certified mean-square stable at 0 and at "
+                      f"every loss {grid[0]:g}, {grid[1]:g}, ..., {grid[-1]:g}; {frozen}")
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
         verdict = ms_stable(net, mid)
         if verdict is None:
-            return mid, f"radius 1 within the certificate's reach at loss {mid:.4g}"
+            return mid, (f"radius 1 within the certificates' reach near {mid:.4g} "
+                         f"(stable at {lo:.4g}, not at {hi:.4g}, certified); {frozen}")
         lo, hi = (mid, hi) if verdict else (lo, mid)
-    return 0.5 * (lo + hi), (f"bisection: stable at {lo:.4g}, not at {hi:.4g} (certified); "
-                             f"with every message lost the radius is {rf:.6g} per cycle")
+    return 0.5 * (lo + hi), (f"bisection: stable at {lo:.4g}, not at {hi:.4g} (both "
+                             f"certified); {frozen}")

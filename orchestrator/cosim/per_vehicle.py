@@ -39,6 +39,7 @@ from controller_fmu.vehicle_law import (
     observer_start,
 )
 from plant_model.fleet import fleet_graph
+from plant_model.network import link_sender
 from plant_model.per_vehicle import leader_system, vehicle_views
 from plant_model.system import LinearSystem
 
@@ -293,7 +294,7 @@ def link_traces(system: SystemDescription, traces: Mapping[str, np.ndarray]
         while f"link[{k}].key" in comp.parameters:
             key = int(comp.parameters[f"link[{k}].key"])
             if key:
-                out[(key // 10_000, i)] = {s: traces[names[(comp.name, f"link[{k}].{s}")]][:, 0]
+                out[(link_sender(key), i)] = {s: traces[names[(comp.name, f"link[{k}].{s}")]][:, 0]
                                            for s in LINK_STATISTICS}
             k += 1
         if int(comp.parameters.get("leader.key", 0)):

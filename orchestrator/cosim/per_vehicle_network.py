@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from plant_model.network import LinkTiming, link_key, resolve_links
+from plant_model.network import LinkTiming, link_key, resolve_links, timing_table
 
 from .system import Connection
 
@@ -57,12 +57,7 @@ def fleet_links(sc: Any, architecture: str) -> dict[tuple[Any, int], LinkTiming]
         edges = [(int(j), int(i), float(a)) for j, i, a in g["edges"]]
         pins = ([] if sc.distributed.leader == "planned" else
                 [(int(i), float(a)) for i, a in g.get("pinning", [])])
-    return resolve_links(N, edges, pins, network_table(sc.network), sc.h)
-
-
-def network_table(table: Mapping[str, Any] | None) -> dict[str, Any]:
-    """The timing keys of a ``[network]`` table (without ``receiver``)."""
-    return {k: v for k, v in dict(table or {}).items() if k != "receiver"}
+    return resolve_links(N, edges, pins, timing_table(sc.network), sc.h)
 
 
 def receiver_slots(sc: Any, architecture: str, slots: Any) -> list[list[int | None]]:

@@ -111,10 +111,12 @@ def _check_step(sc: Scenario) -> None:
         raise ScenarioError(f"{sc.source}: [simulation] h: {exc}") from None
 
 
-def _check_deployment(sc: Scenario) -> None:
-    """A per-vehicle deployment needs a fleet whose consensus protocol is a force."""
+def _check_deployment(sc: Scenario, network: bool = True) -> None:
+    """A per-vehicle deployment needs a fleet whose consensus protocol is a force; a
+    [network] needs the per-vehicle deployment (``network``: checked once the run settings
+    are known, so that --deployment per-vehicle can select it)."""
     if sc.deployment != "per-vehicle":
-        if sc.network is not None:
+        if network and sc.network is not None:
             raise ScenarioError(f"{sc.source}: [network] needs [simulation] deployment = "
                                 "\"per-vehicle\" (acoustic links join the vehicles' own "
                                 f"FMUs), not {sc.deployment!r}")
@@ -159,7 +161,7 @@ def _scenario(file: ScenarioFile, where: str, system: LinearSystem,
     if getattr(file, "network", None) is not None:
         sc = replace(sc, network=dict(file.network))
     _check_step(sc)
-    _check_deployment(sc)
+    _check_deployment(sc, network=False)
     return sc
 
 
