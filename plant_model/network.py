@@ -276,9 +276,10 @@ class LinkChannel:
             else:
                 self.rx, self.rx_sent = v.copy(), k_sent
                 self.delivered += 1
-        if self.M is not None:
+        if self.M is not None:                       # in place: no new queue per step
             self.rx = self.M @ self.rx
-            self.in_flight = deque((a, s, lo, self.M @ v) for a, s, lo, v in self.in_flight)
+            for _, _, _, v in self.in_flight:
+                v[:] = self.M @ v
 
     def age(self, k: int) -> float:
         """t_k - t_send of the message the receiver holds at step k, s."""

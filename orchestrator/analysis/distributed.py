@@ -236,7 +236,9 @@ class DistributedLoop:
     Qc: np.ndarray           #: blkdiag(Q_i)
     Rc: np.ndarray           #: blkdiag(R_i)
     deterministic: np.ndarray  #: mask of [v; c] in X
-    index: dict[str, list[slice]]  #: 's', 'q', 'eta' slices per vehicle; 'v', 'c'
+    #: 's', 'q', 'eta' slices of X per vehicle; 'v', 'c'; 'zeta_nu', 'zeta_n': each
+    #: vehicle's process and sensor noise in zeta
+    index: dict[str, list[slice]]
     h: float
     # the pieces, for the per-eigenvalue verdict
     sampled: tuple[SampledAgent, ...]
@@ -415,7 +417,7 @@ def _assemble(sampled: Sequence[SampledAgent], laws: Sequence[VehicleLaw], LG: n
     det[:l_ + 1] = True
     W = block_diag(*[sa.Qd for sa in sampled], *[sa.Rd for sa in sampled])
     return {"Phi": Phi, "Gam": Gam, "W": W, "Gx": Gx, "Geta": Geta, "Ce": Ce,
-            "deterministic": det, "index": idx}
+            "deterministic": det, "index": dict(idx, zeta_nu=nu, zeta_n=nn)}
 
 
 def distributed_closed_loop(agents: Sequence[Agent], laws: Sequence[VehicleLaw],

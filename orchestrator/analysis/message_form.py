@@ -236,7 +236,7 @@ def _eps_rows(loop: DistributedLoop, j: int) -> tuple[np.ndarray, np.ndarray]:
     nX, nZ = loop.Phi.shape[0], loop.Gam.shape[1]
     kalman = loop.estimator == "kalman"
     Est, Esn = estimate_rows(sa, idx["s"][j], idx["q"][j] if kalman else None,
-                             _noise_slices(loop)[j], nX, nZ)
+                             idx["zeta_n"][j], nX, nZ)
     T = np.hstack([np.eye(law.Kx.shape[1]), -law.Xw])
     Ex, En = T @ Est, T @ Esn
     Ex[:, idx["eta"][j]] -= law.X
@@ -280,8 +280,9 @@ def centralized_message_form(loop: DistributedLoop, rows: Sequence[tuple[np.ndar
     def moved(sl: slice) -> slice:
         return slice(int(pos[sl.start]), int(pos[sl.stop - 1]) + 1)
 
-    nidx = {k: [moved(s) for s in v] for k, v in idx.items() if k != "eta"}
-    nidx["n"] = _noise_slices(loop)
+    nidx = {k: [moved(s) for s in v] for k, v in idx.items()
+            if k != "eta" and not k.startswith("zeta_")}
+    nidx["n"] = idx["zeta_n"]
     ns = [sa.Ad.shape[0] for sa in loop.sampled]
     ms = [sa.Bd.shape[1] for sa in loop.sampled]
     l_ = loop.observer.Phi.shape[0]
@@ -298,7 +299,7 @@ def centralized_message_form(loop: DistributedLoop, rows: Sequence[tuple[np.ndar
         Ux.append(-Kown @ est[i][0])
         Ux[i][:, ic] += u0
         Un.append(-Kown @ est[i][1])
-    add_vehicle_rows(Phi, Gam, loop.sampled, nidx, _process_slices(loop), Ux, Un,
+    add_vehicle_rows(Phi, Gam, loop.sampled, nidx, idx["zeta_nu"], Ux, Un,
                      [e[0] for e in est], [e[1] for e in est], kalman)
     Gx, Geta = np.vstack(Ux), np.vstack(Un)
     u_rows = np.cumsum([0] + ms)
@@ -348,20 +349,3 @@ def _link_into(j: int | str, i: int, U: np.ndarray, sa: SampledAgent,
     Gu = np.zeros((int(u_rows[-1]), U.shape[1]))
     Gu[u_rows[i0]:u_rows[i0 + 1]] = U
     return Link(j, i, B, Gu)
-
-
-def _process_slices(loop: DistributedLoop) -> list[slice]:
-    out, pos = [], 0
-    for sa in loop.sampled:
-        out.append(slice(pos, pos + sa.Ad.shape[0]))
-        pos += sa.Ad.shape[0]
-    return out
-
-
-def _noise_slices(loop: DistributedLoop) -> list[slice]:
-    """The sensor noise n_i of each vehicle in zeta = [nu_1..N; n_1..N]."""
-    out, pos = [], sum(sa.Ad.shape[0] for sa in loop.sampled)
-    for sa in loop.sampled:
-        out.append(slice(pos, pos + sa.M.shape[0]))
-        pos += sa.M.shape[0]
-    return out

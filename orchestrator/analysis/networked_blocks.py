@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .networked import NetworkedLoop
-from .networked_prediction import NetworkPrediction, _Compiler, _pieces
+from .networked_prediction import NetworkPrediction, _Compiler, _pieces, doubled
 
 __all__ = ["predict_window_blocks"]
 
@@ -61,15 +61,7 @@ class BlockSegment:
 
     def power(self, m: int) -> BlockSegment:
         """m runs in a row, by doubling."""
-        out, base = None, self
-        while m:
-            if m & 1:
-                out = base if out is None else out.then(base)
-            m >>= 1
-            if m:
-                base = base.then(base)
-        assert out is not None
-        return out
+        return doubled(self, m)
 
 
 @dataclass(frozen=True, eq=False)
@@ -152,27 +144,6 @@ class _BlockCompiler(_Compiler):
                            (noise[:nc, :nc], noise[:nc, nc:], noise[nc:, nc:]))
             out = BlockEvent(A=Abar[:, :n].tocsr(), terms=tuple(terms), noise=blocks)
         self._cache[pattern] = out
-        return out
-
-    def plan(self, ka: int, kb: int) -> list[Any]:
-        out: list[Any] = []
-        k = ka
-        while k < kb:
-            pat = self.net.pattern(k)
-            m = 1
-            while k + m < kb and self.net.pattern(k + m) == pat:
-                m += 1
-            s = self.step(pat)
-            if isinstance(s, BlockEvent):
-                out += [s] * m
-            else:
-                key = (pat, m)
-                if key not in self._cache:
-                    self._cache[key] = s.power(m)
-                seg = self._cache[key]
-                out[-1:] = ([out[-1].then(seg)] if out and isinstance(out[-1], BlockSegment)
-                            else out[-1:] + [seg])
-            k += m
         return out
 
     def apply_blocks(self, plan: Sequence[Any], X: Blocks) -> tuple[Blocks, float]:

@@ -58,15 +58,20 @@ class Segment:
 
     def power(self, m: int) -> Segment:
         """m runs in a row, by doubling."""
-        out, base = None, self
-        while m:
-            if m & 1:
-                out = base if out is None else out.then(base)
-            m >>= 1
-            if m:
-                base = base.then(base)
-        assert out is not None
-        return out
+        return doubled(self, m)
+
+
+def doubled(seg: Any, m: int) -> Any:
+    """m runs of a segment in a row (anything with ``then``), by doubling."""
+    out, base = None, seg
+    while m:
+        if m & 1:
+            out = base if out is None else out.then(base)
+        m >>= 1
+        if m:
+            base = base.then(base)
+    assert out is not None
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,14 +151,14 @@ class _Compiler:
             while k + m < kb and self.net.pattern(k + m) == pat:
                 m += 1
             s = self.step(pat)
-            if isinstance(s, Event):
+            if not hasattr(s, "then"):                  # a step with arrivals
                 out += [s] * m
             else:
                 key = (pat, m)
                 if key not in self._cache:
-                    self._cache[key] = s.power(m)
+                    self._cache[key] = doubled(s, m)
                 seg = self._cache[key]
-                if out and isinstance(out[-1], Segment):
+                if out and hasattr(out[-1], "then"):
                     out[-1] = out[-1].then(seg)
                 else:
                     out.append(seg)

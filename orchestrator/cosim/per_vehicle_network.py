@@ -168,7 +168,7 @@ def network_connections(i: int, architecture: str, row: list[Any], fields: list[
     names = [f for f, _ in fields]
     for k, j in enumerate(row, start=1):
         for f in names:
-            src = _source(j if j is not None else i, f, architecture)
+            src = _source(j if j is not None else i, f)
             conns.append(Connection(*src, net, f"link[{k}].tx.{f}"))
             if j is None or f == "u":
                 continue
@@ -187,7 +187,7 @@ def network_connections(i: int, architecture: str, row: list[Any], fields: list[
     return conns
 
 
-def _source(j: int, field: str, architecture: str) -> tuple[str, str]:
+def _source(j: int, field: str) -> tuple[str, str]:
     """Which component output sends a message field of vehicle j."""
     if field in ("xhat", "what"):
         return f"estimator_{j}", field
