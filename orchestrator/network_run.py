@@ -19,6 +19,7 @@ import numpy as np
 from controller_fmu.regulator import tracking_law
 from controller_fmu.vehicle_law import centralized_rows
 from plant_model.fleet import fleet_vehicles
+from plant_model.network_schedule import connectivity, resolve_schedule
 
 from .analysis.message_form import (
     MessageForm,
@@ -35,7 +36,8 @@ from .cosim.per_vehicle import fleet_slots
 from .cosim.per_vehicle_network import fleet_links, receiver_slots
 
 __all__ = ["NetworkSetup", "age_summary", "modem_settings", "network_predictions",
-           "network_reference", "network_setup", "network_summary", "too_many_states"]
+           "network_reference", "network_setup", "network_summary", "schedule_settings",
+           "too_many_states"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,7 +94,8 @@ def network_setup(sc: Any, architecture: str, mode: str, tracking: str) -> Netwo
             form = without_leader_links(form)
     links = fleet_links(sc, architecture)
     receiver = dict(sc.network).get("receiver", "propagate")
-    net = NetworkedLoop(form, links, receiver)
+    schedule = resolve_schedule(sc.network, links, sc.h, len(sc.fleet["vehicles"]))
+    net = NetworkedLoop(form, links, receiver, schedule)
     modem = modem_settings(sc)
     if modem is not None:
         net.set_modem_range(modem["range"], _positions(sc, loop, form, net, modem))
@@ -111,6 +114,16 @@ def modem_settings(sc: Any) -> dict[str, Any] | None:
     return {"range": float(table["range"]), "state_size": int(mdl.p),
             "position_index": [int(i) for i in mdl.position_states],
             "leader_H": np.asarray(sc.fleet["leader"]["H"], float).tolist()}
+
+
+def schedule_settings(setup: NetworkSetup) -> dict[str, Any] | None:
+    """The network FMUs' switching schedule (None without): switch times and period (s),
+    per link whether it is up in each graph."""
+    sch, h = setup.net.schedule, setup.net.h
+    if sch is None:
+        return None
+    return {"t": [k * h for k in sch.switch], "period": sch.period * h,
+            "up": {k: list(v) for k, v in sch.up.items()}}
 
 
 def _positions(sc: Any, loop: Any, form: MessageForm, net: NetworkedLoop,
@@ -194,6 +207,8 @@ def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True
     }
     if "range" in table:
         out["range"] = float(table["range"])
+    if setup.net.schedule is not None:
+        out["schedule"] = schedule_summary(setup, radius=critical)
     if critical and setup.net.modem is None:
         out["critical_loss"], out["critical_loss_note"] = critical_loss(setup.net)
     elif critical:
@@ -202,6 +217,24 @@ def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True
     else:
         out["critical_loss"], out["critical_loss_note"] = None, (
             f"not computed: {setup.net.n} states (the dense second moment is too large)")
+    return out
+
+
+def schedule_summary(setup: NetworkSetup, radius: bool = True) -> dict[str, Any]:
+    """The summary's ``schedule`` entry: the switch times and period (s), whether each graph
+    and their union let the leader's information reach every vehicle (necessary, not
+    sufficient), and the verdict, the mean-square spectral radius over one schedule period
+    (rho per cycle ** (period / cycle); None when the loop is too large for it)."""
+    net = setup.net
+    sch = net.schedule
+    out: dict[str, Any] = {"switch_times": [k * net.h for k in sch.switch],
+                           "period": sch.period * net.h if sch.period else None,
+                           **connectivity(sch, setup.links)}
+    rho = ms_spectral_radius(net) if radius else None
+    span = sch.period or net.period                 # without a period: the message cycle
+    out["spectral_radius_per_period"] = (None if rho is None else
+                                         float(rho ** (span / net.period)))
+    out["mean_square_stable"] = None if rho is None else bool(rho < 1.0)
     return out
 
 
@@ -236,7 +269,8 @@ def age_summary(runs: list[tuple[list[str], np.ndarray]], k0: int, setup: Networ
                 ) -> dict[str, dict[str, dict[str, float]]]:
     """Per receiving vehicle and sender the age of the newest information it holds over the
     window, over every seed: mean and max (s), and the mean predicted for independent losses,
-    D h + (P - 1) h / 2 + P h p / (1 - p) (D the delay and P the period in steps).
+    D h + (P - 1) h / 2 + P h p / (1 - p) (D the delay and P the period in steps; None
+    when a schedule switches links on and off).
 
     Parameters
     ----------
@@ -264,7 +298,8 @@ def age_summary(runs: list[tuple[list[str], np.ndarray]], k0: int, setup: Networ
         g = net.groups[net.link_group[key]]
         p = net.loss[key]
         w = np.concatenate(parts)
-        out.setdefault(i, {})[j] = {
-            "mean": float(w.mean()), "max": float(w.max()),
-            "predicted_mean": (g.D + (g.P - 1) / 2 + g.P * p / (1 - p)) * net.h}
+        predicted = (None if net.schedule is not None else   # links switched on and off
+                     (g.D + (g.P - 1) / 2 + g.P * p / (1 - p)) * net.h)
+        out.setdefault(i, {})[j] = {"mean": float(w.mean()), "max": float(w.max()),
+                                    "predicted_mean": predicted}
     return out

@@ -44,6 +44,7 @@ from .network_run import (
     network_predictions,
     network_setup,
     network_summary,
+    schedule_settings,
     too_many_states,
 )
 
@@ -144,7 +145,7 @@ class PerVehicleRuns:
             setup = self.network(architecture, mode, tracking)
             net = network_configs(setup.form.senders, setup.links, setup.slot_senders,
                                   setup.net.receiver, setup.launch, setup.leader_size,
-                                  modem_settings(sc))
+                                  modem_settings(sc), schedule_settings(setup))
         return per_vehicle_configs(sc, architecture, mode=mode, seed=seed, tracking=tracking,
                                    settings=sc.distributed, gain=gain, network=net)
 

@@ -6,9 +6,13 @@ link ``leader`` (message z). Inputs ``<link>.tx.<field>``: what the sender sends
 outputs ``<link>.rx.<field>``: what the receiver uses at t_k (the newest message that has
 arrived, held or propagated by M, the launch value rx0 before the first arrival), the age
 of information ``<link>.age`` (s) and the counts ``delivered``, ``lost``, ``in_flight``.
-Timing, loss and the loss streams: plant_model.network. No direct feedthrough: a message
-sent at t_k is heard at t_(k+1) at the earliest. FMU state: the inbox's state (step
-counter, every link's messages and loss stream), plus what the base class saves.
+Timing, loss and the loss streams: plant_model.network. With a switching schedule
+(``schedule`` in the configuration, plant_model.network_schedule) the parameters
+``schedule.t`` (the switch times, s), ``schedule.period`` (s; 0: no repetition) and per
+link ``<link>.up`` (1 if the link carries messages in each graph, else 0): a message sent
+while its link is down is lost. No direct feedthrough: a message sent at t_k is heard at
+t_(k+1) at the earliest. FMU state: the inbox's state (step counter, every link's messages
+and loss stream), plus what the base class saves.
 """
 from typing import Any
 
@@ -21,6 +25,7 @@ from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
 from plant_model.inbox import Inbox, LinkSettings
 from plant_model.linalg_checks import ModelError
 from plant_model.network import check_link, in_range, whole_steps
+from plant_model.network_schedule import LinkSchedule
 from plant_model.parameters import sample_period_spec
 
 _STATS = (("age", "age of information: t - t_send of the message held", "s"),
@@ -128,6 +133,12 @@ class AuvNetwork(Fmi2Slave):
                                 "uses at t_k") for f, n in fields]
             specs += [ArraySpec(f"{p}.{s}", (), "output", f"{label}: {d}", unit=u)
                       for s, d, u in _STATS]
+            if config.get("schedule"):
+                G = len(config["schedule"]["t"])
+                specs.append(ArraySpec(f"{p}.up", (G,), "parameter", f"{label}: 1 if it "
+                                       "carries messages in each graph of the schedule, else 0",
+                                       start=np.asarray(st.get("up", [1] * G), int),
+                                       type="Integer", min=0, max=1))
             if config.get("range") and p != "leader":
                 specs.append(ArraySpec(f"{p}.tx.x", (config["state_size"],), "input",
                                        f"{label}: the sender's true state (its position "
@@ -144,6 +155,16 @@ class AuvNetwork(Fmi2Slave):
                 specs.append(ArraySpec("leader.H", (3, config["leader_size"]), "parameter",
                                        "the leader's position H z, NED", unit="m",
                                        start=np.asarray(config["leader_H"], float)))
+        if config.get("schedule"):
+            sch = config["schedule"]
+            specs += [
+                ArraySpec("schedule.t", (len(sch["t"]),), "parameter", "switch times of the "
+                          "schedule: graph g holds from t[g] (increasing from 0)",
+                          start=np.asarray(sch["t"], float), unit="s"),
+                ArraySpec("schedule.period", (), "parameter", "the schedule repeats with "
+                          "this period (0: the last graph holds to the end)",
+                          start=float(sch["period"]), unit="s", min=0.0),
+            ]
         return specs + [
             sample_period_spec(config, "communication step the links are stepped at"),
             ArraySpec("seed", (), "parameter", "seed of the fleet's noise (each link draws "
@@ -198,7 +219,30 @@ class AuvNetwork(Fmi2Slave):
                 else:
                     j = starts[f"{p}.tx.x"]
                     self._pos.append(lambda x=self._in[j:j + n]: x[self._where])
+        self._schedule = self._link_schedule(h)
         self.inbox = Inbox(links, h, int(par["seed"]), k0=round(self._start_time / h))
+
+    def _link_schedule(self, h: float) -> LinkSchedule | None:
+        """The schedule parameters checked: times from 0 increasing, whole steps; 0/1."""
+        if not self.config.get("schedule"):
+            return None
+        par = self.par
+        t = _finite("schedule.t", np.asarray(par["schedule.t"], float).reshape(-1))
+        T = float(par["schedule.period"])
+        if t[0] != 0.0 or np.any(np.diff(t) <= 0.0):
+            raise ModelError(f"schedule.t = {t.tolist()} must start at 0 s and increase")
+        if not (np.isfinite(T) and (T == 0.0 or T > t[-1])):
+            raise ModelError(f"schedule.period = {T} s must be 0 or after the last switch "
+                             f"at {t[-1]:g} s")
+        switch = tuple(whole_steps(f"schedule.t[{g + 1}]", v, h) for g, v in enumerate(t))
+        up = {}
+        for j, (p, _, _, _) in enumerate(link_layout(self.config)):
+            flags = np.asarray(par[f"{p}.up"]).reshape(-1)
+            if not np.all(np.isin(flags, (0, 1))):
+                raise ModelError(f"{p}.up = {flags.tolist()} must be 0 or 1 per graph")
+            up[j] = tuple(bool(f) for f in flags)
+        return LinkSchedule(switch=switch, period=whole_steps("schedule.period", T, h)
+                            if T else 0, up=up)
 
     def compute_outputs(self) -> None:
         """Per link: rx, then age (s), delivered, lost, in flight, at the inbox's step."""
@@ -216,8 +260,11 @@ class AuvNetwork(Fmi2Slave):
         step : float
             The communication step, s (checked against h by the base class).
         """
-        heard = None
+        heard, k = None, self.inbox.k
         if self._range is not None:
             own = self._own[self._where]
             heard = [in_range(pos(), own, self._range) for pos in self._pos]
-        self.inbox.advance(self.inbox.k, self._tx, heard)
+        if self._schedule is not None:
+            up = [self._schedule.is_up(j, k) for j in range(len(self._tx))]
+            heard = up if heard is None else [a and b for a, b in zip(heard, up)]
+        self.inbox.advance(k, self._tx, heard)

@@ -23,8 +23,8 @@ the co-simulation's fixed step h, all times in seconds:
 
 The age of information is t - t_send of the message the receiver holds. :func:`resolve_links`
 gives every link of a fleet its timing from a ``[network]`` table (fleet-wide defaults,
-per-link overrides, TDMA), :func:`check_schedule` validates a
-switching topology. This module is the mathematics only: the FMU and the predictions build
+per-link overrides, TDMA); :mod:`plant_model.network_schedule` switches links on and off
+(a schedule of graphs). This module is the mathematics only: the FMU and the predictions build
 on it.
 """
 from __future__ import annotations
@@ -167,9 +167,14 @@ def link_sender(key: int) -> int | str:
     return "leader" if j == 0 else j
 
 
+#: keys of a ``[network]`` table that are not the links' timing
+NOT_TIMING = ("receiver", "schedule", "schedule_period")
+
+
 def timing_table(table: Any) -> dict[str, Any]:
-    """The keys of a ``[network]`` table that :func:`resolve_links` reads (not ``receiver``)."""
-    return {k: v for k, v in dict(table or {}).items() if k != "receiver"}
+    """The keys of a ``[network]`` table that :func:`resolve_links` reads (not ``receiver``
+    nor the switching schedule, :mod:`plant_model.network_schedule`)."""
+    return {k: v for k, v in dict(table or {}).items() if k not in NOT_TIMING}
 
 
 def link_key(sender: int | str, receiver: int) -> int:
@@ -386,7 +391,8 @@ def resolve_links(N: int, edges: Sequence[tuple[int, int, float]],
     unknown = sorted(set(net) - {"latency", "period", "loss", "tdma", "links", "range"})
     if unknown:
         raise ModelError(f"[network]: unknown key(s) {', '.join(unknown)} (expected latency, "
-                         "period, loss, tdma, links, range)")
+                         "period, loss, tdma, links, range, receiver, schedule, "
+                         "schedule_period)")
     if "range" in net:
         modem_range(net["range"])
     base = check_link("[network]", net.get("latency", 0.0), net.get("period", h),
@@ -481,7 +487,11 @@ def check_network(table: Any, N: int, h: float) -> dict[str, Any]:
     if receiver not in RECEIVERS:
         raise ModelError(f"[network] receiver = {receiver!r} is not one of "
                          f"{', '.join(RECEIVERS)}")
+    from .network_schedule import resolve_schedule
     timing = timing_table(table)
     every = [(j, i, 1.0) for i in range(1, N + 1) for j in range(1, N + 1) if j != i]
-    resolve_links(N, every, [(i, 1.0) for i in range(1, N + 1)], timing, h)
+    pins = [(i, 1.0) for i in range(1, N + 1)]
+    resolve_links(N, every, pins, timing, h)
+    resolve_schedule(table, [(j, i) for j, i, _ in every] + [("leader", i) for i, _ in pins],
+                     h, N)
     return dict(table)

@@ -198,11 +198,45 @@ def test_a_bad_network_table_is_one_line_naming_the_link_or_entry(net, fragment)
     assert fragment in str(exc.value) and "\n" not in str(exc.value)
 
 
+LINKS = [(1, 2), (1, 3), (2, 3), ("leader", 1)]
+
+
 def test_a_switching_schedule_in_order():
     from plant_model.network_schedule import check_schedule
-    sched = check_schedule([{"t": 0.0, "edges": [[1, 2, 1.0]]},
-                            {"t": 60.0, "edges": [[1, 2, 1.0], [2, 3, 0.5]]}], 3)
-    assert sched == [(0.0, [(1, 2, 1.0)]), (60.0, [(1, 2, 1.0), (2, 3, 0.5)])]
+    sched = check_schedule([{"t": 0.0, "edges": [[1, 2], ["leader", 1]]},
+                            {"t": 60.0, "down": [[2, 3]]}], 3)
+    assert sched == [(0.0, "edges", [(1, 2), ("leader", 1)]), (60.0, "down", [(2, 3)])]
+
+
+def test_a_schedule_says_which_links_are_up_at_each_step():
+    """edges: only those up; down: all but those; with a period it repeats, without it the
+    last graph holds; the switch is at the step of the switch time."""
+    from plant_model.network_schedule import resolve_schedule
+    table = {"schedule": [{"t": 0.0, "edges": [[1, 2], ["leader", 1]]},
+                          {"t": 0.5, "down": [[1, 3]]}]}
+    once = resolve_schedule(table, LINKS, 0.1, 3)
+    assert [once.is_up((1, 2), k) for k in (0, 4, 5, 1000)] == [True, True, True, True]
+    assert [once.is_up((1, 3), k) for k in (0, 4, 5, 1000)] == [False, False, False, False]
+    assert [once.is_up((2, 3), k) for k in (0, 4, 5, 1000)] == [False, False, True, True]
+    assert once.settled == 5
+    rep = resolve_schedule(dict(table, schedule_period=1.0), LINKS, 0.1, 3)
+    assert [rep.is_up((2, 3), k) for k in (4, 5, 9, 10, 14, 15)] == [
+        False, True, True, False, False, True]
+    assert rep.settled == 0 and rep.period == 10
+    assert resolve_schedule({"loss": 0.1}, LINKS, 0.1, 3) is None
+
+
+def test_joint_connectivity_is_the_union_over_a_period():
+    """Each graph alone leaves a vehicle unreached; their union over the period reaches all;
+    without a period only the last graph counts."""
+    from plant_model.network_schedule import connectivity, resolve_schedule
+    sched = [{"t": 0.0, "edges": [["leader", 1], [1, 2]]},
+             {"t": 1.0, "edges": [["leader", 1], [2, 3]]}]
+    rep = resolve_schedule({"schedule": sched, "schedule_period": 2.0}, LINKS, 0.1, 3)
+    assert connectivity(rep, LINKS) == {"connected_graphs": [False, False],
+                                        "jointly_connected": True}
+    once = resolve_schedule({"schedule": sched}, LINKS, 0.1, 3)
+    assert connectivity(once, LINKS)["jointly_connected"] is False
 
 
 @pytest.mark.parametrize("entries, fragment", [
@@ -211,13 +245,32 @@ def test_a_switching_schedule_in_order():
      "entry 2: t = 0 s does not come after the previous switch at 0 s"),
     ([{"t": 0.0, "edges": []}, {"t": 30.0, "edges": []}, {"t": 20.0, "edges": []}],
      "entry 3: t = 20 s does not come after"),
-    ([{"t": 0.0, "edges": [[1, 9, 1.0]]}], "entry 1, edge [1, 9, 1.0]: vehicle 9 does not "
-                                           "exist (vehicles are 1..3)"),
-    ([{"t": 0.0, "edges": [[2, 2, 1.0]]}], "a self-loop"),
-    ([{"t": 0.0, "edges": [[1, 2, -1.0]]}], "negative weight -1"),
+    ([{"t": 0.0, "edges": [[1, 9]]}], "entry 1, link [1, 9]: vehicle 9 does not "
+                                      "exist (vehicles are 1..3)"),
+    ([{"t": 0.0, "edges": [[2, 2]]}], "a self-loop"),
+    ([{"t": 0.0, "edges": [[1, 2, 0.5]]}], "is not a link [j, i]"),
+    ([{"t": 0.0, "edges": [], "down": []}], "entry 1: give either edges"),
+    ([{"t": 0.0}], "entry 1: give either edges"),
+    ([{"t": 0.0, "up": []}], "entry 1: unknown key(s) up"),
 ])
 def test_a_bad_schedule_is_one_line_naming_the_entry(entries, fragment):
     from plant_model.network_schedule import check_schedule
     with pytest.raises(ModelError) as exc:
         check_schedule(entries, 3)
+    assert fragment in str(exc.value) and "\n" not in str(exc.value)
+
+
+@pytest.mark.parametrize("table, fragment", [
+    ({"schedule": [{"t": 0.0, "edges": [[3, 1]]}]},
+     "entry 1: link 3 -> 1 is not a link of this architecture (vehicle 1 hears leader)"),
+    ({"schedule": [{"t": 0.0, "edges": []}, {"t": 0.25, "edges": []}]},
+     "schedule entry 2: t = 0.25 s is not a whole number of steps"),
+    ({"schedule": [{"t": 0.0, "edges": []}, {"t": 2.0, "edges": []}], "schedule_period": 2.0},
+     "schedule_period = 2 s must come after the last switch at 2 s"),
+    ({"schedule_period": 5.0}, "schedule_period needs a schedule"),
+])
+def test_a_schedule_that_does_not_fit_the_links_is_one_line(table, fragment):
+    from plant_model.network_schedule import resolve_schedule
+    with pytest.raises(ModelError) as exc:
+        resolve_schedule(table, LINKS, 0.1, 3)
     assert fragment in str(exc.value) and "\n" not in str(exc.value)

@@ -38,14 +38,21 @@ STATS_CONFIG = {"h": H, "T": 500.0, "seed": 5, "receiver": 1, "slots": 1,
                                 loss=0.2)]}
 
 
+#: CONFIG with a switching schedule: graphs from 0 s and 3 s, repeating every 7 s
+SCHEDULE = {"t": [0.0, 3.0], "period": 7.0}
+SCHED_CONFIG = dict(CONFIG, schedule=SCHEDULE,
+                    links=[dict(CONFIG["links"][0], up=[1, 0]), dict(CONFIG["links"][1], up=[0, 1])],
+                    leader=dict(CONFIG["leader"], up=[1, 1]))
+
+
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
-    fmus = build_fmus(None, tmp_path_factory.mktemp("net"),
-                      kinds={"network": CONFIG})
-    stats = build_fmus(None, tmp_path_factory.mktemp("net_stats"),
-                       kinds={"network": STATS_CONFIG})
-    ex = Extracted({"network": fmus["network"], "stats": stats["network"]})
-    yield {"network": fmus["network"], "stats": stats["network"]}, ex
+    paths = {}
+    for key, cfg in (("network", CONFIG), ("stats", STATS_CONFIG), ("sched", SCHED_CONFIG)):
+        paths[key] = build_fmus(None, tmp_path_factory.mktemp(key),
+                                kinds={"network": cfg})["network"]
+    ex = Extracted(paths)
+    yield paths, ex
     ex.cleanup()
 
 
@@ -74,7 +81,10 @@ def _drive(inst, inputs, k0):
 
 
 def _reference(config, inputs):
-    """The same links as bare LinkChannels (M = I held without M): outputs per step."""
+    """The same links as bare LinkChannels (M = I held without M): outputs per step; with a
+    schedule a link loses what it sends while it is down."""
+    from plant_model.network_schedule import LinkSchedule
+    sch = config.get("schedule")
     layout = [(st, [n for _, n in config["fields"]]) for st in config["links"]]
     if config["leader_size"]:
         layout.append((config["leader"], [config["leader_size"]]))
@@ -86,12 +96,16 @@ def _reference(config, inputs):
                                  st["key"], np.array(st["rx0"]),
                                  None if np.array_equal(M, np.eye(len(M))) else M))
     widths = [sum(sizes) for _, sizes in layout]
+    up = (LinkSchedule(tuple(round(t / config["h"]) for t in sch["t"]),
+                       round(sch["period"] / config["h"]),
+                       {j: tuple(map(bool, st["up"])) for j, (st, _) in enumerate(layout)})
+          if sch else None)
     rec = []
     for k, row in enumerate(inputs):
         out, pos = [], 0
-        for ch, w in zip(chans, widths):
+        for j, (ch, w) in enumerate(zip(chans, widths)):
             out += [*ch.rx, ch.age(k), ch.delivered, ch.lost, len(ch.in_flight)]
-            ch.advance(k, row[pos:pos + w])
+            ch.advance(k, row[pos:pos + w], up is None or up.is_up(j, k))
             pos += w
         rec.append(out)
     return np.array(rec), chans
@@ -123,6 +137,37 @@ def test_every_output_equals_the_link_channels_bit_for_bit(built):
     assert all(ch.lost > 0 and ch.delivered > 0 for ch in chans)     # both kinds happened
     assert got[-1, 5] == pytest.approx(chans[0].age(299))
     inst.close()
+
+
+def test_a_schedule_switches_the_links_in_the_fmu_as_in_link_channels(built):
+    """link[1] up only in the first graph (0-3 s of every 7 s), link[2] only in the second:
+    the outputs equal LinkChannels that lose what a down link sends, and a message sent
+    in a link's off time is counted lost."""
+    inst = _instance(built, "sched", key="sched")
+    inputs = np.random.default_rng(6).standard_normal((300, 12))
+    got = _drive(inst, inputs, 0)
+    want, chans = _reference(SCHED_CONFIG, inputs)
+    assert np.array_equal(got, want)
+    plain, _ = _reference(CONFIG, inputs)
+    assert not np.array_equal(got, plain)
+    # link[1] sends at 0, 2, 4, ... s: up at 0 and 2 s of each 7 s, 2 of 3.5 sent per 7 s
+    assert chans[0].lost > chans[0].delivered
+    names = _names(inst, "parameter")
+    assert {"schedule.t[2]", "schedule.period", "link[1].up[2]", "leader.up[1]"} <= set(names)
+    assert inst.types["link[2].up[1]"] == "Integer"
+    inst.close()
+
+
+@pytest.mark.parametrize("name, value, fragment", [
+    ("schedule.t[2]", -1.0, "schedule.t = [0.0, -1.0] must start at 0 s and increase"),
+    ("schedule.period", 2.0, "schedule.period = 2.0 s must be 0 or after the last switch"),
+    ("schedule.t[2]", 3.05, "schedule.t[2] = 3.05 s is not a whole number of steps"),
+    ("link[2].up[1]", 2, "link[2].up[1] = 2 is outside its range [0, 1]"),
+])
+def test_a_bad_schedule_parameter_fails_initialization_naming_it(built, name, value, fragment):
+    with pytest.raises(CosimError) as exc:
+        _instance(built, f"bad_{name}", key="sched", **{name: value})
+    assert "initialization failed" in str(exc.value) and fragment in str(exc.value)
 
 
 def test_the_fmu_validates_and_has_no_direct_feedthrough(built):

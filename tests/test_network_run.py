@@ -15,21 +15,28 @@ from orchestrator.per_vehicle_run import PerVehicleRuns
 from orchestrator.scenario import ScenarioError, load_scenario
 
 NET = {"latency": 1.0, "period": 2.0, "loss": 0.3}
+#: formation-4's graph in two halves switching every 4 s (neither reaches every vehicle)
+HALVES = {"schedule": [{"t": 0.0, "edges": [["leader", 1], [1, 2], [2, 4]]},
+                       {"t": 4.0, "edges": [["leader", 1], [1, 3], [3, 4]]}],
+          "schedule_period": 8.0}
 
 
-def _scenario(architecture, receiver="propagate", **run):
+def _scenario(architecture, receiver="propagate", schedule=None, **run):
     return load_scenario("formation-4").with_run(
         deployment="per-vehicle", architecture=architecture,
-        network=dict(NET, receiver=receiver), **run)
+        network=dict(NET, receiver=receiver, **(schedule or {})), **run)
 
 
-@pytest.mark.parametrize("architecture, receiver", [
-    ("distributed", "propagate"), ("distributed", "hold"), ("centralized", "propagate")])
-def test_the_network_fmus_reproduce_the_monolithic_loop(tmp_path, architecture, receiver):
+@pytest.mark.parametrize("architecture, receiver, schedule", [
+    ("distributed", "propagate", None), ("distributed", "hold", None),
+    ("centralized", "propagate", None), ("distributed", "propagate", HALVES)])
+def test_the_network_fmus_reproduce_the_monolithic_loop(tmp_path, architecture, receiver,
+                                                        schedule):
     """1 + 4 N FMUs (leader; vehicle, estimator, controller, network per AUV) equal the
     networked loop stepped as one recursion with the same noise and loss draws, and every
-    link's age of information equals the one the loss draws imply."""
-    sc = _scenario(architecture, receiver, T=30.0)
+    link's age of information equals the one the loss draws imply (also with the graph
+    switching between two halves)."""
+    sc = _scenario(architecture, receiver, schedule, T=30.0)
     pv = PerVehicleRuns(sc, tmp_path / "fmus")
     res = pv.run(architecture, "kalman", "regulator", 3)
     setup = pv.network(architecture, "kalman", "regulator")
@@ -44,6 +51,9 @@ def test_the_network_fmus_reproduce_the_monolithic_loop(tmp_path, architecture, 
     done = res.traces["link_delivered"][-1] + res.traces["link_lost"][-1]
     assert np.all(done == 15)                        # 15 messages in 30 s, all accounted
     assert res.traces["link_lost"][-1].sum() > 0
+    if schedule:                                     # 1 -> 2 up 0-4 s of 8 s: 2 sends of 4
+        c = res.info["links"].index("1 -> 2")
+        assert res.traces["link_lost"][-1, c] >= 7
     system = pv.system(architecture, "kalman", "regulator", 3)
     assert sum(c.fmu == "network" for c in system.components) == 4
 
@@ -56,7 +66,7 @@ def test_libcosim_runs_the_networked_export_like_our_jacobi_master(tmp_path, arc
     from orchestrator.interop.osp import export_osp
     from orchestrator.workflow import scenario_system
     libcosim.quiet_libcosim()
-    sc = _scenario(architecture)
+    sc = _scenario(architecture, schedule=HALVES if architecture == "distributed" else None)
     paths = export_osp(sc, tmp_path)
     system = scenario_system(sc)
     assert "network" in paths and len(system.components) == 17
@@ -102,6 +112,54 @@ def test_the_summary_reports_the_network_and_the_age_of_information(tmp_path):
     assert ages.shape[1] == 2 and ages.max() >= 3.0 - 1e-9     # hears 2 and 3, age saws
     views = {path for _, path in read_rrd_blueprint_views(rrd).values()}
     assert "/network/links" in views and "/vehicles/4/network" in views
+
+
+SWITCHING = """
+[network]
+latency = 1.0
+period = 2.0
+loss = 0.2
+schedule_period = 8.0
+
+[[network.schedule]]      # vehicle 3 hears nobody, vehicle 4 only 2
+t = 0.0
+down = [[1, 3], [3, 4]]
+
+[[network.schedule]]      # vehicle 2 hears nobody, vehicle 4 only 3
+t = 4.0
+down = [[1, 2], [2, 4]]
+"""
+
+
+def test_a_scenario_file_with_a_schedule_reports_joint_connectivity_and_the_verdict(tmp_path):
+    """formation-4's file with a switching [network] appended, through the CLI: the summary
+    says that neither graph reaches every vehicle, their union does, and gives the
+    mean-square radius over one 8 s period (below 1); no age prediction with switching."""
+    from orchestrator.scenario.loader import SCENARIO_DIR
+    src = tmp_path / "f4-switching.toml"
+    src.write_text((SCENARIO_DIR / "formation-4.toml").read_text() + SWITCHING)
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "orchestrator", "run", "--scenario", str(src),
+                        "--deployment", "per-vehicle", "--architecture", "distributed",
+                        "--T", "40", "--h", "0.05", "--out", str(out), "--quiet"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    m = json.loads((out / "summary.json").read_text())["methods"]["kalman"]
+    sch = m["network"]["schedule"]
+    assert sch["switch_times"] == [0.0, 4.0] and sch["period"] == 8.0
+    assert sch["connected_graphs"] == [False, False] and sch["jointly_connected"] is True
+    assert 0.0 < sch["spectral_radius_per_period"] < 1.0 and sch["mean_square_stable"]
+    assert m["network"]["cycle_s"] == 8.0
+    assert m["age_of_information"]["2"]["1"]["predicted_mean"] is None
+    # vehicle 2 hears 1 only in the first half of each period: its information ages
+    assert m["age_of_information"]["2"]["1"]["max"] >= 5.0
+    bad = tmp_path / "bad.toml"
+    bad.write_text(src.read_text().replace("down = [[1, 2], [2, 4]]", "down = [[1, 9]]"))
+    r = subprocess.run([sys.executable, "-m", "orchestrator", "run", "--scenario", str(bad),
+                        "--deployment", "per-vehicle", "--out", str(tmp_path / "no")],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 2 and "vehicle 9 does not exist" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "no").exists()
 
 
 @pytest.mark.parametrize("network, fragment", [

@@ -88,8 +88,9 @@ def test_perfect_links_give_back_the_stacked_centralized_cost(f4, mode):
     assert len(form.links) == 16                     # 4 x 3 pairs and the leader to all
 
 
-def _channel_reference(form, net, X0, zeta, seed, receiver, timings):
-    """The cut loop stepped with one LinkChannel per link (plant_model.network)."""
+def _channel_reference(form, net, X0, zeta, seed, receiver, timings, schedule=None):
+    """The cut loop stepped with one LinkChannel per link (plant_model.network); a link
+    down in the schedule loses what it sends."""
     ch = {k: LinkChannel(timings[k], form.h, seed, link_key(*k), form.senders[k[0]].Cm @ X0,
                          form.senders[k[0]].M(receiver)) for k in form.links}
     X, out = X0.copy(), []
@@ -102,7 +103,7 @@ def _channel_reference(form, net, X0, zeta, seed, receiver, timings):
         X = form.Phi @ X + form.Gam @ zeta[k] + sum(lk.B @ R[key]
                                                     for key, lk in form.links.items())
         for key, c in ch.items():
-            c.advance(k, msgs[key[0]])
+            c.advance(k, msgs[key[0]], schedule is None or schedule.is_up(key, k))
     return np.array(out)
 
 
@@ -129,6 +130,105 @@ def test_the_augmented_loop_is_the_links_stepped_one_by_one(f4, architecture, re
     ref = _channel_reference(form, net, X0, zeta, 3, receiver, timings)
     assert np.allclose(Z[:, order], ref, rtol=0, atol=1e-11 * np.abs(ref).max())
     assert max(len(g.slots) for g in net.groups.values()) == 2
+
+
+#: formation-4's graph in two halves, 10 s each: neither reaches every vehicle, the union does
+HALVES = {"schedule": [{"t": 0.0, "edges": [["leader", 1], [1, 2], [2, 4]]},
+                       {"t": 10.0, "edges": [["leader", 1], [1, 3], [3, 4]]}],
+          "schedule_period": 20.0}
+
+
+@pytest.mark.parametrize("architecture, receiver", [("distributed", "propagate"),
+                                                    ("centralized", "hold")])
+def test_a_schedule_switches_the_links_as_link_channels_told_so(f4, architecture, receiver):
+    """Links switched on and off by a periodic schedule (a message sent while its link is
+    down is lost): the augmented loop equals LinkChannels stepped per link, and a down
+    link's messages never arrive."""
+    from plant_model.network_schedule import resolve_schedule
+    if architecture == "distributed":
+        loop = distributed_loop_of(f4, "kalman", "regulator", f4.distributed)
+        form = distributed_message_form(loop, *_H_offsets(f4))
+        table = {"schedule": [{"t": 0.0, "edges": [["leader", 1], [1, 2], [2, 4]]},
+                              {"t": 1.5, "down": [[1, 2], [1, 3]]}], "schedule_period": 3.5}
+    else:
+        loop, form = _centralized(f4, "kalman")
+        table = {"schedule": [{"t": 0.0, "down": [[2, 1], [3, 4], ["leader", 2]]},
+                              {"t": 2.0, "edges": [["leader", 1], [1, 2], [4, 3]]}],
+                 "schedule_period": 4.5}
+    X0 = form.state_of(distributed_initial_state(f4, loop))
+    timings = {k: check_link(str(k), 0.35, 0.5, 0.2) for k in form.links}
+    sched = resolve_schedule(table, form.links, f4.h, 4)
+    net = NetworkedLoop(form, timings, receiver, sched)
+    # the cycle: lcm(10 steps of messages, the schedule's 70 or 90 steps)
+    assert net.period == np.lcm(10, round(table["schedule_period"] / f4.h))
+    zeta = np.random.default_rng(1).standard_normal((400, form.Gam.shape[1])) * 0.01
+    Z = net.simulate(net.initial_state(X0), zeta, seed=5)
+    order = np.r_[np.arange(form.Phi.shape[0]),
+                  np.concatenate([np.arange(sl.start, sl.stop) for sl in net.R.values()])]
+    ref = _channel_reference(form, net, X0, zeta, 5, receiver, timings, sched)
+    assert np.allclose(Z[:, order], ref, rtol=0, atol=1e-11 * np.abs(ref).max())
+    never = [k for k in form.links if not any(sched.up[k])]
+    assert never and all(np.all(net.ages(400, 5)[k] == np.arange(400) * f4.h) for k in never)
+
+
+@pytest.mark.slow
+def test_a_jointly_connected_schedule_predicted_and_simulated(f4):
+    """formation-4 distributed over links of period 2 s, latency 1 s, loss 20 %, the graph
+    switching between two halves every 10 s (neither reaches every vehicle, the union
+    does): the exact expected cost over the window agrees with 16 simulated seeds, and the
+    radius over one 20 s period is below 1."""
+    from plant_model.network import resolve_links
+    from plant_model.network_schedule import connectivity, resolve_schedule
+    sc = f4.with_run(T=100.0)
+    loop = distributed_loop_of(sc, "kalman", "regulator", sc.distributed)
+    form = distributed_message_form(loop, *_H_offsets(sc))
+    g = sc.fleet["graph"]
+    timings = resolve_links(4, [tuple(e) for e in g["edges"]], [tuple(p) for p in g["pinning"]],
+                            {"latency": 1.0, "period": 2.0, "loss": 0.2}, sc.h)
+    sched = resolve_schedule(HALVES, timings, sc.h, 4)
+    assert connectivity(sched, timings) == {"connected_graphs": [False, False],
+                                            "jointly_connected": True}
+    net = NetworkedLoop(form, timings, "propagate", sched)
+    assert net.period * sc.h == pytest.approx(20.0)
+    Z0 = net.initial_state(distributed_initial_state(sc, loop))
+    k0, K = sc.steps // 2, sc.steps
+    pred = predict_window(net, Z0, k0, K)
+    sim = _mc_cost(sc, net, form, Z0, k0, K, range(16))
+    se = sim.std(ddof=1) / np.sqrt(sim.size)
+    assert abs(sim.mean() - pred.cost_rate) < 4 * se, (sim.mean(), se, pred.cost_rate)
+    assert 0.0 < pred.spectral_radius < 1.0
+    always = NetworkedLoop(form, timings, "propagate")
+    assert predict_window(always, Z0, k0, K).cost_rate < pred.cost_rate
+
+
+def test_joint_connectivity_is_not_sufficient():
+    """The spiral leader (growth 0.05 1/s) heard for 2 s in every 20 s over links losing
+    half the messages: every vehicle hears the leader's information in the union of the
+    graphs, yet the second moment grows. The leader link's held message is reset with
+    probability 0.5 once per period and otherwise drifts by exp(0.05 x 20) in magnitude, so
+    the radius per period is 0.5 e^2 = 3.69: the prediction gives it, and 400 simulated
+    loss sequences grow as the predicted second moment does."""
+    from plant_model.network_schedule import connectivity, resolve_schedule
+    sc = load_scenario(DATA / "spiral-leader-network.toml")
+    loop = distributed_loop_of(sc, "kalman", "regulator", sc.distributed)
+    form = distributed_message_form(loop, *_H_offsets(sc))
+    timings = {k: check_link(str(k), 1.0, 2.0, 0.5) for k in form.links}
+    sched = resolve_schedule({"schedule": [{"t": 0.0, "down": []},
+                                           {"t": 2.0, "down": [["leader", 1]]}],
+                              "schedule_period": 20.0}, timings, sc.h, 4)
+    assert connectivity(sched, timings)["jointly_connected"]
+    net = NetworkedLoop(form, timings, "propagate", sched)
+    assert ms_spectral_radius(net) == pytest.approx(0.5 * np.exp(2.0), rel=1e-6)
+    assert ms_stable(net) is False
+    Z0 = net.initial_state(form.state_of(distributed_initial_state(sc, loop)))
+    Z0[net.deterministic] = 0.0                    # the error coordinates: no leader
+    steps = 3 * net.period
+    comp = _Compiler(net)
+    X, _ = comp.apply(comp.plan(0, steps), np.outer(Z0, Z0), noise=False)
+    zeta = np.zeros((steps + 1, form.Gam.shape[1]))
+    sim = np.mean([np.sum(net.simulate(Z0, zeta, s)[-1] ** 2) for s in range(400)])
+    assert np.trace(X) > 10.0 * (Z0 @ Z0)
+    assert sim == pytest.approx(np.trace(X), rel=0.35)
 
 
 def _mc_cost(sc, net, form, Z0, k0, K, seeds):

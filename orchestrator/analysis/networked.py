@@ -45,6 +45,7 @@ from plant_model.network import (
     link_key,
     whole_steps,
 )
+from plant_model.network_schedule import LinkSchedule
 
 from .message_form import RECEIVERS, MessageForm
 
@@ -82,7 +83,7 @@ class NetworkedLoop:
     """The augmented loop of a message form and its links' timing (module docstring)."""
 
     def __init__(self, form: MessageForm, timings: Mapping[tuple[Any, int], LinkTiming],
-                 receiver: str = "propagate"):
+                 receiver: str = "propagate", schedule: LinkSchedule | None = None):
         if receiver not in RECEIVERS:
             raise ModelError(f"receiver {receiver!r} is not one of {', '.join(RECEIVERS)}")
         missing = sorted(str(k) for k in form.links if k not in timings)
@@ -119,6 +120,16 @@ class NetworkedLoop:
         self.timings = dict(timings)
         self.period = int(np.lcm.reduce([g.P for g in groups.values()])) if groups else 1
         self.startup = max((g.first + g.D for g in groups.values()), default=0)
+        #: links switched on and off by a schedule of graphs: a message sent while its link
+        #: is down is lost; the patterns repeat over lcm(message cycle, schedule period), or
+        #: with the message cycle once the last graph's messages arrive
+        self.schedule = schedule
+        if schedule is not None:
+            if schedule.period:
+                self.period = math.lcm(self.period, schedule.period)
+            else:
+                D = max((g.D for g in groups.values()), default=0)
+                self.startup = max(self.startup, schedule.settled + D)
         self._patterns: dict[int, tuple[frozenset, frozenset]] = {}
         self.modem: tuple[float, dict[Any, np.ndarray]] | None = None
         self._Qz: np.ndarray | None = None
@@ -149,15 +160,22 @@ class NetworkedLoop:
     # --------------------------------------------------------------- one transition
     def pattern(self, k: int) -> tuple[frozenset, frozenset]:
         """(groups sending, links receiving) in the transition k -> k+1 (periodic with the
-        message cycle once every link has delivered its first message)."""
+        cycle once every link has delivered its first message); a link receives when a
+        message sent while it was up (:attr:`schedule`) is due."""
         if k >= self.startup + self.period:
             k = self.startup + (k - self.startup) % self.period
         if k not in self._patterns:
             sends = frozenset(g for g, grp in self.groups.items() if grp.sends(k))
             arr = frozenset(key for key, g in self.link_group.items()
-                            if self.groups[g].arrives(k) is not None)
+                            if self.groups[g].arrives(k) is not None and self._up(key, k))
             self._patterns[k] = (sends, arr)
         return self._patterns[k]
+
+    def _up(self, key: tuple[Any, int], k: int) -> bool:
+        """Was the message arriving in k -> k+1 on ``key`` sent while the link was up?"""
+        if self.schedule is None:
+            return True
+        return self.schedule.is_up(key, k + 1 - self.groups[self.link_group[key]].D)
 
     @lru_cache(maxsize=64)  # noqa: B019 - a loop lives as long as its predictions
     def matrices(self, pattern: tuple[frozenset, frozenset]
@@ -233,13 +251,17 @@ class NetworkedLoop:
 
     def deliveries(self, seed: int, steps: int) -> dict[tuple[Any, int], np.ndarray]:
         """Per link, whether each message gets through: the draws the network FMU makes,
-        one uniform per message from [seed, LINK_KEY_BASE + link_key(j, i)]."""
+        one uniform per message from [seed, LINK_KEY_BASE + link_key(j, i)], and never
+        while the schedule has the link down at its send step."""
         out = {}
         for key, g in self.link_group.items():
             grp = self.groups[g]
             count = max(0, math.ceil((steps - grp.first) / grp.P))
             rng = np.random.default_rng([int(seed), LINK_KEY_BASE + link_key(*key)])
             out[key] = rng.random(count) >= self.loss[key]
+            if self.schedule is not None:
+                out[key] &= np.array([self.schedule.is_up(key, grp.first + m * grp.P)
+                                      for m in range(count)], dtype=bool)
         return out
 
     def set_modem_range(self, limit: float, positions: Mapping[Any, np.ndarray]) -> None:

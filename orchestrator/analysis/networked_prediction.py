@@ -286,6 +286,13 @@ def ms_spectral_radius(net: NetworkedLoop, loss: float | None = None) -> float:
     float
         The radius per message cycle (below 1: mean-square stable).
     """
+    cache = net.__dict__.setdefault("_ms_radius", {})    # the summary asks again
+    if loss not in cache:
+        cache[loss] = _ms_radius(net, loss)
+    return cache[loss]
+
+
+def _ms_radius(net: NetworkedLoop, loss: float | None) -> float:
     comp = _Compiler(net, loss=loss, error_only=True)
     cyc = comp.cycle()
     n = comp.keep.size

@@ -74,17 +74,21 @@ def receiver_slots(sc: Any, architecture: str, slots: Any) -> list[list[int | No
 
 
 def _settings(sender: Any, timing: LinkTiming | None, key: int, M: np.ndarray,
-              rx0: np.ndarray) -> dict[str, Any]:
+              rx0: np.ndarray, up: Any = None) -> dict[str, Any]:
     t = timing or LinkTiming(latency=0.0, period=1.0, loss=0.0)
-    return {"sender": sender, "latency": t.latency, "period": t.period, "loss": t.loss,
-            "offset": t.offset, "key": int(key), "M": np.asarray(M, float).tolist(),
-            "rx0": np.asarray(rx0, float).tolist()}
+    out = {"sender": sender, "latency": t.latency, "period": t.period, "loss": t.loss,
+           "offset": t.offset, "key": int(key), "M": np.asarray(M, float).tolist(),
+           "rx0": np.asarray(rx0, float).tolist()}
+    if up is not None:
+        out["up"] = [int(bool(u)) for u in up]
+    return out
 
 
 def network_configs(senders: Mapping[Any, Any], links: Mapping[tuple[Any, int], LinkTiming],
                     slot_senders: list[list[Any]], receiver: str,
                     launch: Mapping[tuple[Any, int], np.ndarray], leader_size: int,
-                    modem: Mapping[str, Any] | None = None) -> list[dict[str, Any]]:
+                    modem: Mapping[str, Any] | None = None,
+                    schedule: Mapping[str, Any] | None = None) -> list[dict[str, Any]]:
     """The ``AuvNetwork`` build configuration of every vehicle (all of one interface).
 
     Parameters
@@ -104,6 +108,9 @@ def network_configs(senders: Mapping[Any, Any], links: Mapping[tuple[Any, int], 
     modem : Mapping[str, Any] or None, optional
         With a modem range: ``range`` (m), ``state_size``, ``position_index`` (the
         vehicles' position states) and ``leader_H`` (the leader's position H z).
+    schedule : Mapping[str, Any] or None, optional
+        A switching schedule: ``t`` (switch times, s), ``period`` (s, 0: none) and ``up``
+        ({link: 0/1 per graph}); an unused slot is up in every graph.
 
     Returns
     -------
@@ -116,6 +123,12 @@ def network_configs(senders: Mapping[Any, Any], links: Mapping[tuple[Any, int], 
     fields = [list(f) for f in vehicle.fields]
     w = vehicle.width
     lead = senders.get("leader")
+    up = dict(schedule["up"]) if schedule else {}
+    every = [1] * len(schedule["t"]) if schedule else None
+    extra = dict(modem or {})
+    if schedule:
+        extra["schedule"] = {"t": [float(t) for t in schedule["t"]],
+                             "period": float(schedule["period"])}
     out = []
     for i, row in enumerate(slot_senders, start=1):
         slots = []
@@ -123,15 +136,17 @@ def network_configs(senders: Mapping[Any, Any], links: Mapping[tuple[Any, int], 
             key = (j, i)
             if key in links:
                 s = senders[j]
-                slots.append(_settings(j, links[key], link_key(j, i), s.M(receiver), launch[key]))
+                slots.append(_settings(j, links[key], link_key(j, i), s.M(receiver), launch[key],
+                                       up.get(key, every)))
             else:
-                slots.append(_settings(None, None, 0, np.eye(w), np.zeros(w)))
+                slots.append(_settings(None, None, 0, np.eye(w), np.zeros(w), every))
         lk = ("leader", i)
         leader = (_settings("leader", links[lk], link_key("leader", i), lead.M(receiver),
-                            launch[lk]) if lk in links and lead is not None else
-                  _settings(None, None, 0, np.eye(leader_size), np.zeros(leader_size)))
+                            launch[lk], up.get(lk, every)) if lk in links and lead is not None
+                  else _settings(None, None, 0, np.eye(leader_size), np.zeros(leader_size),
+                                 every))
         out.append(dict(receiver=i, slots=len(row), fields=fields, leader_size=leader_size,
-                        links=slots, leader=leader, **dict(modem or {})))
+                        links=slots, leader=leader, **extra))
     return out
 
 
