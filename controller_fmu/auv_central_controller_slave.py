@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from fmu_common.interface import ArraySpec
+from fmu_common.native_form import NativeForm, Role
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from fmu_common.slave_base import ArraySlave as Fmi2Slave
@@ -72,6 +73,16 @@ class AuvCentralController(Fmi2Slave):
         """Take the gain as set (nothing to solve)."""
         self._negK = -np.ascontiguousarray(self.par["K"], dtype=float)
         self._u0 = np.array(self.par["u0"], dtype=float)
+
+    def native_form(self) -> NativeForm:
+        """u = u0 - K [xhat_1; what_1; ...; z]: a static gain (any communication step)."""
+        inputs, outputs = self.io_specs()
+        return NativeForm(inputs=inputs, outputs=outputs, nq=0, h=1.0, static=True,
+                          description=self.description, roles=[
+                              Role("D", "K", -self._negK, "the vehicle's rows of the stacked "
+                                   "gain: u = u0 - K [xhat_1; what_1; ...; z]", sign=-1.0),
+                              Role("c", "u0", self._u0, "constant force (formation offsets)",
+                                   unit="N")])
 
     def compute_outputs(self) -> None:
         """u = u0 - K [xhat_1; what_1; ...; xhat_N; what_N; z] into the output buffer."""

@@ -13,6 +13,7 @@ import numpy as np
 
 from controller_fmu.regulator import TRACKING_MODES, tracking_law
 from fmu_common.interface import ArraySpec
+from fmu_common.native_form import NativeForm, Role
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from fmu_common.slave_base import ArraySlave as Fmi2Slave
@@ -82,6 +83,14 @@ class AuvController(Fmi2Slave):
         poles = self.design.closed_loop_poles
         self.log(f"design ({mode}): slowest closed-loop pole {poles[np.argmax(poles.real)]:.6g}, "
                  f"relative residuals {self.design.residuals}")
+
+    def native_form(self) -> NativeForm:
+        """u = -Ks [xhat; what; zhat]: a static gain (any communication step)."""
+        inputs, outputs = self.io_specs()
+        return NativeForm(inputs=inputs, outputs=outputs, nq=0, h=1.0, static=True,
+                          description=self.description, roles=[
+                              Role("D", "Ks", -self._negK, "the designed gain: u = -Ks [xhat; "
+                                   f"what; zhat] ({self.par['tracking']} law)", sign=-1.0)])
 
     def compute_outputs(self) -> None:
         """u = -(Kx xhat + Kw what + Kz zhat) into the output buffer."""

@@ -22,6 +22,7 @@ from controller_fmu.distributed import REGULATOR_FORMS, sampled_observer
 from controller_fmu.regulator import TRACKING_MODES
 from controller_fmu.vehicle_law import vehicle_law
 from fmu_common.interface import ArraySpec
+from fmu_common.native_form import BlockLayout, NativeForm, Role
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from fmu_common.slave_base import ArraySlave as Fmi2Slave
@@ -140,6 +141,43 @@ class AuvVehicleController(Fmi2Slave):
         self.log(f"distributed law ({par['tracking']}, {par['regulator']}): slowest local "
                  f"pole {law.poles[np.argmax(law.poles.real)]:.6g}, observer gain mu = "
                  f"{obs.mu:g} 1/s, in-degree {d:g}")
+
+    def native_form(self) -> NativeForm:
+        """The law and observer with eps substituted (q = eta)::
+
+            eps = xhat - X eta - Xw what - xc
+            u   = (U - Geps X) eta + Geps xhat + (Uw - Geps Xw) what + c Kx sum_k a_k eps_k
+                  + uc - Geps xc
+            eta+ = Aobs eta + Bobs (sum_k a_k eta_k + a0 z)
+        """
+        inputs, outputs = self.io_specs()
+        I, O = BlockLayout(inputs), BlockLayout(outputs)
+        l_, n = self.eta.size, self._X.shape[0]
+        Ge, X, Xw = self._Geps, self._X, self._Xw
+        C = np.zeros((O.size, l_))
+        C[O["u"]], C[O["eps"]], C[O["eta"]] = self._U - Ge @ X, -X, np.eye(l_)
+        D = np.zeros((O.size, I.size))
+        D[O["u"], I["xhat"]], D[O["eps"], I["xhat"]] = Ge, np.eye(n)
+        if Xw.shape[1]:
+            D[O["u"], I["what"]], D[O["eps"], I["what"]] = self._Uw - Ge @ Xw, -Xw
+        B = np.zeros((l_, I.size))
+        B[:, I["z"]] = self._a0 * self._Bobs
+        for k, a in enumerate(self._a, start=1):
+            D[O["u"], I[f"nbr[{k}].eps"]] = a * self._cK
+            B[:, I[f"nbr[{k}].eta"]] = a * self._Bobs
+        c = np.zeros(O.size)
+        c[O["u"]], c[O["eps"]] = self._uc - Ge @ self._xc, -self._xc
+        return NativeForm(inputs=inputs, outputs=outputs, nq=l_, h=float(self.par["h"]),
+                          description=self.description, roles=[
+                              Role("A", "A_eta", self._Aobs, "observer over one step: eta+ = "
+                                   "A_eta eta + B_eta [z; nbr eta]"),
+                              Role("B", "B_eta", B, "observer input (weights a0, a_k applied)"),
+                              Role("C", "C_eta", C, "outputs [u; eps; eta] from eta"),
+                              Role("D", "D", D, "outputs [u; eps; eta] from the inputs (direct "
+                                   "feedthrough of the estimates and the neighbours' eps)"),
+                              Role("c", "y0", c, "constant part of the outputs (offsets)"),
+                              Role("q0", "eta0", self.eta, "the observer's initial state"),
+                          ])
 
     def compute_outputs(self) -> None:
         """eps and u from the current inputs; eta is the observer's state."""

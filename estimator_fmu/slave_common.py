@@ -7,6 +7,7 @@ the estimate, in the estimator's order.
 """
 from __future__ import annotations
 
+from fmu_common.native_form import BlockLayout, NativeForm, Role
 from fmu_common.slave_base import DelegatedStateSlave
 
 __all__ = ["EstimatorSlave"]
@@ -17,6 +18,24 @@ class EstimatorSlave(DelegatedStateSlave):
 
     math_name = "estimator"
     evolving_name = "q"
+
+    def native_form(self) -> NativeForm:
+        """est = Ce q + Dm mvec (the measurement inputs), q+ = Aq est + Bu u."""
+        e = self.estimator
+        inputs, outputs = self.io_specs()
+        u0 = BlockLayout(inputs)["u"].start
+        return NativeForm(inputs=inputs, outputs=outputs, nq=e.q0.size, h=float(self.par["h"]),
+                          description=self.description, roles=[
+                              Role("C", "Ce", e.Ce, "estimate from the internal state: est = "
+                                   "Ce q + Dm mvec"),
+                              Role("D", "Dm", e.Dm, "estimate from the measurements (direct "
+                                   "feedthrough)"),
+                              Role("Bo", "Aq", e.Aq, "state update from the estimate: q+ = Aq "
+                                   "est + Bu u"),
+                              Role("B", "Bu", e.Bu, "state update from the applied input",
+                                   col0=u0),
+                              Role("q0", "q0", e.q0, "initial internal state"),
+                          ])
 
     def compute_outputs(self) -> None:
         """est[k] = Ce q[k] + Dm mvec[k] into the output buffer."""

@@ -150,6 +150,22 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
 
     _checks_state = False
 
+    def io_specs(self) -> tuple[list[ArraySpec], list[ArraySpec]]:
+        """The input and the output arrays, in order (a native form's interface)."""
+        return ([s for s in self.specs if s.causality == "input"],
+                [s for s in self.specs if s.causality == "output"])
+
+    def native_form(self) -> Any:
+        """The set-up mathematics as a linear form (fmu_common.native_form.NativeForm), for
+        a native FMU of the same interface; called after :meth:`setup`.
+
+        Raises
+        ------
+        NotImplementedError
+            For a slave that is not linear (the acoustic network).
+        """
+        raise NotImplementedError(f"{type(self).__name__} has no native (C) form")
+
     def evolving(self) -> np.ndarray | None:
         """The array the mathematics advances in a step (checked to stay finite), or None.
 

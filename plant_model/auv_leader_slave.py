@@ -17,6 +17,8 @@ from plant_model.parameters import (
     sample_period_spec,
     system_parameter_specs,
 )
+from fmu_common.native_form import NativeForm
+from plant_model.native_plant import plant_native_form
 from plant_model.per_vehicle import leader_system, sample_leader
 from plant_model.plant import Plant
 
@@ -66,8 +68,15 @@ class AuvLeader(Fmi2Slave):
         conv = self.par["noise_convention"]
         F, z0, W = leader_system(self.par["F"], self.par["z0"], self.par["W_z"], conv)
         self.model = sample_leader(F, W, float(self.par["h"]), conv)
+        self._z0 = z0
         self.plant = Plant(self.model, z0, int(self.par["seed"]), out=self._out)
         self._u = np.zeros(0)
+
+    def native_form(self) -> NativeForm:
+        """z = z_k, z+ = Phi z + Lq xi (native noise, stream 0: the leader's)."""
+        return plant_native_form(self.model, self._z0, range(self._out.size), *self.io_specs(),
+                                 seed=int(self.par["seed"]), stream=0,
+                                 description=self.description)
 
     def compute_outputs(self) -> None:
         """Nothing to do: the plant keeps z of sample k in the output buffer."""

@@ -11,7 +11,9 @@ from fmu_common.interface import ArraySpec
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
+from fmu_common.native_form import NativeForm
 from plant_model.discretization import discretize
+from plant_model.native_plant import plant_native_form
 from plant_model.parameters import (
     model_parameter_specs,
     noise_convention_spec,
@@ -78,9 +80,15 @@ class AuvPlant(Fmi2Slave):
                                         self.par["noise_convention"])
         self.model = discretize(system, float(self.par["h"]))
         # the plant writes [y, ybar, x, w, z, e] straight into this FMU's output buffer
-        self.plant = Plant(self.model, system.initial_state(), int(self.par["seed"]),
-                           out=self._out)
+        self._s0 = system.initial_state()
+        self.plant = Plant(self.model, self._s0, int(self.par["seed"]), out=self._out)
         self._u = self.io["u"]
+
+    def native_form(self) -> NativeForm:
+        """y, ybar, x, w, z, e = Cq s (+ Lr xi), s+ = Ad s + Bd u + Lq xi (native noise)."""
+        return plant_native_form(self.model, self._s0, range(self._out.size), *self.io_specs(),
+                                 seed=int(self.par["seed"]), stream=0,
+                                 description=self.description)
 
     def compute_outputs(self) -> None:
         """Nothing to do: the plant keeps [y, ybar, x, w, z, e] of sample k in the buffer."""

@@ -15,6 +15,8 @@ from fmu_common.interface import ArraySpec
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
+from fmu_common.native_form import NativeForm
+from plant_model.native_plant import plant_native_form
 from plant_model.parameters import (
     noise_convention_spec,
     sample_period_spec,
@@ -81,8 +83,8 @@ class AuvVehicle(Fmi2Slave):
         view = vehicle_alone(mp, int(self.config["dims"]["l"]), self.par["noise_convention"])
         self.model = sample_vehicle(view, float(self.par["h"]), int(self.par["vehicle"]))
         self._buf = np.empty(3 * view.p + self.model.ns)      # [y, ybar, x, w, e]
-        self.plant = Plant(self.model, np.concatenate([view.x0, view.w0]),
-                           int(self.par["seed"]), out=self._buf)
+        self._s0 = np.concatenate([view.x0, view.w0])
+        self.plant = Plant(self.model, self._s0, int(self.par["seed"]), out=self._buf)
         s, ns = view.p, self.model.ns
         self._from = np.r_[0:s, 2 * s:2 * s + ns]             # y, then x and w
         self._u = self.io["u"]
@@ -90,6 +92,12 @@ class AuvVehicle(Fmi2Slave):
 
     def _copy(self) -> None:
         np.take(self._buf, self._from, out=self._out)
+
+    def native_form(self) -> NativeForm:
+        """y, x, w = Cq s (+ Lr xi), s+ = Ad s + Bd u + Lq xi (native noise, stream i)."""
+        return plant_native_form(self.model, self._s0, self._from, *self.io_specs(),
+                                 seed=int(self.par["seed"]), stream=int(self.par["vehicle"]),
+                                 description=self.description)
 
     def compute_outputs(self) -> None:
         """Nothing to do: the outputs of sample k are copied when the step ends."""

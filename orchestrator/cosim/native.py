@@ -1,0 +1,308 @@
+"""Native FMUs: a designed FMU compiled to C, no Python at run time.
+
+Every FMU kind except the acoustic network is linear once designed
+(:mod:`fmu_common.native_form`). :func:`form_of` sets up the pythonfmu slave of a
+component in this process (from the configuration inside its built .fmu and the
+component's parameter values) and asks it for its linear form; :func:`build_native_fmu`
+writes the form as an FMI 2.0 co-simulation FMU:
+
+- ``modelDescription.xml``: the slave's inputs and outputs (names, units, direct
+  feedthrough), the form's matrices as parameters (structured names, start values from the
+  design), ``h``, and ``seed``/``stream`` for a noisy plant; ``needsExecutionTool="false"``;
+- ``sources/``: ``linear_fmu.c`` (fmu_common/native/), the generated ``native_model.h``
+  and the FMI 2.0 headers, listed in the modelDescription;
+- ``binaries/linux64/<model>.so``: built at export with the system C compiler
+  (:data:`CFLAGS`; libc and libm only).
+
+A native FMU does not re-solve the Riccati equations: a design change means exporting
+again, or setting the gain and filter parameters.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import importlib
+import json
+import os
+import shutil
+import subprocess
+import tempfile
+import zipfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from lxml import etree
+
+from fmu_common.interface import ArraySpec, element_names
+from fmu_common.native_form import NativeForm
+from plant_model.linalg_checks import ModelError
+
+from ..atomic import temporary_sibling
+from .build import FMU_KINDS, ROOT, patch_model_description
+
+__all__ = ["CFLAGS", "NATIVE_KINDS", "NativeBuildError", "build_native_fmu", "compiler",
+           "form_of", "native_model", "native_parameters", "native_specs"]
+
+#: the kinds that have a native form (the network is not linear: it stays pythonfmu)
+NATIVE_KINDS = tuple(k for k in FMU_KINDS if k != "network")
+C_SOURCE = ROOT / "fmu_common" / "native" / "linear_fmu.c"
+#: how the shared library is built (IEEE arithmetic kept: no -ffast-math)
+CFLAGS = ("-shared", "-fPIC", "-O2", "-std=c99", "-Wall", "-Wextra")
+FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+
+
+class NativeBuildError(RuntimeError):
+    """A native FMU cannot be built (no compiler, the compiler failed)."""
+
+
+def native_model(kind: str) -> str:
+    """The model identifier of a kind's native FMU: ``AuvController`` -> ``AuvControllerNative``."""
+    return f"{FMU_KINDS[kind].model}Native"
+
+
+def compiler() -> str:
+    """The C compiler: ``$CC`` or ``cc``.
+
+    Raises
+    ------
+    NativeBuildError
+        If there is none on PATH (one line saying what to install).
+    """
+    cc = os.environ.get("CC", "cc")
+    path = shutil.which(cc)
+    if path is None:
+        raise NativeBuildError(f"no C compiler: {cc!r} is not on PATH (install gcc, or set CC)")
+    return path
+
+
+def _fmi_include() -> Path:
+    import fmpy
+    return Path(fmpy.__file__).parent / "c-code"
+
+
+# ------------------------------------------------------------------ the form of a component
+def _scalar_arrays(specs: list[ArraySpec], values: Mapping[str, Any]) -> dict[str, Any]:
+    """Per parameter array its value: the start value with the component's scalars set."""
+    out: dict[str, Any] = {}
+    for s in specs:
+        if s.causality != "parameter":
+            continue
+        if s.type == "String":
+            out[s.name] = str(values.get(s.name, s.start))
+            continue
+        arr = np.array(s.start if s.start is not None else 0.0,
+                       dtype=float if s.type == "Real" else np.int64).reshape(s.shape)
+        flat = arr.reshape(-1)
+        for i, nm in enumerate(element_names(s.name, s.shape)):
+            if nm in values:
+                flat[i] = values[nm]
+        out[s.name] = arr
+    return out
+
+
+def form_of(kind: str, fmu: Path, parameters: Mapping[str, Any]) -> NativeForm:
+    """The linear form of a component: its slave set up in this process.
+
+    Parameters
+    ----------
+    kind : str
+        The FMU kind (a key of FMU_KINDS, not "network").
+    fmu : Path
+        The built pythonfmu FMU (its configuration is read from resources/).
+    parameters : Mapping[str, Any]
+        The component's parameter values (FMI scalar names), as in the system description.
+
+    Returns
+    -------
+    NativeForm
+        What the native FMU computes.
+
+    Raises
+    ------
+    ModelError
+        If the kind has no native form or the slave's setup fails (its message).
+    """
+    if kind not in NATIVE_KINDS:
+        raise ModelError(f"the {kind} FMU has no native form (it is not linear)")
+    k = FMU_KINDS[kind]
+    with zipfile.ZipFile(fmu) as z:
+        config = json.loads(z.read(f"resources/{k.config_file}"))
+    cls = getattr(importlib.import_module(k.module), k.model)
+    with tempfile.TemporaryDirectory(prefix="auv_native_") as res:
+        (Path(res) / k.config_file).write_text(json.dumps(config))
+        slave = cls(instance_name=f"native-{kind}", resources=res)
+    slave.par.update(_scalar_arrays(slave.specs, parameters))
+    slave.setup()
+    form = slave.native_form()
+    if not form.description:                   # pythonfmu's instance attribute is None
+        form = dataclasses.replace(form, description=cls.description)
+    form.check()
+    return form
+
+
+# ------------------------------------------------------------------ interface and files
+def native_specs(form: NativeForm) -> list[ArraySpec]:
+    """The native FMU's arrays: the roles, h, seed and stream (with noise), then the
+    slave's inputs and outputs (value references in this order, per type)."""
+    specs = [ArraySpec(r.name, r.value.shape, "parameter", r.description, start=r.value,
+                       unit=r.unit) for r in form.roles]
+    specs.append(ArraySpec("h", (), "parameter", "any communication step (a static law)"
+                           if form.static else "the communication step the design is for",
+                           start=float(form.h), unit="s"))
+    if form.nxi:
+        specs += [
+            ArraySpec("seed", (), "parameter", "seed of the noise generator (xoshiro256**, "
+                      "this FMU's own: not numpy's numbers)", start=form.seed, type="Integer",
+                      min=0, max=2**31 - 1),
+            ArraySpec("stream", (), "parameter", "second key of the generator (the vehicle)",
+                      start=form.stream, type="Integer", min=0, max=2**31 - 1)]
+    return specs + list(form.inputs) + list(form.outputs)
+
+
+def native_parameters(form: NativeForm, base: NativeForm | None = None) -> dict[str, Any]:
+    """Scalar parameter values of a form (FMI names), only those that differ from ``base``
+    (the form the FMU was built with) if given."""
+    out: dict[str, Any] = {}
+    ref = {r.name: r.value for r in base.roles} if base is not None else {}
+    for r in form.roles:
+        names = element_names(r.name, r.value.shape)
+        old = ref.get(r.name)
+        for i, (nm, v) in enumerate(zip(names, r.value.reshape(-1))):
+            if old is None or old.reshape(-1)[i] != v:
+                out[nm] = float(v)
+    for key, v in (("seed", form.seed), ("stream", form.stream)):
+        if form.nxi and (base is None or getattr(base, key) != v):
+            out[key] = int(v)
+    return out
+
+
+def _c_double(v: float) -> str:
+    return repr(float(v)) if np.isfinite(v) else "0.0"
+
+
+def _header(form: NativeForm, guid: str) -> str:
+    roles, offset, par = [], 0, []
+    index = {}
+    for i, r in enumerate(form.roles):
+        m = r.matrix
+        roles.append(f'    {{"{r.name}", {offset}u, {m.shape[0]}u, {m.shape[1]}u, {r.row0}u, '
+                     f'{r.col0}u, {r.sign!r}, {int(r.vector)}}},')
+        par += [_c_double(v) for v in r.value.reshape(-1)]
+        offset += r.value.size
+        index[r.key] = i
+    names_in = [nm for s in form.inputs for nm in element_names(s.name, s.shape)]
+    names_out = [nm for s in form.outputs for nm in element_names(s.name, s.shape)]
+
+    def strings(xs: list[str]) -> str:
+        return ",\n".join(f'    "{x}"' for x in xs) or '    ""'
+
+    lines = [
+        "/* generated by auv-cosim (orchestrator/cosim/native.py): sizes, value references,",
+        "   start values of one native FMU; see linear_fmu.c */",
+        f'#define NATIVE_GUID "{guid}"',
+        f"#define NQ {form.nq}", f"#define NU {form.nu}", f"#define NY {form.ny}",
+        f"#define NXI {form.nxi}", f"#define NPAR {offset}", f"#define NROLES {len(roles)}",
+        f"#define H_START {float(form.h)!r}", f"#define SEED_START {int(form.seed)}",
+        f"#define STREAM_START {int(form.stream)}",
+        *(f"#define ROLE_{k} {index.get(k, -1)}" for k in
+          ("A", "B", "Bo", "b", "F", "C", "D", "c", "G", "q0")),
+        "static const RoleInfo ROLES[ALLOC(NROLES)] = {", *roles, "};",
+        "static const double PAR_START[ALLOC(NPAR)] = {",
+        "    " + ",\n    ".join(par or ["0.0"]), "};",
+        "static const char *const INPUT_NAMES[ALLOC(NU)] = {", strings(names_in), "};",
+        "static const char *const OUTPUT_NAMES[ALLOC(NY)] = {", strings(names_out), "};", ""]
+    return "\n".join(lines)
+
+
+def _model_description(form: NativeForm, model: str, guid: str, T: float) -> bytes:
+    specs = native_specs(form)
+    root = etree.Element("fmiModelDescription", fmiVersion="2.0", modelName=model, guid=guid,
+                         description=form.description + " (native C build: the designed "
+                         "matrices, no Python)", generationTool="auv-cosim native",
+                         variableNamingConvention="structured", numberOfEventIndicators="0")
+    cs = etree.SubElement(root, "CoSimulation", modelIdentifier=model,
+                          needsExecutionTool="false",
+                          canHandleVariableCommunicationStepSize=str(form.static).lower(),
+                          canGetAndSetFMUstate="true", canSerializeFMUstate="true")
+    src = etree.SubElement(cs, "SourceFiles")
+    etree.SubElement(src, "File", name="linear_fmu.c")
+    cats = etree.SubElement(root, "LogCategories")
+    for c in ("logStatusError", "logAll"):
+        etree.SubElement(cats, "Category", name=c)
+    mv = etree.SubElement(root, "ModelVariables")
+    vr = {"Real": 0, "Integer": 0}
+    for spec in specs:
+        start = (np.asarray(spec.start).reshape(-1) if spec.start is not None
+                 else np.zeros(spec.size))
+        for i, nm in enumerate(element_names(spec.name, spec.shape)):
+            variability = ("fixed" if spec.causality == "parameter" else
+                           "discrete" if spec.type == "Integer" else "continuous")
+            sv = etree.SubElement(mv, "ScalarVariable", name=nm,
+                                  valueReference=str(vr[spec.type]), causality=spec.causality,
+                                  variability=variability, description=spec.description)
+            vr[spec.type] += 1
+            typ = etree.SubElement(sv, spec.type)
+            if spec.causality != "output":
+                typ.set("start", repr(float(start[i])) if spec.type == "Real"
+                        else str(int(start[i])))
+    etree.SubElement(root, "ModelStructure")
+    xml = etree.tostring(root, xml_declaration=True, encoding="UTF-8")
+    return patch_model_description(xml, specs, T=T, h=form.h)
+
+
+def build_native_fmu(form: NativeForm, model: str, out_dir: Path | str, T: float) -> Path:
+    """Write ``<model>.fmu`` into ``out_dir``: modelDescription, sources, linux64 binary.
+
+    Parameters
+    ----------
+    form : NativeForm
+        What the FMU computes, with its start values.
+    model : str
+        Model identifier (:func:`native_model`).
+    out_dir : Path or str
+        Destination folder (created if missing); the .fmu is written atomically.
+    T : float
+        Stop time of the default experiment, s.
+
+    Returns
+    -------
+    Path
+        The .fmu.
+
+    Raises
+    ------
+    NativeBuildError
+        No compiler, or the compiler failed (its first error line).
+    """
+    form.check()
+    cc = compiler()
+    header = None
+    digest = hashlib.sha256(C_SOURCE.read_bytes())
+    digest.update(_header(form, "").encode())
+    guid = "{" + digest.hexdigest()[:32] + "}"
+    header = _header(form, guid)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="auv_native_") as tmp:
+        src = Path(tmp) / "sources"
+        src.mkdir()
+        shutil.copy2(C_SOURCE, src / C_SOURCE.name)
+        (src / "native_model.h").write_text(header)
+        for h in FMI_HEADERS:
+            shutil.copy2(_fmi_include() / h, src / h)
+        lib = Path(tmp) / f"{model}.so"
+        cmd = [cc, *CFLAGS, f"-I{src}", "-o", str(lib), str(src / C_SOURCE.name), "-lm"]
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        if r.returncode != 0:
+            first = next((ln for ln in r.stderr.splitlines() if "error" in ln), r.stderr.strip())
+            raise NativeBuildError(f"building {model}: {first}")
+        fmu = out / f"{model}.fmu"
+        with temporary_sibling(fmu) as part, zipfile.ZipFile(part, "w",
+                                                              zipfile.ZIP_DEFLATED) as z:
+            z.writestr("modelDescription.xml", _model_description(form, model, guid, T))
+            for f in sorted(src.iterdir()):
+                z.write(f, f"sources/{f.name}")
+            z.write(lib, f"binaries/linux64/{model}.so")
+    return fmu
