@@ -151,22 +151,22 @@ class AuvVehicleController(Fmi2Slave):
             eta+ = Aobs eta + Bobs (sum_k a_k eta_k + a0 z)
         """
         inputs, outputs = self.io_specs()
-        I, O = BlockLayout(inputs), BlockLayout(outputs)
+        In, Out = BlockLayout(inputs), BlockLayout(outputs)
         l_, n = self.eta.size, self._X.shape[0]
         Ge, X, Xw = self._Geps, self._X, self._Xw
-        C = np.zeros((O.size, l_))
-        C[O["u"]], C[O["eps"]], C[O["eta"]] = self._U - Ge @ X, -X, np.eye(l_)
-        D = np.zeros((O.size, I.size))
-        D[O["u"], I["xhat"]], D[O["eps"], I["xhat"]] = Ge, np.eye(n)
+        C = np.zeros((Out.size, l_))
+        C[Out["u"]], C[Out["eps"]], C[Out["eta"]] = self._U - Ge @ X, -X, np.eye(l_)
+        D = np.zeros((Out.size, In.size))
+        D[Out["u"], In["xhat"]], D[Out["eps"], In["xhat"]] = Ge, np.eye(n)
         if Xw.shape[1]:
-            D[O["u"], I["what"]], D[O["eps"], I["what"]] = self._Uw - Ge @ Xw, -Xw
-        B = np.zeros((l_, I.size))
-        B[:, I["z"]] = self._a0 * self._Bobs
+            D[Out["u"], In["what"]], D[Out["eps"], In["what"]] = self._Uw - Ge @ Xw, -Xw
+        B = np.zeros((l_, In.size))
+        B[:, In["z"]] = self._a0 * self._Bobs
         for k, a in enumerate(self._a, start=1):
-            D[O["u"], I[f"nbr[{k}].eps"]] = a * self._cK
-            B[:, I[f"nbr[{k}].eta"]] = a * self._Bobs
-        c = np.zeros(O.size)
-        c[O["u"]], c[O["eps"]] = self._uc - Ge @ self._xc, -self._xc
+            D[Out["u"], In[f"nbr[{k}].eps"]] = a * self._cK
+            B[:, In[f"nbr[{k}].eta"]] = a * self._Bobs
+        c = np.zeros(Out.size)
+        c[Out["u"]], c[Out["eps"]] = self._uc - Ge @ self._xc, -self._xc
         return NativeForm(inputs=inputs, outputs=outputs, nq=l_, h=float(self.par["h"]),
                           description=self.description, roles=[
                               Role("A", "A_eta", self._Aobs, "observer over one step: eta+ = "

@@ -9,16 +9,16 @@ from typing import Any
 import numpy as np
 
 from fmu_common.interface import ArraySpec
+from fmu_common.native_form import NativeForm
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
+from plant_model.native_plant import plant_native_form
 from plant_model.parameters import (
     noise_convention_spec,
     sample_period_spec,
     system_parameter_specs,
 )
-from fmu_common.native_form import NativeForm
-from plant_model.native_plant import plant_native_form
 from plant_model.per_vehicle import leader_system, sample_leader
 from plant_model.plant import Plant
 
