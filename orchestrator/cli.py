@@ -196,7 +196,13 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def cmd_export(args: argparse.Namespace) -> int:
     sc = _scenario(args)
     with output_folder(args.out or f"out/{file_stem(sc.name)}_{args.format}", "export") as out:
-        if args.format == "osp":
+        if args.format == "native":
+            from .interop.native import export_native
+            paths = export_native(sc, out)
+            fmus = [p.name for k, p in paths.items() if p.suffix == ".fmu"]
+            print(f"native FMUs for scenario {sc.name} in {out}: {', '.join(fmus)}; OSP "
+                  f"system {paths['system'].name}, SSP archive {paths['ssp'].name}")
+        elif args.format == "osp":
             from .interop.osp import export_osp
             paths = export_osp(sc, out)
             print(f"OSP system for scenario {sc.name} in {out}: {paths['system'].name}, "
@@ -348,8 +354,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=cmd_campaign)
 
     sp = sub.add_parser("export", help="the FMUs and a system file for other tools: an OSP "
-                                       "system (libcosim) or an SSP archive (fmpy, SSP tools)")
-    sp.add_argument("format", choices=("osp", "ssp"))
+                                       "system (libcosim) or an SSP archive (fmpy, SSP tools); "
+                                       "native: compiled FMUs of the design, no Python needed, "
+                                       "with both system files")
+    sp.add_argument("format", choices=("osp", "ssp", "native"))
     common(sp)
     sp.add_argument("--tracking", choices=TRACKING_MODES, help="the controller's tracking law")
     sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="the estimator's mode")

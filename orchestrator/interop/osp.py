@@ -41,7 +41,6 @@ from lxml import etree
 from fmu_common.interface import ArraySpec, element_names
 
 from ..atomic import write_bytes_atomically
-from ..cosim.build import FMU_KINDS
 from ..cosim.checks import Variable
 from ..cosim.system import SystemDescription
 from ..scenario import Scenario
@@ -251,7 +250,8 @@ def validate_osp_file(path: Path | str) -> list[str]:
 
 
 def export_osp(sc: Scenario, out_dir: Path | str,
-               system: SystemDescription | None = None) -> dict[str, Path]:
+               system: SystemDescription | None = None,
+               fmus: Mapping[str, Path] | None = None) -> dict[str, Path]:
     """Build the scenario's FMUs into ``out_dir`` and write the OSP system beside them.
 
     Parameters
@@ -264,6 +264,9 @@ def export_osp(sc: Scenario, out_dir: Path | str,
         The description to export (default: the scenario's loop,
         :func:`orchestrator.workflow.scenario_system`; use ``sc.with_run(...)`` for other
         run settings).
+    fmus : Mapping[str, Path] or None, optional
+        FMUs already built in ``out_dir`` (FMU key -> path; the native export's); built
+        here if None.
 
     Returns
     -------
@@ -282,7 +285,7 @@ def export_osp(sc: Scenario, out_dir: Path | str,
     out = Path(out_dir)
     system = system or scenario_system(sc)
     check_system(system)            # nothing is built or written for a bad wiring
-    fmus = build(sc, out)
+    fmus = dict(fmus) if fmus is not None else build(sc, out)
     fmu_files = {c.name: Path(fmus[c.fmu]).name for c in system.components}
     variables = check_system(system, fmus)          # the FMUs as built
     paths: dict[str, Path] = {}
@@ -291,7 +294,7 @@ def export_osp(sc: Scenario, out_dir: Path | str,
     for key in dict.fromkeys(c.fmu for c in system.components):
         comp = next(c for c in system.components if c.fmu == key)
         xml, _ = _osp_model_description(comp.interface, layout)
-        p = out / f"{FMU_KINDS[key].model}_OspModelDescription.xml"
+        p = out / f"{Path(fmus[key]).stem}_OspModelDescription.xml"
         write_bytes_atomically(p, xml)
         paths[key] = Path(fmus[key])
         paths[f"{key}_osp"] = p

@@ -196,7 +196,9 @@ def export_ssp(sc: Scenario, out_path: Path | str, *,
 
     out_path = Path(out_path)
     system = system or scenario_system(sc)
-    fmu_files = {c.name: f"resources/{FMU_KINDS[c.fmu].model}.fmu" for c in system.components}
+    models = {k: Path(f).stem for k, f in fmus.items()} if fmus is not None else {
+        c.fmu: FMU_KINDS[c.fmu].model for c in system.components}
+    fmu_files = {c.name: f"resources/{models[c.fmu]}.fmu" for c in system.components}
     labels = {c: Path(f).name for c, f in fmu_files.items()}
     check_system(system, fmu_files=labels)
     with tempfile.TemporaryDirectory(prefix="auv_ssp_") as tmp:
@@ -211,7 +213,7 @@ def export_ssp(sc: Scenario, out_path: Path | str, *,
                 zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as z:
             z.writestr("SystemStructure.ssd", ssd)
             for key in dict.fromkeys(c.fmu for c in system.components):
-                z.write(fmus[key], f"resources/{FMU_KINDS[key].model}.fmu")
+                z.write(fmus[key], f"resources/{models[key]}.fmu")
             for comp in system.names:
                 z.writestr(parameter_set_path(comp), ssv[comp])
     return out_path
