@@ -158,3 +158,125 @@ def test_native_fmus_validate_and_ship_their_sources(tmp_path):
         needed = subprocess.run(["ldd", str(lib)], capture_output=True, text=True).stdout
         libs = {ln.split()[0] for ln in needed.splitlines() if "=>" in ln}
         assert libs <= {"libm.so.6", "libc.so.6"}, libs
+
+
+@pytest.fixture(scope="module")
+def f4_native(tmp_path_factory):
+    """formation-4 distributed, every linear FMU native."""
+    tmp = tmp_path_factory.mktemp("f4n")
+    sc = load_scenario("formation-4").with_run(T=10.0, deployment="per-vehicle",
+                                               architecture="distributed")
+    return sc, _native(sc, tmp)[2]
+
+
+def _instance(ns, key, folder, name="probe", **parameters):
+    from fmpy import extract
+
+    from orchestrator.cosim.instance import FmuInstance
+    unzip = extract(str(ns.fmus[key]), unzipdir=str(folder))
+    inst = FmuInstance(key, ns.fmus[key], unzip, name)
+    inst.initialize(parameters, T=10.0)
+    return inst
+
+
+def _driver(inst, vin, vout, feed, h):
+    """Steps k0..k1-1: set the inputs of row k, read every output, step; the outputs."""
+    def drive(k0, k1):
+        rows = []
+        for k in range(k0, k1):
+            inst.slave.setReal(vin, list(feed[k]))
+            rows.append(inst.slave.getReal(vout))
+            inst.slave.doStep(k * h, h)
+        return np.array(rows)
+    return drive
+
+
+def test_native_state_round_trip_is_bit_identical(f4_native, tmp_path):
+    """Get, set, serialize and deserialize the plant's and the controller's state half way:
+    the second half replays bit for bit (the plant's noise generator included)."""
+    sc, ns = f4_native
+    for key, inputs in (("vehicle", ["u[1]", "u[2]", "u[3]"]),
+                        ("vehicle_controller", ["xhat[1]", "xhat[4]", "z[1]", "nbr[1].eta[2]"])):
+        inst = _instance(ns, key, tmp_path / key)
+        outs = [v.name for v in inst.md.modelVariables if v.causality == "output"]
+        vin, vout = list(inst.vrs(inputs)), list(inst.vrs(outs))
+        rng = np.random.default_rng(1)
+        feed = rng.standard_normal((200, len(inputs)))
+
+        drive = _driver(inst, vin, vout, feed, sc.h)
+        drive(0, 100)
+        state = inst.slave.getFMUState()
+        first = drive(100, 200)
+        inst.slave.setFMUState(state)
+        assert np.array_equal(drive(100, 200), first), key
+        blob = inst.slave.serializeFMUState(state)
+        inst.slave.setFMUState(inst.slave.deserializeFMUState(blob))
+        assert np.array_equal(drive(100, 200), first), key
+        assert np.std(first[:, 0]) > 0
+        inst.slave.freeFMUState(state)
+        inst.close()
+
+
+@pytest.mark.parametrize("key, name, fragment", [
+    ("vehicle_controller", "D[1,2]", "parameter D[1,2] = nan is not finite"),
+    ("vehicle_estimator", "q0[3]", "parameter q0[3] = nan is not finite"),
+    ("vehicle", "Ad[2,2]", "parameter Ad[2,2] = nan is not finite"),
+])
+def test_a_nan_gain_is_an_error_status_naming_the_variable(f4_native, tmp_path, key, name,
+                                                           fragment):
+    """fmi2ExitInitializationMode returns fmi2Error (not fatal, the host goes on) with a
+    logged message naming the variable; a wrong step size is an error naming h."""
+    from fmpy.fmi1 import FMICallException
+
+    from orchestrator.cosim.instance import CosimError
+    sc, ns = f4_native
+    with pytest.raises(CosimError) as exc:
+        _instance(ns, key, tmp_path / "bad", **{name: float("nan")})
+    assert fragment in str(exc.value) and "status 3 (error)" in str(exc.value)
+    inst = _instance(ns, key, tmp_path / "ok")
+    with pytest.raises(FMICallException):
+        inst.slave.doStep(0.0, 2 * sc.h)
+    assert "this FMU is designed for h = 0.01 s" in inst.errors()
+    inst.slave.doStep(0.0, sc.h)                       # the instance is still usable
+    inst.close()
+
+
+@pytest.mark.parametrize("folder", ["with space", "per%25cent%", "tést ñ"])
+def test_native_fmus_load_from_awkward_resource_paths(f4_native, tmp_path, folder):
+    """Unzipped under a folder with spaces, percent signs or non-ASCII letters (which crash
+    a host with pythonfmu 0.7's FMUs), the native estimator instantiates and steps."""
+    sc, ns = f4_native
+    inst = _instance(ns, "vehicle_estimator", tmp_path / folder / "fmu")
+    inst.slave.setReal(list(inst.vrs(["y[1]"])), [2.0])
+    before = inst.slave.getReal(list(inst.vrs(["xhat[1]"])))[0]
+    inst.slave.doStep(0.0, sc.h)
+    assert before != 0.0
+    inst.close()
+
+
+def test_libcosim_and_fmpy_run_the_native_export(tmp_path):
+    """`auv-cosim export native`: libcosim runs the OSP system bit-identically to our
+    Jacobi master on the same native FMUs; fmpy's simulate_ssp runs the SSP archive."""
+    pytest.importorskip("libcosimpy")
+    from orchestrator.interop import libcosim
+    from orchestrator.interop.native import export_native
+    from orchestrator.interop.ssp import fmpy_parameter_set
+    libcosim.quiet_libcosim()
+    sc = load_scenario("formation-4").with_run(T=5.0, deployment="per-vehicle",
+                                               architecture="centralized")
+    paths = export_native(sc, tmp_path / "x")
+    assert {p.name for p in paths.values() if p.suffix == ".fmu"} == {
+        "AuvLeaderNative.fmu", "AuvVehicleNative.fmu", "AuvVehicleEstimatorNative.fmu",
+        "AuvCentralControllerNative.fmu"}
+    system = scenario_system(sc)
+    ns = native_system(system, build(sc, tmp_path / "py"), tmp_path / "n2")
+    steps = 300
+    lc = libcosim.run_libcosim(paths["system"], ns.system, steps)
+    ours, _, _ = run_system(ns.system, ns.fmus, steps, coupling="jacobi")
+    assert set(lc["traces"]) == set(ours)
+    for key, arr in lc["traces"].items():
+        assert np.array_equal(arr, ours[key]), key
+    from fmpy.ssp.simulation import simulate_ssp
+    res = simulate_ssp(str(paths["ssp"]), stop_time=1.0, step_size=sc.h,
+                       parameter_set=fmpy_parameter_set(paths["ssp"]))
+    assert len(res) >= 100

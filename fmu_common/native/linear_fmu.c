@@ -300,7 +300,10 @@ static fmi2Status bad_vr(Instance *in, const char *fn, fmi2ValueReference vr) {
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]) {
     Instance *in = c;
     Data *d = &in->d;
-    outputs(d);
+    /* outputs are computed from fmi2ExitInitializationMode on (the parameters are final
+       then); in initialization mode they read 0, as the pythonfmu FMUs' do, so a master
+       that transfers values during initialization (libcosim) sees the same */
+    if (d->phase == STEPPING || d->phase == TERMINATED) outputs(d);
     for (size_t i = 0; i < n; i++) {
         fmi2ValueReference r = vr[i];
         if (r < NPAR) v[i] = d->par[r];
