@@ -216,7 +216,7 @@ def _header(form: NativeForm, guid: str) -> str:
     return "\n".join(lines)
 
 
-def _model_description(form: NativeForm, model: str, guid: str, T: float) -> bytes:
+def _model_description(form: NativeForm, model: str, guid: str, T: float, h: float) -> bytes:
     specs = native_specs(form)
     root = etree.Element("fmiModelDescription", fmiVersion="2.0", modelName=model, guid=guid,
                          description=form.description + " (native C build: the designed "
@@ -249,10 +249,11 @@ def _model_description(form: NativeForm, model: str, guid: str, T: float) -> byt
                         else str(int(start[i])))
     etree.SubElement(root, "ModelStructure")
     xml = etree.tostring(root, xml_declaration=True, encoding="UTF-8")
-    return patch_model_description(xml, specs, T=T, h=form.h)
+    return patch_model_description(xml, specs, T=T, h=h)
 
 
-def build_native_fmu(form: NativeForm, model: str, out_dir: Path | str, T: float) -> Path:
+def build_native_fmu(form: NativeForm, model: str, out_dir: Path | str, T: float,
+                     h: float | None = None) -> Path:
     """Write ``<model>.fmu`` into ``out_dir``: modelDescription, sources, linux64 binary.
 
     Parameters
@@ -265,6 +266,9 @@ def build_native_fmu(form: NativeForm, model: str, out_dir: Path | str, T: float
         Destination folder (created if missing); the .fmu is written atomically.
     T : float
         Stop time of the default experiment, s.
+    h : float or None, optional
+        The system's communication step, the default experiment's step (ecos steps an FMU
+        at its default experiment's step); default the form's h.
 
     Returns
     -------
@@ -278,7 +282,6 @@ def build_native_fmu(form: NativeForm, model: str, out_dir: Path | str, T: float
     """
     form.check()
     cc = compiler()
-    header = None
     digest = hashlib.sha256(C_SOURCE.read_bytes())
     digest.update(_header(form, "").encode())
     guid = "{" + digest.hexdigest()[:32] + "}"
@@ -290,8 +293,8 @@ def build_native_fmu(form: NativeForm, model: str, out_dir: Path | str, T: float
         src.mkdir()
         shutil.copy2(C_SOURCE, src / C_SOURCE.name)
         (src / "native_model.h").write_text(header)
-        for h in FMI_HEADERS:
-            shutil.copy2(_fmi_include() / h, src / h)
+        for name in FMI_HEADERS:
+            shutil.copy2(_fmi_include() / name, src / name)
         lib = Path(tmp) / f"{model}.so"
         cmd = [cc, *CFLAGS, f"-I{src}", "-o", str(lib), str(src / C_SOURCE.name), "-lm"]
         r = subprocess.run(cmd, capture_output=True, text=True)
@@ -301,7 +304,8 @@ def build_native_fmu(form: NativeForm, model: str, out_dir: Path | str, T: float
         fmu = out / f"{model}.fmu"
         with temporary_sibling(fmu) as part, zipfile.ZipFile(part, "w",
                                                               zipfile.ZIP_DEFLATED) as z:
-            z.writestr("modelDescription.xml", _model_description(form, model, guid, T))
+            z.writestr("modelDescription.xml", _model_description(form, model, guid, T,
+                                                                  form.h if h is None else h))
             for f in sorted(src.iterdir()):
                 z.write(f, f"sources/{f.name}")
             z.write(lib, f"binaries/linux64/{model}.so")

@@ -72,6 +72,8 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
     """
     forms = {c.name: form_of(c.fmu, Path(fmus[c.fmu]), c.parameters)
              for c in system.components if c.fmu in kinds}
+    # a static law works at any step; its h is the system's, for the default experiment
+    forms = {k: dataclasses.replace(f, h=system.h) if f.static else f for k, f in forms.items()}
     base: dict[str, NativeForm] = {}
     for c in system.components:
         if c.name in forms:
@@ -82,7 +84,8 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
                 and _shape(forms[c.name]) != _shape(base[c.fmu])]
     if problems:
         raise ExportError(problems)
-    built = {k: build_native_fmu(f, native_model(k), out_dir, system.T) for k, f in base.items()}
+    built = {k: build_native_fmu(f, native_model(k), out_dir, system.T, system.h)
+             for k, f in base.items()}
     comps = tuple(dataclasses.replace(c, interface=tuple(native_specs(forms[c.name])),
                                       parameters=native_parameters(forms[c.name], base[c.fmu]))
                   if c.name in forms else c for c in system.components)
