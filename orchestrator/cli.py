@@ -398,6 +398,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="campaign throughput: runs per hour of the paper scenario on 1 and 2 "
                          "local workers (FMU engine) and the numpy engine, overhead per task, "
                          "design-cache gain at N = 50")
+    sp.add_argument("--native", action="store_true",
+                    help="us/step of the loop with native FMUs: in our master (with the "
+                         "pythonfmu plant, all native), in the C host, in ecos, and a fused "
+                         "numpy loop (--T sets the simulated time, default 200 s)")
     sp.add_argument("--json", action="store_true", help="print the figures as JSON")
     sp.set_defaults(func=cmd_bench)
     return p

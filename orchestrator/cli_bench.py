@@ -111,6 +111,25 @@ def cmd_bench_tools(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_native(args: argparse.Namespace) -> int:
+    from .bench_native import benchmark_native
+    sc = _scenario(args)
+    r = benchmark_native(sc, int(round((args.T or 200.0) / sc.h)))
+    if _printed_as_json(args, r):
+        return 0
+    rows = (("python", "pythonfmu FMUs, our master"),
+            ("native_ctrl_est", "native controller + estimator, pythonfmu plant, our master"),
+            ("native_master", "all native, our master (fmpy, ctypes)"),
+            ("native_c_host", "all native, C host (tests/c_host)"),
+            ("native_ecos", "all native, ecos (C++), no CSV"),
+            ("fused_numpy", "fused numpy loop, one gemv per step"))
+    for key, label in rows:
+        v = r[key]
+        print(f"  {label:62s} " + ("      -  (not available)" if v is None
+                                   else f"{v:8.2f} us/step"))
+    return 0
+
+
 def cmd_bench_startup(args: argparse.Namespace) -> int:
     from .bench import benchmark_startup
     sc = _scenario(args)
@@ -169,6 +188,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
         return cmd_bench_tools(args)
     if args.startup:
         return cmd_bench_startup(args)
+    if getattr(args, "native", False):
+        return cmd_bench_native(args)
     sc = _scenario(args)
     r = benchmark(sc, mode=sc.estimator, seed=sc.seed)
     if _printed_as_json(args, r):
