@@ -199,9 +199,12 @@ def cmd_export(args: argparse.Namespace) -> int:
         if args.format == "native":
             from .interop.native import export_native
             paths = export_native(sc, out)
-            fmus = [p.name for k, p in paths.items() if p.suffix == ".fmu"]
-            print(f"native FMUs for scenario {sc.name} in {out}: {', '.join(fmus)}; OSP "
-                  f"system {paths['system'].name}, SSP archive {paths['ssp'].name}")
+            fmus = [p.name for p in paths.values() if p.suffix == ".fmu"]
+            native = [f for f in fmus if f.endswith("Native.fmu")]
+            kept = [f for f in fmus if f not in native]
+            print(f"native FMUs for scenario {sc.name} in {out}: {', '.join(native)}"
+                  + (f" (and, not linear, needing Python: {', '.join(kept)})" if kept else "")
+                  + f"; OSP system {paths['system'].name}, SSP archive {paths['ssp'].name}")
         elif args.format == "osp":
             from .interop.osp import export_osp
             paths = export_osp(sc, out)
