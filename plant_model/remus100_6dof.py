@@ -1,0 +1,272 @@
+"""A nonlinear 6-DOF REMUS 100: the vehicle its formation controller will meet (work in
+progress of the ``remus100-6dof`` model; see docs/remus100-6dof.md).
+
+State x = [eta (6); nu (6); delta_r, delta_s (rad); n (rpm)]: NED position and Euler
+angles, body velocities (plant_model.rigid_body), the rudder and stern-plane angles and
+the propeller speed. With the velocity relative to a current constant in NED,
+nu_r = nu - nu_c, nu_c = [R(Theta)' v_c; 0]:
+
+    M nu_r' + C(nu_r) nu_r + D(nu_r) nu_r + g(eta) = tau_prop + tau_fins + tau_hull
+    nu' = nu_r' + nu_c',  nu_c' = [-omega x (R' v_c); 0],  eta' = J(eta) nu
+
+- M = M_RB + M_A: a prolate spheroid of the hull's length and diameter filled with
+  water (neutrally buoyant), CG 2 cm below CB; added mass from Lamb's k-factors, roll
+  added inertia 0.3 I_x;
+- C(nu_r) from M (skew symmetric, Munk moments included);
+- D(nu_r): linear damping from time constants (surge, sway and yaw fading as
+  exp(-3 U_r), where drag and lift take over), cross-flow drag by strip theory in both
+  planes (the hull is axisymmetric), hull lift and drag against the angle of attack;
+- fins: lift 1/2 rho U^2 A CL_delta delta at the tail (moment r x F), drag with the same
+  coefficient times delta^2;
+- propeller: thrust rho D^4 KT(J_a) n|n| with KT linear in the advance ratio
+  J_a = V_a / (n D), V_a = 0.944 U (wake), thrust deduction 0.1; its torque
+  rho D^5 KQ(J_a) n|n| rolls the hull;
+- actuators: first-order lags (time constant 1 s) towards the commands, rate limited to
+  their range per time constant, saturated at +-30 deg and 1525 rpm.
+
+Units: m, s, rad, N, N m, rpm for the propeller. Integrated with fixed RK4 sub-steps
+(:func:`step`); docs/remus100-6dof.md shows the sub-step is small enough.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from .linalg_checks import ModelError
+from .rigid_body import (
+    coriolis_from_mass,
+    euler_kinematics,
+    restoring_forces,
+    rigid_body_mass,
+    rk4_step,
+    rotation_ned_body,
+    skew,
+)
+
+__all__ = ["Remus100", "STATE_SIZE", "derivative", "hull_mass", "step"]
+
+STATE_SIZE = 15
+G = 9.81   #: m/s^2
+
+
+@dataclass(frozen=True)
+class Remus100:
+    """REMUS 100 data. Sources: [F] T. I. Fossen, Handbook of Marine Craft Hydrodynamics
+    and Motion Control, 2nd ed., Wiley 2021, section 8.4.2 and its Python Vehicle
+    Simulator (remus100.py, lib/gnc.py); [A] B. Allen, W. S. Vorus, T. Prestero,
+    "Propulsion system performance enhancements on REMUS AUVs", OCEANS 2000; [H] S. F.
+    Hoerner, Fluid-Dynamic Drag, 1965 (2D cross-flow drag of a circular section)."""
+
+    L: float = 1.6                  #: length, m [F, A]
+    diam: float = 0.19              #: hull diameter, m [F, A]
+    rho: float = 1026.0             #: sea water, kg/m^3 [F]
+    r_g: tuple[float, float, float] = (0.0, 0.0, 0.02)   #: CG from CO (= CB), m [F]
+    r44: float = 0.3                #: roll added inertia A44 = r44 I_x [F]
+    Cd_surge: float = 0.42          #: hull drag on the frontal area pi b^2 [A]
+    hull_area_ratio: float = 0.7    #: lifting area S = 0.7 L diam [F]
+    oswald: float = 0.7             #: Oswald efficiency of the hull as a wing [F]
+    Cd_crossflow: float = 1.198     #: 2D cross-flow drag, Hoerner's curve at B/2T = 0.5 [H, F]
+    T_surge: float = 20.0           #: low-speed damping time constants, s [F]
+    T_sway: float = 20.0
+    T_yaw: float = 5.0
+    zeta_roll: float = 0.3          #: relative damping in roll and pitch [F]
+    zeta_pitch: float = 0.8
+    A_rudder: float = 0.10 * 0.05   #: one rudder, m^2 [F]
+    CL_rudder: float = 0.5          #: rudder lift slope, 1/rad [F]
+    A_stern: float = 2 * 0.10 * 0.05  #: two stern planes, m^2 [F]
+    CL_stern: float = 0.7           #: stern-plane lift slope, 1/rad [F]
+    delta_max: float = math.radians(30.0)  #: fin limit, rad [F]
+    T_delta: float = 1.0            #: fin time constant, s [F]
+    n_max: float = 1525.0           #: propeller limit, rpm (about 2.5 m/s) [F, A]
+    T_n: float = 1.0                #: propeller time constant, s [F]
+    D_prop: float = 0.14            #: propeller diameter (5.5 in), m [F, A]
+    thrust_deduction: float = 0.1   #: [F]
+    wake_factor: float = 0.944      #: V_a = 0.944 U [A]
+    KT0: float = 0.4566             #: Wageningen B3-71.8 (BAR 0.718), J = 0 [F]
+    KQ0: float = 0.0700
+    KT_max: float = 0.1798          #: at J_a = 0.6632 (2.5 m/s at 1525 rpm) [F]
+    KQ_max: float = 0.0312
+    Ja_max: float = 0.6632
+    current: tuple[float, float, float] = field(default=(0.0, 0.0, 0.0))  #: NED, m/s
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            vals = v if isinstance(v, tuple) else (v,)
+            if not all(isinstance(x, (int, float)) and math.isfinite(x) for x in vals):
+                raise ModelError(f"remus100-6dof: {f.name} = {v!r} is not a finite number")
+        positive = ("L", "diam", "rho", "A_rudder", "A_stern", "delta_max", "T_delta",
+                    "n_max", "T_n", "D_prop", "T_surge", "T_sway", "T_yaw", "Ja_max")
+        for name in positive:
+            if getattr(self, name) <= 0.0:
+                raise ModelError(f"remus100-6dof: {name} = {getattr(self, name):g} must be "
+                                 "positive")
+        if self.diam >= self.L:
+            raise ModelError(f"remus100-6dof: diam = {self.diam:g} m must be below L = "
+                             f"{self.L:g} m (a slender hull)")
+
+
+def hull_mass(v: Remus100) -> tuple[np.ndarray, np.ndarray, float]:
+    """(M_RB, M_A, W) of the spheroid hull: m = 4/3 pi rho a b^2 (a = L/2, b = diam/2),
+    I_x = 2/5 m b^2, I_y = I_z = 1/5 m (a^2 + b^2) about the CG; added mass from Lamb's
+    k-factors (eccentricity e = sqrt(1 - (b/a)^2)); weight W = buoyancy (N)."""
+    a, b = v.L / 2.0, v.diam / 2.0
+    m = 4.0 / 3.0 * math.pi * v.rho * a * b * b
+    Ix, Iy = 0.4 * m * b * b, 0.2 * m * (a * a + b * b)
+    M_rb = rigid_body_mass(m, np.asarray(v.r_g), np.diag([Ix, Iy, Iy]))
+    e = math.sqrt(1.0 - (b / a) ** 2)
+    log = math.log((1.0 + e) / (1.0 - e))
+    alpha0 = 2.0 * (1.0 - e * e) / e ** 3 * (0.5 * log - e)
+    beta0 = 1.0 / (e * e) - (1.0 - e * e) / (2.0 * e ** 3) * log
+    k1, k2 = alpha0 / (2.0 - alpha0), beta0 / (2.0 - beta0)
+    kp = e ** 4 * (beta0 - alpha0) / ((2.0 - e * e) * (2.0 * e * e - (2.0 - e * e) *
+                                                        (beta0 - alpha0)))
+    M_a = np.diag([m * k1, m * k2, m * k2, v.r44 * Ix, kp * Iy, kp * Iy])
+    return M_rb, M_a, m * G
+
+
+@dataclass(frozen=True)
+class _Derived:
+    M: np.ndarray
+    Ma: np.ndarray
+    Minv: np.ndarray
+    W: float
+    lin: np.ndarray        #: linear damping diagonal at zero speed
+    CD0: float
+    S: float
+
+
+def _derived(v: Remus100) -> _Derived:
+    M_rb, M_a, W = hull_mass(v)
+    M = M_rb + M_a
+    zg = v.r_g[2]
+    w_roll, w_pitch = math.sqrt(W * zg / M[3, 3]), math.sqrt(W * zg / M[4, 4])
+    lin = np.array([M[0, 0] / v.T_surge, M[1, 1] / v.T_sway, M[2, 2] / v.T_sway,
+                    2 * v.zeta_roll * w_roll * M[3, 3], 2 * v.zeta_pitch * w_pitch * M[4, 4],
+                    M[5, 5] / v.T_yaw])
+    S = v.hull_area_ratio * v.L * v.diam
+    return _Derived(M=M, Ma=M_a, Minv=np.linalg.inv(M), W=W, lin=lin,
+                    CD0=v.Cd_surge * math.pi * (v.diam / 2) ** 2 / S, S=S)
+
+
+_CACHE: dict[Remus100, _Derived] = {}
+
+
+def _d(v: Remus100) -> _Derived:
+    if v not in _CACHE:
+        _CACHE[v] = _derived(v)
+    return _CACHE[v]
+
+
+def _crossflow(v: Remus100, nu_r: np.ndarray, strips: int = 20) -> np.ndarray:
+    """Strip-theory cross-flow drag in sway/yaw and heave/pitch: each strip at x sees the
+    transverse velocity v + x r (or w - x q) and resists with 1/2 rho Cd diam |.|(.) dx."""
+    dx = v.L / strips
+    x = -v.L / 2 + dx * (np.arange(strips) + 0.5)            # strip centres
+    k = 0.5 * v.rho * v.Cd_crossflow * v.diam * dx
+    vy = nu_r[1] + x * nu_r[5]
+    vz = nu_r[2] - x * nu_r[4]
+    Fy, Fz = -k * np.abs(vy) * vy, -k * np.abs(vz) * vz
+    return np.array([0.0, Fy.sum(), Fz.sum(), 0.0, -(x * Fz).sum(), (x * Fy).sum()])
+
+
+def _hull_lift_drag(v: Remus100, d: _Derived, nu_r: np.ndarray) -> np.ndarray:
+    """The hull as a low-aspect-ratio wing in the vertical plane (angle of attack
+    alpha = atan2(w_r, u_r)): CL = CL_alpha alpha, CD = CD0 + CL^2 / (pi e AR)."""
+    U2 = nu_r[0] ** 2 + nu_r[2] ** 2
+    if U2 == 0.0:
+        return np.zeros(6)
+    alpha = math.atan2(nu_r[2], nu_r[0])
+    AR = v.diam ** 2 / d.S
+    CL = math.pi * AR / (1.0 + math.sqrt(1.0 + (AR / 2.0) ** 2)) * alpha
+    CD = d.CD0 + CL * CL / (math.pi * v.oswald * AR)
+    q = 0.5 * v.rho * (nu_r @ nu_r) * d.S
+    drag, lift = q * CD, q * CL
+    ca, sa = math.cos(alpha), math.sin(alpha)
+    return np.array([-ca * drag + sa * lift, 0.0, -sa * drag - ca * lift, 0.0, 0.0, 0.0])
+
+
+def _munk_balance(d: _Derived, nu_r: np.ndarray) -> np.ndarray:
+    """The hull's lift moment taken equal and opposite to the added mass's Munk moment in
+    pitch and yaw (the terms of C_A(nu_r) nu_r in u w, u v and the roll coupling), as [F]
+    does by leaving those terms out of C_A: C stays skew symmetric (kinetic energy is
+    conserved without forces) while a slender hull is not left to the destabilizing Munk
+    moment alone."""
+    Ca = coriolis_from_mass(d.Ma, nu_r)
+    keep = np.zeros((6, 6))
+    for i, j in ((4, 0), (4, 3), (5, 0), (5, 1)):
+        keep[i, j] = Ca[i, j]
+    return keep @ nu_r
+
+
+def _propeller(v: Remus100, n_rpm: float, U: float) -> tuple[float, float]:
+    """(thrust, torque) at n rpm and speed U: rho D^4 KT n|n|, rho D^5 KQ n|n| (n in rps),
+    KT and KQ linear in J_a = 0.944 U / (n D) between J = 0 and J_a,max; reverse: J = 0."""
+    n = n_rpm / 60.0
+    if n > 0.0:
+        Ja_n = v.wake_factor * U / v.D_prop          # J_a n
+        KTn = v.KT0 * n * n + (v.KT_max - v.KT0) / v.Ja_max * Ja_n * n
+        KQn = v.KQ0 * n * n + (v.KQ_max - v.KQ0) / v.Ja_max * Ja_n * n
+    else:
+        KTn, KQn = v.KT0 * abs(n) * n, v.KQ0 * abs(n) * n
+    return v.rho * v.D_prop ** 4 * KTn, v.rho * v.D_prop ** 5 * KQn
+
+
+def derivative(v: Remus100, x: np.ndarray, command: np.ndarray) -> np.ndarray:
+    """x' for the state x and the actuator command [delta_r, delta_s (rad), n (rpm)]
+    (module docstring). Positive delta_r turns to starboard (yaw rate > 0), positive
+    delta_s dives (pitch down)."""
+    d = _d(v)
+    eta, nu, act = x[:6], x[6:12], x[12:]
+    R = rotation_ned_body(*eta[3:6])
+    vc_body = R.T @ np.asarray(v.current, dtype=float)
+    nu_c = np.concatenate([vc_body, np.zeros(3)])
+    nu_r = nu - nu_c
+    U_r = math.sqrt(nu_r[:3] @ nu_r[:3])
+    U = math.sqrt(nu[:3] @ nu[:3])
+    dr, ds = (float(np.clip(a, -v.delta_max, v.delta_max)) for a in act[:2])
+    n = float(np.clip(act[2], -v.n_max, v.n_max))
+    thrust, torque = _propeller(v, n, U)
+    U_h2, U_v2 = nu_r[0] ** 2 + nu_r[1] ** 2, nu_r[0] ** 2 + nu_r[2] ** 2
+    Yr = -0.5 * v.rho * U_h2 * v.A_rudder * v.CL_rudder * dr
+    Zs = -0.5 * v.rho * U_v2 * v.A_stern * v.CL_stern * ds
+    x_tail = -v.L / 2.0
+    tau = np.array([
+        (1.0 - v.thrust_deduction) * thrust
+        - 0.5 * v.rho * (U_h2 * v.A_rudder * v.CL_rudder * dr * dr
+                         + U_v2 * v.A_stern * v.CL_stern * ds * ds),
+        Yr, Zs, torque, -x_tail * Zs, x_tail * Yr])
+    lin = d.lin.copy()
+    lin[[0, 1, 5]] *= math.exp(-3.0 * U_r)
+    C = coriolis_from_mass(d.M, nu_r)
+    force = (tau + _crossflow(v, nu_r) + _hull_lift_drag(v, d, nu_r)
+             + _munk_balance(d, nu_r) - C @ nu_r - lin * nu_r
+             - restoring_forces(eta, d.W, d.W, np.asarray(v.r_g), np.zeros(3)))
+    nu_c_dot = np.concatenate([-skew(nu[3:]) @ vc_body, np.zeros(3)])
+    cmd = np.asarray(command, dtype=float)
+    limits = np.array([v.delta_max, v.delta_max, v.n_max])
+    taus = np.array([v.T_delta, v.T_delta, v.T_n])
+    target = np.clip(cmd, -limits, limits)
+    act_dot = np.clip((target - act) / taus, -limits / taus, limits / taus)
+    return np.concatenate([euler_kinematics(eta) @ nu, nu_c_dot + d.Minv @ force, act_dot])
+
+
+def step(v: Remus100, x: np.ndarray, command: np.ndarray, h: float, substeps: int
+         ) -> np.ndarray:
+    """The state after one communication step h (s), the command held, with ``substeps``
+    RK4 sub-steps of h / substeps.
+
+    Raises
+    ------
+    ModelError
+        If substeps is not a positive whole number.
+    """
+    if int(substeps) != substeps or substeps < 1:
+        raise ModelError(f"remus100-6dof: substeps = {substeps!r} must be a positive whole "
+                         "number (the sub-step h / substeps must divide the step)")
+    dt = h / int(substeps)
+    for _ in range(int(substeps)):
+        x = rk4_step(lambda s: derivative(v, s, command), x, dt)
+    return x
