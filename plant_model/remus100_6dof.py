@@ -44,6 +44,7 @@ from .rigid_body import (
     rotation_ned_body,
     skew,
 )
+from .vehicles import lamb_factors, remus100_parameters
 
 __all__ = ["Remus100", "STATE_SIZE", "derivative", "hull_mass", "step"]
 
@@ -113,17 +114,12 @@ def hull_mass(v: Remus100) -> tuple[np.ndarray, np.ndarray, float]:
     I_x = 2/5 m b^2, I_y = I_z = 1/5 m (a^2 + b^2) about the CG; added mass from Lamb's
     k-factors (eccentricity e = sqrt(1 - (b/a)^2)); weight W = buoyancy (N)."""
     a, b = v.L / 2.0, v.diam / 2.0
-    m = 4.0 / 3.0 * math.pi * v.rho * a * b * b
+    hull = remus100_parameters(v.rho, v.L, v.diam, v.Cd_surge)   # the linear model's numbers
+    m = hull["mass"]
     Ix, Iy = 0.4 * m * b * b, 0.2 * m * (a * a + b * b)
     M_rb = rigid_body_mass(m, np.asarray(v.r_g), np.diag([Ix, Iy, Iy]))
-    e = math.sqrt(1.0 - (b / a) ** 2)
-    log = math.log((1.0 + e) / (1.0 - e))
-    alpha0 = 2.0 * (1.0 - e * e) / e ** 3 * (0.5 * log - e)
-    beta0 = 1.0 / (e * e) - (1.0 - e * e) / (2.0 * e ** 3) * log
-    k1, k2 = alpha0 / (2.0 - alpha0), beta0 / (2.0 - beta0)
-    kp = e ** 4 * (beta0 - alpha0) / ((2.0 - e * e) * (2.0 * e * e - (2.0 - e * e) *
-                                                        (beta0 - alpha0)))
-    M_a = np.diag([m * k1, m * k2, m * k2, v.r44 * Ix, kp * Iy, kp * Iy])
+    kp = lamb_factors(a, b)[2]
+    M_a = np.diag([*hull["added_mass"], v.r44 * Ix, kp * Iy, kp * Iy])
     return M_rb, M_a, m * G
 
 

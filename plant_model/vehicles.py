@@ -73,6 +73,7 @@ __all__ = [
     "VEHICLE_MODELS",
     "VehicleModel",
     "generic",
+    "lamb_factors",
     "make_vehicle",
     "remus100",
     "remus100_parameters",
@@ -183,6 +184,19 @@ def _triple(name: str, value: Any, unit: str, *, strict: bool) -> list[float]:
 
 # ------------------------------------------------------------------------------------
 # REMUS 100
+def lamb_factors(a: float, b: float) -> tuple[float, float, float]:
+    """Lamb's added-mass factors of a prolate spheroid with semi-axes a > b (m): (k1, k2,
+    k') for surge, sway/heave and pitch/yaw (module docstring), e = sqrt(1 - (b/a)^2),
+    k' = e^4 (beta0 - alpha0) / ((2 - e^2) (2 e^2 - (2 - e^2)(beta0 - alpha0)))."""
+    e = math.sqrt(1.0 - (b / a) ** 2)
+    log_term = math.log((1.0 + e) / (1.0 - e))
+    alpha0 = 2.0 * (1.0 - e * e) / e**3 * (0.5 * log_term - e)
+    beta0 = 1.0 / e**2 - (1.0 - e * e) / (2.0 * e**3) * log_term
+    kp = e**4 * (beta0 - alpha0) / ((2.0 - e * e) * (2.0 * e * e - (2.0 - e * e) *
+                                                     (beta0 - alpha0)))
+    return alpha0 / (2.0 - alpha0), beta0 / (2.0 - beta0), kp
+
+
 def remus100_parameters(rho: float = 1026.0, length: float = 1.6, diameter: float = 0.19,
                         drag_coefficient: float = 0.42) -> dict[str, Any]:
     """Physical parameters of the REMUS 100 from its hull dimensions (SI units).
@@ -229,12 +243,7 @@ def remus100_parameters(rho: float = 1026.0, length: float = 1.6, diameter: floa
             "(the hull is a prolate spheroid)"
         )
     m = 4.0 / 3.0 * math.pi * rho * a * b * b
-    e = math.sqrt(1.0 - (b / a) ** 2)
-    log_term = math.log((1.0 + e) / (1.0 - e))
-    alpha0 = 2.0 * (1.0 - e * e) / e**3 * (0.5 * log_term - e)
-    beta0 = 1.0 / e**2 - (1.0 - e * e) / (2.0 * e**3) * log_term
-    k1 = alpha0 / (2.0 - alpha0)
-    k2 = beta0 / (2.0 - beta0)
+    k1, k2, _ = lamb_factors(a, b)
     return {
         "mass": m,
         "added_mass": [m * k1, m * k2, m * k2],
