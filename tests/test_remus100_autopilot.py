@@ -1,0 +1,53 @@
+"""plant_model.remus100_autopilot on the nonlinear REMUS 100: a commanded NED velocity over
+ground is reached and held, turned to, held across a current, and climbed or dived."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from plant_model.remus100_6dof import STATE_SIZE, Remus100, step
+from plant_model.remus100_autopilot import AutopilotGains, autopilot_command, wrap
+from plant_model.rigid_body import rotation_ned_body
+
+
+def _run(vehicle, v_ref, T=120.0, h=0.1):
+    g, x, integ = AutopilotGains(), np.zeros(STATE_SIZE), np.zeros(2)
+    rows = []
+    for k in range(round(T / h)):
+        cmd, err = autopilot_command(g, x, v_ref(k * h), integ)
+        integ = integ + err * h
+        x = step(vehicle, x, cmd, h, 1)
+        rows.append(np.r_[x[:3], rotation_ned_body(*x[3:6]) @ x[6:9], cmd])
+    return np.array(rows)
+
+
+def test_a_velocity_north_is_reached_and_held_level():
+    out = _run(Remus100(), lambda t: np.array([1.5, 0.0, 0.0]))
+    assert np.allclose(out[-1, 3:6], [1.5, 0.0, 0.0], atol=0.01)
+    assert np.abs(out[:, 2]).max() < 0.2                   # depth held within 20 cm
+
+
+def test_a_new_course_is_turned_to_with_saturated_fins():
+    """North, then east at 40 s: the vehicle turns and settles on east; the commanded
+    rudder exceeds the 30 deg limit in the turn, which the actuator clips."""
+    out = _run(Remus100(), lambda t: np.array([1.5, 0, 0]) if t < 40 else np.array([0, 1.5, 0]))
+    assert np.allclose(out[-1, 3:6], [0.0, 1.5, 0.0], atol=0.01)
+    assert np.abs(out[:, 6]).max() > np.radians(30)
+
+
+def test_the_course_is_held_across_a_current_by_crabbing():
+    """A 0.3 m/s current from the west: the ground velocity stays north (the heading turns
+    into the current), the cross-track offset stays under a metre."""
+    out = _run(Remus100(current=(0.0, 0.3, 0.0)), lambda t: np.array([1.5, 0.0, 0.0]))
+    assert abs(out[-1, 4]) < 0.01 and out[-1, 3] == pytest.approx(1.5, abs=0.01)
+    assert np.abs(out[:, 1]).max() < 1.0
+
+
+def test_a_descent_rate_is_reached_by_the_flight_path_loop():
+    out = _run(Remus100(), lambda t: np.array([1.5, 0.0, 0.2]))
+    assert out[-1, 5] == pytest.approx(0.2, abs=0.01)
+
+
+def test_wrap_keeps_angles_within_one_turn():
+    assert wrap(3 * np.pi / 2) == pytest.approx(-np.pi / 2)
+    assert wrap(-3 * np.pi / 2) == pytest.approx(np.pi / 2)
