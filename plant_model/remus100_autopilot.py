@@ -19,12 +19,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from .rigid_body import rotation_ned_body
 
-__all__ = ["AutopilotGains", "autopilot_command", "wrap"]
+__all__ = ["AutopilotGains", "ForceCommandedRemus", "autopilot_command", "wrap"]
 
 
 @dataclass(frozen=True)
@@ -50,13 +51,18 @@ def wrap(a: float) -> float:
 
 
 def autopilot_command(g: AutopilotGains, x: np.ndarray, v_ref: np.ndarray,
-                      integrals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                      integrals: np.ndarray, current: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
     """The actuator command [delta_r, delta_s (rad), n (rpm)] for the vehicle state x
     (plant_model.remus100_6dof), the NED velocity reference v_ref (m/s) and the loops'
     integrals [int (U_d - U) dt (m), int (gamma_d - gamma) dt (rad s)]; and the errors to
-    integrate next, [U_d - U (m/s), gamma_d - gamma (rad)] (module docstring)."""
+    integrate next, [U_d - U (m/s), gamma_d - gamma (rad)] (module docstring). With
+    ``current`` (NED, m/s) the loops track the velocity through the water instead of over
+    ground (a DVL's water track): v_g - current."""
     eta, nu = x[:6], x[6:12]
     v_g = rotation_ned_body(*eta[3:6]) @ nu[:3]
+    if current is not None:
+        v_g = v_g - np.asarray(current, dtype=float)
     U, U_d = float(np.linalg.norm(v_g)), float(np.linalg.norm(v_ref))
     n = g.n_max * U_d / g.U_max + g.K_u * (U_d - U) + g.K_ui * integrals[0]
     h_ref = math.hypot(v_ref[0], v_ref[1])
@@ -68,3 +74,51 @@ def autopilot_command(g: AutopilotGains, x: np.ndarray, v_ref: np.ndarray,
     theta_d = gamma_d + g.K_gamma * (gamma_d - gamma) + g.K_gi * integrals[1]
     delta_s = g.K_theta * (eta[4] - theta_d) + g.K_q * nu[4]
     return np.array([delta_r, delta_s, n]), np.array([U_d - U, gamma_d - gamma])
+
+
+class ForceCommandedRemus:
+    """The nonlinear REMUS 100 behind the linear ``remus100`` interface: the NED force F
+    (N) the formation controller commands drives the linear model's velocity through the
+    water, v_ref' = (F - D_a v_ref) / M_a (sampled exactly over the step), which the
+    autopilots track through the water; the current then carries the vehicle as it carries
+    the linear model. ``ned_state`` is the linear model's state [n, e, d, v_n, v_e, v_d]
+    (m, m/s) over ground.
+
+    Parameters
+    ----------
+    vehicle : Remus100
+        The 6-DOF vehicle (its ``current``).
+    M, D : np.ndarray
+        The linear model's total mass (kg) and damping (kg/s) per NED axis
+        (``remus100().parameters["total_mass"]``, ``["damping"]``).
+    x0 : np.ndarray
+        Initial 6-DOF state (plant_model.remus100_6dof).
+    gains : AutopilotGains, optional
+        The loops' gains.
+    """
+
+    def __init__(self, vehicle: Any, M: np.ndarray, D: np.ndarray, x0: np.ndarray,
+                 gains: AutopilotGains | None = None):
+        self.vehicle, self.gains = vehicle, gains or AutopilotGains()
+        self.M, self.D = np.asarray(M, dtype=float), np.asarray(D, dtype=float)
+        self.x = np.array(x0, dtype=float)
+        current = np.asarray(vehicle.current, dtype=float)
+        self.v_ref = rotation_ned_body(*self.x[3:6]) @ self.x[6:9] - current
+        self.integrals = np.zeros(2)
+        self.command = np.zeros(3)
+
+    def step(self, F: np.ndarray, h: float, substeps: int) -> None:
+        """One communication step h (s) with the force F (N, NED) held."""
+        from .remus100_6dof import step as vehicle_step
+        current = np.asarray(self.vehicle.current, dtype=float)
+        self.command, err = autopilot_command(self.gains, self.x, self.v_ref, self.integrals,
+                                              current)
+        self.x = vehicle_step(self.vehicle, self.x, self.command, h, substeps)
+        self.integrals = self.integrals + err * h
+        a = np.exp(-self.D * h / self.M)
+        self.v_ref = a * self.v_ref + (1.0 - a) * np.asarray(F, dtype=float) / self.D
+
+    @property
+    def ned_state(self) -> np.ndarray:
+        """[n, e, d, v_n, v_e, v_d] over ground (m, m/s)."""
+        return np.concatenate([self.x[:3], rotation_ned_body(*self.x[3:6]) @ self.x[6:9]])
