@@ -36,7 +36,7 @@ import numpy as np
 
 from .linalg_checks import ModelError
 from .rigid_body import (
-    coriolis_from_mass,
+    coriolis_times,
     euler_kinematics,
     restoring_forces,
     rigid_body_mass,
@@ -190,11 +190,14 @@ def _munk_balance(d: _Derived, nu_r: np.ndarray) -> np.ndarray:
     does by leaving those terms out of C_A: C stays skew symmetric (kinetic energy is
     conserved without forces) while a slender hull is not left to the destabilizing Munk
     moment alone."""
-    Ca = coriolis_from_mass(d.Ma, nu_r)
-    keep = np.zeros((6, 6))
-    for i, j in ((4, 0), (4, 3), (5, 0), (5, 1)):
-        keep[i, j] = Ca[i, j]
-    return keep @ nu_r
+    # C_A = [[0, -S(a)], [-S(a), -S(b)]], a = M_A11 nu1, b = M_A22 nu2 (M_A diagonal):
+    # C_A[4,0] = -a3, C_A[4,3] = -b3, C_A[5,0] = a2, C_A[5,1] = -a1
+    Xu, Yv, Zw, _, _, Nr = np.diag(d.Ma)
+    u, v_, w, p, r = nu_r[0], nu_r[1], nu_r[2], nu_r[3], nu_r[5]
+    out = np.zeros(6)
+    out[4] = -Zw * w * u - Nr * r * p
+    out[5] = (Yv - Xu) * u * v_
+    return out
 
 
 def _propeller(v: Remus100, n_rpm: float, U: float) -> tuple[float, float]:
@@ -236,9 +239,8 @@ def derivative(v: Remus100, x: np.ndarray, command: np.ndarray) -> np.ndarray:
         Yr, Zs, torque, -x_tail * Zs, x_tail * Yr])
     lin = d.lin.copy()
     lin[[0, 1, 5]] *= math.exp(-3.0 * U_r)
-    C = coriolis_from_mass(d.M, nu_r)
     force = (tau + _crossflow(v, nu_r) + _hull_lift_drag(v, d, nu_r)
-             + _munk_balance(d, nu_r) - C @ nu_r - lin * nu_r
+             + _munk_balance(d, nu_r) - coriolis_times(d.M, nu_r) - lin * nu_r
              - restoring_forces(eta, d.W, d.W, np.asarray(v.r_g), np.zeros(3)))
     nu_c_dot = np.concatenate([-skew(nu[3:]) @ vc_body, np.zeros(3)])
     cmd = np.asarray(command, dtype=float)

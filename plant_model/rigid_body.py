@@ -21,8 +21,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["coriolis_from_mass", "euler_kinematics", "rigid_body_mass", "restoring_forces",
-           "rk4_step", "rotation_ned_body", "skew"]
+__all__ = ["coriolis_from_mass", "coriolis_times", "euler_kinematics", "rigid_body_mass",
+           "restoring_forces", "rk4_step", "rotation_ned_body", "skew"]
 
 
 def skew(a: np.ndarray) -> np.ndarray:
@@ -86,6 +86,15 @@ def coriolis_from_mass(M: np.ndarray, nu: np.ndarray) -> np.ndarray:
     C[3:, :3] = -skew(a)
     C[3:, 3:] = -skew(b)
     return C
+
+
+def coriolis_times(M: np.ndarray, nu: np.ndarray) -> np.ndarray:
+    """C(nu) nu of :func:`coriolis_from_mass` without forming C: with a = M11 nu1 + M12 nu2
+    and b = M21 nu1 + M22 nu2, C(nu) nu = [nu2 x a; nu1 x a + nu2 x b] (a symmetric M)."""
+    ab = M @ nu
+    a, b = ab[:3], ab[3:]
+    nu1, nu2 = nu[:3], nu[3:]
+    return np.concatenate([np.cross(nu2, a), np.cross(nu1, a) + np.cross(nu2, b)])
 
 
 def restoring_forces(eta: np.ndarray, W: float, B: float, r_g: np.ndarray,

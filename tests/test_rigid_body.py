@@ -7,6 +7,7 @@ import pytest
 
 from plant_model.rigid_body import (
     coriolis_from_mass,
+    coriolis_times,
     euler_kinematics,
     restoring_forces,
     rigid_body_mass,
@@ -32,6 +33,7 @@ def test_the_coriolis_matrix_is_skew_symmetric_and_does_no_work():
         C = coriolis_from_mass(mat, nu)
         assert np.allclose(C, -C.T, atol=1e-14)
         assert abs(nu @ C @ nu) < 1e-12
+        assert np.allclose(coriolis_times(mat, nu), C @ nu, rtol=1e-14, atol=1e-13)
 
 
 def test_kinetic_energy_is_conserved_to_the_integrators_order():
