@@ -195,10 +195,20 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def cmd_export(args: argparse.Namespace) -> int:
     sc = _scenario(args)
+    if args.format == "native":
+        from .cosim.native import NativeBuildError, compiler
+        try:
+            compiler()                      # no C compiler: say so before any folder exists
+        except NativeBuildError as exc:
+            raise UsageError(str(exc)) from None
     with output_folder(args.out or f"out/{file_stem(sc.name)}_{args.format}", "export") as out:
         if args.format == "native":
+            from .cosim.native import NativeBuildError
             from .interop.native import export_native
-            paths = export_native(sc, out)
+            try:
+                paths = export_native(sc, out)
+            except NativeBuildError as exc:
+                raise UsageError(str(exc)) from None
             fmus = [p.name for p in paths.values() if p.suffix == ".fmu"]
             native = [f for f in fmus if f.endswith("Native.fmu")]
             kept = [f for f in fmus if f not in native]

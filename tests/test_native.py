@@ -393,3 +393,18 @@ def test_the_native_fmus_load_run_and_unload_cleanly_under_valgrind(tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     assert "Invalid" not in r.stderr and "definitely lost" not in r.stderr
     assert np.loadtxt(tmp_path / "v.csv", delimiter=",", skiprows=1).shape[0] == 100
+
+
+def test_export_native_without_a_compiler_is_one_line_and_creates_nothing(tmp_path):
+    import os
+    import subprocess
+    import sys
+    out = tmp_path / "never"
+    env = dict(os.environ, CC=str(tmp_path / "no-such-cc"))
+    r = subprocess.run([sys.executable, "-m", "orchestrator", "export", "native", "--scenario",
+                        "paper", "--out", str(out)], capture_output=True, text=True, env=env,
+                       timeout=120)
+    assert r.returncode == 2 and not out.exists()
+    assert r.stderr.strip().splitlines() == [
+        f"auv-cosim export: error: no C compiler: '{tmp_path / 'no-such-cc'}' is not on PATH "
+        "(install gcc, or set CC)"]
