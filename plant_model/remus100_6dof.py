@@ -42,7 +42,6 @@ from .rigid_body import (
     rigid_body_mass,
     rk4_step,
     rotation_ned_body,
-    skew,
 )
 from .vehicles import lamb_factors, remus100_parameters
 
@@ -132,6 +131,12 @@ class _Derived:
     lin: np.ndarray        #: linear damping diagonal at zero speed
     CD0: float
     S: float
+    current: np.ndarray    #: NED, m/s
+    r_g: np.ndarray
+    limits: np.ndarray     #: actuator limits [rad, rad, rpm]
+    taus: np.ndarray       #: actuator time constants, s
+    strip_x: np.ndarray    #: cross-flow strip centres, m
+    strip_k: float         #: 1/2 rho Cd diam dx
 
 
 def _derived(v: Remus100) -> _Derived:
@@ -143,11 +148,19 @@ def _derived(v: Remus100) -> _Derived:
                     2 * v.zeta_roll * w_roll * M[3, 3], 2 * v.zeta_pitch * w_pitch * M[4, 4],
                     M[5, 5] / v.T_yaw])
     S = v.hull_area_ratio * v.L * v.diam
+    strips = 20
+    dx = v.L / strips
     return _Derived(M=M, Ma=M_a, Minv=np.linalg.inv(M), W=W, lin=lin,
-                    CD0=v.Cd_surge * math.pi * (v.diam / 2) ** 2 / S, S=S)
+                    CD0=v.Cd_surge * math.pi * (v.diam / 2) ** 2 / S, S=S,
+                    current=np.asarray(v.current, dtype=float), r_g=np.asarray(v.r_g, float),
+                    limits=np.array([v.delta_max, v.delta_max, v.n_max]),
+                    taus=np.array([v.T_delta, v.T_delta, v.T_n]),
+                    strip_x=-v.L / 2 + dx * (np.arange(strips) + 0.5),
+                    strip_k=0.5 * v.rho * v.Cd_crossflow * v.diam * dx)
 
 
 _CACHE: dict[Remus100, _Derived] = {}
+_ZERO3 = np.zeros(3)
 
 
 def _d(v: Remus100) -> _Derived:
@@ -156,12 +169,11 @@ def _d(v: Remus100) -> _Derived:
     return _CACHE[v]
 
 
-def _crossflow(v: Remus100, nu_r: np.ndarray, strips: int = 20) -> np.ndarray:
-    """Strip-theory cross-flow drag in sway/yaw and heave/pitch: each strip at x sees the
-    transverse velocity v + x r (or w - x q) and resists with 1/2 rho Cd diam |.|(.) dx."""
-    dx = v.L / strips
-    x = -v.L / 2 + dx * (np.arange(strips) + 0.5)            # strip centres
-    k = 0.5 * v.rho * v.Cd_crossflow * v.diam * dx
+def _crossflow(d: _Derived, nu_r: np.ndarray) -> np.ndarray:
+    """Strip-theory cross-flow drag in sway/yaw and heave/pitch: each of 20 strips at x
+    sees the transverse velocity v + x r (or w - x q) and resists with
+    1/2 rho Cd diam |.|(.) dx."""
+    x, k = d.strip_x, d.strip_k
     vy = nu_r[1] + x * nu_r[5]
     vz = nu_r[2] - x * nu_r[4]
     Fy, Fz = -k * np.abs(vy) * vy, -k * np.abs(vz) * vz
@@ -220,13 +232,14 @@ def derivative(v: Remus100, x: np.ndarray, command: np.ndarray) -> np.ndarray:
     d = _d(v)
     eta, nu, act = x[:6], x[6:12], x[12:]
     R = rotation_ned_body(*eta[3:6])
-    vc_body = R.T @ np.asarray(v.current, dtype=float)
+    vc_body = R.T @ d.current
     nu_c = np.concatenate([vc_body, np.zeros(3)])
     nu_r = nu - nu_c
     U_r = math.sqrt(nu_r[:3] @ nu_r[:3])
     U = math.sqrt(nu[:3] @ nu[:3])
-    dr, ds = (float(np.clip(a, -v.delta_max, v.delta_max)) for a in act[:2])
-    n = float(np.clip(act[2], -v.n_max, v.n_max))
+    dm = v.delta_max
+    dr, ds = min(max(float(act[0]), -dm), dm), min(max(float(act[1]), -dm), dm)
+    n = min(max(float(act[2]), -v.n_max), v.n_max)
     thrust, torque = _propeller(v, n, U)
     U_h2, U_v2 = nu_r[0] ** 2 + nu_r[1] ** 2, nu_r[0] ** 2 + nu_r[2] ** 2
     Yr = -0.5 * v.rho * U_h2 * v.A_rudder * v.CL_rudder * dr
@@ -239,14 +252,12 @@ def derivative(v: Remus100, x: np.ndarray, command: np.ndarray) -> np.ndarray:
         Yr, Zs, torque, -x_tail * Zs, x_tail * Yr])
     lin = d.lin.copy()
     lin[[0, 1, 5]] *= math.exp(-3.0 * U_r)
-    force = (tau + _crossflow(v, nu_r) + _hull_lift_drag(v, d, nu_r)
+    force = (tau + _crossflow(d, nu_r) + _hull_lift_drag(v, d, nu_r)
              + _munk_balance(d, nu_r) - coriolis_times(d.M, nu_r) - lin * nu_r
-             - restoring_forces(eta, d.W, d.W, np.asarray(v.r_g), np.zeros(3)))
-    nu_c_dot = np.concatenate([-skew(nu[3:]) @ vc_body, np.zeros(3)])
-    cmd = np.asarray(command, dtype=float)
-    limits = np.array([v.delta_max, v.delta_max, v.n_max])
-    taus = np.array([v.T_delta, v.T_delta, v.T_n])
-    target = np.clip(cmd, -limits, limits)
+             - restoring_forces(eta, d.W, d.W, d.r_g, _ZERO3))
+    nu_c_dot = np.concatenate([-np.cross(nu[3:], vc_body), _ZERO3])
+    limits, taus = d.limits, d.taus
+    target = np.clip(command, -limits, limits)
     act_dot = np.clip((target - act) / taus, -limits / taus, limits / taus)
     return np.concatenate([euler_kinematics(eta) @ nu, nu_c_dot + d.Minv @ force, act_dot])
 
