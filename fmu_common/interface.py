@@ -16,7 +16,8 @@ import numpy as np
 
 __all__ = ["ArraySpec", "element_names", "expand", "UNIT_DEFINITIONS"]
 
-#: SI base-unit exponents of the units the FMUs use (FMI 2.0 <BaseUnit> attributes).
+#: SI base-unit exponents of the units the FMUs use (FMI 2.0 <BaseUnit> attributes; a
+#: ``factor`` converts to SI: value_SI = factor * value).
 UNIT_DEFINITIONS: dict[str, dict[str, int]] = {
     "s": {"s": 1},
     "m": {"m": 1},
@@ -29,6 +30,9 @@ UNIT_DEFINITIONS: dict[str, dict[str, int]] = {
     "1/s": {"s": -1},
     "1/m2": {"m": -2},
     "1/N2": {"kg": -2, "m": -2, "s": 4},
+    "m2": {"m": 2},
+    "kg/m3": {"kg": 1, "m": -3},
+    "rpm": {"rad": 1, "s": -1, "factor": 0.10471975511965977},   # 2 pi / 60 rad/s
 }
 
 

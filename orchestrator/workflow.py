@@ -23,6 +23,7 @@ from .analysis.summary import (
     stationarity_note,
     versions,
 )
+from .analysis.tracking_segments import run_segments, segment_summary
 from .atomic import write_text_atomically
 from .cosim.build import build_fmus, fmu_config, variables_markdown
 from .cosim.master import run_cosimulation
@@ -430,6 +431,8 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
                 break
             loop_us.append(res.loop_s / sc.steps * 1e6)
             per_seed.append(run_stats(res.traces, sc.system.Q, sc.system.R, k0, formation))
+            if formation is not None:
+                per_seed[-1]["segments"] = run_segments(sc.fleet["leader"], res.traces, k0)
             if "link_age" in res.traces:
                 link_ages.append((res.info["links"], res.traces["link_age"]))
             log(f"{name:>9s} seed {seed}: cost rate {per_seed[-1]['cost_rate']:.4g} "
@@ -440,6 +443,8 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         if per_seed and formation is not None:
             methods[name].update(formation_summary(
                 [st["formation"] for st in per_seed], list(seeds[:len(per_seed)])))
+            if all("segments" in st for st in per_seed):
+                methods[name].update(segment_summary([st["segments"] for st in per_seed]))
         if link_ages:
             methods[name].update(pv.network_entries(arch, mode, tracking, link_ages, k0))
         if per_seed and pred_window is not None:

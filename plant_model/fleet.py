@@ -413,6 +413,11 @@ def resolve_fleet_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
         v["params"] = {k: (np.asarray(mdl.parameters[k]).tolist() if k in mdl.parameters
                            else getattr(mdl, k).tolist())
                        for k in _MODEL_KEYS.get(mdl.name, ())}
+        if mdl.name == "remus100-6dof":              # its data as given, defaults made explicit
+            par = mdl.parameters
+            v["params"] = {"cruise_speed": par["cruise_speed"], **par["nonlinear"],
+                           "autopilot": dict(par["autopilot"]),
+                           **({"substep": par["substep"]} if par["substep"] else {})}
         v["x0"] = system.x0[i * p:(i + 1) * p].tolist()
         v["offset"] = list(np.asarray(v.get("offset", np.zeros(mdl.s)), dtype=float))
         if "disturbance" not in v:

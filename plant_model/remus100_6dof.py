@@ -103,6 +103,12 @@ class Remus100:
             if getattr(self, name) <= 0.0:
                 raise ModelError(f"remus100-6dof: {name} = {getattr(self, name):g} must be "
                                  "positive")
+        if self.r_g[2] <= 0.0:
+            raise ModelError(f"remus100-6dof: r_g[3] = {self.r_g[2]:g} m must be positive (the "
+                             "CG below the CB keeps the hull upright)")
+        if self.r44 < 0.0:
+            raise ModelError(f"remus100-6dof: r44 = {self.r44:g} must be non-negative (the "
+                             "roll added inertia A44 = r44 I_x)")
         if self.diam >= self.L:
             raise ModelError(f"remus100-6dof: diam = {self.diam:g} m must be below L = "
                              f"{self.L:g} m (a slender hull)")
@@ -190,7 +196,7 @@ def _hull_lift_drag(v: Remus100, d: _Derived, nu_r: np.ndarray) -> np.ndarray:
     AR = v.diam ** 2 / d.S
     CL = math.pi * AR / (1.0 + math.sqrt(1.0 + (AR / 2.0) ** 2)) * alpha
     CD = d.CD0 + CL * CL / (math.pi * v.oswald * AR)
-    q = 0.5 * v.rho * (nu_r @ nu_r) * d.S
+    q = 0.5 * v.rho * (nu_r[:3] @ nu_r[:3]) * d.S       # 1/2 rho U_r^2 S
     drag, lift = q * CD, q * CL
     ca, sa = math.cos(alpha), math.sin(alpha)
     return np.array([-ca * drag + sa * lift, 0.0, -sa * drag - ca * lift, 0.0, 0.0, 0.0])

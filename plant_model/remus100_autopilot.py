@@ -13,6 +13,9 @@ velocity over ground v_g = R(Theta) nu (a Doppler velocity log with bottom lock)
   gamma = atan2(-v_gD, |v_gh|) (the integral finds the angle of attack a climb needs);
   delta_s = K_theta (theta - theta_d) + K_q q   (positive stern plane: nose down)
 
+Anti-windup by conditional integration: an integral holds while its actuator's command is
+at or beyond the limit in the direction the error pushes (n_max, delta_max).
+
 Below ``U_min`` the course is not defined: the heading is held. Units: m/s, rad, rpm, s.
 """
 from __future__ import annotations
@@ -43,6 +46,7 @@ class AutopilotGains:
     K_theta: float = 2.0       #: rad of stern plane per rad of pitch error
     K_q: float = 1.0           #: rad of stern plane per rad/s of pitch rate
     U_min: float = 0.1         #: m/s: below it the heading is held
+    delta_max: float = math.radians(30.0)  #: rad: the fin limit (anti-windup)
 
 
 def wrap(a: float) -> float:
@@ -73,7 +77,12 @@ def autopilot_command(g: AutopilotGains, x: np.ndarray, v_ref: np.ndarray,
     gamma = math.atan2(-v_g[2], math.hypot(v_g[0], v_g[1])) if U > g.U_min else eta[4]
     theta_d = gamma_d + g.K_gamma * (gamma_d - gamma) + g.K_gi * integrals[1]
     delta_s = g.K_theta * (eta[4] - theta_d) + g.K_q * nu[4]
-    return np.array([delta_r, delta_s, n]), np.array([U_d - U, gamma_d - gamma])
+    # anti-windup: an integral stops while its actuator is saturated in its direction
+    e_u = 0.0 if (n >= g.n_max and U_d > U) or (n <= -g.n_max and U_d < U) else U_d - U
+    e_g = gamma_d - gamma
+    if (delta_s >= g.delta_max and e_g < 0.0) or (delta_s <= -g.delta_max and e_g > 0.0):
+        e_g = 0.0
+    return np.array([delta_r, delta_s, n]), np.array([e_u, e_g])
 
 
 class ForceCommandedRemus:

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from .linalg_checks import ModelError, as_matrix, as_vector
-from .vehicles import VehicleModel
+from .vehicles import REMUS_MODELS, VehicleModel
 
 __all__ = ["leader_state_map", "state_offset"]
 
@@ -49,7 +49,7 @@ def leader_state_map(model: VehicleModel, H_leader: Any, F_leader: Any) -> np.nd
     F = as_matrix("leader F", F_leader)
     l_ = F.shape[0]
     F = as_matrix("leader F", F, (l_, l_))
-    if model.name == "remus100":
+    if model.name in REMUS_MODELS:
         H = as_matrix("leader H", H_leader)
         if H.shape[0] != 3:
             raise ModelError(
@@ -94,7 +94,7 @@ def state_offset(model: VehicleModel, offset: Any) -> np.ndarray:
     ModelError
         If ``offset`` has the wrong length or the model is unknown.
     """
-    if model.name == "remus100":
+    if model.name in REMUS_MODELS:
         d = as_vector("formation offset", offset, 3)
         return np.concatenate([d, np.zeros(3)])
     if model.name == "generic":

@@ -38,7 +38,7 @@ from controller_fmu.vehicle_law import (
     centralized_rows,
     observer_start,
 )
-from plant_model.fleet import fleet_graph
+from plant_model.fleet import fleet_graph, fleet_vehicles
 from plant_model.network import link_sender
 from plant_model.per_vehicle import leader_system, vehicle_views
 from plant_model.system import LinearSystem
@@ -159,10 +159,16 @@ def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tra
     rows = (centralized_rows(gain, N, v0.n, v0.r, v0.m, l0)
             if architecture == "centralized" else None)
     eta0 = observer_start(leader["z0"], settings)
+    models = fleet_vehicles(spec)
     out: list[dict[str, dict[str, Any]]] = [{"leader": dict(base, system=_mapping(v0, leader))}]
     for i, view in enumerate(views):
         cfg = dict(base, system=_mapping(view, leader))
         one = {"vehicle": dict(cfg, vehicle=i + 1), "vehicle_estimator": cfg}
+        if models[i].name == "remus100-6dof":               # the nonlinear vehicle FMU
+            par = models[i].parameters
+            one = {"remus6dof": dict(cfg, vehicle=i + 1, remus=par["nonlinear"],
+                                     autopilot=par["autopilot"], substep=par["substep"]),
+                   "vehicle_estimator": cfg}
         if rows is not None:
             K, u0 = rows[i]
             one["central_controller"] = dict(cfg, vehicles=N, gain=K.tolist(), u0=u0.tolist())
@@ -179,8 +185,18 @@ def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tra
 
 
 def build_configs(configs: list[dict[str, dict[str, Any]]]) -> dict[str, dict[str, Any]]:
-    """The configuration each FMU kind is built with: the leader's and vehicle 1's."""
-    return {**configs[0], **configs[1]}
+    """The configuration each FMU kind is built with: the leader's, then each kind's first
+    vehicle's (a fleet may mix the linear and the nonlinear vehicle FMU)."""
+    out: dict[str, dict[str, Any]] = {}
+    for one in configs:
+        for kind, cfg in one.items():
+            out.setdefault(kind, cfg)
+    return out
+
+
+def vehicle_kind(config: Mapping[str, Any]) -> str:
+    """The FMU kind of one vehicle's plant in :func:`per_vehicle_configs`' entry."""
+    return "remus6dof" if "remus6dof" in config else "vehicle"
 
 
 def _component(name: str, key: str, config: dict[str, Any]) -> Component:
@@ -215,7 +231,8 @@ def per_vehicle_system(sc: Any, configs: list[dict[str, dict[str, Any]]],
     slots = fleet_slots(sc.fleet)
     for i in range(1, N + 1):
         v, e, c = f"vehicle_{i}", f"estimator_{i}", f"controller_{i}"
-        comps += [_component(v, "vehicle", configs[i]["vehicle"]),
+        vk = vehicle_kind(configs[i])
+        comps += [_component(v, vk, configs[i][vk]),
                   _component(e, "vehicle_estimator", configs[i]["vehicle_estimator"]),
                   _component(c, ctrl_key, configs[i][ctrl_key])]
         conns += [Connection(v, "y", e, "y"),
@@ -303,6 +320,9 @@ def link_traces(system: SystemDescription, traces: Mapping[str, np.ndarray]
     return out
 
 
+#: the FMU kinds of a vehicle's plant
+VEHICLE_KINDS = ("vehicle", "remus6dof")
+
 #: the per-link outputs of a network FMU
 LINK_STATISTICS = ("age", "delivered", "lost", "in_flight")
 
@@ -324,10 +344,11 @@ def stacked_traces(sc: Any, system: SystemDescription,
     -------
     dict[str, np.ndarray]
         y, x, w, z (with the constant c = 1 column when the stacked z has one), e, u, xhat,
-        what; and eta (N l, the observers) for the distributed architecture.
+        what; eta (N l, the observers) for the distributed architecture; ``saturated``
+        (N) when every vehicle is the nonlinear one (AuvRemus6dof).
     """
     names = system.trace_names()
-    N = sum(1 for c in system.components if c.fmu == "vehicle")
+    N = sum(1 for c in system.components if c.fmu in VEHICLE_KINDS)
 
     def cat(prefix: str, out: str) -> np.ndarray:
         return np.hstack([traces[names[(f"{prefix}_{i}", out)]] for i in range(1, N + 1)])
@@ -344,4 +365,6 @@ def stacked_traces(sc: Any, system: SystemDescription,
     out["e"] = z @ sc.system.H.T - out["x"] @ sc.system.C.T
     if ("controller_1", "eta") in names:
         out["eta"] = cat("controller", "eta")
+    if all((f"vehicle_{i}", "saturated") in names for i in range(1, N + 1)):
+        out["saturated"] = cat("vehicle", "saturated")          # nonlinear vehicles
     return out

@@ -20,6 +20,7 @@ reported as a one-line :class:`ScenarioError` naming the file, section and key (
 """
 from __future__ import annotations
 
+import copy
 import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
@@ -64,6 +65,36 @@ class Scenario:
     distributed: DistributedSettings = field(default_factory=DistributedSettings)
     #: the acoustic links' [network] table (per-vehicle fleets; None: perfect links)
     network: dict[str, Any] | None = None
+    #: the parsed file the scenario was validated from (for variants of it)
+    raw: Mapping[str, Any] | None = field(default=None, repr=False, compare=False)
+
+    def with_vehicle_model(self, model: str) -> Scenario:
+        """The same fleet scenario with every vehicle of ``model`` (e.g. the nonlinear
+        ``remus100-6dof`` in place of ``remus100``): the model parameters the two REMUS
+        models share (``cruise_speed``) are kept, the others dropped; the run settings
+        are this scenario's.
+
+        Raises
+        ------
+        ScenarioError
+            If this is not a fleet scenario or the variant is invalid.
+        """
+        if self.fleet is None or self.raw is None:
+            raise ScenarioError(f"{self.source}: a vehicle model variant needs a fleet "
+                                "scenario read from a file")
+        data = copy.deepcopy(dict(self.raw))
+        shared = ("cruise_speed",)
+        tables = [data["vehicles"], *data["vehicles"].get("overrides", [])]
+        for table in tables:
+            if "model" in table or table is data["vehicles"]:
+                table["model"] = model
+            if "params" in table:
+                table["params"] = {k: v for k, v in table["params"].items() if k in shared}
+        new = scenario_from_dict(data, f"{self.source} (vehicles: {model})")
+        return replace(new, T=self.T, h=self.h, seed=self.seed, estimator=self.estimator,
+                       tracking=self.tracking, deployment=self.deployment,
+                       architecture=self.architecture, distributed=self.distributed,
+                       network=self.network)
 
     @property
     def steps(self) -> int:
@@ -116,6 +147,13 @@ def _check_deployment(sc: Scenario, network: bool = True) -> None:
     [network] needs the per-vehicle deployment (``network``: checked once the run settings
     are known, so that --deployment per-vehicle can select it)."""
     if sc.deployment != "per-vehicle":
+        nonlinear = sorted({v.get("model") for v in (sc.fleet or {}).get("vehicles", [])}
+                           & {"remus100-6dof"})
+        if network and nonlinear:
+            raise ScenarioError(f"{sc.source}: vehicle model {nonlinear[0]} needs [simulation] "
+                                "deployment = \"per-vehicle\" (a nonlinear vehicle is its own "
+                                f"FMU, not a block of the stacked linear plant), not "
+                                f"{sc.deployment!r}")
         if network and sc.network is not None:
             raise ScenarioError(f"{sc.source}: [network] needs [simulation] deployment = "
                                 "\"per-vehicle\" (acoustic links join the vehicles' own "
@@ -209,7 +247,8 @@ def scenario_from_dict(data: Mapping[str, Any], where: str = "scenario") -> Scen
         fleet = validate_scenario(FleetScenario, data, where)
         spec = fleet_spec(fleet)
         system = _built(where, fleet_system, spec)
-        return _scenario(fleet, where, system, _built(where, resolve_fleet_spec, spec))
+        sc = _scenario(fleet, where, system, _built(where, resolve_fleet_spec, spec))
+        return replace(sc, raw=copy.deepcopy(dict(data)))
     single = validate_scenario(SystemScenario, data, where)
     system = _built(where, LinearSystem.from_mapping, single.system_mapping())
-    return _scenario(single, where, system)
+    return replace(_scenario(single, where, system), raw=copy.deepcopy(dict(data)))

@@ -1,0 +1,117 @@
+"""Tracking errors on straight legs and in turns, and how often the actuators saturate.
+
+A sample is *in a turn* when the leader's horizontal course turns faster than
+``TURN_RATE`` (0.02 rad/s: a radius under 75 m at 1.5 m/s), from its planned state z:
+
+    v = H_l F z,  a = H_l F^2 z,  chi' = (v_n a_e - v_e a_n) / (v_n^2 + v_e^2)   (rad/s)
+
+Per sample and vehicle the tracking error is |e_i| = |H_l z + d_i - p_i| (m, the
+NED position error from the formation slot). Over the statistics window [k0, K):
+
+- ``max_error``: the largest |e_i| of any vehicle (m); ``max_error_straight``,
+  ``max_error_turns`` the same on each kind of sample;
+- ``rms_error_straight``, ``rms_error_turns``: sqrt(mean |e_i|^2) over vehicles and those
+  samples (m);
+- ``turn_fraction``: the share of the window's samples in a turn;
+- ``actuator_saturation_fraction``: the share of (vehicle, sample) pairs in which some
+  actuator command was at or beyond its limit (rpm, rudder, stern planes); None for the
+  linear model, which has no actuators.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+__all__ = ["TURN_RATE", "leader_turn_rate", "run_segments", "segment_stats",
+           "segment_summary"]
+
+#: rad/s: a leader turning faster than this is in a turn
+TURN_RATE = 0.02
+
+
+def leader_turn_rate(z: np.ndarray, F: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """chi' (rad/s) per sample of the leader's state trace z (K x l; extra columns, such
+    as a formation constant, are ignored), F (l x l, 1/s), H (3 x l, NED position)."""
+    l0 = F.shape[0]
+    zl = np.asarray(z)[:, :l0]
+    v = zl @ (H @ F).T
+    a = zl @ (H @ F @ F).T
+    speed2 = v[:, 0] ** 2 + v[:, 1] ** 2
+    rate = v[:, 0] * a[:, 1] - v[:, 1] * a[:, 0]
+    return np.divide(rate, speed2, out=np.zeros_like(rate), where=speed2 > 1e-12)
+
+
+def segment_stats(e: np.ndarray, turning: np.ndarray, k0: int,
+                  saturated: np.ndarray | None = None) -> dict[str, Any]:
+    """The window's figures (module docstring) of one run.
+
+    Parameters
+    ----------
+    e : np.ndarray
+        Tracking errors, K x 3 N (NED per vehicle), m.
+    turning : np.ndarray
+        K booleans: the leader is in a turn.
+    k0 : int
+        First sample of the window.
+    saturated : np.ndarray or None, optional
+        K x N, 1 where a vehicle's actuator command was at its limit (None: no actuators).
+
+    Returns
+    -------
+    dict[str, Any]
+        The keys of the module docstring.
+    """
+    K = e.shape[0]
+    norm = np.linalg.norm(np.asarray(e)[k0:].reshape(K - k0, -1, 3), axis=2)   # (K-k0, N)
+    turn = np.asarray(turning, bool)[k0:]
+
+    def part(mask: np.ndarray) -> tuple[float | None, float | None]:
+        if not mask.any():
+            return None, None
+        sel = norm[mask]
+        return float(sel.max()), float(np.sqrt(np.mean(sel ** 2)))
+
+    max_s, rms_s = part(~turn)
+    max_t, rms_t = part(turn)
+    out: dict[str, Any] = {
+        "max_error": float(norm.max()) if norm.size else None,
+        "max_error_straight": max_s, "max_error_turns": max_t,
+        "rms_error_straight": rms_s, "rms_error_turns": rms_t,
+        "turn_fraction": float(turn.mean()) if turn.size else None,
+        "actuator_saturation_fraction": None,
+    }
+    if saturated is not None:
+        sat = np.asarray(saturated)[k0:] > 0.5
+        out["actuator_saturation_fraction"] = float(sat.mean())
+        out["actuator_saturation_fraction_per_vehicle"] = sat.mean(axis=0).tolist()
+    return out
+
+
+def segment_summary(per_seed: list[dict[str, Any]]) -> dict[str, Any]:
+    """Over seeds: the largest maximum, the RMS of the RMS values, the mean fractions."""
+    out: dict[str, Any] = {}
+    for key in per_seed[0]:
+        vals = [s[key] for s in per_seed if s[key] is not None]
+        if not vals:
+            out[key] = None
+        elif key.startswith("max_error"):
+            out[key] = float(max(vals))
+        elif key.startswith("rms_error"):
+            out[key] = float(np.sqrt(np.mean(np.square(vals))))
+        elif key.endswith("per_vehicle"):
+            out[key] = np.mean(np.array(vals), axis=0).tolist()
+        else:
+            out[key] = float(np.mean(vals))
+    return out
+
+
+def run_segments(leader: Mapping[str, Any], traces: Mapping[str, np.ndarray], k0: int
+                 ) -> dict[str, Any]:
+    """:func:`segment_stats` of one fleet run: errors from the stacked ``e``, turns from
+    the leader's ``z`` (``leader``: the fleet spec's F and H), saturation from the
+    vehicles' ``saturated`` outputs when they have actuators."""
+    turning = np.abs(leader_turn_rate(traces["z"], np.asarray(leader["F"], float),
+                                      np.asarray(leader["H"], float))) > TURN_RATE
+    return segment_stats(traces["e"], turning, k0, traces.get("saturated"))

@@ -1,0 +1,227 @@
+"""The nonlinear REMUS 100 behind the linear vehicle's plant interface (model
+``remus100-6dof``; docs/remus100-6dof.md).
+
+The vehicle FMU of the per-vehicle deployment keeps its inputs and outputs: input u, the
+NED force (N) the formation controller commands; outputs y (position fix, m), x = [n, e,
+d, v_n, v_e, v_d] over ground (m, m/s) and w (the ocean current, m/s). Inside, the
+force drives the linear model's velocity through the water, v_ref' = (u - D v_ref) / M
+(M, D per axis from the linear design model: B1 = [0; diag(1/M)], B2 = [0; diag(D/M)]),
+which the autopilots track with rpm, rudder and stern planes
+(:mod:`plant_model.remus100_autopilot`); the 6-DOF equations
+(:mod:`plant_model.remus100_6dof`, compiled in :mod:`plant_model.remus100_kernel`) move
+the vehicle, with ``substeps`` RK4 steps per communication step.
+
+What the linear vehicle has beside its physics stays as it is, drawn from the same noise
+stream (generator [seed, vehicle], row [v_x; v_w; n; n_bar] of the linear vehicle sampled
+at h, :func:`plant_model.per_vehicle.sample_vehicle`), so the linear and the nonlinear
+plant of a vehicle meet the same current and the same sensor noise:
+
+    w[k+1] = exp(K h) w[k] + v_w[k]        (Gauss-Markov current, held over the step)
+    p[k+1] = p_6dof + v_x,pos[k],  v_g[k+1] = v_6dof + v_x,vel[k]   (process noise)
+    y[k]   = p[k] + n[k]
+
+Extra outputs for the recording: attitude [phi, theta, psi] (rad), the propeller speed n
+(rpm), the rudder and stern-plane angles (rad), and ``saturated``: 1 when some actuator
+command of the step lay at or beyond its limit.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import fields, replace
+from typing import Any
+
+import numpy as np
+
+from . import remus100_kernel as kernel
+from .discretization import DiscreteModel
+from .linalg_checks import ModelError
+from .plant import NoiseStream
+from .remus100_6dof import STATE_SIZE, Remus100
+from .remus100_autopilot import AutopilotGains
+
+__all__ = ["REMUS_FIELDS", "GAIN_FIELDS", "Remus6dofPlant", "default_substep",
+           "initial_state", "linear_mass_damping", "remus_from_parameters", "substep_count"]
+
+#: the scalar fields of :class:`Remus100` a scenario or an FMU parameter may set
+REMUS_FIELDS = tuple(f.name for f in fields(Remus100) if f.name not in ("current", "r_g"))
+#: the autopilot gains (:class:`AutopilotGains`)
+GAIN_FIELDS = tuple(f.name for f in fields(AutopilotGains))
+#: the longest default RK4 sub-step, s (docs/remus100-6dof.md: converged at 0.05 s)
+MAX_SUBSTEP = 0.05
+
+
+def default_substep(h: float) -> float:
+    """The default sub-step: h / ceil(h / 0.05 s), the longest that divides h (s)."""
+    return h / max(1, math.ceil(h / MAX_SUBSTEP - 1e-9))
+
+
+def substep_count(h: float, substep: float) -> int:
+    """The whole number h / substep (RK4 sub-steps per communication step).
+
+    Raises
+    ------
+    ModelError
+        Naming ``substep`` if it is not positive or does not divide h.
+    """
+    if not (math.isfinite(substep) and substep > 0.0):
+        raise ModelError(f"remus100-6dof: substep = {substep!r} s must be a positive number")
+    k = round(h / substep)
+    if k < 1 or abs(k * substep - h) > 1e-9 * h:
+        raise ModelError(f"remus100-6dof: substep = {substep:g} s does not divide the step "
+                         f"h = {h:g} s")
+    return int(k)
+
+
+def remus_from_parameters(values: dict[str, Any]) -> Remus100:
+    """A :class:`Remus100` from {field: value} (any of :data:`REMUS_FIELDS`, ``r_g``).
+
+    Raises
+    ------
+    ModelError
+        Naming an unknown field or an invalid value (:class:`Remus100` checks).
+    """
+    unknown = sorted(set(values) - set(REMUS_FIELDS) - {"r_g"})
+    if unknown:
+        raise ModelError(f"remus100-6dof: unknown parameter(s) {', '.join(unknown)}")
+    kw = {k: float(v) for k, v in values.items() if k != "r_g"}
+    if "r_g" in values:
+        kw["r_g"] = tuple(float(c) for c in np.asarray(values["r_g"], float).ravel())
+    return replace(Remus100(), **kw)
+
+
+def linear_mass_damping(B1: np.ndarray, B2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(M, D) per NED axis (kg, kg/s) of the linear REMUS model: B1[3:, :] = diag(1/M),
+    B2[3:, :] = diag(D/M)."""
+    M = 1.0 / np.diag(np.asarray(B1, float)[3:6, :3])
+    D = np.diag(np.asarray(B2, float)[3:6, :3]) * M
+    if not (np.all(np.isfinite(M)) and np.all(M > 0) and np.all(D > 0)):
+        raise ModelError("remus100-6dof: the linear design model must be a remus100 "
+                         "(B1 = [0; diag(1/M)], B2 = [0; diag(D/M)] with M, D > 0)")
+    return M, D
+
+
+def initial_state(v: Remus100, gains: AutopilotGains, x0: np.ndarray, w0: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The 6-DOF state and v_ref at the linear state x0 = [p; v_g] (m, m/s) in the current
+    w0 (m/s): the nose along the velocity through the water v_g - w0 (heading and flight
+    path angle; at rest: north, level), that speed in surge, the propeller at the speed's
+    feedforward rpm, the fins at 0. Returns (x (15), v_ref (3))."""
+    x = np.zeros(STATE_SIZE)
+    x[:3] = x0[:3]
+    vw = np.asarray(x0[3:6], float) - np.asarray(w0, float)
+    U = float(np.linalg.norm(vw))
+    if U > gains.U_min:
+        x[5] = math.atan2(vw[1], vw[0])
+        x[4] = math.atan2(-vw[2], math.hypot(vw[0], vw[1]))
+    x[6] = U
+    x[14] = min(v.n_max, gains.n_max * U / gains.U_max)
+    return x, vw
+
+
+class Remus6dofPlant:
+    """One nonlinear REMUS 100 sampled at h (module docstring). ``output`` is the vector
+    [y (3), x (6), w (3), attitude (3), n, delta_r, delta_s, saturated] of sample k;
+    ``s`` the evolving vector [x_6dof (15), v_ref, integrals (2), w]."""
+
+    OUTPUT_SIZE = 3 + 6 + 3 + 3 + 4
+
+    def __init__(self, vehicle: Remus100, gains: AutopilotGains, linear: DiscreteModel,
+                 M: np.ndarray, D: np.ndarray, x0: np.ndarray, w0: np.ndarray, seed: int,
+                 substeps: int, out: np.ndarray | None = None):
+        if linear.n != 6 or linear.r != 3 or linear.p != 3:
+            raise ModelError("remus100-6dof: the linear design model must have 6 states, 3 "
+                             "current states and 3 outputs (a remus100)")
+        self.vehicle, self.gains, self.model = vehicle, gains, linear
+        self.seed, self.substeps = int(seed), int(substeps)
+        self._p, self._g = kernel.pack(vehicle), kernel.pack_gains(gains)
+        self._M, self._D = np.array(M, float), np.array(D, float)
+        self._Aw = np.ascontiguousarray(linear.Ad[6:9, 6:9])
+        self._limits = np.array([vehicle.delta_max, vehicle.delta_max, vehicle.n_max])
+        self.output = np.empty(self.OUTPUT_SIZE) if out is None else out
+        self._x0, self._w0 = np.array(x0, float), np.array(w0, float)
+        self.reset()
+
+    def reset(self) -> None:
+        """Restart at k = 0 from x0, w0 with a fresh noise stream of the same seed."""
+        self.k = 0
+        x, v_ref = initial_state(self.vehicle, self.gains, self._x0, self._w0)
+        self.s = np.concatenate([x, v_ref, np.zeros(2), self._w0])
+        self._cmd = np.zeros(3)
+        self._saturated = 0.0
+        self._noise = NoiseStream(self.model, self.seed)
+        self._row = self._noise.next_row()
+        self._refresh()
+
+    def _refresh(self) -> None:
+        s, o = self.s, self.output
+        x = s[:STATE_SIZE]
+        phi, theta, psi = x[3], x[4], x[5]
+        cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
+        cp, sp = math.cos(psi), math.sin(psi)
+        u, v, w = x[6], x[7], x[8]
+        o[:3] = x[:3] + self._row[9:12]
+        o[3:6] = x[:3]
+        o[6] = cp * ct * u + (-sp * cf + cp * st * sf) * v + (sp * sf + cp * cf * st) * w
+        o[7] = sp * ct * u + (cp * cf + sf * st * sp) * v + (-cp * sf + st * sp * cf) * w
+        o[8] = -st * u + ct * sf * v + ct * cf * w
+        o[9:12] = s[20:23]
+        o[12:15] = x[3:6]
+        o[15], o[16], o[17] = x[14], x[12], x[13]
+        o[18] = self._saturated
+
+    def step(self, u: np.ndarray) -> None:
+        """Advance one step with the force u (N, NED) held (module docstring)."""
+        s = self.s
+        x, v_ref, integ, w = s[:15], s[15:18], s[18:20], s[20:23]
+        h = self.model.h
+        kernel.force_commanded_step(self._p, self._g, x, v_ref, integ,
+                                    np.asarray(u, float), w, self._M, self._D, h,
+                                    self.substeps, self._cmd)
+        self._saturated = float(np.any(np.abs(self._cmd) >= self._limits))
+        v = self._row[:9]
+        x[:3] += v[:3]
+        # velocity noise over ground, into the body frame: nu[:3] += R' v
+        phi, theta, psi = x[3], x[4], x[5]
+        cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
+        cp, sp = math.cos(psi), math.sin(psi)
+        R = np.array([[cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st],
+                      [sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf],
+                      [-st, ct * sf, ct * cf]])
+        x[6:9] += R.T @ v[3:6]
+        w[:] = self._Aw @ w + v[6:9]
+        self.k += 1
+        self._row = self._noise.next_row()
+        self._refresh()
+
+    @property
+    def command(self) -> np.ndarray:
+        """The last step's actuator command [delta_r, delta_s (rad), n (rpm)]."""
+        return self._cmd.copy()
+
+    def get_state(self) -> dict:
+        """Everything that evolves (copies): k, s, the command, the noise row and stream."""
+        return {"k": self.k, "seed": self.seed, "s": self.s.copy(), "cmd": self._cmd.copy(),
+                "saturated": self._saturated, "row": self._row.copy(),
+                "noise": self._noise.get_state()}
+
+    def set_state(self, state: dict) -> None:
+        """Restore a :meth:`get_state` result (validated first: on error nothing changes).
+
+        Raises
+        ------
+        ValueError
+            If the seed differs or an entry has the wrong shape.
+        """
+        if int(state["seed"]) != self.seed:
+            raise ValueError(f"the vehicle state was drawn with seed {state['seed']}, "
+                             f"this vehicle has seed {self.seed}")
+        s = np.array(state["s"], dtype=float)
+        row = np.array(state["row"], dtype=float)
+        cmd = np.array(state["cmd"], dtype=float)
+        if s.shape != self.s.shape or row.shape != self._row.shape or cmd.shape != (3,):
+            raise ValueError(f"the vehicle state has shapes {s.shape}, {row.shape}, "
+                             f"{cmd.shape}; expected {self.s.shape}, {self._row.shape}, (3,)")
+        self._noise.set_state(state["noise"])
+        self.k, self.s, self._row, self._cmd = int(state["k"]), s, row, cmd
+        self._saturated = float(state["saturated"])
+        self._refresh()
