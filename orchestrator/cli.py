@@ -167,6 +167,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from .workflow import check_memory, method_list, simulate
     sc = _scenario(args)
     what = args.what or ("tracking" if sc.fleet is not None else "estimators")
+    if what == "plants":
+        return _compare_plants(sc, args)
     if what == "architectures" and sc.deployment != "per-vehicle":
         raise UsageError("--what architectures compares the centralized and distributed laws "
                          "of the per-vehicle deployment: add --deployment per-vehicle (or set "
@@ -191,6 +193,35 @@ def cmd_compare(args: argparse.Namespace) -> int:
                            log=(lambda s: None) if args.quiet else print, trackings=trackings,
                            workers=args.workers, architectures=architectures)
     return _print_summary(summary, out)
+
+
+def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
+    """compare --what plants: the linear and the nonlinear REMUS 100, same FMUs otherwise."""
+    from plant_model.vehicles import REMUS_MODELS
+
+    from .plant_study import compare_plants, plant_table
+    if sc.deployment != "per-vehicle":
+        raise UsageError("--what plants runs the nonlinear vehicle, which is its own FMU: add "
+                         "--deployment per-vehicle (or set [simulation] deployment = "
+                         "\"per-vehicle\")")
+    models = [v.get("model", "remus100") for v in sc.fleet["vehicles"]]
+    other = next((i for i, m in enumerate(models, 1) if m not in REMUS_MODELS), None)
+    if other is not None or args.methods:
+        raise UsageError("--what plants compares remus100 with remus100-6dof (no --methods)"
+                         + ("" if other is None else
+                            f"; vehicle {other} is a {models[other - 1]!r} model"))
+    with output_folder(args.out or f"out/{file_stem(sc.name)}_plants", "compare") as out:
+        summary = compare_plants(sc, args.seeds, out, progress=not args.quiet,
+                                 log=(lambda s: None) if args.quiet else print)
+    print("\n".join(plant_table(summary)))
+    print(f"wrote {out / 'summary.json'}")
+    if summary.get("interrupted"):
+        from .interrupt import EXIT_STATUS
+        sig = summary.get("interrupted_by")
+        print(f"auv-cosim: interrupted by {sig}: kept what each plant's run produced and "
+              f"{out / 'summary.json'} (marked \"interrupted\": true)", file=sys.stderr)
+        return EXIT_STATUS.get(sig, 130)
+    return 0
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -335,10 +366,11 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("compare", help="the three estimator modes (or, for a fleet, the two "
                                         "tracking laws) on the same noise and seeds")
     common(sp)
-    sp.add_argument("--what", choices=("estimators", "tracking", "architectures"),
+    sp.add_argument("--what", choices=("estimators", "tracking", "architectures", "plants"),
                     help="compare the estimator modes (default for a single system), the "
-                         "tracking laws lq and regulator (default for a fleet) or the "
-                         "centralized and distributed architectures (per-vehicle fleets)")
+                         "tracking laws lq and regulator (default for a fleet), the "
+                         "centralized and distributed architectures (per-vehicle fleets) or "
+                         "the linear and the nonlinear 6-DOF REMUS 100 (per-vehicle fleets)")
     sp.add_argument("--methods",
                     help="which of them, comma-separated, e.g. 'kalman,ideal' or 'lq' "
                          "(default: all; a mode impossible for the scenario is skipped and "

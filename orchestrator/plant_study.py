@@ -1,0 +1,99 @@
+"""``auv-cosim compare --what plants``: the same estimator and controller FMUs on the linear
+``remus100`` and on the nonlinear ``remus100-6dof`` (docs/remus100-6dof.md).
+
+Each plant is a full run of the scenario (per-vehicle deployment) in its own subfolder,
+``<out>/remus100/`` and ``<out>/remus100-6dof/``, with its own .rrd and summary.json; the
+combined ``<out>/summary.json`` holds both under ``methods`` (named by the plant), each
+with the straight-leg and turn figures of :mod:`orchestrator.analysis.tracking_segments`
+(``max_error``, ``actuator_saturation_fraction``, ...), and ``plants``: per plant its folder
+and recording.
+"""
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from .atomic import write_text_atomically
+from .scenario import Scenario
+
+__all__ = ["PLANTS", "compare_plants", "plant_table"]
+
+#: the vehicle models compared, linear first
+PLANTS = ("remus100", "remus100-6dof")
+
+
+def compare_plants(sc: Scenario, seeds: Sequence[int], out: Path, *, progress: bool,
+                   log: Callable[[str], None], plants: Sequence[str] = PLANTS
+                   ) -> dict[str, Any]:
+    """Run ``sc`` once per vehicle model of ``plants`` and combine the summaries.
+
+    Parameters
+    ----------
+    sc : Scenario
+        A fleet scenario of REMUS 100 vehicles, per-vehicle deployment.
+    seeds : sequence of int
+        Noise seeds (the same for both plants: the same current and sensor noise).
+    out : Path
+        Output folder; each plant writes into ``out / <model>``.
+    progress, log
+        As :func:`orchestrator.workflow.simulate`.
+    plants : sequence of str, optional
+        Vehicle models, default :data:`PLANTS`.
+
+    Returns
+    -------
+    dict[str, Any]
+        The combined summary (also ``out / summary.json``).
+    """
+    from .workflow import simulate
+
+    summaries: dict[str, dict[str, Any]] = {}
+    for model in plants:
+        variant = sc.with_vehicle_model(model)
+        log(f"plant {model}:")
+        summaries[model] = simulate(variant, [sc.estimator], seeds, out / model,
+                                    progress=progress, log=log)
+        if summaries[model].get("interrupted"):
+            break
+    first = summaries[plants[0]]
+    combined = {k: v for k, v in first.items() if k not in ("methods", "rrd", "timing")}
+    combined["methods"] = {}
+    combined["plants"] = {}
+    for model, s in summaries.items():
+        (method,) = s["methods"].values()
+        combined["methods"][model] = {**method, "plant": model}
+        combined["plants"][model] = {"folder": model, "rrd": s.get("rrd"),
+                                     "wall_s": s.get("wall_s")}
+    combined["interrupted"] = any(s.get("interrupted") for s in summaries.values())
+    combined["scenario"] = sc.name
+    write_text_atomically(out / "summary.json", json.dumps(combined, indent=2) + "\n")
+    return combined
+
+
+def plant_table(summary: dict[str, Any]) -> list[str]:
+    """The lines ``compare --what plants`` prints: per plant its cost rate, maximum and RMS
+    errors on straight legs and in turns, the saturated share, and its recording."""
+    lo, hi = summary["stats_window_s"]
+    lines = [f"scenario {summary['scenario']}: T = {summary['T']} s, h = {summary['h']} s, "
+             f"seeds {summary['seeds']}, window t in [{lo:.3g}, {hi:.3g}) s; errors |e_i| "
+             "in m; turns: the leader turning faster than 0.02 rad/s",
+             f"{'plant':>14s} {'cost rate':>10s} {'max':>7s} {'max str.':>9s} "
+             f"{'max turns':>9s} {'rms str.':>9s} {'rms turns':>9s} {'saturated':>9s}"]
+
+    def f(v: Any, fmt: str = "#.3g") -> str:
+        return "n/a" if v is None else format(v, fmt)
+    for name, m in summary["methods"].items():
+        if "cost_rate" not in m:
+            lines.append(f"{name:>14s}   {m.get('note', 'no statistics')}")
+            continue
+        lines.append(f"{name:>14s} {m['cost_rate']['mean']:#10.4g} {f(m['max_error']):>7s} "
+                     f"{f(m['max_error_straight']):>9s} {f(m['max_error_turns']):>9s} "
+                     f"{f(m['rms_error_straight']):>9s} {f(m['rms_error_turns']):>9s} "
+                     f"{f(m['actuator_saturation_fraction'], '.1%'):>9s}")
+    for name, p in summary["plants"].items():
+        rrd = (p.get("rrd") or {}).get("path")
+        if rrd:
+            lines.append(f"{name}: {rrd}")
+    return lines

@@ -1,0 +1,55 @@
+"""compare --what plants: the linear and the nonlinear REMUS 100 under the same FMUs
+(orchestrator.plant_study), and the nonlinear model in a scenario file."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from orchestrator.cli import main
+
+BUILTIN = Path(__file__).parent.parent / "orchestrator/scenario/builtin/formation-4.toml"
+
+
+def test_compare_plants_reports_errors_by_segment_and_saturation(tmp_path, capsys):
+    out = tmp_path / "plants"
+    assert main(["compare", "--scenario", "formation-4", "--deployment", "per-vehicle",
+                 "--architecture", "distributed", "--what", "plants", "--seeds", "0",
+                 "--T", "40", "--out", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    s = json.loads((out / "summary.json").read_text())
+    lin, six = s["methods"]["remus100"], s["methods"]["remus100-6dof"]
+    assert lin["actuator_saturation_fraction"] is None          # no actuators to saturate
+    assert 0.0 < six["actuator_saturation_fraction"] <= 1.0
+    for m in (lin, six):
+        assert m["max_error"] >= max(m["max_error_straight"] or 0, m["max_error_turns"] or 0)
+        assert m["max_error"] > 0 and 0.0 <= m["turn_fraction"] <= 1.0
+    # the torpedo cannot follow the 2.3 m/s start of the survey as the linear model does
+    assert six["max_error"] > lin["max_error"]
+    assert six["plant"] == "remus100-6dof" and s["plants"]["remus100"]["folder"] == "remus100"
+    for model in ("remus100", "remus100-6dof"):
+        assert (out / model / "formation-4.rrd").stat().st_size > 10_000
+        assert json.loads((out / model / "summary.json").read_text())["methods"]
+    sub = json.loads((out / "remus100-6dof" / "summary.json").read_text())
+    assert set(sub["fmus"]) == {"leader", "remus6dof", "vehicle_estimator",
+                                "vehicle_controller"}
+    assert "remus100-6dof" in printed and "saturated" in printed
+
+
+def test_the_nonlinear_vehicle_is_refused_where_it_cannot_run(tmp_path, capsys):
+    def one_line(argv, *fragments):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1, err
+        for f in fragments:
+            assert f in err, err
+    text = BUILTIN.read_text().replace('model = "remus100"', 'model = "remus100-6dof"')
+    (tmp_path / "six.toml").write_text(text)
+    one_line(["run", "--scenario", str(tmp_path / "six.toml"), "--out", str(tmp_path / "a")],
+             'remus100-6dof needs [simulation] deployment = "per-vehicle"')
+    one_line(["compare", "--scenario", "formation-4", "--what", "plants",
+              "--out", str(tmp_path / "b")], "add --deployment per-vehicle")
+    bad = text.replace("params = { cruise_speed = 1.5 }", "params = { n_max = -1525.0 }")
+    (tmp_path / "bad.toml").write_text(bad)
+    one_line(["run", "--scenario", str(tmp_path / "bad.toml"), "--deployment", "per-vehicle",
+              "--out", str(tmp_path / "c")], "n_max = -1525 must be positive")
+    assert not any((tmp_path / d).exists() for d in "abc")
