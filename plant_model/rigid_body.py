@@ -21,8 +21,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["coriolis_from_mass", "coriolis_times", "euler_kinematics", "rigid_body_mass",
-           "restoring_forces", "rk4_step", "rotation_ned_body", "skew"]
+__all__ = ["coriolis_from_mass", "coriolis_times", "euler_kinematics", "quaternion_xyzw",
+           "rigid_body_mass", "restoring_forces", "rk4_step", "rotation_ned_body", "skew"]
 
 
 def skew(a: np.ndarray) -> np.ndarray:
@@ -38,6 +38,17 @@ def rotation_ned_body(phi: float, theta: float, psi: float) -> np.ndarray:
         [cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st],
         [sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf],
         [-st, ct * sf, ct * cf]])
+
+
+def quaternion_xyzw(attitude: np.ndarray) -> np.ndarray:
+    """Unit quaternions [x, y, z, w] of R(Theta) (body to NED, zyx) for rows of Euler
+    angles [phi, theta, psi] (rad), shape (..., 3) -> (..., 4)."""
+    a = 0.5 * np.asarray(attitude, dtype=float)
+    cr, sr = np.cos(a[..., 0]), np.sin(a[..., 0])
+    cp, sp = np.cos(a[..., 1]), np.sin(a[..., 1])
+    cy, sy = np.cos(a[..., 2]), np.sin(a[..., 2])
+    return np.stack([sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+                     cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy], axis=-1)
 
 
 def euler_kinematics(eta: np.ndarray) -> np.ndarray:

@@ -33,6 +33,29 @@ def test_compare_plants_reports_errors_by_segment_and_saturation(tmp_path, capsy
     assert set(sub["fmus"]) == {"leader", "remus6dof", "vehicle_estimator",
                                 "vehicle_controller"}
     assert "remus100-6dof" in printed and "saturated" in printed
+    _recording_shows_hulls_and_actuators(out / "remus100-6dof" / "formation-4.rrd")
+
+
+def _recording_shows_hulls_and_actuators(rrd):
+    """The .rrd read back: per vehicle rpm and fin series, and oriented hulls (unit
+    quaternions) at the vehicles' positions in the 3D scene."""
+    import numpy as np
+
+    from orchestrator.recording.reader import _entity_rows, read_rrd_points, read_rrd_series
+    _, _, rpm = read_rrd_series(rrd, "vehicles/2/propeller/kalman")
+    _, _, fins = read_rrd_series(rrd, "vehicles/2/fins/kalman")
+    assert rpm.shape[1] == 1 and 0 < rpm.max() <= 1525.0 and fins.shape[1] == 2
+    assert np.abs(fins).max() <= np.radians(30.0) + 1e-9 and np.ptp(fins[:, 0]) > 0
+    step, _, quats = _entity_rows(rrd, "world/kalman/hulls", "Ellipsoids3D:quaternions")
+    q = np.concatenate([np.asarray(c.flatten().flatten().to_numpy(zero_copy_only=False))
+                        for c in quats]).reshape(-1, 4)
+    assert q.shape[0] == 4 * step.size and np.allclose(np.linalg.norm(q, axis=1), 1, atol=1e-6)
+    assert np.ptp(q[:, 3]) > 0.01                                  # the hulls turn
+    _, _, centers = _entity_rows(rrd, "world/kalman/hulls", "Ellipsoids3D:centers")
+    _, _, pos = read_rrd_points(rrd, "world/kalman/vehicles")
+    c = np.concatenate([np.asarray(x.flatten().flatten().to_numpy(zero_copy_only=False))
+                        for x in centers]).reshape(-1, 4, 3)
+    assert c.shape == pos.shape and np.allclose(np.sort(c.ravel()), np.sort(pos.ravel()))
 
 
 def test_the_nonlinear_vehicle_is_refused_where_it_cannot_run(tmp_path, capsys):

@@ -94,3 +94,16 @@ def test_restoring_forces_right_a_rolled_and_pitched_vehicle():
     assert g[4] == pytest.approx(W * 0.02 * np.sin(0.1)) and g[4] > 0.0
     heavy = restoring_forces(np.zeros(6), W + 10.0, B, r_g, r_b)
     assert heavy[2] == pytest.approx(-10.0)       # -(W - B): the net weight is +z on the LHS
+
+
+def test_the_quaternion_is_the_rotation_matrix():
+    """quaternion_xyzw against scipy's Rotation of R(Theta) (body to NED)."""
+    from scipy.spatial.transform import Rotation
+
+    from plant_model.rigid_body import quaternion_xyzw, rotation_ned_body
+    rng = np.random.default_rng(7)
+    att = rng.uniform([-np.pi, -1.4, -np.pi], [np.pi, 1.4, np.pi], size=(50, 3))
+    q = quaternion_xyzw(att)
+    for a, qi in zip(att, q):
+        R = Rotation.from_quat(qi).as_matrix()
+        assert np.allclose(R, rotation_ned_body(*a), atol=1e-12)

@@ -323,6 +323,10 @@ def link_traces(system: SystemDescription, traces: Mapping[str, np.ndarray]
 #: the FMU kinds of a vehicle's plant
 VEHICLE_KINDS = ("vehicle", "remus6dof")
 
+#: the nonlinear vehicle's extra outputs: attitude (3 per vehicle, rad), rpm, rudder and
+#: stern-plane angles (rad), saturated (0/1)
+NONLINEAR_OUTPUTS = ("attitude", "rpm", "rudder", "stern", "saturated")
+
 #: the per-link outputs of a network FMU
 LINK_STATISTICS = ("age", "delivered", "lost", "in_flight")
 
@@ -344,8 +348,8 @@ def stacked_traces(sc: Any, system: SystemDescription,
     -------
     dict[str, np.ndarray]
         y, x, w, z (with the constant c = 1 column when the stacked z has one), e, u, xhat,
-        what; eta (N l, the observers) for the distributed architecture; ``saturated``
-        (N) when every vehicle is the nonlinear one (AuvRemus6dof).
+        what; eta (N l, the observers) for the distributed architecture; and when every
+        vehicle is the nonlinear one (AuvRemus6dof) its :data:`NONLINEAR_OUTPUTS`.
     """
     names = system.trace_names()
     N = sum(1 for c in system.components if c.fmu in VEHICLE_KINDS)
@@ -366,5 +370,6 @@ def stacked_traces(sc: Any, system: SystemDescription,
     if ("controller_1", "eta") in names:
         out["eta"] = cat("controller", "eta")
     if all((f"vehicle_{i}", "saturated") in names for i in range(1, N + 1)):
-        out["saturated"] = cat("vehicle", "saturated")          # nonlinear vehicles
+        for extra in NONLINEAR_OUTPUTS:                            # nonlinear vehicles
+            out[extra] = cat("vehicle", extra)
     return out

@@ -177,7 +177,8 @@ def fleet_camera(points: np.ndarray) -> rrb.EyeControls3D:
 
 
 def _fleet_blueprint(methods: list[str], n: int, trail_ns: int, trail_steps: int,
-                     points: np.ndarray, network: bool = False) -> rrb.Blueprint:
+                     points: np.ndarray, network: bool = False,
+                     actuators: bool = False) -> rrb.Blueprint:
     """3D view(s) of the fleet on the left (framed by :func:`fleet_camera` on ``points``),
     per-vehicle error/control views on the right (whole run, legends hidden: the legend view
     on top names the colours)."""
@@ -195,8 +196,12 @@ def _fleet_blueprint(methods: list[str], n: int, trail_ns: int, trail_steps: int
         views_3d[0] if len(views_3d) == 1 else rrb.Tabs(*views_3d, active_tab=0, name="fleet 3D"))
 
     def vehicle_views(i: int) -> list[rrb.TimeSeriesView]:
-        return [_series_view(f"vehicle {i} error", f"/vehicles/{i}/error"),
-                _series_view(f"vehicle {i} control", f"/vehicles/{i}/control")]
+        views = [_series_view(f"vehicle {i} error", f"/vehicles/{i}/error"),
+                 _series_view(f"vehicle {i} control", f"/vehicles/{i}/control")]
+        if actuators:               # the nonlinear vehicle: propeller rpm and fin angles
+            views += [_series_view(f"vehicle {i} propeller", f"/vehicles/{i}/propeller"),
+                      _series_view(f"vehicle {i} fins", f"/vehicles/{i}/fins")]
+        return views
 
     if n <= _FLEET_GRID_MAX:
         right: rrb.Container = rrb.Grid(

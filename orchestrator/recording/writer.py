@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 
+from plant_model.rigid_body import quaternion_xyzw
+
 from .blueprint import LEGEND_ENTITY, _blueprint, _fleet_blueprint
 from .layout import (
     _POSITION_NAMES,
@@ -75,6 +77,15 @@ def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, n
         for i in range(1, fleet.n + 1):
             signals += _send_block(rec, f"vehicles/{i}/{template.format(m=method)}",
                                    arr[:, index[i - 1]], line_names, colors, indexes)
+    if "rpm" in traces:                  # the nonlinear vehicle: propeller and fins
+        rpm, fins = traces["rpm"][::stride], np.stack(
+            [traces["rudder"][::stride], traces["stern"][::stride]], axis=2)
+        for i in range(1, fleet.n + 1):
+            signals += _send_block(rec, f"vehicles/{i}/propeller/{method}", rpm[:, i - 1:i],
+                                   [f"{method} rpm"], shades(1), indexes)
+            signals += _send_block(rec, f"vehicles/{i}/fins/{method}", fins[:, i - 1],
+                                   [f"{method} rudder (rad)", f"{method} stern planes (rad)"],
+                                   shades(2), indexes)
     leader = rec_traces["z"] @ fleet.leader_output.T  # (rows, 3)
     signals += _send_block(rec, f"leader/{method}", leader,
                            [f"{method} leader {c}" for c in _POSITION_NAMES], shades(3), indexes)
@@ -118,6 +129,14 @@ def _sample_steps(steps: int, every: int, last: int) -> np.ndarray:
     return ks
 
 
+#: optional fleet traces of the nonlinear vehicle (orchestrator.cosim.per_vehicle)
+_ACTUATOR_KEYS = ("attitude", "rpm", "rudder", "stern")
+
+#: the hull drawn in the 3D view: the REMUS 100's 1.6 m x 0.19 m spheroid, 3 times enlarged
+#: to be seen at formation scale (m, body axes x forward, y starboard, z down)
+_HULL_HALF_SIZES = (2.4, 0.285, 0.285)
+
+
 def _send_fleet_world(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray],
                       fleet: _Fleet, h_ns: int, stride: int, scene_stride: int,
                       trail_stride: int) -> None:
@@ -140,6 +159,14 @@ def _send_fleet_world(rec: rr.RecordingStream, method: str, traces: dict[str, np
         static=True)
     rec.send_columns(f"{root}/vehicles", indexes=indexes, columns=rr.Points3D.columns(
         positions=pos.reshape(rows * n, 3).astype(np.float32)).partition(np.full(rows, n)))
+
+    if "attitude" in traces:             # the nonlinear vehicle: an oriented hull
+        att = traces["attitude"][ks].reshape(rows * n, 3)
+        rec.log(f"{root}/hulls", rr.Ellipsoids3D.from_fields(
+            half_sizes=[_HULL_HALF_SIZES] * n, colors=colors, fill_mode="solid"), static=True)
+        rec.send_columns(f"{root}/hulls", indexes=indexes, columns=rr.Ellipsoids3D.columns(
+            centers=pos.reshape(rows * n, 3).astype(np.float32),
+            quaternions=quaternion_xyzw(att).astype(np.float32)).partition(np.full(rows, n)))
 
     rec.log(f"{root}/leader", rr.Points3D.from_fields(
         radii=[1.5], colors=[(255, 215, 0)]), static=True)
@@ -257,6 +284,14 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
     """
     clean, steps, h_ns = _validate(runs, h,
                                    FLEET_TRACE_KEYS if fleet is not None else TRACE_KEYS)
+    for m in clean:                     # the nonlinear vehicle's attitude and actuators
+        for key in _ACTUATOR_KEYS:
+            if key in runs[m]:
+                arr = np.asarray(runs[m][key], dtype=np.float64)
+                if arr.ndim != 2 or arr.shape[0] != steps:
+                    raise ValueError(f"write_rrd: run {m!r} trace {key!r} has shape "
+                                     f"{arr.shape}, expected ({steps}, ...)")
+                clean[m][key] = arr
     stride = _positive_int(stride, "stride")
     if scene_stride is not None:
         scene_stride = _positive_int(scene_stride, "scene_stride")
@@ -281,7 +316,8 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
             [np.concatenate([run["x"][:, fleet_v.position_index].reshape(-1, 3),
                              run["z"] @ fleet_v.leader_output.T]) for run in clean.values()])
         blueprint = _fleet_blueprint(methods, fleet_v.n, trail_ns, trail_steps, points,
-                                     network=bool(links))
+                                     network=bool(links),
+                                     actuators=any("rpm" in r for r in clean.values()))
 
     t0 = time.perf_counter()
     path.parent.mkdir(parents=True, exist_ok=True)
