@@ -9,10 +9,12 @@ saves.
 from typing import Any
 
 from estimator_fmu.estimators import ESTIMATOR_MODES, make_vehicle_estimator
+from estimator_fmu.multirate import navigation_estimator
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from estimator_fmu.slave_common import EstimatorSlave as Fmi2Slave
 from fmu_common.interface import ArraySpec
+from plant_model.navigation import NAV_SIZE, sensor_parameter_specs, sensors_from_parameters
 from plant_model.parameters import (
     noise_convention_spec,
     sample_period_spec,
@@ -23,6 +25,7 @@ from plant_model.per_vehicle import sample_vehicle, vehicle_alone
 
 ESTIMATOR_PARAMETERS = ("A", "B1", "B2", "C", "K", "x0", "w0", "W_x", "W_w", "V_y")
 MEASUREMENTS = ("y", "x", "w")
+SENSOR_SIGMAS = ("fix_sigma", "dvl_sigma", "depth_sigma", "current_max")
 
 
 class AuvVehicleEstimator(Fmi2Slave):
@@ -51,19 +54,24 @@ class AuvVehicleEstimator(Fmi2Slave):
         """
         d = config["dims"]
         n, m, r, p = d["n"], d["m"], d["r"], d["p"]
+        measured = (ArraySpec("nav", (NAV_SIZE,), "input", "navigation sensors [fix (3), dvl "
+                              "(3), depth, valid (3)] (plant_model.navigation)")
+                    if config.get("sensors") else
+                    ArraySpec("y", (p,), "input", "the vehicle's measured output y"))
         return system_parameter_specs(config, ESTIMATOR_PARAMETERS) + [
             sample_period_spec(config, "sample period the filter is designed for"),
             noise_convention_spec(config),
             ArraySpec("mode", (), "parameter", "estimator: " + ", ".join(ESTIMATOR_MODES),
                       start=config["mode"], type="String"),
-            ArraySpec("y", (p,), "input", "the vehicle's measured output y"),
+            *sensor_parameter_specs(config, SENSOR_SIGMAS),
+            measured,
             ArraySpec("x", (n,), "input", "true vehicle state (read only in mode 'ideal')"),
             ArraySpec("w", (r,), "input", "true disturbance state (read only in mode 'ideal')"),
             ArraySpec("u", (m,), "input", "force applied over the coming step"),
             ArraySpec("xhat", (n,), "output", "estimate of the vehicle state x",
-                      depends_on=MEASUREMENTS),
+                      depends_on=(measured.name, "x", "w")),
             ArraySpec("what", (r,), "output", "estimate of the disturbance state w",
-                      depends_on=MEASUREMENTS),
+                      depends_on=(measured.name, "x", "w")),
         ]
 
     def setup(self) -> None:
@@ -77,6 +85,11 @@ class AuvVehicleEstimator(Fmi2Slave):
         mp = system_mapping_from_parameters(self.par, ESTIMATOR_PARAMETERS)
         view = vehicle_alone(mp, int(self.config["dims"]["l"]), self.par["noise_convention"])
         model = sample_vehicle(view, float(self.par["h"]), 1)
-        self.estimator = make_vehicle_estimator(view, model, self.par["mode"])
-        self._mvec = self._in[:view.p + model.ns]
+        if self.config.get("sensors"):        # acoustic fixes, DVL, depth at their rates
+            self.estimator = navigation_estimator(view, model, self.par["mode"],
+                                                  sensors_from_parameters(self.par))
+            self._mvec = self._in[:NAV_SIZE + model.ns]
+        else:
+            self.estimator = make_vehicle_estimator(view, model, self.par["mode"])
+            self._mvec = self._in[:view.p + model.ns]
         self._u = self.io["u"]

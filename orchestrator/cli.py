@@ -6,6 +6,7 @@ refuses a call) is printed as one line naming the problem, with exit status 2.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import shlex
 import sys
@@ -18,7 +19,7 @@ from estimator_fmu.estimators import ESTIMATOR_MODES
 from plant_model.linalg_checks import ModelError
 from plant_model.network import RECEIVERS
 
-from .cli_args import _count, _positive, parse_seeds
+from .cli_args import _count, _positive, parse_floats, parse_seeds, positive_metres
 from .cli_bench import _fleet_sizes, cmd_bench
 from .cosim.instance import CosimError
 from .cosim.system import AlgebraicLoopError
@@ -224,6 +225,22 @@ def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_envelope(args: argparse.Namespace) -> int:
+    """envelope: the grid of orchestrator.envelope, one line per point."""
+    from .envelope import run_envelope
+    sc = _scenario(args)
+    if sc.fleet is None or sc.deployment != "per-vehicle":
+        raise UsageError("envelope runs a per-vehicle fleet: give a fleet scenario and "
+                         "--deployment per-vehicle")
+    with output_folder(args.out or f"out/{file_stem(sc.name)}_envelope", "envelope") as out:
+        summary = run_envelope(sc, args.speeds, args.radii, args.currents, args.tolerance,
+                               out, log=print)
+    held = sum(p["holds"] for p in summary["envelope"]["points"])
+    print(f"{held} of {len(summary['envelope']['points'])} points hold within "
+          f"{args.tolerance:g} m; wrote {out / 'summary.json'}")
+    return 130 if summary["interrupted"] else 0
+
+
 def cmd_export(args: argparse.Namespace) -> int:
     sc = _scenario(args)
     if args.format == "native":
@@ -384,6 +401,21 @@ def build_parser() -> argparse.ArgumentParser:
                          "one per core; 1: all in this process); the results do not depend "
                          "on it")
     sp.set_defaults(func=cmd_compare)
+
+    sp = sub.add_parser("envelope", help="where a per-vehicle formation holds: a grid of "
+                                         "leader speed, turn radius and current strength")
+    common(sp)
+    sp.add_argument("--speeds", type=parse_floats, default=[1.0, 1.5, 2.0],
+                    help="leader speeds, m/s (default: 1,1.5,2)")
+    sp.add_argument("--radii", type=parse_floats, default=[math.inf, 50.0, 25.0],
+                    help="leader turn radii, m; inf: a straight line (default: inf,50,25)")
+    sp.add_argument("--currents", type=parse_floats, default=[0.1, 0.3],
+                    help="ocean-current standard deviations, m/s (default: 0.1,0.3)")
+    sp.add_argument("--tolerance", type=positive_metres, default=3.0,
+                    help="the formation holds when the largest tracking error over the "
+                         "window stays within this, m (default: 3)")
+    sp.add_argument("--out", help="output folder (default: out/<scenario>_envelope)")
+    sp.set_defaults(func=cmd_envelope)
 
     sp = sub.add_parser("campaign", help="Monte Carlo runs and parameter sweeps from a spec "
                                          "file, on local worker processes or a Dask cluster")

@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 from collections import Counter
 
-__all__ = ["parse_seeds"]
+__all__ = ["parse_floats", "parse_seeds", "positive_metres"]
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -57,4 +57,30 @@ def _count(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
     if v < 1:
         raise argparse.ArgumentTypeError(f"{text!r} must be at least 1")
+    return v
+
+
+def parse_floats(text: str) -> list[float]:
+    """'1,1.5,2' -> [1.0, 1.5, 2.0]; 'inf' allowed (a straight leader path); each value
+    positive."""
+    try:
+        values = [float(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected numbers separated by commas, "
+                                         "e.g. '1,1.5,2'") from None
+    bad = [v for v in values if not v > 0]
+    if not values or bad:
+        raise argparse.ArgumentTypeError(f"{text!r}: every value must be a positive number"
+                                         + (f" ({bad[0]:g} is not)" if bad else ""))
+    return values
+
+
+def positive_metres(text: str) -> float:
+    """A positive finite distance, m."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0 < v < float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number of metres")
     return v

@@ -213,6 +213,17 @@ class PerVehicleRuns:
             If the estimator or the design does not exist or the loop is unstable (named).
         """
         sc = self.sc
+        if sc.sensors is not None and mode == "kalman":
+            # the multi-rate filter's loop is periodic with dropouts: the steady filter's
+            # window and margin, no cost (the periodic prediction is not implemented yet)
+            pred0, _, _, k0 = self._perfect(architecture, mode, tracking)
+            pred = Prediction(rms_e=None, rms_u=None, cost_rate=None,
+                              spectral_radius=pred0.spectral_radius,
+                              settling_time=pred0.settling_time,
+                              reason="no prediction for the multi-rate Kalman filter of "
+                                     "[sensors] yet (its loop is periodic, with dropouts); "
+                                     "the figures are the simulation's")
+            return pred0, pred, None, k0
         if sc.network is not None:
             setup = self.network(architecture, mode, tracking)
             path = prediction_path(setup.net, sc.steps)

@@ -17,6 +17,7 @@ from fmu_common.interface import ArraySpec
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
+from plant_model.navigation import NAV_SIZE, sensor_parameter_specs, sensors_from_parameters
 from plant_model.parameters import (
     noise_convention_spec,
     sample_period_spec,
@@ -94,7 +95,11 @@ class AuvRemus6dof(Fmi2Slave):
         specs += [ArraySpec(f"autopilot.{f}", (), "parameter", f"autopilot gain {f} "
                             "(plant_model.remus100_autopilot.AutopilotGains)",
                             start=float(gains[f]), unit=_UNITS.get(f)) for f in GAIN_FIELDS]
-        return specs + [
+        nav = ([ArraySpec("nav", (NAV_SIZE,), "output", "navigation sensors: acoustic fix "
+                          "(NED, m), DVL velocity over ground (NED, m/s), depth (m), and "
+                          "valid flags [fix, dvl, depth] (1: a new report this sample)")]
+               if config.get("sensors") else [])
+        return specs + sensor_parameter_specs(config) + [
             ArraySpec("u", (3,), "input", "NED force commanded (control and consensus)",
                       unit="N"),
             ArraySpec("y", (3,), "output", "position fix: NED position plus sensor noise",
@@ -109,7 +114,7 @@ class AuvRemus6dof(Fmi2Slave):
             ArraySpec("stern", (), "output", "stern-plane angle (positive: dive)", unit="rad"),
             ArraySpec("saturated", (), "output", "1 when an actuator command of the last step "
                       "was at or beyond its limit, else 0"),
-        ]
+        ] + nav
 
     def setup(self) -> None:
         """Build the vehicle from the parameters and start it at [x0; w0].
@@ -128,8 +133,10 @@ class AuvRemus6dof(Fmi2Slave):
         gains = AutopilotGains(**{f: float(self.par[f"autopilot.{f}"]) for f in GAIN_FIELDS})
         M, D = linear_mass_damping(view.B1, view.B2)
         substeps = substep_count(h, float(self.par["substep"]))
+        sensors = sensors_from_parameters(self.par) if self.config.get("sensors") else None
         self.plant = Remus6dofPlant(vehicle, gains, linear, M, D, view.x0, view.w0,
-                                    int(self.par["seed"]), substeps, out=self._out)
+                                    int(self.par["seed"]), substeps, out=self._out,
+                                    sensors=sensors)
         self._u = self.io["u"]
 
     def _who(self) -> str:

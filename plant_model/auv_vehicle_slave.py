@@ -17,6 +17,12 @@ from fmu_common.native_form import NativeForm
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
 from plant_model.native_plant import plant_native_form
+from plant_model.navigation import (
+    NAV_SIZE,
+    SensedVehicle,
+    sensor_parameter_specs,
+    sensors_from_parameters,
+)
 from plant_model.parameters import (
     noise_convention_spec,
     sample_period_spec,
@@ -69,7 +75,10 @@ class AuvVehicle(Fmi2Slave):
             ArraySpec("y", (p,), "output", "measured output y = C x + n"),
             ArraySpec("x", (n,), "output", "true vehicle state x"),
             ArraySpec("w", (r,), "output", "true disturbance (ocean current) state w"),
-        ]
+        ] + sensor_parameter_specs(config) + ([ArraySpec(
+            "nav", (NAV_SIZE,), "output", "navigation sensors: acoustic fix (NED, m), DVL "
+            "velocity over ground (NED, m/s), depth (m), and valid flags [fix, dvl, depth] "
+            "(1: a new report this sample)")] if config.get("sensors") else [])
 
     def setup(self) -> None:
         """Sample the vehicle at h and start it at [x0; w0] with its own noise stream.
@@ -85,16 +94,28 @@ class AuvVehicle(Fmi2Slave):
         self._buf = np.empty(3 * view.p + self.model.ns)      # [y, ybar, x, w, e]
         self._s0 = np.concatenate([view.x0, view.w0])
         self.plant = Plant(self.model, self._s0, int(self.par["seed"]), out=self._buf)
+        if self.config.get("sensors"):          # the nav output closes the output buffer
+            self.plant = SensedVehicle(self.plant, sensors_from_parameters(self.par),
+                                       self._out[-NAV_SIZE:])
         s, ns = view.p, self.model.ns
         self._from = np.r_[0:s, 2 * s:2 * s + ns]             # y, then x and w
         self._u = self.io["u"]
         self._copy()
 
     def _copy(self) -> None:
-        np.take(self._buf, self._from, out=self._out)
+        np.take(self._buf, self._from, out=self._out[:self._from.size])
 
     def native_form(self) -> NativeForm:
-        """y, x, w = Cq s (+ Lr xi), s+ = Ad s + Bd u + Lq xi (native noise, stream i)."""
+        """y, x, w = Cq s (+ Lr xi), s+ = Ad s + Bd u + Lq xi (native noise, stream i).
+
+        Raises
+        ------
+        NotImplementedError
+            With navigation sensors (their schedule and dropouts are not linear).
+        """
+        if self.config.get("sensors"):
+            raise NotImplementedError("AuvVehicle with navigation sensors has no native (C) "
+                                      "form")
         return plant_native_form(self.model, self._s0, self._from, *self.io_specs(),
                                  seed=int(self.par["seed"]), stream=int(self.par["vehicle"]),
                                  description=self.description)

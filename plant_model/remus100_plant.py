@@ -22,7 +22,9 @@ plant of a vehicle meet the same current and the same sensor noise:
 
 Extra outputs for the recording: attitude [phi, theta, psi] (rad), the propeller speed n
 (rpm), the rudder and stern-plane angles (rad), and ``saturated``: 1 when some actuator
-command of the step lay at or beyond its limit.
+command of the step lay at or beyond its limit. With navigation sensors
+(:mod:`plant_model.navigation`) the output ends with their vector [fix, dvl, depth, valid]
+of sample k, measured on the true position and velocity over ground.
 """
 from __future__ import annotations
 
@@ -35,6 +37,7 @@ import numpy as np
 from . import remus100_kernel as kernel
 from .discretization import DiscreteModel
 from .linalg_checks import ModelError
+from .navigation import NAV_SIZE, NavigationSensors, SensorStream
 from .plant import NoiseStream
 from .remus100_6dof import STATE_SIZE, Remus100
 from .remus100_autopilot import AutopilotGains
@@ -127,7 +130,8 @@ class Remus6dofPlant:
 
     def __init__(self, vehicle: Remus100, gains: AutopilotGains, linear: DiscreteModel,
                  M: np.ndarray, D: np.ndarray, x0: np.ndarray, w0: np.ndarray, seed: int,
-                 substeps: int, out: np.ndarray | None = None):
+                 substeps: int, out: np.ndarray | None = None,
+                 sensors: NavigationSensors | None = None):
         if linear.n != 6 or linear.r != 3 or linear.p != 3:
             raise ModelError("remus100-6dof: the linear design model must have 6 states, 3 "
                              "current states and 3 outputs (a remus100)")
@@ -137,7 +141,12 @@ class Remus6dofPlant:
         self._M, self._D = np.array(M, float), np.array(D, float)
         self._Aw = np.ascontiguousarray(linear.Ad[6:9, 6:9])
         self._limits = np.array([vehicle.delta_max, vehicle.delta_max, vehicle.n_max])
-        self.output = np.empty(self.OUTPUT_SIZE) if out is None else out
+        self.sensors = sensors
+        size = self.OUTPUT_SIZE + (NAV_SIZE if sensors is not None else 0)
+        self.output = np.empty(size) if out is None else out
+        if self.output.shape != (size,):
+            raise ValueError(f"vehicle output buffer has shape {self.output.shape}, expected "
+                             f"({size},)")
         self._x0, self._w0 = np.array(x0, float), np.array(w0, float)
         self.reset()
 
@@ -150,7 +159,17 @@ class Remus6dofPlant:
         self._saturated = 0.0
         self._noise = NoiseStream(self.model, self.seed)
         self._row = self._noise.next_row()
+        self._nav = (None if self.sensors is None else
+                     SensorStream(self.sensors, self.model.h, self.seed,
+                                  int(self.model.noise_keys[0])))
         self._refresh()
+        self._measure()
+
+    def _measure(self) -> None:
+        """The navigation sensors' outputs of sample k (drawn once per sample)."""
+        if self._nav is not None:
+            o = self.output
+            o[self.OUTPUT_SIZE:] = self._nav.measure(self.k, o[3:6], o[6:9])
 
     def _refresh(self) -> None:
         s, o = self.s, self.output
@@ -168,6 +187,8 @@ class Remus6dofPlant:
         o[12:15] = x[3:6]
         o[15], o[16], o[17] = x[14], x[12], x[13]
         o[18] = self._saturated
+        if self._nav is not None:
+            o[self.OUTPUT_SIZE:] = self._nav.out
 
     def step(self, u: np.ndarray) -> None:
         """Advance one step with the force u (N, NED) held (module docstring)."""
@@ -192,6 +213,7 @@ class Remus6dofPlant:
         self.k += 1
         self._row = self._noise.next_row()
         self._refresh()
+        self._measure()
 
     @property
     def command(self) -> np.ndarray:
@@ -202,7 +224,8 @@ class Remus6dofPlant:
         """Everything that evolves (copies): k, s, the command, the noise row and stream."""
         return {"k": self.k, "seed": self.seed, "s": self.s.copy(), "cmd": self._cmd.copy(),
                 "saturated": self._saturated, "row": self._row.copy(),
-                "noise": self._noise.get_state()}
+                "noise": self._noise.get_state(),
+                "nav": None if self._nav is None else self._nav.get_state()}
 
     def set_state(self, state: dict) -> None:
         """Restore a :meth:`get_state` result (validated first: on error nothing changes).
@@ -221,7 +244,12 @@ class Remus6dofPlant:
         if s.shape != self.s.shape or row.shape != self._row.shape or cmd.shape != (3,):
             raise ValueError(f"the vehicle state has shapes {s.shape}, {row.shape}, "
                              f"{cmd.shape}; expected {self.s.shape}, {self._row.shape}, (3,)")
+        if (state.get("nav") is None) != (self._nav is None):
+            raise ValueError("the vehicle state and this vehicle differ in having navigation "
+                             "sensors")
         self._noise.set_state(state["noise"])
+        if self._nav is not None:
+            self._nav.set_state(state["nav"])
         self.k, self.s, self._row, self._cmd = int(state["k"]), s, row, cmd
         self._saturated = float(state["saturated"])
         self._refresh()

@@ -163,6 +163,8 @@ def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tra
     out: list[dict[str, dict[str, Any]]] = [{"leader": dict(base, system=_mapping(v0, leader))}]
     for i, view in enumerate(views):
         cfg = dict(base, system=_mapping(view, leader))
+        if sc.sensors is not None:              # acoustic fixes, DVL, depth at their rates
+            cfg["sensors"] = dict(sc.sensors)
         one = {"vehicle": dict(cfg, vehicle=i + 1), "vehicle_estimator": cfg}
         if models[i].name == "remus100-6dof":               # the nonlinear vehicle FMU
             par = models[i].parameters
@@ -235,7 +237,8 @@ def per_vehicle_system(sc: Any, configs: list[dict[str, dict[str, Any]]],
         comps += [_component(v, vk, configs[i][vk]),
                   _component(e, "vehicle_estimator", configs[i]["vehicle_estimator"]),
                   _component(c, ctrl_key, configs[i][ctrl_key])]
-        conns += [Connection(v, "y", e, "y"),
+        measured = "nav" if "sensors" in configs[i][vk] else "y"
+        conns += [Connection(v, measured, e, measured),
                   *(Connection(v, s, e, s, (e, "mode", "ideal")) for s in ("x", "w")),
                   Connection(c, "u", v, "u"), Connection(c, "u", e, "u")]
         if networked:

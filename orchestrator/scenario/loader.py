@@ -65,6 +65,9 @@ class Scenario:
     distributed: DistributedSettings = field(default_factory=DistributedSettings)
     #: the acoustic links' [network] table (per-vehicle fleets; None: perfect links)
     network: dict[str, Any] | None = None
+    #: the navigation sensors' [sensors] table (plant_model.navigation; None: a position
+    #: fix every step)
+    sensors: dict[str, Any] | None = None
     #: the parsed file the scenario was validated from (for variants of it)
     raw: Mapping[str, Any] | None = field(default=None, repr=False, compare=False)
 
@@ -154,11 +157,21 @@ def _check_deployment(sc: Scenario, network: bool = True) -> None:
                                 "deployment = \"per-vehicle\" (a nonlinear vehicle is its own "
                                 f"FMU, not a block of the stacked linear plant), not "
                                 f"{sc.deployment!r}")
+        if network and sc.sensors is not None:
+            raise ScenarioError(f"{sc.source}: [sensors] needs [simulation] deployment = "
+                                "\"per-vehicle\" (the sensors are the vehicles' own), not "
+                                f"{sc.deployment!r}")
         if network and sc.network is not None:
             raise ScenarioError(f"{sc.source}: [network] needs [simulation] deployment = "
                                 "\"per-vehicle\" (acoustic links join the vehicles' own "
                                 f"FMUs), not {sc.deployment!r}")
         return
+    if network and sc.architecture == "distributed" and sc.estimator == "classical":
+        raise ScenarioError(f"{sc.source}: the distributed per-vehicle loop needs estimator "
+                            "kalman or ideal, not 'classical' (its analysis and predictions "
+                            "cover those two)"
+                            + (" and [sensors] give no position fix every step"
+                               if sc.sensors is not None else ""))
     if sc.fleet is None:
         raise ScenarioError(f"{sc.source}: [simulation] deployment = \"per-vehicle\" needs a "
                             "fleet scenario (a [vehicles] count, a [graph] and a [leader]); "
@@ -198,6 +211,8 @@ def _scenario(file: ScenarioFile, where: str, system: LinearSystem,
             mu=dist.mu, cohesion=dist.cohesion, regulator=dist.regulator, leader=dist.leader))
     if getattr(file, "network", None) is not None:
         sc = replace(sc, network=dict(file.network))
+    if getattr(file, "sensors", None) is not None:
+        sc = replace(sc, sensors=dict(file.sensors))
     _check_step(sc)
     _check_deployment(sc, network=False)
     return sc

@@ -38,10 +38,11 @@ from plant_model.fleet import CONSENSUS_FORMS, fleet_vehicles
 from plant_model.graph import communication_graph
 from plant_model.leader import LeaderPath, make_leader
 from plant_model.linalg_checks import ModelError, as_matrix, as_vector
+from plant_model.navigation import NavigationSensors
 from plant_model.network import check_network
 from plant_model.system import NOISE_CONVENTIONS
 from plant_model.vehicle_targets import leader_state_map, state_offset
-from plant_model.vehicles import VehicleModel
+from plant_model.vehicles import REMUS_MODELS, VehicleModel
 
 from .schema import (
     CostSection,
@@ -303,6 +304,35 @@ class FleetScenario(ScenarioFile):
     cost: CostSection = Field(default_factory=CostSection)
     distributed: DistributedSection = Field(default_factory=DistributedSection)
     network: dict[str, Any] | None = None
+    sensors: dict[str, Any] | None = None
+
+    @field_validator("sensors")
+    @classmethod
+    def sensors_fit_the_step(cls, sensors: dict[str, Any] | None,
+                             info: ValidationInfo) -> dict[str, Any] | None:
+        """[sensors]: kind = "position" (a fix every step, [noise] position: the default)
+        or "remus" (acoustic fixes, DVL and depth at their rates, plant_model.navigation:
+        periods whole numbers of steps, sigmas positive, dropouts in [0, 1)); REMUS models
+        only."""
+        vehicles, sim = _valid_vehicles(info), info.data.get("simulation")
+        if sensors is None or vehicles is None or sim is None:
+            return sensors
+        kind = sensors.get("kind", "remus")
+        if kind not in ("position", "remus"):
+            raise ModelError(f"[sensors] kind = {kind!r} is not one of position, remus")
+        if kind == "position":
+            if len(sensors) > 1:
+                raise ModelError("[sensors] kind = \"position\" takes no other key (its "
+                                 "noise is [noise] position)")
+            return None
+        bad = next((i for i, m in enumerate(vehicles.models, 1)
+                    if m.name not in REMUS_MODELS), None)
+        if bad is not None:
+            raise ModelError(f"[sensors] kind = \"remus\" needs REMUS 100 vehicles; vehicle "
+                             f"{bad} is {vehicles.models[bad - 1].name!r}")
+        nav = NavigationSensors.from_mapping(sensors)
+        nav.steps(sim.h)
+        return nav.to_mapping()
 
     @field_validator("leader")
     @classmethod

@@ -1,0 +1,145 @@
+"""A time-varying Kalman filter for measurements that arrive at different rates and
+sometimes not at all (plant_model.navigation): acoustic fixes, DVL, depth.
+
+On s = [x; w] of one vehicle sampled alone (Ad, Bd, Qd of
+:func:`plant_model.per_vehicle.sample_vehicle`), with the measurement vector
+mvec = [fix (3), dvl (3), depth, valid (3), x, w]:
+
+    rows present at k:  J_k = the rows of [fix, dvl, depth] whose valid flag is 1
+    H = [[I, 0, 0], [0, I, 0], [e_d', 0, 0]] (7 x 9),  R = diag(sigma^2)
+    est[k]   = q[k] + K_k (m_J - H_J q[k]),  K_k = P_k H_J' (H_J P_k H_J' + R_J)^-1
+    P+_k     = (I - K_k H_J) P_k (I - K_k H_J)' + K_k R_J K_k'      (Joseph form)
+    q[k+1]   = Ad est[k] + Bd u[k],  P_{k+1} = Ad P+_k Ad' + Qd
+
+With no measurement at k, est[k] = q[k]. q(0) = [x0; w0]; P_0 the stationary prior of a
+filter with a fix every step (the start is known to that accuracy). The estimate has
+direct feedthrough from the measurements, as the steady filter's.
+
+The current estimate is projected onto |w_i| <= ``current_max`` (m/s, per axis; the
+estimate-projection form of a constrained Kalman filter, the covariance unchanged). On
+the nonlinear vehicle this is what keeps the loop stable: when the vehicle cannot produce
+the commanded force (rpm at its limit, fins lagging), an accurate DVL makes the filter
+explain the missing motion as a current of tens of m/s, which the controller's current
+feedforward then pushes against, a runaway (docs/remus100-6dof.md).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from plant_model.discretization import DiscreteModel
+from plant_model.linalg_checks import ModelError
+from plant_model.navigation import NAV_SIZE, NavigationSensors
+from plant_model.system import LinearSystem
+
+from .estimators import LinearEstimator, steady_kalman
+
+__all__ = ["MultiRateKalman", "navigation_estimator", "navigation_rows"]
+
+
+def navigation_rows(n: int, r: int) -> np.ndarray:
+    """H (7 x (n + r)) of [fix; dvl; depth] on s = [x; w] of a remus model (x = [p; v])."""
+    H = np.zeros((7, n + r))
+    H[0:3, 0:3] = np.eye(3)
+    H[3:6, 3:6] = np.eye(3)
+    H[6, 2] = 1.0
+    return H
+
+
+class MultiRateKalman:
+    """The filter of the module docstring; ``estimate`` then ``update`` once per step."""
+
+    mode = "kalman"
+    uses_truth = False
+
+    def __init__(self, model: DiscreteModel, sensors: NavigationSensors, q0: np.ndarray):
+        ns = model.ns
+        self.Ad, self.Bd, self.Qd = (np.ascontiguousarray(a) for a in
+                                     (model.Ad, model.Bd, model.Qd))
+        self.H = navigation_rows(model.n, model.r)
+        self.R = np.diag(sensors.sigmas ** 2)
+        self.current_max = float(sensors.current_max)
+        self._w = slice(model.n, model.n + model.r)
+        self._rows = (np.arange(0, 3), np.arange(3, 6), np.arange(6, 7))
+        prior = steady_kalman("the multi-rate filter's start (a fix every step)", model.Ad,
+                              self.H[:3], model.Qd, self.R[:3, :3])
+        self.q0 = np.array(q0, dtype=float)
+        self.P0 = prior.P_pred.copy()
+        self._eye = np.eye(ns)
+        self.reset()
+
+    def reset(self) -> None:
+        """Restart from q0, P0."""
+        self.q = self.q0.copy()
+        self.P = self.P0.copy()
+        self._P_post = self.P0.copy()
+
+    def estimate(self, mvec: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """est[k] from q[k], P[k] and the measurements present in mvec (module docstring);
+        the filtered covariance is kept for :meth:`update` (the prior is not changed, so
+        calling this twice in a step gives the same estimate)."""
+        valid = mvec[7:NAV_SIZE] > 0.5
+        q, P = self.q, self.P
+        if not valid.any():
+            self._P_post = P
+            if out is None:
+                return q.copy()
+            out[:] = q
+            return out
+        J = np.concatenate([rows for rows, v in zip(self._rows, valid) if v])
+        H, R = self.H[J], self.R[np.ix_(J, J)]
+        S = H @ P @ H.T + R
+        K = np.linalg.solve(S, H @ P).T
+        IKH = self._eye - K @ H
+        self._P_post = IKH @ P @ IKH.T + K @ R @ K.T
+        est = q + K @ (mvec[J] - H @ q)
+        np.clip(est[self._w], -self.current_max, self.current_max, out=est[self._w])
+        if out is None:
+            return est
+        out[:] = est
+        return out
+
+    def update(self, est: np.ndarray, u: np.ndarray) -> None:
+        """q[k+1] = Ad est[k] + Bd u[k];  P[k+1] = Ad P+[k] Ad' + Qd."""
+        q = self.Ad.dot(est)
+        q += self.Bd.dot(u)
+        self.q = q
+        P = self.Ad @ self._P_post @ self.Ad.T + self.Qd
+        self.P = 0.5 * (P + P.T)
+
+    def get_state(self) -> dict:
+        """q, P and the last filtered covariance (copies)."""
+        return {"mode": "kalman-multirate", "q": self.q.copy(), "P": self.P.copy(),
+                "P_post": self._P_post.copy()}
+
+    def set_state(self, state: dict) -> None:
+        """Restore :meth:`get_state` (validated first: on error nothing changes)."""
+        if state.get("mode") != "kalman-multirate":
+            raise ValueError(f"the estimator state is of mode {state.get('mode')!r}, this "
+                             "estimator is the multi-rate Kalman filter")
+        q = np.array(state["q"], dtype=float)
+        P, Pp = np.array(state["P"], dtype=float), np.array(state["P_post"], dtype=float)
+        if q.shape != self.q0.shape or P.shape != self.P0.shape or Pp.shape != P.shape:
+            raise ValueError("the estimator state does not fit this vehicle")
+        self.q, self.P, self._P_post = q, P, Pp
+
+
+def navigation_estimator(system: LinearSystem, model: DiscreteModel, mode: str,
+                         sensors: NavigationSensors) -> MultiRateKalman | LinearEstimator:
+    """One vehicle's estimator from its navigation sensors: ``kalman`` the
+    :class:`MultiRateKalman`, ``ideal`` the truth (mvec = [nav; x; w]).
+
+    Raises
+    ------
+    ModelError
+        For ``classical``, which needs a position fix every step.
+    """
+    ns = model.ns
+    if mode == "kalman":
+        return MultiRateKalman(model, sensors, np.concatenate([system.x0, system.w0]))
+    if mode == "ideal":
+        Dm = np.zeros((ns, NAV_SIZE + ns))
+        Dm[:, NAV_SIZE:] = np.eye(ns)
+        return LinearEstimator(mode, np.zeros((ns, 0)), Dm, np.zeros((0, ns)),
+                               np.zeros((0, system.m)), np.zeros(0), uses_truth=True)
+    raise ModelError(f"estimator mode {mode!r} needs a position fix every step; with [sensors] "
+                     "(acoustic fixes, DVL, depth at their own rates) use kalman or ideal")

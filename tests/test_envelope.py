@@ -1,0 +1,53 @@
+"""auv-cosim envelope: where the formation holds (orchestrator.envelope)."""
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from orchestrator.cli import main
+from orchestrator.envelope import envelope_point
+from orchestrator.scenario import load_scenario
+
+
+def test_a_point_is_the_fleet_behind_a_line_or_a_circle_started_in_formation():
+    sc = load_scenario("formation-4").with_run(T=20.0, deployment="per-vehicle",
+                                               architecture="distributed")
+    line = envelope_point(sc, 2.0, math.inf, 0.3)
+    circle = envelope_point(sc, 1.5, 40.0, 0.1)
+    assert line.fleet["leader"]["kind"] == "straight" and circle.fleet["leader"]["kind"] == "circle"
+    assert line.fleet["vehicles"][0]["current"]["sigma"] == 0.3
+    assert line.T == 20.0 and line.deployment == "per-vehicle"
+    # started in formation: each vehicle at the leader's position plus its offset
+    z0 = line.fleet["leader"]["z0"]
+    for v in line.fleet["vehicles"]:
+        assert v["x0"][:3] == pytest.approx([z0[0] + v["offset"][0], z0[1] + v["offset"][1],
+                                             z0[2] + v["offset"][2]])
+
+
+def test_envelope_runs_the_grid_and_says_where_it_holds(tmp_path, capsys):
+    out = tmp_path / "env"
+    assert main(["envelope", "--scenario", "formation-4", "--deployment", "per-vehicle",
+                 "--architecture", "distributed", "--T", "20", "--speeds", "1.5",
+                 "--radii", "inf,30", "--currents", "0.1", "--tolerance", "2.5",
+                 "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    pts = s["envelope"]["points"]
+    assert s["envelope"]["tolerance_m"] == 2.5 and len(pts) == 2
+    assert pts[0]["radius"] is None and pts[1]["radius"] == 30.0
+    for p in pts:
+        assert p["holds"] == (p["max_error"] <= 2.5) and p["max_error"] > 0
+        assert (out / p["folder"] / "summary.json").exists()
+    assert "points hold within 2.5 m" in capsys.readouterr().out
+
+
+def test_bad_grids_are_one_line(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:            # argparse: usage line and status 2
+        main(["envelope", "--scenario", "formation-4", "--deployment", "per-vehicle",
+              "--radii", "inf,-5", "--out", str(tmp_path / "a")])
+    assert exc.value.code == 2
+    assert "every value must be a positive number (-5 is not)" in capsys.readouterr().err
+    assert main(["envelope", "--scenario", "formation-4", "--out", str(tmp_path / "b")]) == 2
+    assert "--deployment per-vehicle" in capsys.readouterr().err
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
