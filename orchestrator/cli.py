@@ -479,6 +479,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="us/step of the loop with native FMUs: in our master (with the "
                          "pythonfmu plant, all native), in the C host, in ecos, and a fused "
                          "numpy loop (--T sets the simulated time, default 200 s)")
+    sp.add_argument("--remus", action="store_true",
+                    help="the nonlinear REMUS 100: derivative and step in numpy and compiled, "
+                         "vehicle FMU doStep against the linear one, compile time")
     sp.add_argument("--json", action="store_true", help="print the figures as JSON")
     sp.set_defaults(func=cmd_bench)
     return p

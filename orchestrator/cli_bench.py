@@ -130,6 +130,25 @@ def cmd_bench_native(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_remus(args: argparse.Namespace) -> int:
+    from .bench_remus import benchmark_remus
+    r = benchmark_remus()
+    if args.json:
+        print(json.dumps(r, indent=2))
+        return 0
+    print(f"  nonlinear REMUS 100; load average {r['loadavg'][0]:.2f} on {r['cpus']} CPUs "
+          f"(after: {r['loadavg_after'][0]:.2f}); numba {'on' if r['jit'] else 'off'}")
+    print(f"  derivative          numpy {r['derivative_numpy_us']:8.1f} us   compiled "
+          f"{r['derivative_kernel_us']:6.2f} us")
+    print(f"  communication step  numpy {r['step_numpy_us']:8.1f} us   compiled "
+          f"{r['step_kernel_us']:6.2f} us   (autopilots, one RK4 step of 0.01 s)")
+    print(f"  vehicle FMU doStep  AuvRemus6dof {r['fmu_step_us_remus100-6dof']:6.1f} us   "
+          f"AuvVehicle (linear) {r['fmu_step_us_remus100']:6.1f} us   per vehicle and step")
+    print(f"  compiling the kernel: {r['compile_cold_s']:.1f} s in a fresh process, "
+          f"{r['compile_cached_s']:.1f} s from numba's disk cache")
+    return 0
+
+
 def cmd_bench_startup(args: argparse.Namespace) -> int:
     from .bench import benchmark_startup
     sc = _scenario(args)
@@ -190,6 +209,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
         return cmd_bench_startup(args)
     if getattr(args, "native", False):
         return cmd_bench_native(args)
+    if getattr(args, "remus", False):
+        return cmd_bench_remus(args)
     sc = _scenario(args)
     r = benchmark(sc, mode=sc.estimator, seed=sc.seed)
     if _printed_as_json(args, r):

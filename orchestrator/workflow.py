@@ -60,6 +60,7 @@ host must load libpython, see the README), so each FMU declares
 | `AuvEstimator` | Python 3.11+, numpy, scipy (discrete Riccati equation); networkx for fleet FMUs |
 | `AuvController` | Python 3.11+, numpy, scipy (Riccati, Sylvester); networkx for fleet FMUs |
 | `AuvNetwork` (per-vehicle fleets over acoustic links, docs/network.md) | Python 3.11+, numpy |
+| `AuvRemus6dof` (nonlinear REMUS 100) | Python 3.11+, numpy, scipy; numba if present |
 
 pythonfmu itself and this project's modules travel inside each FMU (`resources/`).
 All three support fmi2Get/SetFMUstate and fmi2Serialize/DeSerializeFMUstate.
@@ -87,7 +88,11 @@ fmi2Discard, naming the input. Plant and estimator accept only the communication
 The per-vehicle deployment (`auv-cosim build --deployment per-vehicle`) builds other FMUs
 instead: `AuvLeader`, `AuvVehicle`, `AuvVehicleEstimator` and `AuvVehicleController`
 (distributed) or `AuvCentralController` (centralized), one per kind for every vehicle;
-`docs/per-vehicle.md` lists their variables and wiring.
+`docs/per-vehicle.md` lists their variables and wiring. A vehicle of model
+`remus100-6dof` is an `AuvRemus6dof` in place of `AuvVehicle`: the same input `u` and
+outputs `y`, `x`, `w`, plus `attitude`, `rpm`, `rudder`, `stern` and `saturated`; with
+`[sensors] kind = "remus"` both vehicle FMUs also output `nav` (acoustic fix, DVL, depth,
+valid flags), which the estimator reads in place of `y`.
 
 Native FMUs, no Python needed (`auv-cosim export native`, docs/native.md): once designed,
 every FMU but `AuvNetwork` is a linear system, y = C q + D u + c + G xi and
