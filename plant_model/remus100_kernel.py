@@ -324,3 +324,50 @@ def force_commanded_step(p: np.ndarray, g: np.ndarray, x: np.ndarray, v_ref: np.
     for i in range(3):
         a = math.exp(-D[i] * h / M[i])
         v_ref[i] = a * v_ref[i] + (1.0 - a) * F[i] / D[i]
+
+
+@_jit
+def plant_step(p: np.ndarray, g: np.ndarray, s: np.ndarray, u: np.ndarray, v: np.ndarray,
+               Aw: np.ndarray, M: np.ndarray, D: np.ndarray, h: float, substeps: int,
+               cmd: np.ndarray, limits: np.ndarray) -> float:
+    """One step of :class:`plant_model.remus100_plant.Remus6dofPlant` on its evolving
+    vector s = [x (15), v_ref, integrals (2), w] in place: :func:`force_commanded_step` in
+    the current w held, then the process noise v (9: position, velocity over ground,
+    current) and w <- Aw w + v_w. Returns 1.0 when some command was at or beyond its limit."""
+    x, v_ref, integ, w = s[0:15], s[15:18], s[18:20], s[20:23]
+    force_commanded_step(p, g, x, v_ref, integ, u, w, M, D, h, substeps, cmd)
+    sat = 0.0
+    for i in range(3):
+        if abs(cmd[i]) >= limits[i]:
+            sat = 1.0
+    for i in range(3):
+        x[i] += v[i]
+    cf, sf, ct, st = math.cos(x[3]), math.sin(x[3]), math.cos(x[4]), math.sin(x[4])
+    cp, sp = math.cos(x[5]), math.sin(x[5])
+    a, b, c = v[3], v[4], v[5]                                   # nu[:3] += R' v
+    x[6] += cp * ct * a + sp * ct * b - st * c
+    x[7] += (-sp * cf + cp * st * sf) * a + (cp * cf + sf * st * sp) * b + ct * sf * c
+    x[8] += (sp * sf + cp * cf * st) * a + (-cp * sf + st * sp * cf) * b + ct * cf * c
+    w0, w1, w2 = w[0], w[1], w[2]
+    for i in range(3):
+        w[i] = Aw[i, 0] * w0 + Aw[i, 1] * w1 + Aw[i, 2] * w2 + v[6 + i]
+    return sat
+
+
+@_jit
+def plant_outputs(s: np.ndarray, n: np.ndarray, sat: float, o: np.ndarray) -> None:
+    """o[:19] = [y = p + n, p, v over ground, w, attitude, rpm, rudder, stern, sat] of the
+    evolving vector s (:func:`plant_step`) and the fix noise n (3)."""
+    x = s
+    cf, sf, ct, st = math.cos(x[3]), math.sin(x[3]), math.cos(x[4]), math.sin(x[4])
+    cp, sp = math.cos(x[5]), math.sin(x[5])
+    u, v, w = x[6], x[7], x[8]
+    for i in range(3):
+        o[i] = x[i] + n[i]
+        o[3 + i] = x[i]
+        o[9 + i] = s[20 + i]
+        o[12 + i] = x[3 + i]
+    o[6] = cp * ct * u + (-sp * cf + cp * st * sf) * v + (sp * sf + cp * cf * st) * w
+    o[7] = sp * ct * u + (cp * cf + sf * st * sp) * v + (-cp * sf + st * sp * cf) * w
+    o[8] = -st * u + ct * sf * v + ct * cf * w
+    o[15], o[16], o[17], o[18] = x[14], x[12], x[13], sat

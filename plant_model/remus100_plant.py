@@ -172,44 +172,16 @@ class Remus6dofPlant:
             o[self.OUTPUT_SIZE:] = self._nav.measure(self.k, o[3:6], o[6:9])
 
     def _refresh(self) -> None:
-        s, o = self.s, self.output
-        x = s[:STATE_SIZE]
-        phi, theta, psi = x[3], x[4], x[5]
-        cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
-        cp, sp = math.cos(psi), math.sin(psi)
-        u, v, w = x[6], x[7], x[8]
-        o[:3] = x[:3] + self._row[9:12]
-        o[3:6] = x[:3]
-        o[6] = cp * ct * u + (-sp * cf + cp * st * sf) * v + (sp * sf + cp * cf * st) * w
-        o[7] = sp * ct * u + (cp * cf + sf * st * sp) * v + (-cp * sf + st * sp * cf) * w
-        o[8] = -st * u + ct * sf * v + ct * cf * w
-        o[9:12] = s[20:23]
-        o[12:15] = x[3:6]
-        o[15], o[16], o[17] = x[14], x[12], x[13]
-        o[18] = self._saturated
+        kernel.plant_outputs(self.s, self._row[9:12], self._saturated, self.output)
         if self._nav is not None:
-            o[self.OUTPUT_SIZE:] = self._nav.out
+            self.output[self.OUTPUT_SIZE:] = self._nav.out
 
     def step(self, u: np.ndarray) -> None:
-        """Advance one step with the force u (N, NED) held (module docstring)."""
-        s = self.s
-        x, v_ref, integ, w = s[:15], s[15:18], s[18:20], s[20:23]
-        h = self.model.h
-        kernel.force_commanded_step(self._p, self._g, x, v_ref, integ,
-                                    np.asarray(u, float), w, self._M, self._D, h,
-                                    self.substeps, self._cmd)
-        self._saturated = float(np.any(np.abs(self._cmd) >= self._limits))
-        v = self._row[:9]
-        x[:3] += v[:3]
-        # velocity noise over ground, into the body frame: nu[:3] += R' v
-        phi, theta, psi = x[3], x[4], x[5]
-        cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
-        cp, sp = math.cos(psi), math.sin(psi)
-        R = np.array([[cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st],
-                      [sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf],
-                      [-st, ct * sf, ct * cf]])
-        x[6:9] += R.T @ v[3:6]
-        w[:] = self._Aw @ w + v[6:9]
+        """Advance one step with the force u (N, NED) held (module docstring; the
+        arithmetic in :func:`plant_model.remus100_kernel.plant_step`)."""
+        self._saturated = kernel.plant_step(
+            self._p, self._g, self.s, np.asarray(u, dtype=float), self._row[:9], self._Aw,
+            self._M, self._D, self.model.h, self.substeps, self._cmd, self._limits)
         self.k += 1
         self._row = self._noise.next_row()
         self._refresh()
