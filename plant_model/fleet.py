@@ -380,6 +380,7 @@ def fleet_system(spec: Mapping[str, Any]) -> LinearSystem:
 
 _MODEL_KEYS = {"remus100": ("mass", "added_mass", "time_constant", "drag_coefficient",
                             "cruise_speed"),
+               "remus100-fitted": (),
                "generic": ("A", "B1", "B2", "C")}
 
 
@@ -415,7 +416,8 @@ def resolve_fleet_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
                        for k in _MODEL_KEYS.get(mdl.name, ())}
         if mdl.name == "remus100-6dof":              # its data as given, defaults made explicit
             par = mdl.parameters
-            v["params"] = {"cruise_speed": par["cruise_speed"], **par["nonlinear"],
+            v["params"] = {"cruise_speed": par["cruise_speed"], "design": par["design"],
+                           **par["nonlinear"],
                            "autopilot": dict(par["autopilot"]),
                            **({"substep": par["substep"]} if par["substep"] else {})}
         v["x0"] = system.x0[i * p:(i + 1) * p].tolist()

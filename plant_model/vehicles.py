@@ -77,17 +77,16 @@ __all__ = [
     "lamb_factors",
     "make_vehicle",
     "remus100",
-    "remus100_6dof_design",
     "remus100_parameters",
 ]
 
 #: Names accepted by :func:`make_vehicle`.
-VEHICLE_MODELS = ("remus100", "remus100-6dof", "generic")
+VEHICLE_MODELS = ("remus100", "remus100-6dof", "remus100-fitted", "generic")
 
 #: The REMUS 100 models: NED position and velocity states, forces in, positions out. The
 #: ``remus100-6dof`` vehicle is the nonlinear plant (plant_model.remus100_plant); its
 #: VehicleModel is the linear design model the estimator and controller are built on.
-REMUS_MODELS = ("remus100", "remus100-6dof")
+REMUS_MODELS = ("remus100", "remus100-6dof", "remus100-fitted")
 
 #: Maximum speed of the REMUS 100 (m/s, propeller at 1525 rpm in zero current).
 REMUS100_MAX_SPEED = 2.5
@@ -323,11 +322,6 @@ def remus100(mass: float | None = None, added_mass: Sequence[float] | None = Non
     drag = 0.5 * rho * cd * area * uc          # secant slope of 0.5 rho Cd A |U| U (kg/s)
     M = np.array([m + ma[0], m + ma[0], m + ma[2]])
     D = np.array([M[0] / tc[0] + drag, M[1] / tc[0] + drag, M[2] / tc[2]])
-    Z = np.zeros((3, 3))
-    A = np.block([[Z, np.eye(3)], [Z, np.diag(-D / M)]])
-    B1 = np.vstack([Z, np.diag(1.0 / M)])
-    B2 = np.vstack([Z, np.diag(D / M)])
-    C = np.hstack([np.eye(3), Z])
     params = {
         "mass": m,
         "added_mass": list(ma),
@@ -341,8 +335,20 @@ def remus100(mass: float | None = None, added_mass: Sequence[float] | None = Non
         "total_mass": M.tolist(),
         "damping": D.tolist(),
     }
+    return _ned_axes_model("remus100", M, D, params)
+
+
+def _ned_axes_model(name: str, M: np.ndarray, D: np.ndarray, params: dict[str, Any]
+                    ) -> VehicleModel:
+    """A = [[0, I], [0, diag(-D/M)]], B1 = [0; diag(1/M)], B2 = [0; diag(D/M)], C = [I, 0]
+    with the REMUS names and units."""
+    Z = np.zeros((3, 3))
+    A = np.block([[Z, np.eye(3)], [Z, np.diag(-D / M)]])
+    B1 = np.vstack([Z, np.diag(1.0 / M)])
+    B2 = np.vstack([Z, np.diag(D / M)])
+    C = np.hstack([np.eye(3), Z])
     return VehicleModel(
-        name="remus100", A=A, B1=B1, B2=B2, C=C,
+        name=name, A=A, B1=B1, B2=B2, C=C,
         state_names=("n", "e", "d", "v_n", "v_e", "v_d"),
         state_units=("m", "m", "m", "m/s", "m/s", "m/s"),
         input_names=("X_n", "X_e", "X_d"), input_units=("N", "N", "N"),
@@ -404,60 +410,6 @@ _REMUS_KEYS = ("mass", "added_mass", "time_constant", "drag_coefficient", "cruis
 _GENERIC_KEYS = ("A", "B1", "B2", "C")
 
 
-def remus100_6dof_design(params: Mapping[str, Any]) -> VehicleModel:
-    """The ``remus100-6dof`` vehicle: its linear design model and its nonlinear data.
-
-    ``params``: ``cruise_speed`` (m/s, where the design model's drag is linearized;
-    default 1.5), ``substep`` (s, the RK4 sub-step; default the longest divisor of h up
-    to 0.05 s), ``autopilot`` (a table of :class:`plant_model.remus100_autopilot.
-    AutopilotGains`) and any field of :class:`plant_model.remus100_6dof.Remus100` (hull,
-    fins, propeller, limits; ``r_g`` a 3-vector). The design model is :func:`remus100`
-    of the same hull: rigid-body and added mass of the spheroid, time constants [T_surge,
-    T_sway, T_sway], drag coefficient Cd_surge.
-
-    Raises
-    ------
-    ModelError
-        Naming an unknown parameter or an invalid value.
-    """
-    from .remus100_autopilot import AutopilotGains
-    from .remus100_plant import GAIN_FIELDS, REMUS_FIELDS, remus_from_parameters
-
-    accepted = ("cruise_speed", "substep", "autopilot", "r_g", *REMUS_FIELDS)
-    unknown = sorted(str(k) for k in params if k not in accepted)
-    if unknown:
-        raise ModelError(f"unknown remus100-6dof parameter(s) {', '.join(unknown)}; "
-                         f"accepted: {', '.join(accepted)}")
-    data = {k: v for k, v in params.items() if k in REMUS_FIELDS or k == "r_g"}
-    vehicle = remus_from_parameters(data)
-    gains = params.get("autopilot", {})
-    if not isinstance(gains, Mapping) or set(gains) - set(GAIN_FIELDS):
-        bad = sorted(set(gains) - set(GAIN_FIELDS)) if isinstance(gains, Mapping) else gains
-        raise ModelError(f"remus100-6dof autopilot: unknown gain(s) {bad}; accepted: "
-                         f"{', '.join(GAIN_FIELDS)}")
-    gains = {k: as_positive(f"autopilot.{k}", v, "") for k, v in gains.items()}
-    AutopilotGains(**gains)
-    substep = params.get("substep")
-    if substep is not None:
-        substep = as_positive("substep", substep, "s")
-    hull = remus100_parameters(vehicle.rho, vehicle.L, vehicle.diam, vehicle.Cd_surge)
-    lin = remus100(mass=hull["mass"], added_mass=hull["added_mass"],
-                   time_constant=[vehicle.T_surge, vehicle.T_sway, vehicle.T_sway],
-                   drag_coefficient=vehicle.Cd_surge,
-                   cruise_speed=params.get("cruise_speed", 1.5))
-    nonlinear = {k: getattr(vehicle, k) for k in REMUS_FIELDS}
-    nonlinear["r_g"] = list(vehicle.r_g)
-    return VehicleModel(
-        name="remus100-6dof", A=lin.A, B1=lin.B1, B2=lin.B2, C=lin.C,
-        state_names=lin.state_names, state_units=lin.state_units,
-        input_names=lin.input_names, input_units=lin.input_units,
-        disturbance_names=lin.disturbance_names, disturbance_units=lin.disturbance_units,
-        output_names=lin.output_names, output_units=lin.output_units,
-        position_states=lin.position_states,
-        parameters={**lin.parameters, "nonlinear": nonlinear, "autopilot": gains,
-                    "substep": substep})
-
-
 def make_vehicle(model: str, params: Mapping[str, Any], where: str) -> VehicleModel:
     """Build a vehicle model by name from a parameter mapping (e.g. a scenario table).
 
@@ -488,11 +440,18 @@ def make_vehicle(model: str, params: Mapping[str, Any], where: str) -> VehicleMo
         )
     if not isinstance(params, Mapping):
         raise ModelError(f"{where}: the {model} parameters must be a table, got {params!r}")
+    from .remus100_models import remus100_6dof_design, remus100_fitted
     if model == "remus100-6dof":
         try:
             return remus100_6dof_design(params)
         except ModelError as exc:
             raise ModelError(f"{where}: {exc}") from None
+    if model == "remus100-fitted":
+        if params:
+            raise ModelError(f"{where}: unknown remus100-fitted parameter(s) "
+                             f"{', '.join(sorted(map(str, params)))}; it takes none (fitted "
+                             "at 1.5 m/s)")
+        return remus100_fitted()
     accepted = _REMUS_KEYS if model == "remus100" else _GENERIC_KEYS
     unknown = sorted(str(k) for k in params if k not in accepted)
     if unknown:

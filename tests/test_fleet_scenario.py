@@ -124,7 +124,7 @@ def test_override_offset_of_the_wrong_length_names_the_vehicle(tmp_path):
 
 def test_unknown_vehicle_model(tmp_path):
     msg = load_error(tmp_path, lambda d: d["vehicles"].update(model="remus600"))
-    assert "vehicle 1: unknown vehicle model 'remus600'" in msg and "remus100, remus100-6dof, generic" in msg, msg
+    assert "vehicle 1: unknown vehicle model 'remus600'" in msg and "remus100, remus100-6dof, remus100-fitted, generic" in msg, msg
     msg = load_error(tmp_path, lambda d: d["vehicles"].update(
         overrides=[{"vehicle": 3, "model": "glider"}]))
     assert "vehicle 3: unknown vehicle model 'glider'" in msg, msg

@@ -133,3 +133,17 @@ def test_state_round_trip_continues_identically(f4_6dof):
     assert np.array_equal(np.array(first), np.array(second))
     with pytest.raises(ValueError, match="seed 9"):
         plant.set_state({**state, "seed": 9})
+
+
+def test_the_fitted_model_is_a_scenario_model_and_a_design_for_the_nonlinear_vehicle():
+    from plant_model.remus100_models import FITTED_HORIZONTAL, FITTED_VERTICAL
+    fitted = make_vehicle("remus100-fitted", {}, "vehicle 1")
+    assert 1.0 / fitted.B1[3, 0] == pytest.approx(FITTED_HORIZONTAL[0])
+    assert fitted.B2[5, 2] / fitted.B1[5, 2] == pytest.approx(FITTED_VERTICAL[1])
+    six = make_vehicle("remus100-6dof", {"design": "remus100-fitted"}, "vehicle 1")
+    assert np.array_equal(six.B1, fitted.B1) and six.parameters["design"] == "remus100-fitted"
+    with pytest.raises(ModelError, match="vehicle 1: unknown remus100-fitted parameter"):
+        make_vehicle("remus100-fitted", {"cruise_speed": 1.0}, "vehicle 1")
+    with pytest.raises(ModelError, match="design = 'linear' is not one of remus100, "
+                                         "remus100-fitted"):
+        make_vehicle("remus100-6dof", {"design": "linear"}, "vehicle 1")

@@ -1,11 +1,13 @@
 """Frequency responses of the nonlinear REMUS 100 behind the force interface against the
-linear ``remus100`` (issue "A nonlinear 6-DOF REMUS 100", in progress).
+linear ``remus100``, and the first-order model fitted to them (``remus100-fitted``).
 
 At a trim (straight and level at ``U0`` m/s north), a sinusoidal NED force of amplitude A
 (N) on one axis (0 along track, 1 cross track, 2 vertical) is added to the trim force;
 after one period to settle, the velocity over ground on that axis is fitted over two
 periods by least squares to c + a sin(w t) + b cos(w t). The linear model's velocity per
-force is 1 / (M_a j w + D_a) (plant_model.vehicles.remus100 at cruise speed U0).
+force is 1 / (M_a j w + D_a) (plant_model.vehicles.remus100 at cruise speed U0). The
+vehicle is stepped by the compiled kernel (plant_model.remus100_kernel, the same equations
+as ForceCommandedRemus to 1e-12).
 """
 from __future__ import annotations
 
@@ -14,11 +16,16 @@ from typing import Any
 
 import numpy as np
 
+from plant_model import remus100_kernel as kernel
 from plant_model.remus100_6dof import STATE_SIZE, Remus100
-from plant_model.remus100_autopilot import ForceCommandedRemus
+from plant_model.remus100_autopilot import AutopilotGains
+from plant_model.rigid_body import rotation_ned_body
 from plant_model.vehicles import remus100
 
-__all__ = ["force_frequency_response"]
+__all__ = ["FIT_OMEGAS", "fit_first_order", "force_frequency_response"]
+
+#: the frequencies the first-order fit uses, rad/s: periods from 21 s to 5 minutes
+FIT_OMEGAS = tuple(float(w) for w in np.geomspace(0.02, 0.3, 8))
 
 
 def force_frequency_response(axis: int, omegas: list[float], *, U0: float = 1.5,
@@ -46,20 +53,24 @@ def force_frequency_response(axis: int, omegas: list[float], *, U0: float = 1.5,
     """
     lin = remus100(cruise_speed=U0)
     M, D = np.array(lin.parameters["total_mass"]), np.array(lin.parameters["damping"])
+    vehicle = Remus100()
+    p, g = kernel.pack(vehicle), kernel.pack_gains(AutopilotGains())
+    current = np.zeros(3)
     out = []
     for w in omegas:
-        x0 = np.zeros(STATE_SIZE)
-        x0[6], x0[14] = U0, 1525.0 * U0 / 2.55
-        veh = ForceCommandedRemus(Remus100(), M, D, x0)
+        x = np.zeros(STATE_SIZE)
+        x[6], x[14] = U0, 1525.0 * U0 / 2.55
+        v_ref, integ, cmd = x[6:9].copy(), np.zeros(2), np.zeros(3)
         T = 2.0 * math.pi / w
         n = round(3.0 * T / h)
         t = np.arange(n) * h
         vel = np.empty(n)
+        F = np.zeros(3)
         for k in range(n):
-            F = np.array([D[0] * U0, 0.0, 0.0])
+            F[:] = (D[0] * U0, 0.0, 0.0)
             F[axis] += amplitude * math.sin(w * t[k])
-            vel[k] = veh.ned_state[3 + axis]
-            veh.step(F, h, 1)
+            vel[k] = (rotation_ned_body(*x[3:6]) @ x[6:9])[axis]
+            kernel.force_commanded_step(p, g, x, v_ref, integ, F, current, M, D, h, 1, cmd)
         keep = t >= T
         X = np.column_stack([np.ones(keep.sum()), np.sin(w * t[keep]), np.cos(w * t[keep])])
         _, a, b = np.linalg.lstsq(X, vel[keep], rcond=None)[0]
@@ -71,3 +82,28 @@ def force_frequency_response(axis: int, omegas: list[float], *, U0: float = 1.5,
                     "phase_difference": (phase - math.atan2(G.imag, G.real) + math.pi)
                     % (2.0 * math.pi) - math.pi})
     return out
+
+
+def fit_first_order(axes: list[int], omegas: tuple[float, ...] = FIT_OMEGAS, *,
+                    U0: float = 1.5, h: float = 0.05) -> tuple[float, float]:
+    """(M, D): the first-order model G_f = 1 / (M j w + D) (kg, kg/s) closest to the
+    nonlinear vehicle's velocity per force G on ``axes`` (stacked) in relative error,
+    sum |G - G_f|^2 / |G|^2 = sum |1/G - (D + j w M)|^2 / |D + j w M|^2, by
+    Sanathanan-Koerner iteration: linear least squares on the inverse response, each pass
+    weighted by the previous pass's 1 / |D + j w M| (:func:`force_frequency_response`)."""
+    inv, om = [], []
+    for axis in axes:
+        for r in force_frequency_response(axis, list(omegas), U0=U0, h=h):
+            inv.append(1.0 / (r["gain"] * complex(math.cos(r["phase"]), math.sin(r["phase"]))))
+            om.append(r["omega"])
+    inv_a, om_a = np.array(inv), np.array(om)
+    weight = np.ones(len(om_a))
+    for _ in range(20):
+        rows = np.zeros((2 * len(om_a), 2))
+        rows[0::2, 0] = weight
+        rows[1::2, 1] = weight * om_a
+        rhs = np.empty(2 * len(om_a))
+        rhs[0::2], rhs[1::2] = weight * inv_a.real, weight * inv_a.imag
+        (D, M), *_ = np.linalg.lstsq(rows, rhs, rcond=None)
+        weight = 1.0 / np.abs(D + 1j * om_a * M)
+    return float(M), float(D)
