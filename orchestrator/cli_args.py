@@ -40,14 +40,20 @@ def parse_seeds(text: str) -> list[int]:
     return seeds
 
 
-def _positive(text: str) -> float:
+def _positive_finite(text: str, unit: str) -> float:
+    """A positive finite number, or one line naming the value and the unit."""
     try:
         v = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not v > 0 or v == float("inf"):
-        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number of seconds")
+    if not 0 < v < float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number of {unit}")
     return v
+
+
+def _positive(text: str) -> float:
+    """A positive finite time, s."""
+    return _positive_finite(text, "seconds")
 
 
 def _count(text: str) -> int:
@@ -77,10 +83,4 @@ def parse_floats(text: str) -> list[float]:
 
 def positive_metres(text: str) -> float:
     """A positive finite distance, m."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not 0 < v < float("inf"):
-        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number of metres")
-    return v
+    return _positive_finite(text, "metres")
