@@ -25,7 +25,6 @@ from plant_model.per_vehicle import sample_vehicle, vehicle_alone
 
 ESTIMATOR_PARAMETERS = ("A", "B1", "B2", "C", "K", "x0", "w0", "W_x", "W_w", "V_y")
 MEASUREMENTS = ("y", "x", "w")
-SENSOR_SIGMAS = ("fix_sigma", "dvl_sigma", "depth_sigma", "current_max")
 
 
 class AuvVehicleEstimator(Fmi2Slave):
@@ -63,7 +62,7 @@ class AuvVehicleEstimator(Fmi2Slave):
             noise_convention_spec(config),
             ArraySpec("mode", (), "parameter", "estimator: " + ", ".join(ESTIMATOR_MODES),
                       start=config["mode"], type="String"),
-            *sensor_parameter_specs(config, SENSOR_SIGMAS),
+            *sensor_parameter_specs(config),
             measured,
             ArraySpec("x", (n,), "input", "true vehicle state (read only in mode 'ideal')"),
             ArraySpec("w", (r,), "input", "true disturbance state (read only in mode 'ideal')"),

@@ -11,8 +11,10 @@ mvec = [fix (3), dvl (3), depth, valid (3), x, w]:
     P+_k     = (I - K_k H_J) P_k (I - K_k H_J)' + K_k R_J K_k'      (Joseph form)
     q[k+1]   = Ad est[k] + Bd u[k],  P_{k+1} = Ad P+_k Ad' + Qd
 
-With no measurement at k, est[k] = q[k]. q(0) = [x0; w0]; P_0 the stationary prior of a
-filter with a fix every step (the start is known to that accuracy). The estimate has
+With no measurement at k, est[k] = q[k]. q(0) = [x0; w0]; P_0 the periodic filter's
+prior at phase 0 when no report is ever lost (:func:`periodic_filter`: the filter is then
+periodic from the first step), else the stationary prior of a filter with a fix every
+step (the start is known to that accuracy). The estimate has
 direct feedthrough from the measurements, as the steady filter's.
 
 The current estimate is projected onto |w_i| <= ``current_max`` (m/s, per axis; the
@@ -24,6 +26,8 @@ feedforward then pushes against, a runaway (docs/remus100-6dof.md).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from plant_model.discretization import DiscreteModel
@@ -33,7 +37,7 @@ from plant_model.system import LinearSystem
 
 from .estimators import LinearEstimator, steady_kalman
 
-__all__ = ["MultiRateKalman", "navigation_estimator", "navigation_rows"]
+__all__ = ["MultiRateKalman", "navigation_estimator", "navigation_rows", "periodic_filter"]
 
 
 def navigation_rows(n: int, r: int) -> np.ndarray:
@@ -43,6 +47,61 @@ def navigation_rows(n: int, r: int) -> np.ndarray:
     H[3:6, 3:6] = np.eye(3)
     H[6, 2] = 1.0
     return H
+
+
+def periodic_filter(Ad: np.ndarray, Qd: np.ndarray, sensors: NavigationSensors, h: float,
+                    n: int, r: int
+                    ) -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray]], np.ndarray]:
+    """The periodic Kalman filter of a schedule without dropouts: per phase k of the
+    sensors' period P = lcm(n_fix, n_dvl, n_depth) (rows J_k, gain L_k (ns x |J_k|), R_k),
+    and the prior covariance at phase 0, from P_{k+1} = Ad (I - L_k H_k) P_k Ad' + Qd
+    iterated (report to report, the silent steps in one product) until the prior at
+    phase 0 repeats to 1e-12 relative. Ad, Qd: the vehicle sampled at h; n, r: its
+    state and current sizes.
+
+    Raises
+    ------
+    ModelError
+        If it does not converge in 100000 periods.
+    """
+    every = sensors.steps(h)
+    P = math.lcm(*(int(v) for v in every))
+    H, R = navigation_rows(n, r), np.diag(sensors.sigmas ** 2)
+    groups = (np.arange(0, 3), np.arange(3, 6), np.arange(6, 7))
+    rows = []
+    for k in range(P):
+        present = [g for g, nj in zip(groups, every) if k % nj == 0]
+        rows.append(np.concatenate(present) if present else np.zeros(0, dtype=int))
+    ns = Ad.shape[0]
+    eye = np.eye(ns)
+    reports = [k for k in range(P) if rows[k].size]          # phase 0 always: all report
+    gaps = [((reports[(i + 1) % len(reports)] - k) % P) or P for i, k in enumerate(reports)]
+    # between two reports: P <- A^m P A^m' + Q_m, Q_m = sum_{j<m} A^j Qd A^j'
+    power: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    for m in sorted(set(gaps)):
+        A, Q = eye.copy(), np.zeros((ns, ns))
+        for _ in range(m):
+            Q = Ad @ Q @ Ad.T + Qd
+            A = Ad @ A
+        power[m] = (A, Q)
+    out = [(np.zeros(0, dtype=int), np.zeros((ns, 0)), np.zeros((0, 0))) for _ in range(P)]
+    Pm = Qd.copy()
+    for _ in range(100_000):
+        start = Pm.copy()
+        for k, m in zip(reports, gaps):
+            J = rows[k]
+            Hk, Rk = H[J], R[np.ix_(J, J)]
+            L = np.linalg.solve(Hk @ Pm @ Hk.T + Rk, Hk @ Pm).T
+            IKH = eye - L @ Hk
+            Pp = IKH @ Pm @ IKH.T + L @ Rk @ L.T
+            out[k] = (J, L, Rk)
+            A, Q = power[m]
+            Pm = A @ Pp @ A.T + Q
+            Pm = 0.5 * (Pm + Pm.T)
+        if np.abs(Pm - start).max() <= 1e-12 * np.abs(Pm).max():
+            return out, Pm
+    raise ModelError("the periodic Kalman filter of [sensors] did not converge")
+
 
 
 class MultiRateKalman:
@@ -60,10 +119,13 @@ class MultiRateKalman:
         self.current_max = float(sensors.current_max)
         self._w = slice(model.n, model.n + model.r)
         self._rows = (np.arange(0, 3), np.arange(3, 6), np.arange(6, 7))
-        prior = steady_kalman("the multi-rate filter's start (a fix every step)", model.Ad,
-                              self.H[:3], model.Qd, self.R[:3, :3])
         self.q0 = np.array(q0, dtype=float)
-        self.P0 = prior.P_pred.copy()
+        if sensors.fix_dropout or sensors.dvl_dropout or sensors.depth_dropout:
+            self.P0 = steady_kalman("the multi-rate filter's start (a fix every step)",
+                                    model.Ad, self.H[:3], model.Qd, self.R[:3, :3]).P_pred
+        else:
+            self.P0 = periodic_filter(model.Ad, model.Qd, sensors, model.h, model.n,
+                                      model.r)[1]
         self._eye = np.eye(ns)
         self.reset()
 

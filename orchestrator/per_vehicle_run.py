@@ -214,16 +214,7 @@ class PerVehicleRuns:
         """
         sc = self.sc
         if sc.sensors is not None and mode == "kalman":
-            # the multi-rate filter's loop is periodic with dropouts: the steady filter's
-            # window and margin, no cost (the periodic prediction is not implemented yet)
-            pred0, _, _, k0 = self._perfect(architecture, mode, tracking)
-            pred = Prediction(rms_e=None, rms_u=None, cost_rate=None,
-                              spectral_radius=pred0.spectral_radius,
-                              settling_time=pred0.settling_time,
-                              reason="no prediction for the multi-rate Kalman filter of "
-                                     "[sensors] yet (its loop is periodic, with dropouts); "
-                                     "the figures are the simulation's")
-            return pred0, pred, None, k0
+            return self._multirate(architecture, tracking)
         if sc.network is not None:
             setup = self.network(architecture, mode, tracking)
             path = prediction_path(setup.net, sc.steps)
@@ -240,6 +231,35 @@ class PerVehicleRuns:
                               reason=too_many_states(setup.net.n, path, sc.steps))
             return pred0, pred, (pred if cost is not None else None), k0
         return self._perfect(architecture, mode, tracking)
+
+    def _multirate(self, architecture: str, tracking: str
+                   ) -> tuple[Prediction, Prediction, Prediction | None, int]:
+        """:meth:`predictions` with the multi-rate filter of [sensors]: the periodic loop's
+        (distributed, no dropouts; orchestrator.analysis.multirate_prediction), else the
+        steady filter's window and margin and no cost, saying why."""
+        from plant_model.navigation import NavigationSensors
+
+        from .analysis.multirate_prediction import predict_multirate_cost
+        sc = self.sc
+        sensors = NavigationSensors.from_mapping(sc.sensors)
+        pred0, _, _, k0 = self._perfect(architecture, "kalman", tracking)
+        reason = ("no prediction for the multi-rate Kalman filter of [sensors] with the "
+                  "centralized architecture")
+        if architecture == "distributed":
+            loop = distributed_loop_of(sc, "kalman", tracking, sc.distributed)
+            try:
+                stat = predict_multirate_cost(sc, loop, sensors)
+                k0 = stats_window(sc.T, sc.h, stat.settling_time)
+                win = predict_multirate_cost(sc, loop, sensors, (k0, sc.steps),
+                                             distributed_initial_state(sc, loop))
+                return _prediction(stat), _prediction(win), None, k0
+            except ModelError as exc:
+                reason = f"no prediction for the multi-rate Kalman filter: {exc}"
+        pred = Prediction(rms_e=None, rms_u=None, cost_rate=None,
+                          spectral_radius=pred0.spectral_radius,
+                          settling_time=pred0.settling_time,
+                          reason=reason + "; the figures are the simulation's")
+        return pred0, pred, None, k0
 
     def _perfect(self, architecture: str, mode: str, tracking: str
                  ) -> tuple[Prediction, Prediction, Prediction | None, int]:

@@ -332,8 +332,11 @@ def add_vehicle_rows(Phi: np.ndarray, Gam: np.ndarray, sampled: Sequence[Sampled
 
 def _assemble(sampled: Sequence[SampledAgent], laws: Sequence[VehicleLaw], LG: np.ndarray,
               g: np.ndarray, obs: SampledObserver, H: np.ndarray, offsets: Sequence[np.ndarray],
-              cohesion: float, kalman: bool) -> dict[str, Any]:
-    """The stacked matrices (real, or complex when LG is: the per-eigenvalue blocks)."""
+              cohesion: float, kalman: bool,
+              outputs: Sequence[np.ndarray] | None = None) -> dict[str, Any]:
+    """The stacked matrices (real, or complex when LG is: the per-eigenvalue blocks).
+    ``outputs``: each vehicle's output matrix [C, 0] of its errors when its measurement
+    rows M are other sensors (default: M)."""
     N = len(sampled)
     l_ = obs.Phi.shape[0]
     dt = complex if np.iscomplexobj(LG) else float
@@ -406,13 +409,14 @@ def _assemble(sampled: Sequence[SampledAgent], laws: Sequence[VehicleLaw], LG: n
             Phi[ei, idx["eta"][j]] -= LG[i, j] * B
         Phi[ei, iv] += g[i] * B
     # errors e_i = H v + d_i c - C_i x_i
-    Ce = np.zeros((sum(ss), nX))
+    outs = [sa.M for sa in sampled] if outputs is None else list(outputs)
+    Ce = np.zeros((sum(o.shape[0] for o in outs), nX))
     row = 0
-    for i, sa in enumerate(sampled):
-        Ce[row:row + ss[i], iv] = H
-        Ce[row:row + ss[i], ic] = offsets[i]
-        Ce[row:row + ss[i], idx["s"][i]] = -sa.M
-        row += ss[i]
+    for i, o in enumerate(outs):
+        Ce[row:row + o.shape[0], iv] = H
+        Ce[row:row + o.shape[0], ic] = offsets[i]
+        Ce[row:row + o.shape[0], idx["s"][i]] = -o
+        row += o.shape[0]
     det = np.zeros(nX, dtype=bool)
     det[:l_ + 1] = True
     W = block_diag(*[sa.Qd for sa in sampled], *[sa.Rd for sa in sampled])
