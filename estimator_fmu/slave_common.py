@@ -20,8 +20,17 @@ class EstimatorSlave(DelegatedStateSlave):
     evolving_name = "q"
 
     def native_form(self) -> NativeForm:
-        """est = Ce q + Dm mvec (the measurement inputs), q+ = Aq est + Bu u."""
+        """est = Ce q + Dm mvec (the measurement inputs), q+ = Aq est + Bu u.
+
+        Raises
+        ------
+        NotImplementedError
+            For the multi-rate filter of the navigation sensors (time-varying).
+        """
         e = self.estimator
+        if not hasattr(e, "Ce"):
+            raise NotImplementedError(f"{type(self).__name__} with the multi-rate filter has "
+                                      "no native (C) form")
         inputs, outputs = self.io_specs()
         u0 = BlockLayout(inputs)["u"].start
         return NativeForm(inputs=inputs, outputs=outputs, nq=e.q0.size, h=float(self.par["h"]),

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import shutil
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,6 +17,8 @@ from orchestrator.cosim.master import run_system
 from orchestrator.interop.native import native_system
 from orchestrator.scenario import load_scenario
 from orchestrator.workflow import build, scenario_system
+
+ROOT = Path(__file__).resolve().parent.parent
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler (cc)")
 
@@ -70,6 +73,24 @@ def test_per_vehicle_native_controllers_and_estimators_equal_the_pythonfmu_loop(
     ctrl = [c for c in ns.system.components if c.name.startswith("controller_")]
     assert len(ctrl) == 4 and ctrl[0].parameters == {}       # the start values: vehicle 1
     assert all(c.parameters for c in ctrl[1:])                # the others' own values
+
+
+def test_what_is_not_linear_stays_pythonfmu_and_the_rest_runs_native(tmp_path):
+    """The nonlinear vehicle (and, with navigation sensors, the multi-rate estimator) have
+    no native form: native_system keeps their pythonfmu FMUs; the native leader and
+    controllers beside them give the pythonfmu loop to 1e-12."""
+    text = (ROOT / "orchestrator/scenario/builtin/formation-4.toml").read_text()
+    text = text.replace('model = "remus100"', 'model = "remus100-6dof"')
+    (tmp_path / "six.toml").write_text(text + '\n[sensors]\nkind = "remus"\n')
+    sc = load_scenario(tmp_path / "six.toml").with_run(
+        T=10.0, deployment="per-vehicle", architecture="distributed")
+    system, py, ns = _native(sc, tmp_path)
+    assert ns.fmus["remus6dof"] == py["remus6dof"]
+    assert ns.fmus["vehicle_estimator"] == py["vehicle_estimator"]
+    assert ns.fmus["vehicle_controller"].name == "AuvVehicleControllerNative.fmu"
+    ref, _, _ = run_system(system, py, sc.steps)
+    got, _, _ = run_system(ns.system, ns.fmus, sc.steps)
+    _assert_equal_traces(ref, got)
 
 
 def _with_plant_seed(system, seed):

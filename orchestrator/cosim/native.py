@@ -46,7 +46,9 @@ __all__ = ["CFLAGS", "NATIVE_KINDS", "NativeBuildError", "build_native_fmu", "co
            "form_of", "native_model", "native_parameters", "native_specs"]
 
 #: the kinds that have a native form (the network is not linear: it stays pythonfmu)
-NATIVE_KINDS = tuple(k for k in FMU_KINDS if k != "network")
+#: the kinds whose FMUs are linear once designed (the network and the nonlinear vehicle
+#: are not; with navigation sensors the vehicle and estimator FMUs are not either)
+NATIVE_KINDS = tuple(k for k in FMU_KINDS if k not in ("network", "remus6dof"))
 C_SOURCE = ROOT / "fmu_common" / "native" / "linear_fmu.c"
 #: how the shared library is built (IEEE arithmetic kept: no -ffast-math)
 CFLAGS = ("-shared", "-fPIC", "-O2", "-std=c99", "-Wall", "-Wextra")

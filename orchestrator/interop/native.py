@@ -7,8 +7,10 @@ controller and the leader) the pythonfmu slave is set up once in this process an
 form taken (:func:`orchestrator.cosim.native.form_of`). One native FMU is built per kind,
 with the first component's values as start values; every other component of the kind gets
 its own values as a parameter set in the OSP and SSP files. The wiring is the pythonfmu
-system's: the native FMUs have the same inputs and outputs. An acoustic network stays
-pythonfmu (it is not linear; its FMUs need Python).
+system's: the native FMUs have the same inputs and outputs. What is not linear stays
+pythonfmu and needs Python: an acoustic network, the nonlinear vehicle (remus100-6dof),
+and the vehicle and estimator FMUs with navigation sensors (their schedule, dropouts and
+time-varying filter).
 """
 from __future__ import annotations
 
@@ -70,8 +72,13 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
     ExportError
         If two components of one kind have forms of different shapes (one line each).
     """
-    forms = {c.name: form_of(c.fmu, Path(fmus[c.fmu]), c.parameters)
-             for c in system.components if c.fmu in kinds}
+    forms: dict[str, NativeForm] = {}
+    for kind in dict.fromkeys(c.fmu for c in system.components if c.fmu in kinds):
+        try:
+            forms.update({c.name: form_of(c.fmu, Path(fmus[c.fmu]), c.parameters)
+                          for c in system.components if c.fmu == kind})
+        except NotImplementedError:         # not linear in this system (navigation sensors):
+            continue                        # its pythonfmu FMU stays
     # a static law works at any step; its h is the system's, for the default experiment
     forms = {k: dataclasses.replace(f, h=system.h) if f.static else f for k, f in forms.items()}
     base: dict[str, NativeForm] = {}
