@@ -14,7 +14,7 @@ def test_compare_plants_reports_errors_by_segment_and_saturation(tmp_path, capsy
     out = tmp_path / "plants"
     assert main(["compare", "--scenario", "formation-4", "--deployment", "per-vehicle",
                  "--architecture", "distributed", "--what", "plants", "--seeds", "0",
-                 "--T", "40", "--out", str(out), "--quiet"]) == 0
+                 "--T", "30", "--out", str(out), "--quiet"]) == 0
     printed = capsys.readouterr().out
     s = json.loads((out / "summary.json").read_text())
     lin, six = s["methods"]["remus100"], s["methods"]["remus100-6dof"]
@@ -75,4 +75,9 @@ def test_the_nonlinear_vehicle_is_refused_where_it_cannot_run(tmp_path, capsys):
     (tmp_path / "bad.toml").write_text(bad)
     one_line(["run", "--scenario", str(tmp_path / "bad.toml"), "--deployment", "per-vehicle",
               "--out", str(tmp_path / "c")], "n_max = -1525 must be positive")
-    assert not any((tmp_path / d).exists() for d in "abc")
+    sub = text.replace("params = { cruise_speed = 1.5 }", "params = { substep = 0.003 }")
+    (tmp_path / "sub.toml").write_text(sub)
+    one_line(["run", "--scenario", str(tmp_path / "sub.toml"), "--deployment", "per-vehicle",
+              "--out", str(tmp_path / "d")],
+             "vehicle 1: remus100-6dof: substep = 0.003 s does not divide the step h = 0.01 s")
+    assert not any((tmp_path / d).exists() for d in "abcd")

@@ -138,11 +138,21 @@ class Scenario:
 
 
 def _check_step(sc: Scenario) -> None:
-    """The step h can sample the model (:func:`plant_model.discretization.check_step`)."""
+    """The step h can sample the model (:func:`plant_model.discretization.check_step`), and
+    every nonlinear vehicle's RK4 sub-step divides it."""
     try:
         check_step(sc.system.augmented()[0], sc.h)
     except ModelError as exc:
         raise ScenarioError(f"{sc.source}: [simulation] h: {exc}") from None
+    for i, v in enumerate((sc.fleet or {}).get("vehicles", []), start=1):
+        substep = v.get("params", {}).get("substep") if v.get("model") == "remus100-6dof" \
+            else None
+        if substep is not None:
+            from plant_model.remus100_plant import substep_count
+            try:
+                substep_count(sc.h, float(substep))
+            except ModelError as exc:
+                raise ScenarioError(f"{sc.source}: vehicle {i}: {exc}") from None
 
 
 def _check_deployment(sc: Scenario, network: bool = True) -> None:

@@ -188,13 +188,16 @@ def test_valgrind_shows_the_use_after_free_and_the_workaround(host, libpython, c
     env = host_env(libpython, PYTHONMALLOC="malloc")
     uaf = re.compile(r"Invalid (read|write) of size \d+\n==\d+==\s+at 0x[0-9A-Fa-f]+: "
                      r"finalizePythonInterpreter")
-    found = {}
     cases = {"return": ("--exit", "return"), "pythonfmu": ("--exit", "pythonfmu"),
              "_exit": ("--exit", "_exit"),
              # the host owning and finalizing the interpreter does not avoid it
              "host finalizes": ("--init-python", "--exit", "finalize")}
-    for name, args in cases.items():
+    from concurrent.futures import ThreadPoolExecutor
+
+    def one(args: tuple[str, ...]) -> bool:         # each case its own process: 2 at a time
         res = run_host(host, controller_dir, inputs[:2], env, *args,
                        wrapper=[valgrind, "--num-callers=6"], timeout=900)
-        found[name] = bool(uaf.search(res.stderr))
+        return bool(uaf.search(res.stderr))
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        found = dict(zip(cases, pool.map(one, cases.values())))
     assert found == {"return": True, "pythonfmu": False, "_exit": False, "host finalizes": True}
