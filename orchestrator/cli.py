@@ -100,6 +100,9 @@ def _print_summary(summary: dict, out: Path) -> int:
                      f"; closest approach {sep['m']:#.3g} m (vehicles {sep['vehicles'][0]} "
                      f"and {sep['vehicles'][1]} at t = {sep['time_s']:.4g} s, seed "
                      f"{sep['seed']})"))
+    notes = {m.get("prediction_note") for m in summary["methods"].values()} - {None}
+    for note in sorted(notes):
+        print(f"note: {note}")
     if summary.get("cost_rate_full_information") is not None:
         line = (f"full-information bound (every state known, the same cost) "
                 f"{summary['cost_rate_full_information']:#.4g}")

@@ -192,6 +192,12 @@ def build(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
     return build_fmus(scenario_config(sc), Path(out_dir))
 
 
+#: the prediction of a fleet of nonlinear vehicles is the linear design model's
+NONLINEAR_NOTE = ("predicted on the linear design model: the vehicles are the nonlinear "
+                  "remus100-6dof, so simulation and prediction differ by what the design "
+                  "model leaves out (docs/remus100-6dof.md)")
+
+
 def method_list(sc: Scenario, estimators: Sequence[str] | None = None,
                 trackings: Sequence[str] | None = None,
                 architectures: Sequence[str] | None = None) -> list[tuple[str, str, str, str]]:
@@ -382,6 +388,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
     formation = (None if layout is None else
                  (layout.position_index, layout.offsets, layout.edges, sc.h))
     skipped: list[ModelError] = []
+    nonlinear = any(v.get("model") == "remus100-6dof" for v in (sc.fleet or {}).get("vehicles", []))
     bounds: dict[int, float | None] = {}
     notes: set[str] = set()
     for name, mode, tracking, arch in methods_run:
@@ -455,6 +462,9 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         if per_seed and pred_window is not None:
             methods[name]["cost_rate"]["predicted_window"] = pred_window.cost_rate
             methods[name]["rms_e"]["predicted_window"] = pred_window.rms_e
+        if per_seed and nonlinear:
+            methods[name]["prediction_note"] = "; ".join(filter(None, [
+                methods[name].get("prediction_note"), NONLINEAR_NOTE]))
         methods[name]["estimator"] = mode
         methods[name]["tracking"] = tracking
         methods[name]["architecture"] = arch

@@ -26,6 +26,7 @@ def test_compare_plants_reports_errors_by_segment_and_saturation(tmp_path, capsy
     # the torpedo cannot follow the 2.3 m/s start of the survey as the linear model does
     assert six["max_error"] > lin["max_error"]
     assert six["plant"] == "remus100-6dof" and s["plants"]["remus100"]["folder"] == "remus100"
+    assert "linear design model" in six["prediction_note"] and "prediction_note" not in lin
     for model in ("remus100", "remus100-6dof"):
         assert (out / model / "formation-4.rrd").stat().st_size > 10_000
         assert json.loads((out / model / "summary.json").read_text())["methods"]
