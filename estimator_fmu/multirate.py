@@ -37,7 +37,11 @@ from plant_model.system import LinearSystem
 
 from .estimators import LinearEstimator, steady_kalman
 
-__all__ = ["MultiRateKalman", "navigation_estimator", "navigation_rows", "periodic_filter"]
+__all__ = ["SENSOR_ROWS", "MultiRateKalman", "navigation_estimator", "navigation_rows",
+           "periodic_filter"]
+
+#: the rows of [fix; dvl; depth] (:func:`navigation_rows`) each sensor reports
+SENSOR_ROWS = (np.arange(0, 3), np.arange(3, 6), np.arange(6, 7))
 
 
 def navigation_rows(n: int, r: int) -> np.ndarray:
@@ -67,10 +71,9 @@ def periodic_filter(Ad: np.ndarray, Qd: np.ndarray, sensors: NavigationSensors, 
     every = sensors.steps(h)
     P = math.lcm(*(int(v) for v in every))
     H, R = navigation_rows(n, r), np.diag(sensors.sigmas ** 2)
-    groups = (np.arange(0, 3), np.arange(3, 6), np.arange(6, 7))
     rows = []
     for k in range(P):
-        present = [g for g, nj in zip(groups, every) if k % nj == 0]
+        present = [g for g, nj in zip(SENSOR_ROWS, every) if k % nj == 0]
         rows.append(np.concatenate(present) if present else np.zeros(0, dtype=int))
     ns = Ad.shape[0]
     eye = np.eye(ns)
@@ -118,14 +121,13 @@ class MultiRateKalman:
         self.R = np.diag(sensors.sigmas ** 2)
         self.current_max = float(sensors.current_max)
         self._w = slice(model.n, model.n + model.r)
-        self._rows = (np.arange(0, 3), np.arange(3, 6), np.arange(6, 7))
         self.q0 = np.array(q0, dtype=float)
-        if sensors.fix_dropout or sensors.dvl_dropout or sensors.depth_dropout:
-            self.P0 = steady_kalman("the multi-rate filter's start (a fix every step)",
-                                    model.Ad, self.H[:3], model.Qd, self.R[:3, :3]).P_pred
-        else:
+        if sensors.lossless:
             self.P0 = periodic_filter(model.Ad, model.Qd, sensors, model.h, model.n,
                                       model.r)[1]
+        else:
+            self.P0 = steady_kalman("the multi-rate filter's start (a fix every step)",
+                                    model.Ad, self.H[:3], model.Qd, self.R[:3, :3]).P_pred
         self._eye = np.eye(ns)
         self.reset()
 
@@ -147,7 +149,7 @@ class MultiRateKalman:
                 return q.copy()
             out[:] = q
             return out
-        J = np.concatenate([rows for rows, v in zip(self._rows, valid) if v])
+        J = np.concatenate([rows for rows, v in zip(SENSOR_ROWS, valid) if v])
         H, R = self.H[J], self.R[np.ix_(J, J)]
         S = H @ P @ H.T + R
         K = np.linalg.solve(S, H @ P).T

@@ -10,6 +10,8 @@ from __future__ import annotations
 from fmu_common.native_form import BlockLayout, NativeForm, Role
 from fmu_common.slave_base import DelegatedStateSlave
 
+from .estimators import LinearEstimator
+
 __all__ = ["EstimatorSlave"]
 
 
@@ -28,7 +30,7 @@ class EstimatorSlave(DelegatedStateSlave):
             For the multi-rate filter of the navigation sensors (time-varying).
         """
         e = self.estimator
-        if not hasattr(e, "Ce"):
+        if not isinstance(e, LinearEstimator):
             raise NotImplementedError(f"{type(self).__name__} with the multi-rate filter has "
                                       "no native (C) form")
         inputs, outputs = self.io_specs()

@@ -21,6 +21,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from .atomic import write_text_atomically
 from .scenario import Scenario, scenario_from_dict
 
@@ -36,7 +38,8 @@ def envelope_point(sc: Scenario, speed: float, radius: float, current: float) ->
         If the point does not make a valid scenario (named by the loader).
     """
     data = copy.deepcopy(dict(sc.raw))
-    depth = float(sc.fleet["leader"]["z0"][2]) if len(sc.fleet["leader"]["z0"]) > 2 else 0.0
+    leader = sc.fleet["leader"]
+    depth = float((np.asarray(leader["H"], float) @ np.asarray(leader["z0"], float))[2])
     if math.isinf(radius):
         data["leader"] = {"path": "straight", "speed": speed, "start": [0.0, 0.0, depth],
                           "noise": 0.0}

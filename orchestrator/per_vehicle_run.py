@@ -242,7 +242,6 @@ class PerVehicleRuns:
         from .analysis.multirate_prediction import predict_multirate_cost
         sc = self.sc
         sensors = NavigationSensors.from_mapping(sc.sensors)
-        pred0, _, _, k0 = self._perfect(architecture, "kalman", tracking)
         reason = ("no prediction for the multi-rate Kalman filter of [sensors] with the "
                   "centralized architecture")
         if architecture == "distributed":
@@ -255,6 +254,8 @@ class PerVehicleRuns:
                 return _prediction(stat), _prediction(win), None, k0
             except ModelError as exc:
                 reason = f"no prediction for the multi-rate Kalman filter: {exc}"
+        # the steady filter's window and margin
+        pred0, _, _, k0 = self._perfect(architecture, "kalman", tracking)
         pred = Prediction(rms_e=None, rms_u=None, cost_rate=None,
                           spectral_radius=pred0.spectral_radius,
                           settling_time=pred0.settling_time,

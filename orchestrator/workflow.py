@@ -388,7 +388,6 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
     formation = (None if layout is None else
                  (layout.position_index, layout.offsets, layout.edges, sc.h))
     skipped: list[ModelError] = []
-    nonlinear = any(v.get("model") == "remus100-6dof" for v in (sc.fleet or {}).get("vehicles", []))
     bounds: dict[int, float | None] = {}
     notes: set[str] = set()
     for name, mode, tracking, arch in methods_run:
@@ -462,7 +461,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         if per_seed and pred_window is not None:
             methods[name]["cost_rate"]["predicted_window"] = pred_window.cost_rate
             methods[name]["rms_e"]["predicted_window"] = pred_window.rms_e
-        if per_seed and nonlinear:
+        if per_seed and sc.nonlinear_vehicles:
             methods[name]["prediction_note"] = "; ".join(filter(None, [
                 methods[name].get("prediction_note"), NONLINEAR_NOTE]))
         methods[name]["estimator"] = mode

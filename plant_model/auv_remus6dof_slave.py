@@ -17,7 +17,11 @@ from fmu_common.interface import ArraySpec
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
-from plant_model.navigation import NAV_SIZE, sensor_parameter_specs, sensors_from_parameters
+from plant_model.navigation import (
+    nav_output_spec,
+    sensor_parameter_specs,
+    sensors_from_parameters,
+)
 from plant_model.parameters import (
     noise_convention_spec,
     sample_period_spec,
@@ -95,10 +99,6 @@ class AuvRemus6dof(Fmi2Slave):
         specs += [ArraySpec(f"autopilot.{f}", (), "parameter", f"autopilot gain {f} "
                             "(plant_model.remus100_autopilot.AutopilotGains)",
                             start=float(gains[f]), unit=_UNITS.get(f)) for f in GAIN_FIELDS]
-        nav = ([ArraySpec("nav", (NAV_SIZE,), "output", "navigation sensors: acoustic fix "
-                          "(NED, m), DVL velocity over ground (NED, m/s), depth (m), and "
-                          "valid flags [fix, dvl, depth] (1: a new report this sample)")]
-               if config.get("sensors") else [])
         return specs + sensor_parameter_specs(config) + [
             ArraySpec("u", (3,), "input", "NED force commanded (control and consensus)",
                       unit="N"),
@@ -114,7 +114,7 @@ class AuvRemus6dof(Fmi2Slave):
             ArraySpec("stern", (), "output", "stern-plane angle (positive: dive)", unit="rad"),
             ArraySpec("saturated", (), "output", "1 when an actuator command of the last step "
                       "was at or beyond its limit, else 0"),
-        ] + nav
+        ] + nav_output_spec(config)
 
     def setup(self) -> None:
         """Build the vehicle from the parameters and start it at [x0; w0].

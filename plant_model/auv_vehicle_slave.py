@@ -20,6 +20,7 @@ from plant_model.native_plant import plant_native_form
 from plant_model.navigation import (
     NAV_SIZE,
     SensedVehicle,
+    nav_output_spec,
     sensor_parameter_specs,
     sensors_from_parameters,
 )
@@ -75,10 +76,7 @@ class AuvVehicle(Fmi2Slave):
             ArraySpec("y", (p,), "output", "measured output y = C x + n"),
             ArraySpec("x", (n,), "output", "true vehicle state x"),
             ArraySpec("w", (r,), "output", "true disturbance (ocean current) state w"),
-        ] + sensor_parameter_specs(config) + ([ArraySpec(
-            "nav", (NAV_SIZE,), "output", "navigation sensors: acoustic fix (NED, m), DVL "
-            "velocity over ground (NED, m/s), depth (m), and valid flags [fix, dvl, depth] "
-            "(1: a new report this sample)")] if config.get("sensors") else [])
+        ] + sensor_parameter_specs(config) + nav_output_spec(config)
 
     def setup(self) -> None:
         """Sample the vehicle at h and start it at [x0; w0] with its own noise stream.

@@ -27,7 +27,8 @@ import numpy as np
 from .linalg_checks import ModelError
 
 __all__ = ["NAV_SIZE", "NavigationSensors", "SensorStream", "SENSOR_STREAM_KEY",
-           "SensedVehicle", "sensor_parameter_specs", "sensors_from_parameters"]
+           "SensedVehicle", "nav_output_spec", "sensor_parameter_specs",
+           "sensors_from_parameters"]
 
 #: the output vector [fix (3), dvl (3), depth, valid (3)]
 NAV_SIZE = 10
@@ -98,6 +99,16 @@ class NavigationSensors:
         return np.array(out, dtype=np.int64)
 
     @property
+    def dropouts(self) -> np.ndarray:
+        """The dropout probabilities [fix, dvl, depth]."""
+        return np.array([self.fix_dropout, self.dvl_dropout, self.depth_dropout])
+
+    @property
+    def lossless(self) -> bool:
+        """No report is ever lost: the schedule is periodic."""
+        return not self.dropouts.any()
+
+    @property
     def sigmas(self) -> np.ndarray:
         """Standard deviation of each of the 7 measured values [fix (3), dvl (3), depth]."""
         return np.array([self.fix_sigma] * 3 + [self.dvl_sigma] * 3 + [self.depth_sigma])
@@ -113,7 +124,7 @@ class SensorStream:
         self.sensors, self.h = sensors, float(h)
         self.period = sensors.steps(self.h)
         self._sigma = sensors.sigmas
-        self._drop = np.array([sensors.fix_dropout, sensors.dvl_dropout, sensors.depth_dropout])
+        self._drop = sensors.dropouts
         self.seed, self.vehicle = int(seed), int(vehicle)
         self._rng = np.random.default_rng([self.seed, SENSOR_STREAM_KEY + self.vehicle])
         self._normal = np.empty((0, 7))
@@ -165,10 +176,9 @@ _UNITS = {"period": "s", "dropout": None}
 _SIGMA_UNITS = {"fix": "m", "dvl": "m/s", "depth": "m"}
 
 
-def sensor_parameter_specs(config: dict[str, Any], names: tuple[str, ...] | None = None
-                           ) -> list[Any]:
-    """FMU parameters ``sensors.<field>`` for the fields ``names`` (default all) of the
-    build configuration's ``sensors`` table; none without one."""
+def sensor_parameter_specs(config: dict[str, Any]) -> list[Any]:
+    """FMU parameters ``sensors.<field>`` for every field of the build configuration's
+    ``sensors`` table; none without one."""
     from fmu_common.interface import ArraySpec
 
     table = config.get("sensors")
@@ -177,8 +187,6 @@ def sensor_parameter_specs(config: dict[str, Any], names: tuple[str, ...] | None
     sensors = NavigationSensors.from_mapping(table)
     specs = []
     for f in fields(NavigationSensors):
-        if names is not None and f.name not in names:
-            continue
         sensor, what = f.name.split("_")
         if f.name == "current_max":
             unit, doc = "m/s", "the largest ocean current the filter believes, per axis"
@@ -190,6 +198,17 @@ def sensor_parameter_specs(config: dict[str, Any], names: tuple[str, ...] | None
         specs.append(ArraySpec(f"sensors.{f.name}", (), "parameter", doc,
                                start=float(getattr(sensors, f.name)), unit=unit))
     return specs
+
+
+def nav_output_spec(config: dict[str, Any]) -> list[Any]:
+    """The vehicle FMUs' output ``nav`` (10) when the configuration has sensors, else none."""
+    from fmu_common.interface import ArraySpec
+
+    if not config.get("sensors"):
+        return []
+    return [ArraySpec("nav", (NAV_SIZE,), "output", "navigation sensors: acoustic fix (NED, m), "
+                      "DVL velocity over ground (NED, m/s), depth (m), and valid flags [fix, "
+                      "dvl, depth] (1: a new report this sample)")]
 
 
 def sensors_from_parameters(par: dict[str, Any]) -> NavigationSensors:

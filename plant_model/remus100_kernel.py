@@ -119,12 +119,9 @@ def derivative(p: np.ndarray, x: np.ndarray, cmd: np.ndarray, cur: np.ndarray,
     """out = x' (15) for the state x, the command [delta_r, delta_s (rad), n (rpm)] and
     the current v_c (NED, m/s): :func:`plant_model.remus100_6dof.derivative` term by
     term."""
-    phi, theta, psi = x[3], x[4], x[5]
+    phi, theta = x[3], x[4]
     cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
-    cp, sp = math.cos(psi), math.sin(psi)
-    R00, R01, R02 = cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st
-    R10, R11, R12 = sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf
-    R20, R21, R22 = -st, ct * sf, ct * cf
+    R00, R01, R02, R10, R11, R12, R20, R21, R22 = _rotation(phi, theta, x[5])
     c0, c1, c2 = cur[0], cur[1], cur[2]
     vb0 = R00 * c0 + R10 * c1 + R20 * c2                  # R' v_c
     vb1 = R01 * c0 + R11 * c1 + R21 * c2
@@ -267,6 +264,16 @@ def rk4(p: np.ndarray, x: np.ndarray, cmd: np.ndarray, cur: np.ndarray, dt: floa
 
 
 @_jit
+def _rotation(phi: float, theta: float, psi: float) -> tuple:
+    """The entries R00, R01, ..., R22 of R(Theta), body to NED (zyx; rigid_body)."""
+    cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
+    cp, sp = math.cos(psi), math.sin(psi)
+    return (cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st,
+            sp * ct, cp * cf + sf * st * sp, -cp * sf + st * sp * cf,
+            -st, ct * sf, ct * cf)
+
+
+@_jit
 def _wrap(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
@@ -279,13 +286,12 @@ def autopilot(g: np.ndarray, x: np.ndarray, v_ref: np.ndarray, integ: np.ndarray
     water (gains vector of :func:`pack_gains`), with the same anti-windup."""
     U_max, n_max, K_u, K_ui, K_chi, K_r = g[0], g[1], g[2], g[3], g[4], g[5]
     K_gamma, K_gi, K_theta, K_q, U_min = g[6], g[7], g[8], g[9], g[10]
-    phi, theta, psi = x[3], x[4], x[5]
-    cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
-    cp, sp = math.cos(psi), math.sin(psi)
+    theta, psi = x[4], x[5]
+    R00, R01, R02, R10, R11, R12, R20, R21, R22 = _rotation(x[3], theta, psi)
     u, v, w = x[6], x[7], x[8]
-    g0 = cp * ct * u + (-sp * cf + cp * st * sf) * v + (sp * sf + cp * cf * st) * w - cur[0]
-    g1 = sp * ct * u + (cp * cf + sf * st * sp) * v + (-cp * sf + st * sp * cf) * w - cur[1]
-    g2 = -st * u + ct * sf * v + ct * cf * w - cur[2]
+    g0 = R00 * u + R01 * v + R02 * w - cur[0]             # over ground, less the current
+    g1 = R10 * u + R11 * v + R12 * w - cur[1]
+    g2 = R20 * u + R21 * v + R22 * w - cur[2]
     U = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
     U_d = math.sqrt(v_ref[0] ** 2 + v_ref[1] ** 2 + v_ref[2] ** 2)
     cmd[2] = n_max * U_d / U_max + K_u * (U_d - U) + K_ui * integ[0]
@@ -342,12 +348,11 @@ def plant_step(p: np.ndarray, g: np.ndarray, s: np.ndarray, u: np.ndarray, v: np
             sat = 1.0
     for i in range(3):
         x[i] += v[i]
-    cf, sf, ct, st = math.cos(x[3]), math.sin(x[3]), math.cos(x[4]), math.sin(x[4])
-    cp, sp = math.cos(x[5]), math.sin(x[5])
+    R00, R01, R02, R10, R11, R12, R20, R21, R22 = _rotation(x[3], x[4], x[5])
     a, b, c = v[3], v[4], v[5]                                   # nu[:3] += R' v
-    x[6] += cp * ct * a + sp * ct * b - st * c
-    x[7] += (-sp * cf + cp * st * sf) * a + (cp * cf + sf * st * sp) * b + ct * sf * c
-    x[8] += (sp * sf + cp * cf * st) * a + (-cp * sf + st * sp * cf) * b + ct * cf * c
+    x[6] += R00 * a + R10 * b + R20 * c
+    x[7] += R01 * a + R11 * b + R21 * c
+    x[8] += R02 * a + R12 * b + R22 * c
     w0, w1, w2 = w[0], w[1], w[2]
     for i in range(3):
         w[i] = Aw[i, 0] * w0 + Aw[i, 1] * w1 + Aw[i, 2] * w2 + v[6 + i]
@@ -359,15 +364,14 @@ def plant_outputs(s: np.ndarray, n: np.ndarray, sat: float, o: np.ndarray) -> No
     """o[:19] = [y = p + n, p, v over ground, w, attitude, rpm, rudder, stern, sat] of the
     evolving vector s (:func:`plant_step`) and the fix noise n (3)."""
     x = s
-    cf, sf, ct, st = math.cos(x[3]), math.sin(x[3]), math.cos(x[4]), math.sin(x[4])
-    cp, sp = math.cos(x[5]), math.sin(x[5])
+    R00, R01, R02, R10, R11, R12, R20, R21, R22 = _rotation(x[3], x[4], x[5])
     u, v, w = x[6], x[7], x[8]
     for i in range(3):
         o[i] = x[i] + n[i]
         o[3 + i] = x[i]
         o[9 + i] = s[20 + i]
         o[12 + i] = x[3 + i]
-    o[6] = cp * ct * u + (-sp * cf + cp * st * sf) * v + (sp * sf + cp * cf * st) * w
-    o[7] = sp * ct * u + (cp * cf + sf * st * sp) * v + (-cp * sf + st * sp * cf) * w
-    o[8] = -st * u + ct * sf * v + ct * cf * w
+    o[6] = R00 * u + R01 * v + R02 * w
+    o[7] = R10 * u + R11 * v + R12 * w
+    o[8] = R20 * u + R21 * v + R22 * w
     o[15], o[16], o[17], o[18] = x[14], x[12], x[13], sat

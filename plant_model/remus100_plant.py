@@ -162,7 +162,7 @@ class Remus6dofPlant:
         self._nav = (None if self.sensors is None else
                      SensorStream(self.sensors, self.model.h, self.seed,
                                   int(self.model.noise_keys[0])))
-        self._refresh()
+        kernel.plant_outputs(self.s, self._row[9:12], self._saturated, self.output)
         self._measure()
 
     def _measure(self) -> None:
@@ -172,6 +172,7 @@ class Remus6dofPlant:
             o[self.OUTPUT_SIZE:] = self._nav.measure(self.k, o[3:6], o[6:9])
 
     def _refresh(self) -> None:
+        """The outputs of sample k from the state (at a reset or a restored state)."""
         kernel.plant_outputs(self.s, self._row[9:12], self._saturated, self.output)
         if self._nav is not None:
             self.output[self.OUTPUT_SIZE:] = self._nav.out
@@ -184,7 +185,7 @@ class Remus6dofPlant:
             self._M, self._D, self.model.h, self.substeps, self._cmd, self._limits)
         self.k += 1
         self._row = self._noise.next_row()
-        self._refresh()
+        kernel.plant_outputs(self.s, self._row[9:12], self._saturated, self.output)
         self._measure()
 
     @property

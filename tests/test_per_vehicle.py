@@ -27,6 +27,7 @@ from orchestrator.workflow import scenario_config
 from plant_model.discretization import discretize
 from plant_model.per_vehicle import sample_vehicle, vehicle_views
 from plant_model.plant import NoiseStream
+from support.cli import assert_one_line_error
 
 
 def _rel(a: np.ndarray, b: np.ndarray) -> float:
@@ -137,11 +138,7 @@ def test_run_per_vehicle_writes_summary_and_recording(tmp_path, capsys):
 
 def test_per_vehicle_refused_where_it_cannot_be(capsys, tmp_path):
     def one_line(argv, *fragments):
-        assert main(argv) == 2
-        err = capsys.readouterr().err.strip()
-        assert len(err.splitlines()) == 1, err
-        for f in fragments:
-            assert f in err, err
+        assert_one_line_error(capsys, argv, *fragments)
     one_line(["run", "--deployment", "per-vehicle", "--out", str(tmp_path / "a")],
              'deployment = "per-vehicle" needs a fleet scenario')
     one_line(["bench", "--scenario", "formation-4", "--deployment", "per-vehicle"],

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 from orchestrator.cli import main
+from support.cli import assert_one_line_error
 
 BUILTIN = Path(__file__).parent.parent / "orchestrator/scenario/builtin/formation-4.toml"
 
@@ -61,11 +62,7 @@ def _recording_shows_hulls_and_actuators(rrd):
 
 def test_the_nonlinear_vehicle_is_refused_where_it_cannot_run(tmp_path, capsys):
     def one_line(argv, *fragments):
-        assert main(argv) == 2
-        err = capsys.readouterr().err.strip()
-        assert len(err.splitlines()) == 1, err
-        for f in fragments:
-            assert f in err, err
+        assert_one_line_error(capsys, argv, *fragments)
     text = BUILTIN.read_text().replace('model = "remus100"', 'model = "remus100-6dof"')
     (tmp_path / "six.toml").write_text(text)
     one_line(["run", "--scenario", str(tmp_path / "six.toml"), "--out", str(tmp_path / "a")],

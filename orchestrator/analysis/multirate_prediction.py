@@ -52,7 +52,7 @@ def periodic_loop(sc: Any, base: DistributedLoop, sensors: NavigationSensors
     ModelError
         With dropouts, or a loop over :data:`MAX_STATES`.
     """
-    if sensors.fix_dropout or sensors.dvl_dropout or sensors.depth_dropout:
+    if not sensors.lossless:
         raise ModelError("no prediction with sensor dropouts: the filter's gains depend on "
                          "which reports were lost")
     nX = base.Phi.shape[0]

@@ -71,6 +71,12 @@ class Scenario:
     #: the parsed file the scenario was validated from (for variants of it)
     raw: Mapping[str, Any] | None = field(default=None, repr=False, compare=False)
 
+    @property
+    def nonlinear_vehicles(self) -> tuple[int, ...]:
+        """The vehicles (1-based) of the nonlinear model ``remus100-6dof``, each its own FMU."""
+        return tuple(i for i, v in enumerate((self.fleet or {}).get("vehicles", []), start=1)
+                     if v.get("model") == "remus100-6dof")
+
     def with_vehicle_model(self, model: str) -> Scenario:
         """The same fleet scenario with every vehicle of ``model`` (e.g. the nonlinear
         ``remus100-6dof`` in place of ``remus100``): the model parameters the two REMUS
@@ -144,9 +150,8 @@ def _check_step(sc: Scenario) -> None:
         check_step(sc.system.augmented()[0], sc.h)
     except ModelError as exc:
         raise ScenarioError(f"{sc.source}: [simulation] h: {exc}") from None
-    for i, v in enumerate((sc.fleet or {}).get("vehicles", []), start=1):
-        substep = v.get("params", {}).get("substep") if v.get("model") == "remus100-6dof" \
-            else None
+    for i in sc.nonlinear_vehicles:
+        substep = sc.fleet["vehicles"][i - 1].get("params", {}).get("substep")
         if substep is not None:
             from plant_model.remus100_plant import substep_count
             try:
@@ -160,10 +165,8 @@ def _check_deployment(sc: Scenario, network: bool = True) -> None:
     [network] needs the per-vehicle deployment (``network``: checked once the run settings
     are known, so that --deployment per-vehicle can select it)."""
     if sc.deployment != "per-vehicle":
-        nonlinear = sorted({v.get("model") for v in (sc.fleet or {}).get("vehicles", [])}
-                           & {"remus100-6dof"})
-        if network and nonlinear:
-            raise ScenarioError(f"{sc.source}: vehicle model {nonlinear[0]} needs [simulation] "
+        if network and sc.nonlinear_vehicles:
+            raise ScenarioError(f"{sc.source}: vehicle model remus100-6dof needs [simulation] "
                                 "deployment = \"per-vehicle\" (a nonlinear vehicle is its own "
                                 f"FMU, not a block of the stacked linear plant), not "
                                 f"{sc.deployment!r}")
