@@ -461,7 +461,7 @@ def _simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], o
         if per_seed and pred_window is not None:
             methods[name]["cost_rate"]["predicted_window"] = pred_window.cost_rate
             methods[name]["rms_e"]["predicted_window"] = pred_window.rms_e
-        if per_seed and sc.nonlinear_vehicles:
+        if per_seed and sc.nonlinear_vehicles and pred.cost_rate is not None:
             methods[name]["prediction_note"] = "; ".join(filter(None, [
                 methods[name].get("prediction_note"), NONLINEAR_NOTE]))
         methods[name]["estimator"] = mode
