@@ -172,7 +172,8 @@ def scenario_error(exc: ValidationError, model: type[BaseModel], data: Mapping[s
         section = str(loc[0]) if loc else ""
         if section and msg.startswith(f"{section}: "):
             msg = msg[len(section) + 2:]               # plant_model's own "leader: " / "graph: "
-        text = f"{place} {msg}".strip()
+        # a message that names its section itself ("[sensors] dvl_dropout = ...") stands alone
+        text = msg if section and msg.startswith(f"[{section}]") else f"{place} {msg}".strip()
     else:
         expected = _EXPECTED.get(kind, first["msg"])
         text = f"{place} = {_short(value)} {expected}" if place else expected
