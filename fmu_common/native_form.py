@@ -22,7 +22,11 @@ import numpy as np
 
 from .interface import ArraySpec
 
-__all__ = ["ROLE_KEYS", "BlockLayout", "NativeForm", "Role"]
+__all__ = ["FMU_IMPLEMENTATIONS", "ROLE_KEYS", "BlockLayout", "NativeForm", "Role"]
+
+#: how a component's FMU is implemented: the pythonfmu slave, or the compiled (C) form of
+#: its linear mathematics where it has one (the others stay pythonfmu)
+FMU_IMPLEMENTATIONS = ("python", "native")
 
 #: the matrices of the equations above; B and D act on a range of u, F and G on one of xi,
 #: G also writes into a range of y

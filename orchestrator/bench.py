@@ -20,8 +20,8 @@ from .analysis.reference import run_monolithic
 from .cosim.instance import Extracted, FmuInstance, pythonfmu_safe_tempdir
 from .cosim.master import run_cosimulation
 from .cosim.system import closed_loop_system
+from .running import build, scenario_config, scenario_system
 from .scenario import Scenario
-from .workflow import build, scenario_config, scenario_system
 
 __all__ = ["benchmark", "benchmark_fleet", "benchmark_libcosim", "benchmark_startup",
            "benchmark_tools"]

@@ -157,7 +157,7 @@ def benchmark_native(sc: Scenario, steps: int = 20000) -> dict[str, Any]:
     dict[str, Any]
         us/step per configuration (None where a tool is missing) and the load average.
     """
-    from .workflow import build, scenario_system
+    from .running import build, scenario_system
     sc = sc.with_run(T=steps * sc.h)
     out: dict[str, Any] = {"scenario": sc.name, "mode": sc.estimator, "h": sc.h,
                            "steps": steps, "loadavg": list(os.getloadavg()),

@@ -58,7 +58,7 @@ def benchmark_per_vehicle(N: int, *, architecture: str = "distributed", T: float
     from controller_fmu.vehicle_law import vehicle_law
 
     from .analysis.distributed import agents_from_fleet_spec
-    from .per_vehicle_run import PerVehicleRuns
+    from .running.setup import Method, make_setup
     from .scenario import scenario_from_dict
     from .scenario.generator import survey_grid_fleet
 
@@ -79,13 +79,13 @@ def benchmark_per_vehicle(N: int, *, architecture: str = "distributed", T: float
         tracking_law(sc.system, tracking)
     out["design_s"] = time.perf_counter() - t
     with tempfile.TemporaryDirectory(prefix="auv_bench_pv_") as tmp:
-        pv = PerVehicleRuns(sc, Path(tmp) / "fmus")
+        pv = make_setup(sc, Path(tmp) / "fmus")
         t = time.perf_counter()
-        fmus = pv.fmus(architecture)
+        fmus = pv.fmus(Method.of(sc))
         out["build_s"] = time.perf_counter() - t
         out["model_description_bytes"] = {k: _md_bytes(p) for k, p in fmus.items()}
         t = time.perf_counter()
-        res = pv.run(architecture, mode, tracking, seed)
+        res = pv.run(Method.of(sc), seed)
         wall = time.perf_counter() - t
     out["cosim_loop_s"] = res.loop_s
     out["setup_s"] = wall - res.loop_s          # extract, instantiate, initialize, plan

@@ -136,7 +136,7 @@ def _print_summary(summary: dict, out: Path) -> int:
 
 
 def cmd_build(args: argparse.Namespace) -> int:
-    from .workflow import build, write_fmu_readme
+    from .running import build, write_fmu_readme
     sc = _scenario(args)
     with output_folder(args.out, "build") as out:
         paths = build(sc, out)
@@ -149,7 +149,7 @@ def cmd_build(args: argparse.Namespace) -> int:
                   "for the stacked deployment's three FMUs)")
         elif not args.no_crosscheck:
             from .interop.crosscheck import write_crosscheck
-            from .workflow import scenario_config
+            from .running import scenario_config
             written = write_crosscheck(paths, scenario_config(sc), out / "crosscheck")
             print(f"cross-check references (<Model>_in.csv, _ref.csv, _ref.opt) for "
                   f"{', '.join(written)} in {out / 'crosscheck'}")
@@ -157,7 +157,7 @@ def cmd_build(args: argparse.Namespace) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .workflow import check_memory, simulate
+    from .running import check_memory, simulate
     sc = _scenario(args)
     check_memory(sc, 1)                     # before anything is created
     with output_folder(args.out or f"out/{file_stem(sc.name)}_{sc.estimator}_seed{sc.seed}",
@@ -168,7 +168,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from .workflow import check_memory, method_list, simulate
+    from .running import check_memory, method_list, simulate
     sc = _scenario(args)
     what = args.what or ("tracking" if sc.fleet is not None else "estimators")
     if what == "plants":
@@ -203,7 +203,7 @@ def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
     """compare --what plants: the linear and the nonlinear REMUS 100, same FMUs otherwise."""
     from plant_model.vehicles import REMUS_MODELS
 
-    from .plant_study import compare_plants, plant_table
+    from .running.plants import compare_plants, plant_table
     if sc.deployment != "per-vehicle":
         raise UsageError("--what plants runs the nonlinear vehicle, which is its own FMU: add "
                          "--deployment per-vehicle (or set [simulation] deployment = "
@@ -229,8 +229,8 @@ def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
 
 
 def cmd_envelope(args: argparse.Namespace) -> int:
-    """envelope: the grid of orchestrator.envelope, one line per point."""
-    from .envelope import run_envelope
+    """envelope: the grid of orchestrator.running.envelope, one line per point."""
+    from .running.envelope import run_envelope
     sc = _scenario(args)
     if sc.fleet is None or sc.deployment != "per-vehicle":
         raise UsageError("envelope runs a per-vehicle fleet: give a fleet scenario and "
@@ -284,7 +284,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
     from fmpy.validation import validate_fmu
 
-    from .workflow import build
+    from .running import build
     if args.fmus:
         import zipfile
         paths = {p.stem: p for p in (Path(x) for x in args.fmus)}

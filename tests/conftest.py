@@ -118,8 +118,8 @@ def formation4_fmus(built_scenario):
 def built_scenario(tmp_path_factory):
     """Factory: ``built_scenario(name)`` -> (FMU paths, configuration) of a built-in
     scenario's three FMUs, built once per test session."""
+    from orchestrator.running import build, scenario_config
     from orchestrator.scenario import load_scenario
-    from orchestrator.workflow import build, scenario_config
 
     cache: dict[str, tuple] = {}
 

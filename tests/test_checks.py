@@ -10,8 +10,8 @@ import pytest
 from orchestrator.cosim.checks import Variable, connection_problems, system_variables
 from orchestrator.cosim.system import Connection, ScalarConnection
 from orchestrator.interop.common import ExportError, check_system
+from orchestrator.running import scenario_system
 from orchestrator.scenario import load_scenario
-from orchestrator.workflow import scenario_system
 
 SC = ScalarConnection
 

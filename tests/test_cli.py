@@ -127,7 +127,7 @@ def test_build_writes_fmus_and_variable_tables(tmp_path, capsys):
 
 def test_committed_fmu_readme_matches_the_generator():
     from orchestrator.cosim.build import variables_markdown
-    from orchestrator.workflow import FMU_README_HEAD, scenario_config
+    from orchestrator.running import FMU_README_HEAD, scenario_config
     sc = load_scenario("paper")
     expected = FMU_README_HEAD.format(scenario=sc.name) + variables_markdown(scenario_config(sc))
     assert (ROOT / "fmus" / "README.md").read_text() == expected
@@ -139,7 +139,7 @@ def test_a_refused_export_is_one_line(fmt, tmp_path, capsys, monkeypatch):
     problem (a system that lost its u -> plant connection), exit status 2, nothing written."""
     from dataclasses import replace
 
-    import orchestrator.workflow as wf
+    import orchestrator.running as wf
     good = wf.scenario_system
     monkeypatch.setattr(wf, "scenario_system", lambda sc: replace(
         good(sc), connections=tuple(c for c in good(sc).connections if c.target != "plant")))

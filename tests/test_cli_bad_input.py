@@ -93,8 +93,8 @@ def test_steps_beyond_memory_or_resolution_blame_T_and_h(capsys, tmp_path, argv,
 
 
 def test_the_memory_estimate_counts_every_method():
+    from orchestrator.running import check_memory
     from orchestrator.scenario import load_scenario
-    from orchestrator.workflow import check_memory
     sc = load_scenario("paper")
     one = check_memory(sc, 1, available=10**15)
     assert one == 8 * sc.steps * 20 * 3                 # 20 outputs per step, 1 + 2 copies
@@ -114,7 +114,7 @@ def test_validate_refuses_what_is_not_an_fmu(capsys, tmp_path):
 def test_an_internal_bug_says_so_and_where_the_traceback_is(capsys, tmp_path, monkeypatch):
     """Fault injection: a function of ours raising an unexpected exception (a bug, not bad
     input) ends in one line that says so and names a log file holding the traceback."""
-    import orchestrator.workflow as wf
+    import orchestrator.running as wf
 
     def broken(*a, **k):
         raise ZeroDivisionError("division by zero in a place it should not happen")

@@ -6,8 +6,8 @@ import math
 
 import pytest
 
+from orchestrator.running import simulate
 from orchestrator.scenario import load_scenario
-from orchestrator.workflow import simulate
 
 
 @pytest.mark.slow

@@ -25,7 +25,7 @@ from orchestrator.interop.crosscheck import (
     write_crosscheck,
     write_csv,
 )
-from orchestrator.workflow import scenario_config
+from orchestrator.running import scenario_config
 
 TOL = 1e-12
 STEPS = 500

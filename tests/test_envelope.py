@@ -1,4 +1,4 @@
-"""auv-cosim envelope: where the formation holds (orchestrator.envelope)."""
+"""auv-cosim envelope: where the formation holds (orchestrator.running.envelope)."""
 from __future__ import annotations
 
 import json
@@ -7,7 +7,7 @@ import math
 import pytest
 
 from orchestrator.cli import main
-from orchestrator.envelope import envelope_point
+from orchestrator.running.envelope import envelope_point
 from orchestrator.scenario import load_scenario
 
 

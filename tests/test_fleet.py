@@ -20,9 +20,9 @@ from scipy.linalg import block_diag, solve_sylvester
 from controller_fmu.regulator import tracking_law
 from orchestrator.analysis.reference import run_monolithic
 from orchestrator.cosim.master import run_cosimulation
+from orchestrator.running import build, scenario_config
 from orchestrator.scenario import SCENARIO_DIR, load_scenario
 from orchestrator.scenario.fleet import fleet_spec_from_dict
-from orchestrator.workflow import build, scenario_config
 from plant_model.fleet import fleet_info, fleet_system, resolve_fleet_spec
 from plant_model.linalg_checks import ModelError
 

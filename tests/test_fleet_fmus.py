@@ -12,9 +12,9 @@ from fmpy.validation import validate_fmu
 
 from orchestrator.analysis.reference import run_monolithic
 from orchestrator.cosim.master import run_cosimulation
+from orchestrator.running import build, scenario_config
 from orchestrator.scenario import scenario_from_dict
 from orchestrator.scenario.generator import grid_fleet
-from orchestrator.workflow import build, scenario_config
 from plant_model.fleet import fleet_system
 
 

@@ -12,8 +12,8 @@ from orchestrator.analysis.prediction import predict_stationary
 from orchestrator.analysis.reference import run_monolithic
 from orchestrator.cosim.build import build_fmus
 from orchestrator.cosim.master import run_cosimulation
+from orchestrator.running import scenario_config
 from orchestrator.scenario import SCENARIO_DIR, ScenarioError, load_scenario
-from orchestrator.workflow import scenario_config
 from plant_model.discretization import discretize
 from plant_model.fleet import ConsensusProtocol, fleet_graph, fleet_vehicles
 

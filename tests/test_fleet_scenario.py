@@ -15,9 +15,9 @@ from controller_fmu.regulator import tracking_law
 from orchestrator.analysis.reference import run_monolithic
 from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
 from orchestrator.cosim.master import run_cosimulation
+from orchestrator.running import build, scenario_config
 from orchestrator.scenario import SCENARIO_DIR, ScenarioError, load_scenario
 from orchestrator.scenario.generator import scenario_toml as dumps
-from orchestrator.workflow import build, scenario_config
 from plant_model.linalg_checks import ModelError
 from support.loop import fmu_parameters
 

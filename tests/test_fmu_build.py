@@ -8,8 +8,8 @@ from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
 from orchestrator.cosim.build import FMU_KINDS, STACKED_KINDS, fmu_config
+from orchestrator.running import scenario_config
 from orchestrator.scenario import load_scenario
-from orchestrator.workflow import scenario_config
 
 
 @pytest.fixture(scope="module")
@@ -127,7 +127,7 @@ def test_concurrent_builds_into_one_folder_leave_whole_fmus(tmp_path):
     import sys
     import zipfile
     code = ("import sys; from orchestrator.scenario import load_scenario; "
-            "from orchestrator.workflow import build; "
+            "from orchestrator.running import build; "
             "build(load_scenario(sys.argv[1]), sys.argv[2])")
     for attempt in range(2):
         out = tmp_path / f"out{attempt}"

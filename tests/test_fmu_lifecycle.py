@@ -22,7 +22,7 @@ from fmpy.fmi2 import (
 )
 
 from orchestrator.cosim.instance import Extracted, FmuInstance
-from orchestrator.workflow import scenario_config
+from orchestrator.running import scenario_config
 from support.loop import fmu_parameters
 
 OK, DISCARD, FATAL = 0, 2, 4

@@ -21,8 +21,8 @@ from fmu_common.interface import element_names
 from fmu_common.slave_base import STATE_MAGIC, decode_state
 from orchestrator.cosim.build import FMU_KINDS, STACKED_KINDS, build_fmu
 from orchestrator.cosim.instance import Extracted, FmuInstance
+from orchestrator.running import scenario_config
 from orchestrator.scenario import load_scenario
-from orchestrator.workflow import scenario_config
 from support.loop import fmu_parameters, output_names
 
 OK, DISCARD = 0, 2

@@ -10,7 +10,7 @@ import pytest
 from orchestrator.analysis.formation import formation_stats, formation_summary
 from orchestrator.analysis.summary import run_stats
 from orchestrator.cosim.master import run_cosimulation
-from orchestrator.workflow import fleet_layout
+from orchestrator.running import fleet_layout
 
 
 def test_a_constructed_formation():

@@ -6,7 +6,7 @@ import pytest
 from scipy.linalg import expm, solve_discrete_are, solve_discrete_lyapunov
 
 from orchestrator.analysis.full_information import best_steady_motion, full_information_bound
-from orchestrator.per_vehicle_run import PerVehicleRuns
+from orchestrator.running.setup import Method, make_setup
 from orchestrator.scenario import load_scenario
 from plant_model.per_vehicle import sample_vehicle, vehicle_views
 
@@ -82,13 +82,14 @@ def test_the_noise_part_is_the_discrete_lq_optimum(f4):
 
 
 def test_the_bound_is_below_both_architectures(f4, tmp_path):
-    pv = PerVehicleRuns(f4, tmp_path)
-    _, _, _, k0 = pv.predictions("centralized", "ideal", f4.tracking)
+    pv = make_setup(f4, tmp_path)
+    k0 = pv.predictions(Method("ideal", "ideal", f4.tracking, "centralized")).k0
     bound = full_information_bound(f4, (k0, f4.steps))
     assert len(bound.per_vehicle) == 4
     assert bound.cost_rate == pytest.approx(bound.noise + bound.mean)
     for arch in ("centralized", "distributed"):
         for mode in ("ideal", "kalman"):
-            _, pred, _, k = pv.predictions(arch, mode, f4.tracking)
+            p = pv.predictions(Method(mode, mode, f4.tracking, arch))
+            pred, k = p.window, p.k0
             assert k == k0
             assert bound.cost_rate < pred.cost_rate, (arch, mode)

@@ -12,7 +12,7 @@ from estimator_fmu.estimators import ESTIMATOR_MODES
 from orchestrator.analysis.reference import run_monolithic
 from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
 from orchestrator.cosim.master import run_cosimulation
-from orchestrator.workflow import scenario_config
+from orchestrator.running import scenario_config
 from support.loop import fmu_parameters
 
 

@@ -15,8 +15,8 @@ from lxml import etree
 
 from orchestrator.cosim.master import run_system
 from orchestrator.interop.native import native_system
+from orchestrator.running import build, scenario_system
 from orchestrator.scenario import load_scenario
-from orchestrator.workflow import build, scenario_system
 
 ROOT = Path(__file__).resolve().parent.parent
 

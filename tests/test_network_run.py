@@ -10,8 +10,8 @@ import sys
 import numpy as np
 import pytest
 
-from orchestrator.network_run import network_reference
-from orchestrator.per_vehicle_run import PerVehicleRuns
+from orchestrator.running.network import network_reference
+from orchestrator.running.setup import Method, make_setup
 from orchestrator.scenario import ScenarioError, load_scenario
 
 NET = {"latency": 1.0, "period": 2.0, "loss": 0.3}
@@ -37,8 +37,8 @@ def test_the_network_fmus_reproduce_the_monolithic_loop(tmp_path, architecture, 
     link's age of information equals the one the loss draws imply (also with the graph
     switching between two halves)."""
     sc = _scenario(architecture, receiver, schedule, T=30.0)
-    pv = PerVehicleRuns(sc, tmp_path / "fmus")
-    res = pv.run(architecture, "kalman", "regulator", 3)
+    pv = make_setup(sc, tmp_path / "fmus")
+    res = pv.run(Method("kalman", "kalman", "regulator", architecture), 3)
     setup = pv.network(architecture, "kalman", "regulator")
     ref = network_reference(sc, setup, 3, sc.steps)
     for key in ("u", "e"):
@@ -54,7 +54,7 @@ def test_the_network_fmus_reproduce_the_monolithic_loop(tmp_path, architecture, 
     if schedule:                                     # 1 -> 2 up 0-4 s of 8 s: 2 sends of 4
         c = res.info["links"].index("1 -> 2")
         assert res.traces["link_lost"][-1, c] >= 7
-    system = pv.system(architecture, "kalman", "regulator", 3)
+    system = pv.system(Method("kalman", "kalman", "regulator", architecture), 3)
     assert sum(c.fmu == "network" for c in system.components) == 4
 
 
@@ -64,7 +64,7 @@ def test_libcosim_runs_the_networked_export_like_our_jacobi_master(tmp_path, arc
     from orchestrator.cosim.master import run_system
     from orchestrator.interop import libcosim
     from orchestrator.interop.osp import export_osp
-    from orchestrator.workflow import scenario_system
+    from orchestrator.running import scenario_system
     libcosim.quiet_libcosim()
     sc = _scenario(architecture, schedule=HALVES if architecture == "distributed" else None)
     paths = export_osp(sc, tmp_path)
@@ -206,7 +206,7 @@ def test_an_ssp_archive_with_the_network_runs_in_fmpy(tmp_path):
 
     from orchestrator.cosim.master import run_system
     from orchestrator.interop.ssp import export_ssp, fmpy_parameter_set
-    from orchestrator.workflow import build, scenario_system
+    from orchestrator.running import build, scenario_system
     sc = load_scenario("formation-4").with_run(
         deployment="per-vehicle", architecture="distributed",
         network={"latency": 0.2, "period": 0.5, "loss": 0.3})
@@ -234,8 +234,8 @@ def test_a_modem_range_loses_what_is_sent_out_of_range(tmp_path, architecture):
     sc = load_scenario("formation-4").with_run(
         T=30.0, deployment="per-vehicle", architecture=architecture,
         network={"latency": 1.0, "period": 2.0, "loss": 0.1, "range": 14.5})
-    pv = PerVehicleRuns(sc, tmp_path / "fmus")
-    res = pv.run(architecture, "kalman", "regulator", 3)
+    pv = make_setup(sc, tmp_path / "fmus")
+    res = pv.run(Method("kalman", "kalman", "regulator", architecture), 3)
     setup = pv.network(architecture, "kalman", "regulator")
     ref = network_reference(sc, setup, 3, sc.steps)
     assert np.abs(res.traces["u"] - ref["u"]).max() <= 1e-9 * np.abs(ref["u"]).max()
@@ -250,7 +250,7 @@ def test_a_modem_range_loses_what_is_sent_out_of_range(tmp_path, architecture):
         assert res.traces["link_lost"][-1, c] >= far, name
         far_total += far
     assert far_total > 0
-    _, pred, _, _ = pv.predictions(architecture, "kalman", "regulator")
+    pred = pv.predictions(Method("kalman", "kalman", "regulator", architecture)).window
     assert pred.cost_rate is None and "modem range" in pred.reason
 
 
@@ -261,10 +261,11 @@ def test_a_long_latency_at_a_message_every_step_is_not_predicted_and_does_not_cr
     sc = load_scenario("formation-4").with_run(
         T=1.0, deployment="per-vehicle", architecture="distributed",
         network={"latency": 5.0})
-    pv = PerVehicleRuns(sc, tmp_path / "fmus")
+    pv = make_setup(sc, tmp_path / "fmus")
     setup = pv.network("distributed", "kalman", "regulator")
     assert setup.net.n > 30000
-    _, pred, window, _ = pv.predictions("distributed", "kalman", "regulator")
+    p = pv.predictions(Method("kalman", "kalman", "regulator", "distributed"))
+    pred, window = p.window, p.window_from_start
     assert pred.cost_rate is None and window is None and "1e13" in pred.reason
-    res = pv.run("distributed", "kalman", "regulator", 0)
+    res = pv.run(Method("kalman", "kalman", "regulator", "distributed"), 0)
     assert np.all(res.traces["link_delivered"][-1] == 0)      # nothing arrives within 1 s

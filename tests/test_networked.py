@@ -381,7 +381,7 @@ def test_the_second_moment_in_blocks_equals_the_dense_one(f4, architecture, rece
     """networked_blocks keeps the held values apart (block-diagonal between arrivals): the
     same expected window cost as the dense propagation."""
     from orchestrator.analysis.networked_blocks import predict_window_blocks
-    from orchestrator.network_run import network_setup
+    from orchestrator.running.network import network_setup
     sc = f4.with_run(T=60.0, deployment="per-vehicle", architecture=architecture,
                      network={"latency": 1.0, "period": 2.0, "loss": 0.2,
                               "receiver": receiver})

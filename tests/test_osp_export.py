@@ -20,8 +20,8 @@ from orchestrator.cosim.build import FMU_KINDS, interface_of
 from orchestrator.cosim.master import run_cosimulation
 from orchestrator.interop.common import ExportError
 from orchestrator.interop.osp import OSP_MD_NS, OSP_SYSTEM_NS, export_osp, validate_osp_file
+from orchestrator.running import scenario_config, scenario_system
 from orchestrator.scenario import load_scenario
-from orchestrator.workflow import scenario_config, scenario_system
 from plant_model.discretization import discretize
 from plant_model.plant import NoiseStream
 from support.loop import fmu_parameters

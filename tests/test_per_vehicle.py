@@ -22,8 +22,8 @@ from orchestrator.cosim.per_vehicle import (
     per_vehicle_system,
     stacked_traces,
 )
+from orchestrator.running import scenario_config
 from orchestrator.scenario import ScenarioError, load_scenario
-from orchestrator.workflow import scenario_config
 from plant_model.discretization import discretize
 from plant_model.per_vehicle import sample_vehicle, vehicle_views
 from plant_model.plant import NoiseStream

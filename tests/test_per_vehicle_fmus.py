@@ -88,10 +88,11 @@ def test_every_per_vehicle_fmu_validates_and_declares_its_structure(built, tmp_p
     from fmpy import read_model_description
     from fmpy.validation import validate_fmu
 
-    from orchestrator.per_vehicle_run import PerVehicleRuns
+    from orchestrator.running.setup import Method, make_setup
     fmus = dict(built[0])
-    sc = load_scenario("formation-4").with_run(T=10.0)
-    fmus.update(PerVehicleRuns(sc, tmp_path).fmus("centralized"))
+    sc = load_scenario("formation-4").with_run(T=10.0, deployment="per-vehicle",
+                                               architecture="centralized")
+    fmus.update(make_setup(sc, tmp_path).python_fmus(Method.of(sc)))
     assert set(fmus) == {"leader", "vehicle", "vehicle_estimator", "vehicle_controller",
                          "central_controller"}
     for key, path in fmus.items():

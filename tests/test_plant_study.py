@@ -1,5 +1,5 @@
 """compare --what plants: the linear and the nonlinear REMUS 100 under the same FMUs
-(orchestrator.plant_study), and the nonlinear model in a scenario file."""
+(orchestrator.running.plants), and the nonlinear model in a scenario file."""
 from __future__ import annotations
 
 import json

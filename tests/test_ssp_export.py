@@ -27,7 +27,7 @@ from orchestrator.cosim.master import run_cosimulation
 from orchestrator.cosim.system import Connection
 from orchestrator.interop.common import ExportError
 from orchestrator.interop.ssp import SSC_NS, SSD_NS, SSV_NS, export_ssp, fmpy_parameter_set
-from orchestrator.workflow import scenario_config, scenario_system
+from orchestrator.running import scenario_config, scenario_system
 from plant_model.discretization import discretize
 from plant_model.plant import NoiseStream
 from support.loop import fmu_parameters
@@ -315,7 +315,7 @@ def test_a_per_vehicle_archive_runs_in_fmpy_with_each_vehicles_values(tmp_path):
     steps = 200
     result = simulate(ssp, sc.h, steps, parameter_set=fmpy_parameter_set(ssp))
     system = scenario_system(sc)
-    from orchestrator.workflow import build
+    from orchestrator.running import build
     fmus = build(sc, tmp_path / "fmus")
     ours, _, _ = run_system(system, fmus, steps)
     from plant_model.per_vehicle import vehicle_views

@@ -156,7 +156,7 @@ def resolve_point(index: int, params: dict[str, Any], base: dict[str, Any],
     except (ScenarioError, ModelError) as exc:
         resolved = canonical_json({"base": data, "coupling": coupling})
         return DesignPoint(index, params, None, coupling, str(exc), resolved, frozenset(data))
-    from ..workflow import scenario_config
+    from ..running import scenario_config
     resolved = canonical_json({"config": scenario_config(sc.with_run(seed=0)),
                                "coupling": coupling})
     return DesignPoint(index, params, sc, coupling, None, resolved, frozenset(data))

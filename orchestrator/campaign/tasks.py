@@ -75,7 +75,7 @@ class PointDesign:
 def point_design(sc: Scenario, coupling: str = "gauss-seidel") -> PointDesign:
     """Sample the model, solve the tracking law, make the estimator and predict the cost.
 
-    Prediction as :func:`orchestrator.workflow.simulate` makes it: the stationary
+    Prediction as :func:`orchestrator.running.simulate` makes it: the stationary
     Lyapunov prediction of the exact loop (plus, for a fleet, the mean motion over the
     statistics window [k0, K)), or of the Jacobi-coupled loop for ``coupling='jacobi'``;
     k0 from 5 time constants of the slowest closed-loop mode (at most T/2).
@@ -229,7 +229,7 @@ def _fmu_rows(task: Task, design: PointDesign, ver: str) -> list[dict[str, Any]]
     from ..analysis.summary import trace_stats
     from ..cosim.build import build_fmus
     from ..cosim.master import run_cosimulation
-    from ..workflow import scenario_config
+    from ..running import scenario_config
     sc = task.scenario
     assert sc is not None
     cfg = scenario_config(sc)

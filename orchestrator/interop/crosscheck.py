@@ -166,7 +166,7 @@ def write_crosscheck(fmus: dict[str, Path], config: dict, out_dir: Path, *, step
     Parameters
     ----------
     fmus : dict[str, Path]
-        The FMUs built for ``config`` (orchestrator.workflow.build), by FMU key.
+        The FMUs built for ``config`` (orchestrator.running.build), by FMU key.
     config : dict
         The FMUs' configuration (:func:`orchestrator.cosim.build.fmu_config`).
     out_dir : Path

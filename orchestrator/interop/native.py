@@ -1,7 +1,7 @@
 """``auv-cosim export native``: the scenario's designed FMUs as native (C) FMUs, with an
 OSP system and an SSP archive that wire them.
 
-For every component of the scenario's system (:func:`orchestrator.workflow.scenario_system`:
+For every component of the scenario's system (:func:`orchestrator.running.scenario_system`:
 the stacked plant, estimator and controller, or per vehicle its vehicle, estimator and
 controller and the leader) the pythonfmu slave is set up once in this process and its linear
 form taken (:func:`orchestrator.cosim.native.form_of`). One native FMU is built per kind,
@@ -125,7 +125,7 @@ def export_native(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
     dict[str, Path]
         FMU key -> .fmu, ``"system"`` -> OspSystemStructure.xml, ``"ssp"`` -> the archive.
     """
-    from ..workflow import build, scenario_system
+    from ..running import build, scenario_system
     from .osp import export_osp
     from .ssp import export_ssp
 

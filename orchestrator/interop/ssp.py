@@ -179,7 +179,7 @@ def export_ssp(sc: Scenario, out_path: Path | str, *,
         FMUs already built for the scenario (FMU key -> path); built here if None.
     system : SystemDescription or None, optional
         The system structure (default: the scenario's,
-        :func:`orchestrator.workflow.scenario_system`).
+        :func:`orchestrator.running.scenario_system`).
 
     Returns
     -------
@@ -192,7 +192,7 @@ def export_ssp(sc: Scenario, out_path: Path | str, *,
         Naming every problem, if the connections do not match the FMUs' variables
         (before anything is written).
     """
-    from ..workflow import build, scenario_system
+    from ..running import build, scenario_system
 
     out_path = Path(out_path)
     system = system or scenario_system(sc)

@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from .atomic import write_text_atomically
-from .scenario import Scenario, scenario_from_dict
+from ..atomic import write_text_atomically
+from ..scenario import Scenario, scenario_from_dict
 
 __all__ = ["envelope_point", "run_envelope"]
 
@@ -58,7 +58,7 @@ def envelope_point(sc: Scenario, speed: float, radius: float, current: float) ->
     new = scenario_from_dict(data, where)
     return new.with_run(T=sc.T, h=sc.h, seed=sc.seed, estimator=sc.estimator,
                         tracking=sc.tracking, deployment=sc.deployment,
-                        architecture=sc.architecture)
+                        architecture=sc.architecture, fmus=sc.fmus)
 
 
 def run_envelope(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
@@ -71,7 +71,7 @@ def run_envelope(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
     dict[str, Any]
         The summary (also ``out / summary.json``).
     """
-    from .workflow import simulate
+    from .compare import simulate
 
     points = []
     grid = list(itertools.product(speeds, radii, currents))

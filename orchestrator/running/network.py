@@ -21,19 +21,19 @@ from controller_fmu.vehicle_law import centralized_rows
 from plant_model.fleet import fleet_vehicles
 from plant_model.network_schedule import connectivity, resolve_schedule
 
-from .analysis.message_form import (
+from ..analysis.message_form import (
     MessageForm,
     centralized_message_form,
     distributed_message_form,
     without_leader_links,
 )
-from .analysis.networked import NetworkedLoop
-from .analysis.networked_prediction import critical_loss, ms_spectral_radius, predict_window
-from .analysis.per_vehicle import distributed_initial_state, distributed_loop_of, distributed_noise
-from .analysis.prediction import Prediction
-from .analysis.summary import stats_window
-from .cosim.per_vehicle import fleet_slots
-from .cosim.per_vehicle_network import fleet_links, receiver_slots
+from ..analysis.networked import NetworkedLoop
+from ..analysis.networked_prediction import critical_loss, ms_spectral_radius, predict_window
+from ..analysis.per_vehicle import distributed_initial_state, distributed_loop_of, distributed_noise
+from ..analysis.prediction import Prediction
+from ..analysis.summary import stats_window
+from ..cosim.per_vehicle import fleet_slots
+from ..cosim.per_vehicle_network import fleet_links, receiver_slots
 
 __all__ = ["NetworkSetup", "age_summary", "modem_settings", "network_predictions",
            "network_reference", "network_setup", "network_summary", "schedule_settings",

@@ -1,14 +1,14 @@
-"""Run a fleet scenario in the per-vehicle deployment: build, co-simulate, predict.
+"""The per-vehicle deployment's setup (:class:`PerVehicleSetup`): build, systems, predictions.
 
 The FMUs of each architecture are built once (one per kind, vehicle 1's values as start
-values); every run sets each vehicle's parameters (:mod:`orchestrator.cosim.per_vehicle`).
+values; in a subfolder per architecture when several run); every run sets each vehicle's
+parameters (:mod:`orchestrator.cosim.per_vehicle`).
 Traces come back in the stacked layout, so the statistics, formation figures and recording
 of the stacked deployment apply unchanged; predictions are the stacked one (centralized)
 or the Lyapunov prediction of the distributed loop (:mod:`orchestrator.analysis.per_vehicle`).
 """
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Any
 
@@ -19,15 +19,14 @@ from estimator_fmu.estimators import make_estimator
 from plant_model.discretization import discretize
 from plant_model.linalg_checks import ModelError
 
-from .analysis.distributed_verdict import predict_cost
-from .analysis.networked_blocks import predict_window_blocks
-from .analysis.networked_prediction import prediction_work
-from .analysis.per_vehicle import distributed_initial_state, distributed_loop_of
-from .analysis.prediction import Prediction, method_predictions
-from .analysis.summary import stats_window
-from .cosim.build import build_fmus
-from .cosim.master import RunResult, run_system
-from .cosim.per_vehicle import (
+from ..analysis.distributed_verdict import predict_cost
+from ..analysis.networked_blocks import predict_window_blocks
+from ..analysis.networked_prediction import prediction_work
+from ..analysis.per_vehicle import distributed_initial_state, distributed_loop_of
+from ..analysis.prediction import Prediction, method_predictions
+from ..analysis.summary import stats_window
+from ..cosim.build import build_fmus
+from ..cosim.per_vehicle import (
     LINK_STATISTICS,
     build_configs,
     link_traces,
@@ -35,9 +34,9 @@ from .cosim.per_vehicle import (
     per_vehicle_system,
     stacked_traces,
 )
-from .cosim.per_vehicle_network import network_configs
-from .cosim.system import SystemDescription
-from .network_run import (
+from ..cosim.per_vehicle_network import network_configs
+from ..cosim.system import SystemDescription
+from .network import (
     NetworkSetup,
     age_summary,
     modem_settings,
@@ -47,8 +46,9 @@ from .network_run import (
     schedule_settings,
     too_many_states,
 )
+from .setup import Method, Predictions, RunSetup
 
-__all__ = ["MAX_CENTRALIZED_DESIGN_S", "PerVehicleRuns", "TRANSIENT_LIMIT",
+__all__ = ["MAX_CENTRALIZED_DESIGN_S", "PerVehicleSetup", "TRANSIENT_LIMIT",
            "centralized_design_estimate", "check_centralized"]
 
 #: largest loop state for which the window-average prediction from the start is computed
@@ -125,14 +125,19 @@ def _prediction(p: Any) -> Prediction:
                       spectral_radius=p.spectral_radius, settling_time=p.settling_time)
 
 
-class PerVehicleRuns:
-    """The per-vehicle FMUs of a fleet scenario, their runs and their predictions."""
+class PerVehicleSetup(RunSetup):
+    """The per-vehicle FMUs of a fleet scenario, their systems and their predictions."""
 
-    def __init__(self, sc: Any, fmu_dir: Path):
-        self.sc = sc
-        self.fmu_dir = Path(fmu_dir)
+    deployment = "per-vehicle"
+
+    def __init__(self, sc: Any, fmu_dir: Path | str, methods: Any = (), *,
+                 coupling: str = "gauss-seidel"):
+        super().__init__(sc, fmu_dir, methods, coupling=coupling)
         self._fmus: dict[str, dict[str, Path]] = {}
         self._network: dict[tuple[str, str, str], NetworkSetup] = {}
+        for arch in dict.fromkeys(m.architecture for m in self.methods):
+            if arch == "centralized":
+                check_centralized(sc)       # before anything is built: refused in one line
 
     def _configs(self, architecture: str, mode: str, tracking: str,
                  seed: int) -> list[dict[str, dict[str, Any]]]:
@@ -167,45 +172,59 @@ class PerVehicleRuns:
             self._network[key] = network_setup(self.sc, architecture, mode, tracking)
         return self._network[key]
 
-    def fmus(self, architecture: str) -> dict[str, Path]:
-        """The FMUs of ``architecture`` (built into the FMU folder on first use).
-
-        Parameters
-        ----------
-        architecture : str
-            ``centralized`` or ``distributed``.
+    def python_fmus(self, method: Method) -> dict[str, Path]:
+        """The FMUs of the method's architecture (built on first use, in
+        ``fmu_dir/<architecture>`` when the methods use several architectures: their
+        network FMUs differ).
 
         Returns
         -------
         dict[str, Path]
             FMU kind -> .fmu path.
         """
-        if architecture not in self._fmus:
+        arch = method.architecture
+        if arch not in self._fmus:
             sc = self.sc
-            cfgs = self._configs(architecture, sc.estimator, sc.tracking, sc.seed)
-            self._fmus[architecture] = build_fmus(None, self.fmu_dir,
-                                                  kinds=build_configs(cfgs))
-        return self._fmus[architecture]
+            several = len({m.architecture for m in self.methods}) > 1
+            cfgs = self._configs(arch, sc.estimator, sc.tracking, sc.seed)
+            self._fmus[arch] = build_fmus(None, self.fmu_dir / arch if several
+                                          else self.fmu_dir, kinds=build_configs(cfgs))
+        return self._fmus[arch]
 
-    def all_fmus(self) -> dict[str, Path]:
-        """Every FMU built so far, by kind."""
-        return {k: v for f in self._fmus.values() for k, v in f.items()}
+    def python_system(self, method: Method, seed: int) -> SystemDescription:
+        """The per-vehicle system of one method and seed (every vehicle's parameters):
+        1 + 3 N components (and N network components over acoustic links)."""
+        return per_vehicle_system(
+            self.sc, self._configs(method.architecture, method.estimator, method.tracking,
+                                   seed), method.architecture)
 
-    def predictions(self, architecture: str, mode: str, tracking: str
-                    ) -> tuple[Prediction, Prediction, Prediction | None, int]:
+    def stacked(self, system: SystemDescription, traces: dict[str, Any],
+                info: dict[str, Any]) -> dict[str, Any]:
+        """The traces in the stacked layout, and per link its statistics (``link_age``,
+        ...; ``info["links"]`` names the links)."""
+        out = stacked_traces(self.sc, system, traces)
+        links = link_traces(system, traces)
+        if links:                   # per link (in info["links"] order) its network statistics
+            order = sorted(links, key=lambda k: (k[1], str(k[0])))
+            info["links"] = [f"{j} -> {i}" for j, i in order]
+            for s in LINK_STATISTICS:
+                out[f"link_{s}"] = np.column_stack([links[k][s] for k in order])
+        return out
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = super().__getstate__()
+        state["_network"] = {}                 # a worker gets its systems made
+        return state
+
+    def design(self) -> Any:
+        """The stacked design of the first centralized method (None: all distributed)."""
+        central = [m for m in self.methods if m.architecture == "centralized"]
+        return (tracking_law(self.sc.system, central[0].tracking).design if central
+                else None)
+
+    def _predict(self, method: Method) -> Predictions:
         """(stationary, over the window with the mean motion, window average from the
         known start, first sample of the window) of one method.
-
-        Parameters
-        ----------
-        architecture, mode, tracking : str
-            The method.
-
-        Returns
-        -------
-        tuple
-            As :func:`orchestrator.analysis.prediction.predict_stationary` gives them for
-            the stacked deployment, and k0.
 
         Raises
         ------
@@ -213,13 +232,14 @@ class PerVehicleRuns:
             If the estimator or the design does not exist or the loop is unstable (named).
         """
         sc = self.sc
+        architecture, mode, tracking = method.architecture, method.estimator, method.tracking
         if sc.sensors is not None and mode == "kalman":
-            return self._multirate(architecture, tracking)
+            return Predictions.of(self._multirate(architecture, tracking))
         if sc.network is not None:
             setup = self.network(architecture, mode, tracking)
             path = prediction_path(setup.net, sc.steps)
             if path == "dense":
-                return network_predictions(sc, setup)
+                return Predictions.of(network_predictions(sc, setup))
             # many links: the second moment in blocks (held values apart), or none when
             # even that is too long; the perfect links' window and margin
             pred0, _, _, k0 = self._perfect(architecture, mode, tracking)
@@ -229,8 +249,8 @@ class PerVehicleRuns:
                               spectral_radius=pred0.spectral_radius,
                               settling_time=pred0.settling_time,
                               reason=too_many_states(setup.net.n, path, sc.steps))
-            return pred0, pred, (pred if cost is not None else None), k0
-        return self._perfect(architecture, mode, tracking)
+            return Predictions(pred0, pred, pred if cost is not None else None, k0)
+        return Predictions.of(self._perfect(architecture, mode, tracking))
 
     def _multirate(self, architecture: str, tracking: str
                    ) -> tuple[Prediction, Prediction, Prediction | None, int]:
@@ -283,14 +303,13 @@ class PerVehicleRuns:
                      if loop.Phi.shape[0] <= TRANSIENT_LIMIT else None)
         return _prediction(pred0), _prediction(predict_cost(loop, win, X0)), transient, k0
 
-    def network_entries(self, architecture: str, mode: str, tracking: str,
-                        runs: list[tuple[list[str], np.ndarray]], k0: int) -> dict[str, Any]:
+    def method_entries(self, method: Method, runs: list[tuple[list[str], np.ndarray]],
+                       k0: int) -> dict[str, Any]:
         """The summary's ``network`` and ``age_of_information`` of a method over links.
 
         Parameters
         ----------
-        architecture, mode, tracking : str
-            The method.
+        method : Method
         runs : list[tuple[list[str], np.ndarray]]
             Per seed its links and their ``link_age`` traces.
         k0 : int
@@ -302,61 +321,10 @@ class PerVehicleRuns:
             ``network`` (latency, period, loss, receiver, critical loss, ...) and
             ``age_of_information`` ({receiver: {sender: mean, max, predicted_mean}}).
         """
-        setup = self.network(architecture, mode, tracking)
+        if not runs:
+            return {}
+        setup = self.network(method.architecture, method.estimator, method.tracking)
         return {"network": network_summary(self.sc, setup,
                                            critical=prediction_path(setup.net, self.sc.steps)
                                            == "dense"),
                 "age_of_information": age_summary(runs, k0, setup)}
-
-    def system(self, architecture: str, mode: str, tracking: str, seed: int
-               ) -> SystemDescription:
-        """The per-vehicle system of one method and seed (every vehicle's parameters).
-
-        Parameters
-        ----------
-        architecture, mode, tracking : str
-            The method.
-        seed : int
-            Noise seed.
-
-        Returns
-        -------
-        SystemDescription
-            1 + 3 N components.
-        """
-        return per_vehicle_system(self.sc, self._configs(architecture, mode, tracking, seed),
-                                  architecture)
-
-    def run(self, architecture: str, mode: str, tracking: str, seed: int, *,
-            progress: Any = False, stop: Any = None) -> RunResult:
-        """Co-simulate one method on one seed; traces in the stacked layout.
-
-        Parameters
-        ----------
-        architecture, mode, tracking : str
-            The method.
-        seed : int
-            Noise seed (vehicle i draws from [seed, i]).
-        progress, stop : Any, optional
-            As :func:`orchestrator.cosim.master.run_system`.
-
-        Returns
-        -------
-        RunResult
-            Stacked traces (and ``eta`` for the distributed architecture).
-        """
-        t0 = time.perf_counter()
-        sc = self.sc
-        system = self.system(architecture, mode, tracking, seed)
-        traces, loop_s, info = run_system(system, self.fmus(architecture), sc.steps,
-                                          progress=progress, stop=stop,
-                                          instance_suffix=f"_{mode}_{seed}")
-        stacked = stacked_traces(sc, system, traces)
-        links = link_traces(system, traces)
-        if links:                   # per link (in info["links"] order) its network statistics
-            order = sorted(links, key=lambda k: (k[1], str(k[0])))
-            info["links"] = [f"{j} -> {i}" for j, i in order]
-            for s in LINK_STATISTICS:
-                stacked[f"link_{s}"] = np.column_stack([links[k][s] for k in order])
-        return RunResult(mode=mode, seed=int(seed), h=sc.h, traces=stacked,
-                         wall_s=time.perf_counter() - t0, loop_s=loop_s, info=info)

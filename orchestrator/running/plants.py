@@ -15,8 +15,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from .atomic import write_text_atomically
-from .scenario import Scenario
+from ..atomic import write_text_atomically
+from ..scenario import Scenario
 
 __all__ = ["PLANTS", "compare_plants", "plant_table"]
 
@@ -38,7 +38,7 @@ def compare_plants(sc: Scenario, seeds: Sequence[int], out: Path, *, progress: b
     out : Path
         Output folder; each plant writes into ``out / <model>``.
     progress, log
-        As :func:`orchestrator.workflow.simulate`.
+        As :func:`orchestrator.running.simulate`.
     plants : sequence of str, optional
         Vehicle models, default :data:`PLANTS`.
 
@@ -47,7 +47,7 @@ def compare_plants(sc: Scenario, seeds: Sequence[int], out: Path, *, progress: b
     dict[str, Any]
         The combined summary (also ``out / summary.json``).
     """
-    from .workflow import simulate
+    from .compare import simulate
 
     summaries: dict[str, dict[str, Any]] = {}
     for model in plants:

@@ -3,7 +3,9 @@
 The first seed of each method runs in the command's own process (its traces go to the
 .rrd); the other seeds run meanwhile in a pool of worker processes (``spawn``: a fresh
 interpreter, no copied FMU libraries; one BLAS thread, as in the parent), each a whole
-co-simulation of the same FMUs, returning only its statistics. A seed's result does not
+co-simulation of the same FMUs through the same run step
+(:meth:`orchestrator.running.setup.RunSetup.run`: any deployment, links, vehicle model and
+FMU kind), returning only its statistics. A seed's result does not
 depend on where it ran (one BLAS thread everywhere, its own noise stream), so the summary
 is the serial one. Workers ignore SIGINT: the command stops them (pending seeds cancelled,
 the running ones finish) when it is interrupted.
@@ -18,7 +20,6 @@ import signal
 from collections.abc import Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from contextlib import contextmanager
-from pathlib import Path
 from typing import Any
 
 __all__ = ["seed_pool", "seed_stats", "MIN_PARALLEL_STEPS"]
@@ -34,41 +35,35 @@ def _init_worker() -> None:
     import orchestrator  # noqa: F401  (one BLAS thread, before numpy)
 
 
-def seed_stats(fmus: dict[str, Path], cfg: dict[str, Any], mode: str, seed: int, steps: int,
-               tracking: str, k0: int, Q: Any, R: Any,
+def seed_stats(setup: Any, method: Any, seed: int, system: Any, k0: int,
                formation: tuple | None = None) -> tuple[dict[str, Any], float]:
-    """One seed's co-simulation on a worker: its :func:`trace_stats` and loop time.
+    """One seed's co-simulation on a worker: its statistics and loop time.
 
     Parameters
     ----------
-    fmus : dict[str, Path]
-        The three FMUs.
-    cfg : dict[str, Any]
-        Their configuration (:func:`orchestrator.workflow.scenario_config`).
-    mode, tracking : str
-        Estimator mode and tracking law.
+    setup : RunSetup
+        The command's setup (:mod:`orchestrator.running.setup`), its FMUs already built.
+    method : Method
+        The method.
     seed : int
-    steps : int
+    system : SystemDescription
+        The system of the method and seed (made in the command's process).
     k0 : int
         First sample of the statistics window.
-    Q, R : np.ndarray
-        Cost weights.
     formation : tuple or None, optional
         (position_index, offsets, edges, h) of a fleet: the stats then hold ``formation``
-        (:func:`orchestrator.analysis.formation.formation_stats`).
+        and ``segments``.
 
     Returns
     -------
     stats : dict[str, Any]
-        :func:`orchestrator.analysis.summary.trace_stats` of the run.
+        :func:`orchestrator.running.setup.run_statistics` of the run.
     loop_s : float
         Seconds in the step loop.
     """
-    from .analysis.summary import run_stats
-    from .cosim.master import run_cosimulation
-
-    res = run_cosimulation(fmus, cfg, mode=mode, seed=seed, steps=steps, tracking=tracking)
-    return run_stats(res.traces, Q, R, k0, formation), res.loop_s
+    from .setup import run_statistics
+    res = setup.run(method, seed, system=system)
+    return run_statistics(setup.sc, res, k0, formation), res.loop_s
 
 
 class SeedPool:

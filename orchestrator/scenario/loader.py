@@ -5,7 +5,8 @@ is the default) or a path to a ``.toml`` file. Sections and keys::
 
     name, description
     [simulation]  T (s), h (s), seed, estimator ("kalman" | "classical" | "ideal"),
-                  tracking ("lq" | "regulator")
+                  tracking ("lq" | "regulator"), deployment ("stacked" | "per-vehicle"),
+                  architecture ("centralized" | "distributed"), fmus ("python" | "native")
     [vehicles]    A, B1, B2, C, x0
     [disturbance] K, w0
     [reference]   F, H, z0
@@ -61,6 +62,7 @@ class Scenario:
     fleet: dict[str, Any] | None = None     #: the fleet spec (plant_model.fleet), if a fleet
     deployment: str = "stacked"             #: "stacked" or "per-vehicle" (fleets)
     architecture: str = "centralized"       #: "centralized" or "distributed" (per-vehicle)
+    fmus: str = "python"                    #: "python" (pythonfmu) or "native" where linear
     #: gains of the distributed law ([distributed] of a fleet scenario)
     distributed: DistributedSettings = field(default_factory=DistributedSettings)
     #: the acoustic links' [network] table (per-vehicle fleets; None: perfect links)
@@ -103,7 +105,7 @@ class Scenario:
         return replace(new, T=self.T, h=self.h, seed=self.seed, estimator=self.estimator,
                        tracking=self.tracking, deployment=self.deployment,
                        architecture=self.architecture, distributed=self.distributed,
-                       network=self.network)
+                       network=self.network, fmus=self.fmus)
 
     @property
     def steps(self) -> int:
@@ -113,7 +115,7 @@ class Scenario:
     def with_run(self, *, T: float | None = None, h: float | None = None,
                  seed: int | None = None, estimator: str | None = None,
                  tracking: str | None = None, deployment: str | None = None,
-                 architecture: str | None = None,
+                 architecture: str | None = None, fmus: str | None = None,
                  network: Mapping[str, Any] | None = None) -> Scenario:
         """A copy with run settings overridden, checked like the file's [simulation];
         ``network`` keys (latency, period, loss, receiver, ...) override or start the
@@ -124,7 +126,8 @@ class Scenario:
                       estimator=self.estimator if estimator is None else estimator,
                       tracking=self.tracking if tracking is None else tracking,
                       deployment=self.deployment if deployment is None else deployment,
-                      architecture=self.architecture if architecture is None else architecture)
+                      architecture=self.architecture if architecture is None else architecture,
+                      fmus=self.fmus if fmus is None else fmus)
         if network:
             if new.fleet is None:
                 raise ScenarioError(f"{self.source}: acoustic links (--latency, --period, "
@@ -136,10 +139,10 @@ class Scenario:
                 raise ScenarioError(f"{self.source}: {exc}") from None
         run = {"T": new.T, "h": new.h, "seed": new.seed, "estimator": new.estimator,
                "tracking": new.tracking, "deployment": new.deployment,
-               "architecture": new.architecture}
+               "architecture": new.architecture, "fmus": new.fmus}
         validate_scenario(RunSettings, {"simulation": run}, new.source)
         _check_step(new)
-        _check_deployment(new)
+        check_deployment(new)
         return new
 
 
@@ -160,7 +163,7 @@ def _check_step(sc: Scenario) -> None:
                 raise ScenarioError(f"{sc.source}: vehicle {i}: {exc}") from None
 
 
-def _check_deployment(sc: Scenario, network: bool = True) -> None:
+def check_deployment(sc: Scenario, network: bool = True) -> None:
     """A per-vehicle deployment needs a fleet whose consensus protocol is a force; a
     [network] needs the per-vehicle deployment (``network``: checked once the run settings
     are known, so that --deployment per-vehicle can select it)."""
@@ -217,7 +220,7 @@ def _scenario(file: ScenarioFile, where: str, system: LinearSystem,
                   description=file.description, system=system, T=sim.T, h=sim.h,
                   seed=sim.seed, estimator=sim.estimator, source=where,
                   tracking=sim.tracking, fleet=fleet, deployment=sim.deployment,
-                  architecture=sim.architecture)
+                  architecture=sim.architecture, fmus=sim.fmus)
     dist = getattr(file, "distributed", None)
     if dist is not None:
         sc = replace(sc, distributed=DistributedSettings(
@@ -227,7 +230,7 @@ def _scenario(file: ScenarioFile, where: str, system: LinearSystem,
     if getattr(file, "sensors", None) is not None:
         sc = replace(sc, sensors=dict(file.sensors))
     _check_step(sc)
-    _check_deployment(sc, network=False)
+    check_deployment(sc, network=False)
     return sc
 
 

@@ -35,6 +35,7 @@ from pydantic import (
 from controller_fmu.regulator import TRACKING_MODES
 from controller_fmu.vehicle_law import ARCHITECTURES, DEPLOYMENTS
 from estimator_fmu.estimators import ESTIMATOR_MODES
+from fmu_common.native_form import FMU_IMPLEMENTATIONS
 from plant_model.linalg_checks import (
     as_matrix,
     as_number,
@@ -117,6 +118,8 @@ class SimulationSection(Section):
     deployment: Annotated[str, one_of(DEPLOYMENTS)] = "stacked"
     #: per-vehicle fleets: the stacked law cut by vehicle, or neighbour-only information
     architecture: Annotated[str, one_of(ARCHITECTURES)] = "centralized"
+    #: the FMUs that run: pythonfmu, or native (C) where a component has a linear form
+    fmus: Annotated[str, one_of(FMU_IMPLEMENTATIONS)] = "python"
 
     @field_validator("T", mode="wrap")
     @classmethod

@@ -39,8 +39,8 @@ import pytest
 
 from controller_fmu.design import lq_tracking_design
 from orchestrator.cosim.build import FMU_KINDS, build_fmu
+from orchestrator.running import scenario_config
 from orchestrator.scenario import load_scenario
-from orchestrator.workflow import scenario_config
 
 HERE = Path(__file__).resolve().parent
 INPUTS = [f"{s}[{i}]" for s in ("xhat", "what", "zhat") for i in (1, 2)]

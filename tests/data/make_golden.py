@@ -62,8 +62,8 @@ def main() -> None:
         from orchestrator.master import CosimError, run_cosimulation
     except ImportError:             # the current one
         from orchestrator.cosim.master import CosimError, run_cosimulation
+    from orchestrator.running import build, scenario_config
     from orchestrator.scenario import load_scenario
-    from orchestrator.workflow import build, scenario_config
 
     arrays: dict[str, np.ndarray] = {}
     refused: dict[str, str] = {}

@@ -1,0 +1,265 @@
+"""``run`` and ``compare``: every method on every seed through the one run step, the
+statistics, the predictions, the recording and ``summary.json``."""
+from __future__ import annotations
+
+import json
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from plant_model.linalg_checks import ModelError
+
+from ..analysis.formation import formation_summary
+from ..analysis.full_information import fleet_bound, fleet_comparison
+from ..analysis.summary import method_summary, stationarity_note, versions
+from ..analysis.tracking_segments import segment_summary
+from ..atomic import write_text_atomically
+from ..interrupt import StopFlag, stop_on_signals
+from ..outputs import file_stem
+from ..scenario import Scenario
+from .fmus import fleet_layout, record_stride
+from .memory import check_memory
+from .setup import Method, RunSetup, make_setup, method_list, run_statistics, stats_context
+
+__all__ = ["NONLINEAR_NOTE", "simulate"]
+
+#: the prediction of a fleet of nonlinear vehicles is the linear design model's
+NONLINEAR_NOTE = ("predicted on the linear design model: the vehicles are the nonlinear "
+                  "remus100-6dof, so simulation and prediction differ by what the design "
+                  "model leaves out (docs/remus100-6dof.md)")
+
+
+def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], out_dir: Path | str,
+             *, progress: bool = True, log: Callable[[str], None] = print,
+             trackings: Sequence[str] | None = None,
+             record_hz: float | None = None, workers: int | None = None,
+             architectures: Sequence[str] | None = None) -> dict[str, Any]:
+    """Co-simulate each method (estimator ``modes`` x tracking laws ``trackings`` x
+    ``architectures``, each default the scenario's) on each seed; write
+    ``<out>/<scenario>.rrd`` and summary.json.
+
+    The .rrd holds the traces of the first seed of every method (same noise for all
+    methods); the summary holds statistics over all seeds, the predictions (Lyapunov
+    equation of the sampled closed loop plus, for a planned leader path, its mean motion)
+    and the steady-state tracking error of each method. The .rrd is written by a child
+    process (:mod:`orchestrator.recording.background`) that imports Rerun meanwhile.
+
+    Parameters
+    ----------
+    sc : Scenario
+        Any scenario: its deployment, links, vehicle models and FMU kind
+        (:func:`orchestrator.running.setup.make_setup`).
+    modes : sequence of str or None
+        Estimator modes (None: the scenario's).
+    seeds : sequence of int
+        Noise seeds; every method sees the same noise for a seed.
+    out_dir : Path or str
+        Output folder (created).
+    progress : bool
+        Show a progress bar (after one second), only when standard error is a terminal
+        (redirected output gets the per-run lines only, no carriage returns).
+    log : callable
+        Receives one line per run.
+    trackings : sequence of str, optional
+        Tracking laws (None: the scenario's).
+    architectures : sequence of str, optional
+        Information architectures of a per-vehicle fleet (None: the scenario's).
+    record_hz : float, optional
+        Recording rate of fleets, Hz (:func:`orchestrator.running.fmus.record_stride`).
+    workers : int, optional
+        Worker processes for the seeds after each method's first (default one per core;
+        1: all in this process; :mod:`orchestrator.running.seeds`); results do not
+        depend on it.
+
+    Returns
+    -------
+    dict
+        The summary also written to ``summary.json``.
+    """
+    from ..recording.background import BackgroundWriter
+    from .seeds import seed_pool
+
+    t0 = time.perf_counter()
+    methods = method_list(sc, modes, trackings, architectures)
+    check_memory(sc, len(methods))
+    out = Path(out_dir)
+    setup = make_setup(sc, out / "fmus", methods)
+    out.mkdir(parents=True, exist_ok=True)
+    # the .rrd writer imports Rerun in a child while we simulate; SIGINT / SIGTERM stop
+    # the runs between steps and keep what was simulated
+    with BackgroundWriter() as writer, stop_on_signals() as stop, \
+            seed_pool(sc.steps, len(seeds), len(methods), workers) as pool:
+        return _simulate(setup, methods, seeds, out, writer, t0, progress=progress, log=log,
+                         record_hz=record_hz, stop=stop, pool=pool)
+
+
+def _bar(sc: Scenario, runs: int, progress: bool) -> Any:
+    if not (progress and sys.stderr.isatty()):
+        return None
+    from tqdm import tqdm
+    return tqdm(total=runs * sc.steps, unit="step", delay=1.0, leave=False, unit_scale=True)
+
+
+def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out: Path,
+              writer: Any, t0: float, *, progress: bool, log: Callable[[str], None],
+              record_hz: float | None, stop: StopFlag, pool: Any = None) -> dict[str, Any]:
+    sc = setup.sc
+    for m in methods:
+        setup.fmus(m)                       # every FMU in place before the first step
+    results: dict[str, Any] = {}
+    rrd_runs: dict[str, dict[str, np.ndarray]] = {}
+    rrd_links: dict[str, list[str]] = {}
+    loop_us: list[float] = []
+    window: tuple[float, float] | None = None
+    bar = _bar(sc, len(methods) * len(seeds), progress)
+    if bar is not None:
+        log = bar.write
+    formation = stats_context(sc)
+    skipped: list[ModelError] = []
+    bounds: dict[int, float | None] = {}
+    notes: set[str] = set()
+    for method in methods:
+        name = method.name
+        try:
+            pred = setup.predictions(method)
+        except ModelError as exc:       # impossible for this scenario: run the others
+            if len(methods) == 1:
+                raise
+            skipped.append(exc)
+            results[name] = {"skipped": str(exc), "estimator": method.estimator,
+                             "tracking": method.tracking, "architecture": method.architecture,
+                             "seeds_completed": 0}
+            log(f"{name:>9s}: skipped: {exc}")
+            continue
+        k0 = pred.k0
+        window = (k0 * sc.h, sc.T)
+        note = stationarity_note(sc.T, k0 * sc.h, pred.stationary.settling_time)
+        if note is not None:
+            notes.add(note)
+        per_seed, link_ages = [], []
+        # the seeds after the first on local worker processes (orchestrator.running.seeds)
+        pooled = {s: pool.submit(setup, method, s, setup.system(method, s), k0, formation)
+                  for s in seeds[1:]} if pool else {}
+        predicted = pred.window.cost_rate
+        for seed in seeds:
+            if stop:
+                break
+            if seed in pooled:
+                stats, loop_s = pooled[seed].result()
+                if bar is not None:
+                    bar.update(sc.steps)
+                loop_us.append(loop_s / sc.steps * 1e6)
+                per_seed.append(stats)
+                log(f"{name:>9s} seed {seed}: cost rate {stats['cost_rate']:.4g} (worker "
+                    f"process), {loop_s:.2f} s")
+                continue
+            res = setup.run(method, seed, progress=bar, stop=stop)
+            if name not in rrd_runs and res.steps:
+                rrd_runs[name] = res.traces
+                if "links" in res.info:
+                    rrd_links[name] = res.info["links"]
+            if res.info["interrupted_by"]:
+                reached = res.steps * sc.h
+                log(f"{name:>9s} seed {seed}: interrupted by {res.info['interrupted_by']} at "
+                    f"t = {reached:.6g} s (not in the statistics)")
+                break
+            loop_us.append(res.loop_s / sc.steps * 1e6)
+            per_seed.append(run_statistics(sc, res, k0, formation))
+            if "link_age" in res.traces:
+                link_ages.append((res.info["links"], res.traces["link_age"]))
+            log(f"{name:>9s} seed {seed}: cost rate {per_seed[-1]['cost_rate']:.4g}"
+                + ("" if predicted is None else f" (predicted {predicted:.4g})")
+                + f", {res.loop_s:.2f} s")
+        entry = results[name] = (method_summary(per_seed, pred.window) if per_seed else
+                                 {"note": "no seed completed before the interruption"})
+        if per_seed and formation is not None:
+            entry.update(formation_summary([st["formation"] for st in per_seed],
+                                           list(seeds[:len(per_seed)])))
+            if all("segments" in st for st in per_seed):
+                entry.update(segment_summary([st["segments"] for st in per_seed]))
+        entry.update(setup.method_entries(method, link_ages, k0))
+        if per_seed and pred.window_from_start is not None:
+            entry["cost_rate"]["predicted_window"] = pred.window_from_start.cost_rate
+            entry["rms_e"]["predicted_window"] = pred.window_from_start.rms_e
+        if per_seed and sc.nonlinear_vehicles and pred.window.cost_rate is not None:
+            entry["prediction_note"] = "; ".join(filter(None, [
+                entry.get("prediction_note"), NONLINEAR_NOTE]))
+        entry.update(estimator=method.estimator, tracking=method.tracking,
+                     architecture=method.architecture)
+        #: the sampled closed loop's stability margin: largest |eigenvalue| of its error part
+        entry["spectral_radius"] = pred.stationary.spectral_radius
+        if per_seed and sc.fleet is not None:
+            if k0 not in bounds:                # one per window, not one per method
+                bounds[k0] = fleet_bound(sc, k0)
+            entry["cost_rate_full_information"] = bounds[k0]
+        entry["seeds_completed"] = len(per_seed)
+        if stop:
+            break
+    if bar is not None:
+        bar.close()
+    if len(skipped) == len(methods):
+        raise ModelError(f"no method can run on this scenario: {skipped[0]}")
+    rrd_path = out / f"{file_stem(sc.name)}.rrd"
+    stride = record_stride(sc, record_hz)
+    recorded = min((len(next(iter(tr.values()))) for tr in rrd_runs.values()), default=0)
+    if recorded:          # an interrupted compare: every method up to the shortest run
+        rrd_runs = {m: {k: v[:recorded] for k, v in tr.items()} for m, tr in rrd_runs.items()}
+        rrd_info = writer.write(rrd_path, rrd_runs, sc.h,
+                                recording_name=f"{sc.name} ({', '.join(rrd_runs)})",
+                                fleet=fleet_layout(sc), stride=stride, links=rrd_links or None)
+    else:
+        rrd_path.unlink(missing_ok=True)          # never leave an earlier run's .rrd
+        rrd_info = {"bytes": 0, "signals": 0, "rrd_s": 0.0}
+    design = setup.design()
+    summary = {
+        "scenario": sc.name,
+        "source": sc.source,
+        "h": sc.h,
+        "T": sc.T,
+        "steps": sc.steps,
+        "seeds": [int(s) for s in seeds],
+        "noise_convention": sc.system.noise_convention,
+        "consensus": None if sc.fleet is None else sc.fleet["graph"].get("consensus",
+                                                                         "in-plant"),
+        "deployment": sc.deployment,
+        "fmu_kind": sc.fmus,
+        **fleet_comparison(sc, results),
+        "stats_window_s": list(window) if window else None,
+        "stationary": not notes,
+        "stationarity_note": "; ".join(sorted(notes)) or None,
+        "methods": results,
+        "design": None if design is None else {
+            "closed_loop_poles": [[float(z.real), float(z.imag)] for z in design.closed_loop_poles],
+            "residuals": design.residuals,
+            **({} if sc.fleet is not None else
+               {"Kx": design.Kx.tolist(), "Kz": design.Kz.tolist(), "Kw": design.Kw.tolist()}),
+        },
+        "interrupted": bool(stop),
+        "interrupted_by": stop.name,
+        "time_reached_s": recorded * sc.h if stop else sc.T,
+        "rrd": {"path": str(rrd_path) if recorded else None, "traces_of_seed": int(seeds[0]),
+                "recorded_every_steps": stride, "recorded_steps": recorded, **rrd_info},
+        "timing": {"cosim_loop_us_per_step_mean": float(np.mean(loop_us)) if loop_us else None},
+        "fmus": _fmu_entries(setup, methods),
+        "wall_s": time.perf_counter() - t0,
+        "versions": versions(),
+    }
+    write_text_atomically(out / "summary.json", json.dumps(summary, indent=2))
+    return summary
+
+
+def _fmu_entries(setup: RunSetup, methods: list[Method]) -> dict[str, dict[str, Any]]:
+    """summary.json's ``fmus``: per FMU key its path, size and kind ("python" or
+    "native"); a key whose FMU differs between methods (each architecture's network FMU,
+    each method's native FMUs) once per method, as ``"<key> (<method>)"``."""
+    out: dict[str, dict[str, Any]] = {}
+    for m in methods:
+        for k, entry in setup.fmu_report(m).items():
+            if k in out and out[k]["path"] != entry["path"]:
+                k = f"{k} ({m.name})"
+            out.setdefault(k, entry)
+    return out

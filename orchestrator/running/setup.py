@@ -1,0 +1,369 @@
+"""The one run step: a :class:`RunSetup` built once from a resolved scenario, and its
+:meth:`RunSetup.run` of one (method, seed).
+
+A setup owns everything that differs between the systems a scenario can describe: which
+FMUs (pythonfmu, or native where a component has a linear form: ``[simulation] fmus``),
+the system description of a method and seed, the predictions of a method, how the traces
+map to the stacked layout, and what the summary adds (the acoustic links' figures). The
+branch on the deployment is :func:`make_setup`; :class:`StackedSetup` is the paper's loop
+of three FMUs, :class:`orchestrator.running.per_vehicle.PerVehicleSetup` one vehicle,
+estimator and controller FMU per AUV, with or without acoustic links, linear or nonlinear
+vehicles. ``run``, ``compare`` (every ``--what``), the seed workers, ``campaign``'s FMU
+engine, ``envelope``, the benchmarks and the cross-check all run through it.
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..analysis.prediction import Prediction
+from ..cosim.master import RunResult, run_system
+from ..cosim.system import SystemDescription
+from ..outputs import file_stem
+from ..scenario import Scenario, ScenarioError
+from ..scenario.loader import check_deployment
+
+__all__ = ["Method", "Predictions", "RunSetup", "StackedSetup", "make_setup", "method_list"]
+
+
+@dataclass(frozen=True)
+class Method:
+    """One method a run compares: its name and the estimator mode, tracking law and
+    information architecture it runs."""
+
+    name: str
+    estimator: str
+    tracking: str
+    architecture: str
+
+    @classmethod
+    def of(cls, sc: Scenario) -> Method:
+        """The scenario's own method, named after its estimator."""
+        return cls(sc.estimator, sc.estimator, sc.tracking, sc.architecture)
+
+
+def method_list(sc: Scenario, estimators: Sequence[str] | None = None,
+                trackings: Sequence[str] | None = None,
+                architectures: Sequence[str] | None = None) -> list[Method]:
+    """The methods to run: every architecture x estimator x tracking law; names are the
+    estimator when only estimators vary, the tracking law when only the law varies, the
+    architecture when only it varies, else the varying ones joined by '-'.
+
+    Parameters
+    ----------
+    sc : Scenario
+        Gives the defaults (its estimator, tracking law and architecture).
+    estimators, trackings, architectures : sequence of str, optional
+        Estimator modes, tracking laws and information architectures to combine.
+
+    Returns
+    -------
+    list[Method]
+    """
+    est = list(estimators or [sc.estimator])
+    trk = list(trackings or [sc.tracking])
+    arc = list(architectures or [sc.architecture])
+    out = []
+    for a in arc:
+        for e in est:
+            for t in trk:
+                parts = [x for x, many in ((a, len(arc) > 1), (e, len(est) > 1),
+                                           (t, len(trk) > 1)) if many]
+                out.append(Method("-".join(parts) or e, e, t, a))
+    return out
+
+
+@dataclass(frozen=True)
+class Predictions:
+    """What the summary predicts for one method."""
+
+    stationary: Prediction                 #: the stationary loop (margin, settling time)
+    window: Prediction                     #: over the statistics window (the "predicted")
+    window_from_start: Prediction | None   #: the window average from the known start
+    k0: int                                #: first sample of the statistics window
+
+    @classmethod
+    def of(cls, parts: tuple[Prediction, Prediction, Prediction | None, int]) -> Predictions:
+        """From the (stationary, window, from start, k0) the analysis functions return."""
+        return cls(*parts)
+
+
+class RunSetup:
+    """The FMUs, systems and predictions of one scenario's runs (module docstring).
+
+    Parameters
+    ----------
+    sc : Scenario
+        The resolved scenario (its ``fmus`` chooses pythonfmu or native FMUs).
+    fmu_dir : Path
+        Where the FMUs go (each method's native FMUs, and each architecture's per-vehicle
+        FMUs when several run, in a subfolder of their own).
+    methods : sequence of Method, optional
+        The methods that will run (default: the scenario's own).
+    coupling : str, optional
+        The master's coupling, 'gauss-seidel' or 'jacobi'.
+    """
+
+    deployment = ""
+
+    def __init__(self, sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = (),
+                 *, coupling: str = "gauss-seidel"):
+        self.sc = sc
+        self.fmu_dir = Path(fmu_dir)
+        self.methods = tuple(methods) or (Method.of(sc),)
+        self.coupling = coupling
+        self._native: dict[Method, Any] = {}
+        self._predictions: dict[Method, Predictions] = {}
+
+    # what a deployment defines ---------------------------------------------------------
+    def python_fmus(self, method: Method) -> dict[str, Path]:
+        """The pythonfmu FMUs ``method`` runs (built on first use): FMU key -> path."""
+        raise NotImplementedError
+
+    def python_system(self, method: Method, seed: int) -> SystemDescription:
+        """The system of ``method`` and ``seed`` on the pythonfmu FMUs."""
+        raise NotImplementedError
+
+    def _predict(self, method: Method) -> Predictions:
+        raise NotImplementedError
+
+    def stacked(self, system: SystemDescription, traces: dict[str, Any],
+                info: dict[str, Any]) -> dict[str, Any]:
+        """The traces of a run of ``system`` in the stacked layout (``e``, ``u``, ``x``, ...)."""
+        return traces
+
+    def method_entries(self, method: Method, runs: list[tuple[list[str], Any]],
+                       k0: int) -> dict[str, Any]:
+        """What the summary adds for ``method`` beyond the statistics (links' figures)."""
+        return {}
+
+    def design(self) -> Any:
+        """The stacked tracking design of the first method that uses one, or None."""
+        return None
+
+    # the same for every deployment ---------------------------------------------------------
+    def predictions(self, method: Method) -> Predictions:
+        """The predictions of ``method`` (computed once).
+
+        Raises
+        ------
+        ModelError
+            If the estimator or the design does not exist or the loop is unstable (named).
+        """
+        if method not in self._predictions:
+            self._predictions[method] = self._predict(method)
+        return self._predictions[method]
+
+    def _native_system(self, method: Method) -> Any:
+        """The method's system with native FMUs where a component has a linear form."""
+        if method not in self._native:
+            from ..interop.native import native_system
+            folder = self.fmu_dir / "native"
+            if len(self.methods) > 1:
+                folder = folder / file_stem(method.name)
+            system = self.python_system(method, self.sc.seed)
+            self._native[method] = native_system(system, self.python_fmus(method), folder)
+        return self._native[method]
+
+    def fmus(self, method: Method) -> dict[str, Path]:
+        """The FMUs ``method`` runs: FMU key -> path (native ones where ``fmus = native``)."""
+        if self.sc.fmus == "native":
+            return self._native_system(method).fmus
+        return self.python_fmus(method)
+
+    def system(self, method: Method, seed: int) -> SystemDescription:
+        """The system ``method`` runs on ``seed`` (on the FMUs of :meth:`fmus`)."""
+        python = self.python_system(method, seed)
+        if self.sc.fmus != "native":
+            return python
+        ns = self._native_system(method)
+        # the native system was made for the scenario's seed: each noisy native component
+        # takes this seed's value, as its pythonfmu counterpart does
+        seeds = {c.name: c.parameters["seed"] for c in python.components
+                 if "seed" in c.parameters}
+        comps = tuple(dataclasses.replace(c, parameters={**c.parameters, "seed": seeds[c.name]})
+                      if c.name in ns.forms and ns.forms[c.name].nxi > 0 and c.name in seeds
+                      else c for c in ns.system.components)
+        return dataclasses.replace(ns.system, components=comps)
+
+    def fmu_report(self, method: Method) -> dict[str, dict[str, Any]]:
+        """Per FMU key of ``method``: its path, size and which kind ran ("python" for a
+        pythonfmu slave, "native" for a compiled one)."""
+        native = (set() if self.sc.fmus != "native" else
+                  {c.fmu for c in self._native_system(method).system.components
+                   if c.name in self._native_system(method).forms})
+        return {k: {"path": str(p), "bytes": Path(p).stat().st_size,
+                    "kind": "native" if k in native else "python"}
+                for k, p in self.fmus(method).items()}
+
+    def run(self, method: Method, seed: int, *, progress: Any = False, stop: Any = None,
+            system: SystemDescription | None = None) -> RunResult:
+        """Co-simulate ``method`` on ``seed`` for the scenario's T; traces in the stacked
+        layout.
+
+        Parameters
+        ----------
+        method : Method
+        seed : int
+            Noise seed.
+        progress, stop : Any, optional
+            As :func:`orchestrator.cosim.master.run_system`.
+        system : SystemDescription, optional
+            The system (default :meth:`system`; a worker process gets it made).
+
+        Returns
+        -------
+        RunResult
+        """
+        t0 = time.perf_counter()
+        system = system if system is not None else self.system(method, seed)
+        traces, loop_s, info = run_system(system, self.fmus(method), self.sc.steps,
+                                          coupling=self.coupling, progress=progress,
+                                          stop=stop,
+                                          instance_suffix=f"_{method.estimator}_{seed}")
+        return RunResult(mode=method.estimator, seed=int(seed), h=self.sc.h,
+                         traces=self.stacked(system, traces, info),
+                         wall_s=time.perf_counter() - t0, loop_s=loop_s,
+                         coupling=self.coupling, info=info)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """What a worker process needs: the scenario and the FMUs built here (the
+        predictions and network analyses stay in this process)."""
+        state = dict(self.__dict__)
+        state["_predictions"] = {}
+        return state
+
+
+class StackedSetup(RunSetup):
+    """The paper's loop of three FMUs (plant, estimator, controller) for a single system or
+    a stacked fleet."""
+
+    deployment = "stacked"
+
+    def __init__(self, sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = (),
+                 *, coupling: str = "gauss-seidel"):
+        super().__init__(sc, fmu_dir, methods, coupling=coupling)
+        from .fmus import scenario_config
+        self.config = scenario_config(sc)
+        self._fmus: dict[str, Path] | None = None
+        self._model: Any = None
+
+    def python_fmus(self, method: Method) -> dict[str, Path]:
+        """The three FMUs (one build serves every method: they set their mode and law)."""
+        if self._fmus is None:
+            from ..cosim.build import build_fmus
+            self._fmus = build_fmus(self.config, self.fmu_dir)
+        return self._fmus
+
+    def python_system(self, method: Method, seed: int) -> SystemDescription:
+        """:func:`orchestrator.cosim.system.closed_loop_system` of the method and seed."""
+        from ..cosim.system import closed_loop_system
+        return closed_loop_system(dict(self.config, mode=method.estimator, seed=int(seed),
+                                       tracking=method.tracking), name=self.sc.name)
+
+    def model(self) -> Any:
+        """The sampled model (computed once)."""
+        if self._model is None:
+            from plant_model.discretization import discretize
+            self._model = discretize(self.sc.system, self.sc.h)
+        return self._model
+
+    def _predict(self, method: Method) -> Predictions:
+        from controller_fmu.regulator import tracking_law
+        from estimator_fmu.estimators import make_estimator
+
+        from ..analysis.prediction import method_predictions
+        sc = self.sc
+        est = make_estimator(sc.system, self.model(), method.estimator)
+        Ks = tracking_law(sc.system, method.tracking).Ks
+        parts = Predictions.of(method_predictions(sc, self.model(), est, Ks))
+        if self.coupling != "jacobi":
+            return parts
+        from ..analysis.jacobi import predict_stationary_jacobi
+        pj = predict_stationary_jacobi(sc.system, self.model(), est, Ks)
+        pred = dataclasses.replace(parts.stationary, rms_e=pj["rms_e"], rms_u=pj["rms_u"],
+                                   cost_rate=pj["cost_rate"], reason=pj["reason"])
+        return Predictions(pred, pred, None, parts.k0)
+
+    def design(self) -> Any:
+        from controller_fmu.regulator import tracking_law
+        return tracking_law(self.sc.system, self.methods[0].tracking).design
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = super().__getstate__()
+        state["_model"] = None
+        return state
+
+
+def check_setup(sc: Scenario, coupling: str = "gauss-seidel") -> None:
+    """Refuse, in one line naming the combination, what no setup can run.
+
+    Raises
+    ------
+    ScenarioError
+        A [network], [sensors] or nonlinear vehicle without the per-vehicle deployment,
+        the distributed law with the classical estimator, or a per-vehicle system with
+        the Jacobi coupling.
+    """
+    check_deployment(sc)
+    if sc.deployment == "per-vehicle" and coupling != "gauss-seidel":
+        raise ScenarioError(f"{sc.source}: coupling {coupling!r} runs the stacked loop only "
+                            "(its prediction is the Jacobi-coupled stacked loop's); the "
+                            "per-vehicle deployment runs Gauss-Seidel")
+
+
+def make_setup(sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = (), *,
+               coupling: str = "gauss-seidel") -> RunSetup:
+    """The setup of a scenario: the one place that branches on the deployment.
+
+    Parameters
+    ----------
+    sc : Scenario
+    fmu_dir : Path or str
+        Where its FMUs go.
+    methods : sequence of Method, optional
+        The methods that will run (default: the scenario's own).
+    coupling : str, optional
+        The master's coupling.
+
+    Returns
+    -------
+    RunSetup
+
+    Raises
+    ------
+    ScenarioError
+        If the combination cannot run (:func:`check_setup`).
+    ModelError
+        If a centralized per-vehicle design would take too long (estimated).
+    """
+    check_setup(sc, coupling)
+    if sc.deployment == "per-vehicle":
+        from .per_vehicle import PerVehicleSetup
+        return PerVehicleSetup(sc, fmu_dir, methods, coupling=coupling)
+    return StackedSetup(sc, fmu_dir, methods, coupling=coupling)
+
+
+def stats_context(sc: Scenario) -> tuple | None:
+    """What :func:`orchestrator.analysis.summary.run_stats` needs beyond Q, R and k0 for a
+    fleet: (position_index, offsets, edges, h), or None."""
+    from .fmus import fleet_layout
+    layout = fleet_layout(sc)
+    return (None if layout is None else
+            (layout.position_index, layout.offsets, layout.edges, sc.h))
+
+
+def run_statistics(sc: Scenario, res: RunResult, k0: int,
+                   formation: tuple | None) -> dict[str, Any]:
+    """The statistics of one run as the summary and the campaign rows hold them."""
+    from ..analysis.summary import run_stats
+    from ..analysis.tracking_segments import run_segments
+    stats = run_stats(res.traces, sc.system.Q, sc.system.R, k0, formation)
+    if formation is not None:
+        stats["segments"] = run_segments(sc.fleet["leader"], res.traces, k0)
+    return stats
+
