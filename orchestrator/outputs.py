@@ -6,23 +6,36 @@
   lock on it (``fcntl.flock`` on ``<out>/.auv-cosim.lock``) for the whole command: a second
   ``run``, ``compare``, ``build`` or ``export`` into the same folder is refused in one line
   naming the process that holds it. The lock goes with the process (the kernel releases it
-  when the holder exits or is killed), so a crashed run never leaves the folder locked.
+  when the holder exits or is killed), so a crashed run never leaves the folder locked;
+- :func:`claim_folder` keeps runs from mixing: the folder records what kind of run wrote it
+  (``.auv-cosim-run.json``: command, scenario, deployment, architecture, links, vehicle
+  models, FMU kind); another kind of run is refused in one line unless ``--force``, and the
+  outputs of the run it replaces (summary, recording, figures, FMUs, per-plant and
+  per-point subfolders) are removed before it writes.
 """
 from __future__ import annotations
 
 import errno
 import fcntl
+import json
 import os
 import re
+import shutil
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["LOCK_NAME", "OutputFolderError", "file_stem", "make_folder", "output_folder"]
+__all__ = ["LOCK_NAME", "RUN_MARKER", "OutputFolderError", "claim_folder", "file_stem",
+           "make_folder", "output_folder"]
 
 #: name of the lock file in an output folder
 LOCK_NAME = ".auv-cosim.lock"
+
+#: what kind of run wrote an output folder
+RUN_MARKER = ".auv-cosim-run.json"
+#: what a run writes into its folder (besides subfolders holding a summary.json)
+RUN_OUTPUTS = ("summary.json", "figures", "fmus", "points")
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
 
@@ -143,3 +156,50 @@ def output_folder(out: Path | str, command: str) -> Iterator[Path]:
     finally:
         os.close(fd)           # releases the lock; the file stays (removing it would race)
 
+
+
+def _describe(identity: Mapping[str, str]) -> str:
+    return ", ".join(f"{k} {v}" for k, v in identity.items())
+
+
+def claim_folder(out: Path, identity: Mapping[str, str], *, force: bool = False) -> None:
+    """Make ``out`` (held with :func:`output_folder`) the folder of a run of ``identity``:
+    refuse it if it holds another kind of run's outputs (unless ``force``), then remove the
+    outputs of the run it replaces, so that no figure, recording or subfolder of an
+    earlier run is left beside the new ones.
+
+    Parameters
+    ----------
+    out : Path
+        The output folder.
+    identity : Mapping[str, str]
+        What makes the run distinct (command, scenario, deployment, ...).
+    force : bool, optional
+        Replace another kind of run's outputs.
+
+    Raises
+    ------
+    OutputFolderError
+        Naming both runs, if the folder holds another kind of run and ``force`` is off.
+    """
+    marker = out / RUN_MARKER
+    try:
+        previous = json.loads(marker.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        previous = None
+    subfolders = [p for p in out.iterdir() if p.is_dir() and (p / "summary.json").exists()]
+    outputs = [p for p in out.iterdir() if p.name in RUN_OUTPUTS or p.suffix == ".rrd"]
+    identity = dict(identity)
+    if (outputs or subfolders) and previous != identity and not force:
+        what = ("a run of " + _describe(previous) if isinstance(previous, dict)
+                else "the outputs of an earlier run")
+        raise OutputFolderError(
+            f"output folder {out} holds {what}, not of {_describe(identity)}; choose "
+            "another --out, or add --force to replace them")
+    for p in outputs + subfolders:
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p)
+        else:
+            p.unlink(missing_ok=True)
+    from .atomic import write_text_atomically
+    write_text_atomically(marker, json.dumps(identity, indent=1) + "\n")

@@ -42,8 +42,11 @@ TRACE_BYTES = 256 * 2**20
 BLOCK = 2048
 
 
-def numpy_unsupported(coupling: str, sections: set[str] | frozenset[str]) -> str | None:
-    """Why the numpy engine cannot run a point (None if it can).
+def numpy_unsupported(coupling: str, sections: set[str] | frozenset[str],
+                      scenario: Any = None) -> str | None:
+    """Why the numpy engine cannot run a point (None if it can): it covers the stacked loop
+    of a linear plant over perfect links, coupled Gauss-Seidel; the FMU kind does not
+    matter (it runs no FMU).
 
     Parameters
     ----------
@@ -51,6 +54,8 @@ def numpy_unsupported(coupling: str, sections: set[str] | frozenset[str]) -> str
         The master's coupling of the point ('gauss-seidel' or 'jacobi').
     sections : set[str]
         The top-level keys of the point's scenario mapping.
+    scenario : Scenario, optional
+        The point's resolved scenario (its deployment and vehicle models).
 
     Returns
     -------
@@ -61,6 +66,11 @@ def numpy_unsupported(coupling: str, sections: set[str] | frozenset[str]) -> str
     unknown = sorted(set(sections) - KNOWN_SECTIONS)
     if unknown:
         return f"section(s) {', '.join(unknown)}: not a linear plant with perfect links"
+    if scenario is not None and scenario.deployment != "stacked":
+        return (f"deployment {scenario.deployment!r}: the numpy engine runs the stacked loop "
+                "only")
+    if scenario is not None and scenario.nonlinear_vehicles:
+        return "nonlinear vehicles: the numpy engine runs a linear plant only"
     return None
 
 

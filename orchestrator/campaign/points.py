@@ -7,9 +7,12 @@ edges and pinning for that many vehicles (:func:`orchestrator.scenario.generator
 so the formation and the graph follow the count. A point that does not make a valid scenario
 is kept, with its error, and becomes rows with that message.
 
-Run key = SHA-256 of the canonical JSON of (the resolved FMU configuration without the
-seed, the coupling, the seed, the engine, the package versions): the same run in any later
-campaign has the same key, and a changed scenario, engine or version a new one.
+Run key = SHA-256 of the canonical JSON of (the whole resolved scenario without its seed:
+system, fleet, deployment, architecture, links, sensors, distributed-law settings, FMU kind
+and run settings; the coupling, the seed, the engine, the package versions): the same run in
+any later campaign has the same key, and two points that differ in anything they run never
+share one. A point whose combination cannot run (a [network] on the stacked deployment, ...)
+is refused before anything runs, as an error row naming why.
 """
 from __future__ import annotations
 
@@ -28,7 +31,7 @@ if TYPE_CHECKING:
     from .spec import CampaignSpec
 
 __all__ = ["DesignPoint", "expand_points", "resolve_point", "resolve_points", "run_key",
-           "canonical_json", "param_text"]
+           "canonical_json", "param_text", "resolved_scenario"]
 
 
 @dataclass(frozen=True)
@@ -153,13 +156,46 @@ def resolve_point(index: int, params: dict[str, Any], base: dict[str, Any],
                                               for k, v in params.items()) if params else base_where
     try:
         sc = scenario_from_dict(data, where)
+        from ..running.setup import check_setup
+        check_setup(sc, coupling)
     except (ScenarioError, ModelError) as exc:
         resolved = canonical_json({"base": data, "coupling": coupling})
         return DesignPoint(index, params, None, coupling, str(exc), resolved, frozenset(data))
-    from ..running import scenario_config
-    resolved = canonical_json({"config": scenario_config(sc.with_run(seed=0)),
-                               "coupling": coupling})
+    resolved = canonical_json({"scenario": resolved_scenario(sc), "coupling": coupling})
     return DesignPoint(index, params, sc, coupling, None, resolved, frozenset(data))
+
+
+def _plain(value: Any) -> Any:
+    """JSON-ready data of a resolved scenario's value (arrays as lists, dataclasses and
+    mappings as dicts, a vehicle model as its name and parameters)."""
+    import dataclasses
+
+    import numpy as np
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, dict) or hasattr(value, "items"):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    raise TypeError(f"cannot key a scenario value of type {type(value).__name__}")
+
+
+def resolved_scenario(sc: Scenario) -> dict[str, Any]:
+    """Everything a resolved scenario runs, but its seed and its names, as JSON-ready data
+    (the run key's scenario part)."""
+    import dataclasses
+    skip = {"seed", "name", "description", "source", "raw", "system"}
+    out = {f.name: _plain(getattr(sc, f.name)) for f in dataclasses.fields(sc)
+           if f.name not in skip}
+    if sc.fleet is None:            # a fleet's system is made from its (resolved) fleet spec
+        out["system"] = _plain(sc.system.to_mapping())
+    return out
 
 
 def resolve_points(spec: CampaignSpec, base: dict[str, Any],

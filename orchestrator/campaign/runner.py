@@ -65,7 +65,7 @@ def plan_tasks(points: list[DesignPoint], seeds: list[int], engine: str,
     for pt in points:
         eng, note = engine, None
         if engine == "numpy" and pt.scenario is not None:
-            note = numpy_unsupported(pt.coupling, pt.sections)
+            note = numpy_unsupported(pt.coupling, pt.sections, pt.scenario)
             if note:
                 eng = "fmu"
         keys = tuple(run_key(pt, s, eng, ver) for s in seeds)

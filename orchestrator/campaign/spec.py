@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 import tomllib
 from pathlib import Path
-from typing import Annotated, Any, Literal, get_origin
+from typing import Annotated, Any, Literal, get_args, get_origin
 
 from annotated_types import Ge
 from pydantic import BaseModel, ConfigDict, Field
@@ -151,6 +151,17 @@ def base_mapping(base: str, spec_dir: Path | None = None) -> tuple[dict[str, Any
         raise ScenarioError(f"{where}: cannot be read as TOML: {exc}") from None
 
 
+def _free_table(model: Any, loc: list[str]) -> bool:
+    """Whether ``loc`` is a table the schema takes as a free mapping (``dict[str, Any] |
+    None``: [network], [sensors]), checked by its own validator."""
+    parent = _model_at(model, loc[:-1]) if len(loc) > 1 else model
+    if parent is None or loc[-1] not in parent.model_fields:
+        return False
+    annotation = parent.model_fields[loc[-1]].annotation
+    return any(get_origin(a) is dict or a is dict
+               for a in (annotation, *get_args(annotation)))
+
+
 def _key_problem(data: dict[str, Any], key: str) -> str | None:
     """Why ``key`` is not a dotted key of the scenario ``data``'s schema (None if it is)."""
     parts = key.split(".")
@@ -168,6 +179,8 @@ def _key_problem(data: dict[str, Any], key: str) -> str | None:
         from ..scenario.schema import SystemScenario as model
     for i in range(1, len(parts)):
         table = _model_at(model, parts[:i])
+        if table is None and _free_table(model, parts[:i]):
+            return None                # [network], [sensors]: their validators check keys
         if table is None:
             return f"is unknown: {'.'.join(parts[:i])} is not a table of the base scenario"
         if table.model_config.get("extra") == "allow":        # the leader's path parameters

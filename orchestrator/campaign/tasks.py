@@ -1,10 +1,13 @@
 """One task: one design point's batch of seeds, run on a worker; its result is one row per run.
 
-The design is solved once per task, not once per seed: the task samples the model, solves
-the tracking law and the estimator and predicts the cost once (:func:`point_design`); the
-FMUs of every seed then find the same sampled model, filter gains and law in the process's
-design cache (:mod:`plant_model.memo`: pythonfmu slaves run in this interpreter and import
-the same modules), and the numpy engine runs all seeds on the one design.
+The design is solved once per task, not once per seed. The FMU engine runs the point through
+the one run step (:class:`orchestrator.running.setup.RunSetup`: any deployment, links,
+vehicle model, FMU kind and coupling; its predictions once per task, each seed's statistics
+as ``auv-cosim run`` computes them), and the FMUs of every seed find the same sampled model,
+filter gains and law in the process's design cache (:mod:`plant_model.memo`: pythonfmu
+slaves run in this interpreter and import the same modules). The numpy engine (the stacked
+linear loop only, :func:`.engine_numpy.numpy_unsupported`) samples the model, solves the law
+and the estimator once (:func:`point_design`) and runs all seeds on the one design.
 
 A run that fails (an impossible design, a refused FMU call, anything raised) becomes a row
 with ``status = "error"`` and the message; the other seeds and tasks go on.
@@ -130,6 +133,9 @@ def _base_row(task: Task, seed: int, key: str, engine: str) -> dict[str, Any]:
             "scenario": sc.name if sc else None, "T": sc.T if sc else None,
             "h": sc.h if sc else None, "estimator": sc.estimator if sc else None,
             "tracking": sc.tracking if sc else None, "coupling": task.coupling,
+            "deployment": sc.deployment if sc else None,
+            "architecture": sc.architecture if sc else None,
+            "fmus": sc.fmus if sc else None,
             "engine_note": task.note}
 
 
@@ -166,13 +172,13 @@ def error_rows(task: Task, message: str, versions: str = "{}") -> list[dict[str,
     return rows
 
 
-def _stats_row(row: dict[str, Any], stats: dict[str, Any], design: PointDesign) -> None:
-    pred = design.prediction
+def _stats_row(row: dict[str, Any], stats: dict[str, Any], pred: dict[str, Any],
+               window_start_s: float, design_s: float) -> None:
     row.update(status="ok", cost_rate=stats["cost_rate"], rms_e=stats["rms_e"],
                rms_u=stats["rms_u"], mean_e=stats["mean_e"],
                predicted_cost_rate=pred["cost_rate"], predicted_rms_e=pred["rms_e"],
                predicted_rms_u=pred["rms_u"], prediction_note=pred["note"],
-               window_start_s=design.k0 * design.model.h, design_s=design.seconds)
+               window_start_s=window_start_s, design_s=design_s)
 
 
 def run_task(task: Task) -> list[dict[str, Any]]:
@@ -194,14 +200,14 @@ def run_task(task: Task) -> list[dict[str, Any]]:
     ver = json.dumps(versions(), sort_keys=True)
     if task.scenario is None:
         return error_rows(task, task.error or "the point has no scenario", ver)
+    if task.engine != "numpy":
+        return _fmu_rows(task, ver)
     t0 = time.perf_counter()
     try:
         design = point_design(task.scenario, task.coupling)
     except Exception as exc:                      # an impossible design: rows, not a crash
         return error_rows(task, _message(exc), ver)
-    if task.engine == "numpy":
-        return _numpy_rows(task, design, ver, time.perf_counter() - t0)
-    return _fmu_rows(task, design, ver)
+    return _numpy_rows(task, design, ver, time.perf_counter() - t0)
 
 
 def _numpy_rows(task: Task, design: PointDesign, ver: str,
@@ -219,37 +225,40 @@ def _numpy_rows(task: Task, design: PointDesign, ver: str,
     rows = []
     for seed, key, st in zip(task.seeds, task.keys, stats):
         row = _base_row(task, seed, key, "numpy")
-        _stats_row(row, st, design)
+        _stats_row(row, st, design.prediction, design.k0 * design.model.h, design.seconds)
         row["loop_s"] = wall
         rows.append(_finish(row, ver, wall + setup_s / len(task.seeds)))
     return rows
 
 
-def _fmu_rows(task: Task, design: PointDesign, ver: str) -> list[dict[str, Any]]:
-    from ..analysis.summary import trace_stats
-    from ..cosim.build import build_fmus
-    from ..cosim.master import run_cosimulation
-    from ..running import scenario_config
+def _fmu_rows(task: Task, ver: str) -> list[dict[str, Any]]:
+    from ..running.setup import Method, make_setup, run_statistics, stats_context
     sc = task.scenario
     assert sc is not None
-    cfg = scenario_config(sc)
     work = tempfile.mkdtemp(prefix="auv_campaign_")
     rows = []
     try:
-        t_build = time.perf_counter()
+        t_design = time.perf_counter()
         try:
-            fmus = build_fmus(cfg, work)
-        except Exception as exc:
+            setup = make_setup(sc, work, coupling=task.coupling)
+            method = Method.of(sc)
+            pred = setup.predictions(method)
+            design_s = time.perf_counter() - t_design
+            t_build = time.perf_counter()
+            setup.fmus(method)
+            build_s = time.perf_counter() - t_build
+        except Exception as exc:                  # an impossible design: rows, not a crash
             return error_rows(task, _message(exc), ver)
-        build_s = time.perf_counter() - t_build
+        expected = {"rms_e": pred.window.rms_e, "rms_u": pred.window.rms_u,
+                    "cost_rate": pred.window.cost_rate, "note": pred.window.reason}
+        formation = stats_context(sc)
         for seed, key in zip(task.seeds, task.keys):
             row = _base_row(task, seed, key, "fmu")
             t0 = time.perf_counter()
             try:
-                res = run_cosimulation(fmus, cfg, mode=sc.estimator, seed=seed, steps=sc.steps,
-                                       tracking=sc.tracking, coupling=task.coupling)
-                _stats_row(row, trace_stats(res.traces, sc.system.Q, sc.system.R, design.k0),
-                           design)
+                res = setup.run(method, seed)
+                _stats_row(row, run_statistics(sc, res, pred.k0, formation), expected,
+                           pred.k0 * sc.h, design_s)
                 row["loop_s"] = res.loop_s
             except Exception as exc:
                 row["error"] = _message(exc)

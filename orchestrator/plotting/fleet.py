@@ -38,7 +38,8 @@ def _points(run: RunData, entity: str) -> tuple[np.ndarray, np.ndarray] | None:
 
 def _title(run: RunData, text: str) -> str:
     seed = "" if run.seed is None else f", seed {run.seed}"
-    return f"{text} — scenario {run.scenario}{seed}"
+    label = f"\n{run.label}" if run.label else ""
+    return f"{text} — scenario {run.scenario}{seed}{label}"
 
 
 def _paths_figure(run: RunData, n: int) -> PlotFigure:

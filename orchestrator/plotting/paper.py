@@ -42,6 +42,8 @@ def _seconds(sim_time: np.ndarray) -> np.ndarray:
 def _title(run: RunData, text: str, note: str = "") -> str:
     seed = "" if run.seed is None else f", seed {run.seed}"
     head = f"{text} — scenario {run.scenario}{seed}, {' vs '.join(run.methods)}"
+    if run.label:
+        head += f" ({run.label})"
     return head + (f"\n{note}" if note else "")
 
 

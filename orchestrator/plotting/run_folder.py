@@ -65,6 +65,9 @@ class RunData:
     fleet: bool
     units: dict[str, str]
     error_names: tuple[str, ...] = ()
+    #: what the figures' titles name beside the scenario: the plant of a ``compare --what
+    #: plants`` subfolder, the architectures of a per-vehicle compare, the FMU kind
+    label: str = ""
 
     @property
     def scenario(self) -> str:
@@ -91,6 +94,14 @@ class RunData:
         while any(f"{root}/{i + 1}/{m}{suffix}" in self.scalars for suffix in ("", "/true")):
             i += 1
         return i
+
+
+def _read_summary_file(folder: Path) -> Any:
+    """summary.json of a folder, None if there is none or it is not JSON."""
+    try:
+        return json.loads((folder / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
 
 
 def _read_summary(folder: Path) -> dict[str, Any]:
@@ -238,4 +249,32 @@ def load_run(folder: str | Path) -> RunData:
     error_names = _error_names(rrd, methods[0]) if fleet else ()
     units = _fleet_units(summary, error_names) if fleet else {}
     return RunData(folder=folder, summary=summary, rrd=rrd, methods=methods, scalars=scalars,
-                   fleet=fleet, units=units, error_names=error_names)
+                   fleet=fleet, units=units, error_names=error_names,
+                   label=_label(summary, methods))
+
+
+def _label(summary: dict[str, Any], methods: tuple[str, ...]) -> str:
+    """The title's label of a run: its plant (a vehicle model), the architecture of each
+    method of a per-vehicle run, its FMU kind when native."""
+    parts = []
+    if summary.get("plant"):
+        parts.append(f"plant {summary['plant']}")
+    if summary.get("deployment") == "per-vehicle":
+        archs = [summary["methods"][m].get("architecture") for m in methods]
+        if any(archs):
+            parts.append(f"{summary['deployment']}, "
+                         + " vs ".join(f"{m}: {a}" if m != a else a
+                                       for m, a in zip(methods, archs)))
+    if summary.get("fmu_kind", "python") != "python":
+        parts.append(f"{summary['fmu_kind']} FMUs")
+    return "; ".join(parts)
+
+
+def plant_folders(folder: str | Path) -> list[tuple[str, Path]] | None:
+    """(plant, subfolder) of a ``compare --what plants`` folder, None for another folder."""
+    folder = Path(folder)
+    summary = _read_summary_file(folder)
+    plants = summary.get("plants") if isinstance(summary, dict) else None
+    if not isinstance(plants, dict):
+        return None
+    return [(name, folder / str(p.get("folder", name))) for name, p in plants.items()]

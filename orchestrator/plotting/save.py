@@ -2,15 +2,16 @@
 deterministic, atomic writing."""
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Sequence
 from pathlib import Path
 
 from orchestrator.atomic import temporary_sibling
-from orchestrator.outputs import make_folder
+from orchestrator.outputs import file_stem, make_folder
 
 from .figure import PlotFigure, deterministic_style
-from .run_folder import RunData, load_run
+from .run_folder import RunData, RunFolderError, load_run, plant_folders
 
 __all__ = ["DEFAULT_FORMATS", "FORMATS", "build_figures", "parse_formats", "plot_run",
            "save_figure"]
@@ -130,8 +131,25 @@ def plot_run(folder: str | Path, out: str | Path | None = None,
     unknown = [f for f in formats if f not in FORMATS]
     if unknown or not formats:
         raise ValueError(f"formats {list(formats)!r}: expected some of {', '.join(FORMATS)}")
-    run = load_run(folder)
-    dest = make_folder(Path(out) if out is not None else Path(folder) / "figures")
+    dest = Path(out) if out is not None else Path(folder) / "figures"
+    plants = plant_folders(folder)
+    if plants is not None:                # compare --what plants: each plant's run, its name
+        written: list[Path] = []          # in every title, its figures in a subfolder
+        for name, sub in plants:
+            if (sub / "summary.json").exists():
+                written += _plot_one(load_run(sub), dest / file_stem(name), formats,
+                                     f"plant {name}")
+        if not written:
+            raise RunFolderError(f"{folder}: no plant's run finished (no subfolder holds a "
+                                 "run summary)")
+        return written
+    return _plot_one(load_run(folder), dest, formats)
+
+
+def _plot_one(run: RunData, dest: Path, formats: Sequence[str], label: str = "") -> list[Path]:
+    if label:
+        run = dataclasses.replace(run, label="; ".join(filter(None, [label, run.label])))
+    dest = make_folder(dest)
     written: list[Path] = []
     with deterministic_style():
         for pf in build_figures(run):

@@ -1,0 +1,43 @@
+"""What makes a run distinct, as a default output folder name and as the identity an output
+folder records (:func:`orchestrator.outputs.claim_folder`): the scenario, the deployment
+and architecture, acoustic links, nonlinear vehicle models and the FMU kind."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..outputs import file_stem
+from ..scenario import Scenario
+
+__all__ = ["default_out", "run_identity", "run_tags"]
+
+
+def run_tags(sc: Scenario) -> list[str]:
+    """The parts of a folder name that tell this run's system apart: ``per-vehicle-<arch>``,
+    ``links``, the nonlinear vehicle models, ``native``; none for the stacked pythonfmu loop
+    over perfect links with linear vehicles (the paper's folders keep their names)."""
+    tags = []
+    if sc.deployment != "stacked":
+        tags.append(f"{sc.deployment}-{sc.architecture}")
+    if sc.network is not None:
+        tags.append("links")
+    models = sorted({str(sc.fleet["vehicles"][i - 1].get("model"))
+                     for i in sc.nonlinear_vehicles}) if sc.fleet else []
+    tags += models
+    if sc.fmus != "python":
+        tags.append(sc.fmus)
+    return tags
+
+
+def default_out(sc: Scenario, *tail: str) -> Path:
+    """``out/<scenario>[_<tags>]_<tail>``, e.g. ``out/paper_kalman_seed0`` or
+    ``out/formation-4_per-vehicle-distributed_links_native_compare``."""
+    return Path("out") / "_".join([file_stem(sc.name), *run_tags(sc), *tail])
+
+
+def run_identity(sc: Scenario, command: str) -> dict[str, str]:
+    """What an output folder records about the run that writes it."""
+    models = sorted({str(v.get("model", "")) for v in sc.fleet["vehicles"]}) if sc.fleet else []
+    return {"command": command, "scenario": sc.name, "deployment": sc.deployment,
+            "architecture": sc.architecture if sc.deployment != "stacked" else "-",
+            "links": "yes" if sc.network is not None else "no",
+            "vehicles": ",".join(m for m in models if m) or "-", "fmus": sc.fmus}

@@ -1,0 +1,111 @@
+"""The composition matrix: formation-4 at a short horizon, every combination of deployment
+{stacked, per-vehicle centralized, per-vehicle distributed} x links {none, latency + loss} x
+vehicle {remus100, remus100-6dof} x FMUs {python, native}, through `auv-cosim run`. Each cell
+either runs (finite figures, a .rrd that reads back with the expected entities, native equal
+to python where both run) or is refused before anything is written, in one line naming the
+combination and why. docs/composition.md holds the table this test checks."""
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from orchestrator.cli import main
+from orchestrator.recording import read_rrd_scalars
+
+ROOT = Path(__file__).resolve().parent.parent
+DEPLOYMENTS = {"stacked": ["--deployment", "stacked"],
+               "centralized": ["--deployment", "per-vehicle", "--architecture", "centralized"],
+               "distributed": ["--deployment", "per-vehicle", "--architecture", "distributed"]}
+LINKS = {"none": [], "links": ["--latency", "0.5", "--period", "1.0", "--loss", "0.2"]}
+VEHICLES = ("remus100", "remus100-6dof")
+FMUS = ("python", "native")
+#: cells refused, with what the one line must say
+REFUSED = {("stacked", "links"): "[network] needs [simulation] deployment = \"per-vehicle\"",
+           ("stacked", "remus100-6dof"): "needs [simulation] deployment = \"per-vehicle\""}
+T = "2.0"
+
+needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler (cc) for the "
+                              "native FMUs")
+
+
+@pytest.fixture(scope="module")
+def scenarios(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("composition")
+    text = (ROOT / "orchestrator/scenario/builtin/formation-4.toml").read_text()
+    paths = {}
+    for vehicle in VEHICLES:
+        paths[vehicle] = folder / f"formation-4-{vehicle}.toml"
+        paths[vehicle].write_text(text.replace('model = "remus100"', f'model = "{vehicle}"'))
+    return paths
+
+
+@pytest.fixture(scope="module")
+def runs(scenarios, tmp_path_factory):
+    """Every python cell run once (the native cells compare against them)."""
+    return {}
+
+
+def _run(scenarios, tmp, dep, links, vehicle, fmus, capsys):
+    out = tmp / f"{dep}-{links}-{vehicle}-{fmus}"
+    code = main(["run", "--scenario", str(scenarios[vehicle]), "--T", T, "--seed", "3",
+                 "--quiet", "--out", str(out), "--fmus", fmus,
+                 *DEPLOYMENTS[dep], *LINKS[links]])
+    return code, out, capsys.readouterr()
+
+
+def _refusal(dep, links, vehicle):
+    return REFUSED.get((dep, links)) or REFUSED.get((dep, vehicle))
+
+
+CELLS = [(d, ln, v, f) for d in DEPLOYMENTS for ln in LINKS for v in VEHICLES for f in FMUS]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("dep, links, vehicle, fmus", CELLS,
+                         ids=["-".join(c) for c in CELLS])
+def test_every_cell_runs_or_is_refused_in_one_line(scenarios, runs, tmp_path, capsys,
+                                                   dep, links, vehicle, fmus):
+    if fmus == "native" and shutil.which("cc") is None:
+        pytest.skip("no C compiler (cc) for the native FMUs")
+    code, out, io = _run(scenarios, tmp_path, dep, links, vehicle, fmus, capsys)
+    want = _refusal(dep, links, vehicle)
+    if want is not None:
+        assert code == 2
+        lines = io.err.strip().splitlines()
+        assert len(lines) == 1 and want in lines[0], io.err
+        assert not out.exists() or not any(out.iterdir())      # nothing written
+        return
+    assert code == 0, io.err
+    summary = json.loads((out / "summary.json").read_text())
+    (m,) = summary["methods"].values()
+    assert math.isfinite(m["cost_rate"]["mean"]) and m["seeds_completed"] == 1
+    assert summary["fmu_kind"] == fmus and summary["deployment"] == (
+        "stacked" if dep == "stacked" else "per-vehicle")
+    kinds = {k: e["kind"] for k, e in summary["fmus"].items()}
+    if fmus == "python":
+        assert set(kinds.values()) == {"python"}
+    else:       # native where a component is linear; the network and 6-DOF vehicle stay
+        assert "native" in kinds.values()
+        assert all(v == "python" for k, v in kinds.items() if k in ("network", "remus6dof"))
+    scalars = read_rrd_scalars(out / f"{summary['scenario']}.rrd")
+    for i in range(1, 5):
+        assert any(e.startswith(f"vehicles/{i}/error/") for e in scalars), i
+    if links == "links":
+        assert "network" in m and m["network"]["loss"] == 0.2
+        assert any("link" in e for e in scalars)
+    if vehicle == "remus100-6dof":
+        assert any("rpm" in e for e in scalars)
+    runs[(dep, links, vehicle, fmus)] = (out, scalars, m)
+    if fmus == "native" and (dep, links, vehicle, "python") in runs:
+        _, ref, mref = runs[(dep, links, vehicle, "python")]
+        assert set(ref) == set(scalars)
+        for entity, (_, _, values) in ref.items():
+            got = scalars[entity][2]
+            scale = max(float(np.nanmax(np.abs(values))), 1e-300)
+            assert np.nanmax(np.abs(got - values)) <= 1e-12 * scale, entity
+        assert m["cost_rate"]["mean"] == pytest.approx(mref["cost_rate"]["mean"], rel=1e-12)
