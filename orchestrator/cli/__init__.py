@@ -19,15 +19,15 @@ from estimator_fmu.estimators import ESTIMATOR_MODES
 from plant_model.linalg_checks import ModelError
 from plant_model.network import RECEIVERS
 
-from .cli_args import _count, _positive, parse_floats, parse_seeds, positive_metres
-from .cli_bench import _fleet_sizes, cmd_bench
-from .cosim.instance import CosimError
-from .cosim.system import AlgebraicLoopError
-from .interop.common import ExportError
-from .outputs import OutputFolderError, file_stem, output_folder
-from .scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
+from ..cosim.instance import CosimError
+from ..cosim.system import AlgebraicLoopError
+from ..interop.common import ExportError
+from ..outputs import OutputFolderError, file_stem, output_folder
+from ..scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
+from .args import _count, _positive, parse_floats, parse_seeds, positive_metres
+from .bench import _fleet_sizes, cmd_bench
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 class UsageError(RuntimeError):
@@ -123,7 +123,7 @@ def _print_summary(summary: dict, out: Path) -> int:
         print(f"wrote {rrd} and {out / 'summary.json'}; wall time {summary['wall_s']:.1f} s")
         print(f"open it with: {viewer_command()} {shlex.quote(rrd)}")
     if summary.get("interrupted"):
-        from .interrupt import EXIT_STATUS
+        from ..interrupt import EXIT_STATUS
         sig = summary["interrupted_by"]
         kept = (f"{rrd} (traces to t = {summary['time_reached_s']:.6g} s)" if rrd
                 else "no traces (stopped before the first steps)")
@@ -136,7 +136,7 @@ def _print_summary(summary: dict, out: Path) -> int:
 
 
 def cmd_build(args: argparse.Namespace) -> int:
-    from .workflow import build, write_fmu_readme
+    from ..workflow import build, write_fmu_readme
     sc = _scenario(args)
     with output_folder(args.out, "build") as out:
         paths = build(sc, out)
@@ -148,8 +148,8 @@ def cmd_build(args: argparse.Namespace) -> int:
             print("(no cross-check references for the per-vehicle FMUs: they are written "
                   "for the stacked deployment's three FMUs)")
         elif not args.no_crosscheck:
-            from .interop.crosscheck import write_crosscheck
-            from .workflow import scenario_config
+            from ..interop.crosscheck import write_crosscheck
+            from ..workflow import scenario_config
             written = write_crosscheck(paths, scenario_config(sc), out / "crosscheck")
             print(f"cross-check references (<Model>_in.csv, _ref.csv, _ref.opt) for "
                   f"{', '.join(written)} in {out / 'crosscheck'}")
@@ -157,7 +157,7 @@ def cmd_build(args: argparse.Namespace) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .workflow import check_memory, simulate
+    from ..workflow import check_memory, simulate
     sc = _scenario(args)
     check_memory(sc, 1)                     # before anything is created
     with output_folder(args.out or f"out/{file_stem(sc.name)}_{sc.estimator}_seed{sc.seed}",
@@ -168,7 +168,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from .workflow import check_memory, method_list, simulate
+    from ..workflow import check_memory, method_list, simulate
     sc = _scenario(args)
     what = args.what or ("tracking" if sc.fleet is not None else "estimators")
     if what == "plants":
@@ -203,7 +203,7 @@ def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
     """compare --what plants: the linear and the nonlinear REMUS 100, same FMUs otherwise."""
     from plant_model.vehicles import REMUS_MODELS
 
-    from .plant_study import compare_plants, plant_table
+    from ..plant_study import compare_plants, plant_table
     if sc.deployment != "per-vehicle":
         raise UsageError("--what plants runs the nonlinear vehicle, which is its own FMU: add "
                          "--deployment per-vehicle (or set [simulation] deployment = "
@@ -220,7 +220,7 @@ def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
     print("\n".join(plant_table(summary)))
     print(f"wrote {out / 'summary.json'}")
     if summary.get("interrupted"):
-        from .interrupt import EXIT_STATUS
+        from ..interrupt import EXIT_STATUS
         sig = summary.get("interrupted_by")
         print(f"auv-cosim: interrupted by {sig}: kept what each plant's run produced and "
               f"{out / 'summary.json'} (marked \"interrupted\": true)", file=sys.stderr)
@@ -230,7 +230,7 @@ def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
 
 def cmd_envelope(args: argparse.Namespace) -> int:
     """envelope: the grid of orchestrator.envelope, one line per point."""
-    from .envelope import run_envelope
+    from ..envelope import run_envelope
     sc = _scenario(args)
     if sc.fleet is None or sc.deployment != "per-vehicle":
         raise UsageError("envelope runs a per-vehicle fleet: give a fleet scenario and "
@@ -247,15 +247,15 @@ def cmd_envelope(args: argparse.Namespace) -> int:
 def cmd_export(args: argparse.Namespace) -> int:
     sc = _scenario(args)
     if args.format == "native":
-        from .cosim.native import NativeBuildError, compiler
+        from ..cosim.native import NativeBuildError, compiler
         try:
             compiler()                      # no C compiler: say so before any folder exists
         except NativeBuildError as exc:
             raise UsageError(str(exc)) from None
     with output_folder(args.out or f"out/{file_stem(sc.name)}_{args.format}", "export") as out:
         if args.format == "native":
-            from .cosim.native import NativeBuildError
-            from .interop.native import export_native
+            from ..cosim.native import NativeBuildError
+            from ..interop.native import export_native
             try:
                 paths = export_native(sc, out)
             except NativeBuildError as exc:
@@ -267,13 +267,13 @@ def cmd_export(args: argparse.Namespace) -> int:
                   + (f" (and, not linear, needing Python: {', '.join(kept)})" if kept else "")
                   + f"; OSP system {paths['system'].name}, SSP archive {paths['ssp'].name}")
         elif args.format == "osp":
-            from .interop.osp import export_osp
+            from ..interop.osp import export_osp
             paths = export_osp(sc, out)
             print(f"OSP system for scenario {sc.name} in {out}: {paths['system'].name}, "
                   + ", ".join(p.name for k, p in paths.items() if k != "system"))
             print(f"run it with libcosim: cosim run {paths['system']}  (or libcosimpy)")
         else:
-            from .interop.ssp import export_ssp
+            from ..interop.ssp import export_ssp
             path = export_ssp(sc, out / f"{file_stem(sc.name)}.ssp")
             print(f"SSP archive for scenario {sc.name}: {path} (fmpy: simulate_ssp('{path}'))")
     return 0
@@ -284,7 +284,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
     from fmpy.validation import validate_fmu
 
-    from .workflow import build
+    from ..workflow import build
     if args.fmus:
         import zipfile
         paths = {p.stem: p for p in (Path(x) for x in args.fmus)}
@@ -312,13 +312,13 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 
 def cmd_campaign(args: argparse.Namespace) -> int:
-    from .campaign.runner import run_campaign
+    from ..campaign.runner import run_campaign
     return run_campaign(args.spec, args.out, scheduler=args.scheduler, workers=args.workers,
                         engine=args.engine)
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    from .plotting import RunFolderError, parse_formats, plot_run
+    from ..plotting import RunFolderError, parse_formats, plot_run
     try:
         formats = parse_formats(args.format)
         written = plot_run(args.run_dir, args.out, formats)
@@ -554,6 +554,3 @@ def console() -> None:
     sys.stderr.flush()
     os._exit(code)
 
-
-if __name__ == "__main__":
-    console()

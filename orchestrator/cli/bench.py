@@ -7,12 +7,12 @@ import json
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .scenario import Scenario
+    from ..scenario import Scenario
 
 
 def _scenario(args: argparse.Namespace) -> Scenario:
     """The scenario of the command line (the CLI's loader, imported when called)."""
-    from .cli import _scenario as load
+    from . import _scenario as load
     return load(args)
 
 
@@ -28,7 +28,7 @@ def _fleet_sizes(text: str) -> list[int]:
 
 
 def cmd_bench_per_vehicle(args: argparse.Namespace) -> int:
-    from .benchmarks.per_vehicle import benchmark_per_vehicle
+    from ..benchmarks.per_vehicle import benchmark_per_vehicle
     arch = args.architecture or "distributed"
     rows = []
     print(f"per-vehicle deployment, {arch} architecture (generated survey grids)")
@@ -59,7 +59,7 @@ def cmd_bench_per_vehicle(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_fleet(args: argparse.Namespace) -> int:
-    from .benchmarks.paper import benchmark_fleet
+    from ..benchmarks.paper import benchmark_fleet
     rows = []
     print(f"{'N':>3s} {'states':>6s} {'design s':>9s} {'filter s':>9s} {'build s':>8s} "
           f"{'mD kB (p/e/c)':>18s} {'init s (p/e/c)':>18s} {'cosim us':>9s} {'mono us':>8s} "
@@ -95,7 +95,7 @@ def _printed_as_json(args: argparse.Namespace, r: dict, rounds: str = "") -> boo
 
 
 def cmd_bench_tools(args: argparse.Namespace) -> int:
-    from .benchmarks.paper import benchmark_tools
+    from ..benchmarks.paper import benchmark_tools
     sc = _scenario(args)
     steps = int(round((args.T or 50.0) / sc.h))
     r = benchmark_tools(sc, steps)
@@ -112,7 +112,7 @@ def cmd_bench_tools(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_native(args: argparse.Namespace) -> int:
-    from .benchmarks.native import benchmark_native
+    from ..benchmarks.native import benchmark_native
     sc = _scenario(args)
     r = benchmark_native(sc, int(round((args.T or 200.0) / sc.h)))
     if _printed_as_json(args, r):
@@ -131,7 +131,7 @@ def cmd_bench_native(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_remus(args: argparse.Namespace) -> int:
-    from .benchmarks.remus import benchmark_remus
+    from ..benchmarks.remus import benchmark_remus
     r = benchmark_remus()
     if args.json:
         print(json.dumps(r, indent=2))
@@ -150,7 +150,7 @@ def cmd_bench_remus(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_startup(args: argparse.Namespace) -> int:
-    from .benchmarks.paper import benchmark_startup
+    from ..benchmarks.paper import benchmark_startup
     sc = _scenario(args)
     r = benchmark_startup(sc)
     if _printed_as_json(args, r, f", median of {r['repeats']} rounds"):
@@ -165,7 +165,7 @@ def cmd_bench_startup(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_campaign(args: argparse.Namespace) -> int:
-    from .benchmarks.campaign import benchmark_campaign
+    from ..benchmarks.campaign import benchmark_campaign
     r = benchmark_campaign()
     if args.json:
         print(json.dumps(r, indent=2))
@@ -192,10 +192,10 @@ def cmd_bench_campaign(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from .benchmarks.paper import benchmark
+    from ..benchmarks.paper import benchmark
     if getattr(args, "deployment", None) == "per-vehicle":
         if not args.fleet:
-            from .cli import UsageError
+            from . import UsageError
             raise UsageError("bench --deployment per-vehicle times fleets of several sizes: "
                              "give them with --fleet, e.g. --fleet 4,20,50,100")
         return cmd_bench_per_vehicle(args)
