@@ -372,7 +372,7 @@ def test_the_c_host_runs_the_all_native_system_like_our_master(tmp_path):
     per vehicle, every FMU native, unzipped under a folder with a space, a percent sign and
     non-ASCII letters: every recorded output equals our Jacobi master's bit for bit. A NaN
     gain is one line naming the instance and the call, exit status 1."""
-    from orchestrator.bench_native import c_host_binary, write_c_host_system
+    from orchestrator.benchmarks.native import c_host_binary, write_c_host_system
     sc = load_scenario("formation-4").with_run(T=3.0, deployment="per-vehicle",
                                                architecture="distributed")
     system, py, ns = _native(sc, tmp_path)
@@ -405,7 +405,7 @@ def test_the_native_fmus_load_run_and_unload_cleanly_under_valgrind(tmp_path):
     """The C host runs the paper's all-native loop under valgrind (memcheck, full leak
     check): no invalid access, no definitely lost block, after fmi2FreeInstance and
     dlclose."""
-    from orchestrator.bench_native import c_host_binary, write_c_host_system
+    from orchestrator.benchmarks.native import c_host_binary, write_c_host_system
     sc = load_scenario("paper").with_run(T=1.0)
     _, _, ns = _native(sc, tmp_path)
     exe = c_host_binary(tmp_path)

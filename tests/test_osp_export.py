@@ -241,7 +241,7 @@ def test_libcosim_runs_a_fleet_export_like_our_jacobi_master(libcosim, tmp_path)
 
 
 def test_benchmark_libcosim_reports_both_and_checks_agreement(paper, libcosim):
-    from orchestrator.bench import benchmark_libcosim
+    from orchestrator.benchmarks.paper import benchmark_libcosim
     r = benchmark_libcosim(paper, 300, repeats=1)
     for key in ("ours_gauss_seidel_us_per_step", "ours_jacobi_us_per_step",
                 "libcosim_us_per_step", "speedup_gauss_seidel_vs_libcosim"):

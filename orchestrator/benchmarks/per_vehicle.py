@@ -57,10 +57,10 @@ def benchmark_per_vehicle(N: int, *, architecture: str = "distributed", T: float
     """
     from controller_fmu.vehicle_law import vehicle_law
 
-    from .analysis.distributed import agents_from_fleet_spec
-    from .running.setup import Method, make_setup
-    from .scenario import scenario_from_dict
-    from .scenario.generator import survey_grid_fleet
+    from ..analysis.distributed import agents_from_fleet_spec
+    from ..running.setup import Method, make_setup
+    from ..scenario import scenario_from_dict
+    from ..scenario.generator import survey_grid_fleet
 
     cols = max(1, math.ceil(math.sqrt(N)))
     sc = scenario_from_dict(survey_grid_fleet(N, columns=cols, T=T), f"survey grid N = {N}")
@@ -92,11 +92,11 @@ def benchmark_per_vehicle(N: int, *, architecture: str = "distributed", T: float
     out["cosim_us_per_step"] = res.loop_s / sc.steps * 1e6
     out["fmu_instances"] = 1 + 3 * N
     if architecture == "distributed":
-        from .analysis.per_vehicle import distributed_loop_of
+        from ..analysis.per_vehicle import distributed_loop_of
         t = time.perf_counter()
         loop = distributed_loop_of(sc, mode, tracking, sc.distributed)
         out["loop_assembly_s"] = time.perf_counter() - t
-        from .analysis.per_vehicle import distributed_reference
+        from ..analysis.per_vehicle import distributed_reference
         timing: dict[str, float] = {}
         ref = distributed_reference(sc, loop, seed, sc.steps, timing)
         loop_s = timing["loop_s"]
@@ -104,7 +104,7 @@ def benchmark_per_vehicle(N: int, *, architecture: str = "distributed", T: float
         out["ratio"] = res.loop_s / loop_s
         out["max_abs_difference_u"] = float(np.max(np.abs(ref["u"] - res.traces["u"])))
         if predict:
-            from .analysis.distributed_verdict import predict_cost
+            from ..analysis.distributed_verdict import predict_cost
             t = time.perf_counter()
             out["predicted_cost_rate"] = predict_cost(loop).cost_rate
             out["prediction_s"] = time.perf_counter() - t

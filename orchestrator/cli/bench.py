@@ -1,34 +1,22 @@
 """``auv-cosim bench``: the benchmark commands' printing (the figures come from
-:mod:`orchestrator.bench` and :mod:`orchestrator.campaign.bench`)."""
+:mod:`orchestrator.benchmarks`)."""
 from __future__ import annotations
 
 import argparse
 import json
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
-    from .scenario import Scenario
+from controller_fmu.regulator import TRACKING_MODES
+from estimator_fmu.estimators import ESTIMATOR_MODES
 
+from .args import _fleet_sizes
+from .common import add_fmu_options, add_scenario_options, scenario_of
+from .errors import UsageError
 
-def _scenario(args: argparse.Namespace) -> Scenario:
-    """The scenario of the command line (the CLI's loader, imported when called)."""
-    from .cli import _scenario as load
-    return load(args)
-
-
-def _fleet_sizes(text: str) -> list[int]:
-    try:
-        sizes = [int(x) for x in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"--fleet {text!r}: expected sizes like '1,5,20,50'") from None
-    if not sizes or any(n < 1 for n in sizes):
-        raise argparse.ArgumentTypeError(f"--fleet {text!r}: sizes must be positive")
-    return sizes
+__all__ = ["add_bench", "cmd_bench"]
 
 
 def cmd_bench_per_vehicle(args: argparse.Namespace) -> int:
-    from .bench_per_vehicle import benchmark_per_vehicle
+    from ..benchmarks.per_vehicle import benchmark_per_vehicle
     arch = args.architecture or "distributed"
     rows = []
     print(f"per-vehicle deployment, {arch} architecture (generated survey grids)")
@@ -59,7 +47,7 @@ def cmd_bench_per_vehicle(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_fleet(args: argparse.Namespace) -> int:
-    from .bench import benchmark_fleet
+    from ..benchmarks.paper import benchmark_fleet
     rows = []
     print(f"{'N':>3s} {'states':>6s} {'design s':>9s} {'filter s':>9s} {'build s':>8s} "
           f"{'mD kB (p/e/c)':>18s} {'init s (p/e/c)':>18s} {'cosim us':>9s} {'mono us':>8s} "
@@ -95,8 +83,8 @@ def _printed_as_json(args: argparse.Namespace, r: dict, rounds: str = "") -> boo
 
 
 def cmd_bench_tools(args: argparse.Namespace) -> int:
-    from .bench import benchmark_tools
-    sc = _scenario(args)
+    from ..benchmarks.paper import benchmark_tools
+    sc = scenario_of(args)
     steps = int(round((args.T or 50.0) / sc.h))
     r = benchmark_tools(sc, steps)
     if _printed_as_json(args, r, f", median of {r['repeats']} rounds"):
@@ -112,8 +100,8 @@ def cmd_bench_tools(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_native(args: argparse.Namespace) -> int:
-    from .bench_native import benchmark_native
-    sc = _scenario(args)
+    from ..benchmarks.native import benchmark_native
+    sc = scenario_of(args)
     r = benchmark_native(sc, int(round((args.T or 200.0) / sc.h)))
     if _printed_as_json(args, r):
         return 0
@@ -131,7 +119,7 @@ def cmd_bench_native(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_remus(args: argparse.Namespace) -> int:
-    from .bench_remus import benchmark_remus
+    from ..benchmarks.remus import benchmark_remus
     r = benchmark_remus()
     if args.json:
         print(json.dumps(r, indent=2))
@@ -150,8 +138,8 @@ def cmd_bench_remus(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_startup(args: argparse.Namespace) -> int:
-    from .bench import benchmark_startup
-    sc = _scenario(args)
+    from ..benchmarks.paper import benchmark_startup
+    sc = scenario_of(args)
     r = benchmark_startup(sc)
     if _printed_as_json(args, r, f", median of {r['repeats']} rounds"):
         return 0
@@ -165,7 +153,7 @@ def cmd_bench_startup(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_campaign(args: argparse.Namespace) -> int:
-    from .campaign.bench import benchmark_campaign
+    from ..benchmarks.campaign import benchmark_campaign
     r = benchmark_campaign()
     if args.json:
         print(json.dumps(r, indent=2))
@@ -192,10 +180,9 @@ def cmd_bench_campaign(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from .bench import benchmark
+    from ..benchmarks.paper import benchmark
     if getattr(args, "deployment", None) == "per-vehicle":
         if not args.fleet:
-            from .cli import UsageError
             raise UsageError("bench --deployment per-vehicle times fleets of several sizes: "
                              "give them with --fleet, e.g. --fleet 4,20,50,100")
         return cmd_bench_per_vehicle(args)
@@ -211,7 +198,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         return cmd_bench_native(args)
     if getattr(args, "remus", False):
         return cmd_bench_remus(args)
-    sc = _scenario(args)
+    sc = scenario_of(args)
     r = benchmark(sc, mode=sc.estimator, seed=sc.seed)
     if _printed_as_json(args, r):
         return 0
@@ -230,3 +217,36 @@ def cmd_bench(args: argparse.Namespace) -> int:
     print("  FMI calls: " + ", ".join(f"{k} {v:.2f}" for k, v in r["fmi_calls"].items()))
     print(f"  max |co-simulation - monolithic| over all traces: {r['max_abs_difference']:.2e}")
     return 0
+
+
+def add_bench(sub: argparse._SubParsersAction) -> None:
+    """The ``bench`` command's sub-parser."""
+    sp = sub.add_parser("bench", help="time the co-simulation against the monolithic loop")
+    add_scenario_options(sp)
+    sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="estimator mode (default: kalman)")
+    sp.add_argument("--seed", type=int, help="noise seed")
+    sp.add_argument("--tracking", choices=TRACKING_MODES, help="tracking law")
+    sp.add_argument("--fleet", type=_fleet_sizes,
+                    help="benchmark generated grid fleets of these sizes instead, e.g. 1,5,20,50 "
+                         "(REMUS 100 vehicles, circle leader; --T sets the simulated time, "
+                         "default 300 s)")
+    sp.add_argument("--tools", action="store_true",
+                    help="the same FMUs in our orchestrator, libcosim (libcosimpy) and fmpy's "
+                         "simulate_ssp (--T sets the simulated time, default 50 s)")
+    sp.add_argument("--startup", action="store_true",
+                    help="'auv-cosim run' as a subprocess (start to exit, cold and warm FMU "
+                         "cache) against the in-process monolithic loop")
+    sp.add_argument("--campaign", action="store_true",
+                    help="campaign throughput: runs per hour of the paper scenario on 1 and 2 "
+                         "local workers (FMU engine) and the numpy engine, overhead per task, "
+                         "design-cache gain at N = 50")
+    sp.add_argument("--native", action="store_true",
+                    help="us/step of the loop with native FMUs: in our master (with the "
+                         "pythonfmu plant, all native), in the C host, in ecos, and a fused "
+                         "numpy loop (--T sets the simulated time, default 200 s)")
+    sp.add_argument("--remus", action="store_true",
+                    help="the nonlinear REMUS 100: derivative and step in numpy and compiled, "
+                         "vehicle FMU doStep against the linear one, compile time")
+    sp.add_argument("--json", action="store_true", help="print the figures as JSON")
+    add_fmu_options(sp)
+    sp.set_defaults(func=cmd_bench)

@@ -35,7 +35,7 @@ def _per_call(f: Any, count: int) -> float:
 
 def _fmu_step_us(fmus: dict[str, Path], system: Any, component: str, steps: int) -> float:
     """us per fmi2DoStep of one instance of ``component``'s FMU, inputs held."""
-    from .cosim.instance import Extracted, FmuInstance
+    from ..cosim.instance import Extracted, FmuInstance
     comp = system.component(component)
     ex = Extracted({comp.fmu: fmus[comp.fmu]})
     try:
@@ -61,9 +61,9 @@ def benchmark_remus(steps: int = 20_000) -> dict[str, Any]:
     from plant_model.remus100_autopilot import AutopilotGains, ForceCommandedRemus
     from plant_model.vehicles import remus100
 
-    from .cosim.build import build_fmus
-    from .cosim.per_vehicle import build_configs, per_vehicle_configs, per_vehicle_system
-    from .scenario import load_scenario
+    from ..cosim.build import build_fmus
+    from ..cosim.per_vehicle import build_configs, per_vehicle_configs, per_vehicle_system
+    from ..scenario import load_scenario
 
     load = os.getloadavg()
     v = Remus100(current=(0.1, -0.1, 0.0))
@@ -94,7 +94,7 @@ def benchmark_remus(steps: int = 20_000) -> dict[str, Any]:
             "c); print(time.perf_counter() - t0)")
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        root = str(Path(__file__).resolve().parent.parent)
+        root = str(Path(__file__).resolve().parents[2])
         cold = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                               cwd=root, env=env, timeout=300)
         warm = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

@@ -16,12 +16,12 @@ import numpy as np
 
 from fmu_common.interface import element_names
 
-from .analysis.reference import run_monolithic
-from .cosim.instance import Extracted, FmuInstance, pythonfmu_safe_tempdir
-from .cosim.master import run_cosimulation
-from .cosim.system import closed_loop_system
-from .running import build, scenario_config, scenario_system
-from .scenario import Scenario
+from ..analysis.reference import run_monolithic
+from ..cosim.instance import Extracted, FmuInstance, pythonfmu_safe_tempdir
+from ..cosim.master import run_cosimulation
+from ..cosim.system import closed_loop_system
+from ..running import build, scenario_config, scenario_system
+from ..scenario import Scenario
 
 __all__ = ["benchmark", "benchmark_fleet", "benchmark_libcosim", "benchmark_startup",
            "benchmark_tools"]
@@ -65,7 +65,7 @@ def _fmi_call_costs(fmus: dict[str, Path], cfg: dict[str, Any],
 
 def benchmark(sc: Scenario, mode: str = "kalman", seed: int = 0) -> dict[str, Any]:
     """Time one run both ways; returns the figures (also printed by the CLI)."""
-    from .recording import write_rrd
+    from ..recording import write_rrd
 
     cfg = scenario_config(sc)
     with tempfile.TemporaryDirectory(prefix="auv_bench_") as tmp:
@@ -136,8 +136,8 @@ def benchmark_fleet(N: int, *, T: float = 300.0, mode: str = "kalman", tracking:
     from estimator_fmu.estimators import make_estimator
     from plant_model.discretization import discretize
 
-    from .scenario import scenario_from_dict
-    from .scenario.generator import grid_fleet
+    from ..scenario import scenario_from_dict
+    from ..scenario.generator import grid_fleet
 
     sc = scenario_from_dict(grid_fleet(N, T=T), f"generated grid fleet N = {N}")
     sc = sc.with_run(estimator=mode, tracking=tracking)
@@ -202,8 +202,8 @@ def benchmark_libcosim(sc: Scenario, steps: int | None = None, *, mode: str | No
     """
     import statistics
 
-    from .interop.libcosim import libcosim_version, quiet_libcosim, run_libcosim
-    from .interop.osp import export_osp
+    from ..interop.libcosim import libcosim_version, quiet_libcosim, run_libcosim
+    from ..interop.osp import export_osp
 
     quiet_libcosim()
     if mode is not None or seed is not None:
@@ -260,7 +260,7 @@ def _simulate_ssp_us_per_step(ssp: Path, h: float, steps: int) -> float:
     left out: fmpy's own instantiate/free functions are wrapped to mark the loop)."""
     import fmpy.ssp.simulation as fmpy_ssp
 
-    from .interop.ssp import fmpy_parameter_set
+    from ..interop.ssp import fmpy_parameter_set
     marks: dict[str, float] = {}
     inst, free = fmpy_ssp.instantiate_fmu, fmpy_ssp.free_fmu
 
@@ -288,8 +288,8 @@ def benchmark_tools(sc: Scenario, steps: int = 5000, repeats: int = 3) -> dict[s
     ``repeats`` alternating rounds; loops only, initialization left out everywhere)."""
     import statistics
 
-    from .interop.osp import export_osp
-    from .interop.ssp import export_ssp
+    from ..interop.osp import export_osp
+    from ..interop.ssp import export_ssp
 
     out = benchmark_libcosim(sc, steps, repeats=repeats, check=False)
     with tempfile.TemporaryDirectory(prefix="auv_bench_tools_") as tmp:

@@ -25,13 +25,13 @@ from typing import Any
 
 import numpy as np
 
-from .cosim.master import run_system
-from .interop.native import export_native, native_system
-from .scenario import Scenario
+from ..cosim.master import run_system
+from ..interop.native import export_native, native_system
+from ..scenario import Scenario
 
 __all__ = ["benchmark_native", "c_host_binary", "fused_loop_us", "write_c_host_system"]
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 C_HOST = ROOT / "tests" / "c_host" / "c_host.c"
 
 
@@ -42,7 +42,7 @@ def fused_loop_us(sc: Scenario, steps: int) -> float:
     from plant_model.discretization import discretize
     from plant_model.plant import NoiseStream
 
-    from .analysis.prediction import closed_loop
+    from ..analysis.prediction import closed_loop
     model = discretize(sc.system, sc.h)
     est = make_estimator(sc.system, model, sc.estimator)
     Phi, Gam, _, _ = closed_loop(model, est, tracking_law(sc.system, sc.tracking).Ks)
@@ -157,7 +157,7 @@ def benchmark_native(sc: Scenario, steps: int = 20000) -> dict[str, Any]:
     dict[str, Any]
         us/step per configuration (None where a tool is missing) and the load average.
     """
-    from .running import build, scenario_system
+    from ..running import build, scenario_system
     sc = sc.with_run(T=steps * sc.h)
     out: dict[str, Any] = {"scenario": sc.name, "mode": sc.estimator, "h": sc.h,
                            "steps": steps, "loadavg": list(os.getloadavg()),

@@ -21,7 +21,7 @@ __all__ = ["benchmark_campaign"]
 
 
 def _campaign(tmp: Path, name: str, text: str, **kw: Any) -> dict[str, Any]:
-    from .runner import run_campaign
+    from ..campaign.runner import run_campaign
     spec = tmp / f"{name}.toml"
     spec.write_text(text)
     out = tmp / name
@@ -62,9 +62,9 @@ def design_cache_gain(N: int = 50, T: float = 1.0, seeds: int = 2) -> dict[str, 
     """
     from plant_model.memo import clear_caches
 
+    from ..campaign.tasks import Task, run_task
     from ..scenario import scenario_from_dict
     from ..scenario.generator import grid_fleet
-    from .tasks import Task, run_task
 
     sc = scenario_from_dict(grid_fleet(N, T=T), f"grid-{N}")
     task = Task(0, {"vehicles.count": N}, sc, "gauss-seidel", "fmu", tuple(range(seeds)),

@@ -1,4 +1,5 @@
-"""Command-line argument types of ``auv-cosim``: seed lists, positive seconds, counts.
+"""Command-line argument types of ``auv-cosim``: seed lists, positive seconds, counts,
+fleet sizes.
 
 Each raises :class:`argparse.ArgumentTypeError` with one line naming the value.
 """
@@ -84,3 +85,14 @@ def parse_floats(text: str) -> list[float]:
 def positive_metres(text: str) -> float:
     """A positive finite distance, m."""
     return _positive_finite(text, "metres")
+
+
+def _fleet_sizes(text: str) -> list[int]:
+    try:
+        sizes = [int(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"--fleet {text!r}: expected sizes like '1,5,20,50'") from None
+    if not sizes or any(n < 1 for n in sizes):
+        raise argparse.ArgumentTypeError(f"--fleet {text!r}: sizes must be positive")
+    return sizes

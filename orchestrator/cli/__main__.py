@@ -1,0 +1,4 @@
+"""``python -m orchestrator.cli`` is the ``auv-cosim`` command."""
+from . import console
+
+console()

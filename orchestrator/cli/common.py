@@ -1,0 +1,157 @@
+"""What the ``auv-cosim`` commands share: the scenario options and the scenario they give,
+the options of the commands that run FMUs, and the printed summary of a run or compare."""
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from pathlib import Path
+
+from controller_fmu.vehicle_law import ARCHITECTURES, DEPLOYMENTS
+from plant_model.network import RECEIVERS
+
+from ..scenario import Scenario, builtin_scenarios, load_scenario
+from .args import _positive
+
+__all__ = ["ROOT", "add_fmu_options", "add_scenario_options", "print_summary", "scenario_of",
+           "viewer_command"]
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def add_scenario_options(sp: argparse.ArgumentParser, *, run: bool = True) -> None:
+    """--scenario; with ``run``, also what changes the simulated system and run: the
+    deployment and architecture, the acoustic links, --T and --h."""
+    sp.add_argument("--scenario", default="paper",
+                    help=f"built-in name ({', '.join(builtin_scenarios())}) or a .toml file "
+                         "(default: paper)")
+    if run:
+        sp.add_argument("--deployment", choices=DEPLOYMENTS,
+                        help="fleets: one set of FMUs for the stacked fleet, or a vehicle, "
+                             "estimator and controller FMU per AUV (default: scenario's, "
+                             "stacked unless it says otherwise)")
+        sp.add_argument("--architecture", choices=ARCHITECTURES,
+                        help="per-vehicle fleets: the paper's stacked law cut by vehicle "
+                             "(centralized) or neighbour-only information (distributed) "
+                             "(default: scenario's)")
+        net = sp.add_argument_group(
+            "acoustic links (per-vehicle fleets; override or start the scenario's "
+            "[network])")
+        net.add_argument("--latency", type=float, help="every link's latency, s")
+        net.add_argument("--period", type=float, help="every link's message period, s")
+        net.add_argument("--loss", type=float, help="every link's loss probability")
+        net.add_argument("--receiver", choices=RECEIVERS,
+                         help="what a receiver does between messages: propagate the "
+                              "newest with the sender's model (default) or hold it")
+        sp.add_argument("--T", type=_positive, help="simulated time, s (default: scenario's)")
+        sp.add_argument("--h", type=_positive,
+                        help="communication step, s (default: scenario's)")
+
+
+def add_fmu_options(sp: argparse.ArgumentParser) -> None:
+    """The options of every command that runs the FMUs: run, compare, campaign and bench.
+    A flag added here is a flag of all four (none yet: each command's own options are in
+    its module)."""
+
+
+def scenario_of(args: argparse.Namespace) -> Scenario:
+    """The scenario of the command line: --scenario, with the options given over its
+    values."""
+    sc = load_scenario(args.scenario)
+    return sc.with_run(T=getattr(args, "T", None), h=getattr(args, "h", None),
+                       seed=getattr(args, "seed", None), estimator=getattr(args, "estimator", None),
+                       tracking=getattr(args, "tracking", None),
+                       deployment=getattr(args, "deployment", None),
+                       architecture=getattr(args, "architecture", None),
+                       network={k: v for k in ("latency", "period", "loss", "receiver")
+                                if (v := getattr(args, k, None)) is not None})
+
+
+def viewer_command() -> str:
+    """How to start the Rerun viewer from this shell: ``rerun`` if that is the one on PATH
+    next to this Python, else the path of the one installed with this package (relative
+    to the working folder when under it, e.g. ``.venv/bin/rerun``)."""
+    import shutil
+    ours = Path(sys.executable).parent / "rerun"
+    found = shutil.which("rerun")
+    if found and (not ours.exists() or Path(found).resolve() == ours.resolve()):
+        return "rerun"
+    if not ours.exists():
+        return "rerun"
+    try:
+        return shlex.quote(str(ours.relative_to(Path.cwd())))
+    except ValueError:
+        return shlex.quote(str(ours))
+
+
+def print_summary(summary: dict, out: Path) -> int:
+    """Print the summary table and where the files are; the exit status: 0, or 130 / 143
+    for a run stopped by SIGINT / SIGTERM (after one line saying what was kept)."""
+    print(f"scenario {summary['scenario']}: T = {summary['T']} s, h = {summary['h']} s, "
+          f"{summary['steps']} steps, seeds {summary['seeds']}, "
+          f"noise convention '{summary['noise_convention']}', statistics over "
+          f"t in [{summary['stats_window_s'][0]:.3g}, {summary['stats_window_s'][1]:.3g}) s")
+    print(f"{'method':>10s} {'cost rate':>12s} {'(std)':>9s} {'predicted':>10s}   "
+          "rms e (sim / pred)")
+    for name, m in summary["methods"].items():
+        if "skipped" in m:
+            print(f"{name:>10s}   skipped: {m['skipped']}")
+            continue
+        if "cost_rate" not in m:
+            print(f"{name:>10s}   {m.get('note', 'no statistics')}")
+            continue
+        c = m["cost_rate"]
+        pred = "n/a" if c["predicted"] is None else f"{c['predicted']:#.4g}"
+        sim_e, pred_e = m["rms_e"]["mean"], m["rms_e"]["predicted"]
+        if len(sim_e) <= 4:
+            rms = ", ".join(
+                f"{a:#.3g}/{'n/a' if b is None else format(b, '#.3g')}"
+                for a, b in zip(sim_e, pred_e or [None] * len(sim_e)))
+        else:       # a fleet: the worst component, and the noise-free (steady) error
+            steady = m.get("steady_error", {}).get("max_rms_e_without_noise_predicted")
+            rms = (f"max {max(sim_e):#.3g}/"
+                   f"{'n/a' if not pred_e else format(max(pred_e), '#.3g')}"
+                   + ("" if steady is None else f"; steady error (noise-free RMS) {steady:#.3g}"))
+        print(f"{name:>10s} {c['mean']:#12.4g} {c['std']:#9.3g} {pred:>10s}   {rms}")
+        sep = m.get("min_separation")
+        if m.get("formation_error_rms"):
+            worst = max(m["formation_error_rms"], key=m["formation_error_rms"].get)
+            print(f"{'':>10s}   formation error RMS (window) worst edge {worst} "
+                  f"{m['formation_error_rms'][worst]:#.3g} m"
+                  + ("" if sep is None else
+                     f"; closest approach {sep['m']:#.3g} m (vehicles {sep['vehicles'][0]} "
+                     f"and {sep['vehicles'][1]} at t = {sep['time_s']:.4g} s, seed "
+                     f"{sep['seed']})"))
+    notes = {m.get("prediction_note") for m in summary["methods"].values()} - {None}
+    for note in sorted(notes):
+        print(f"note: {note}")
+    if summary.get("cost_rate_full_information") is not None:
+        line = (f"full-information bound (every state known, the same cost) "
+                f"{summary['cost_rate_full_information']:#.4g}")
+        if summary.get("price_of_decentralization") is not None:
+            pred = summary.get("price_of_decentralization_predicted")
+            line += (f"; price of decentralization J_distributed / J_centralized "
+                     f"{summary['price_of_decentralization']:.4f}"
+                     + ("" if pred is None else f" (predicted {pred:.4f})"))
+        print(line)
+    if summary.get("stationarity_note"):
+        window = ", ".join(f"{n} {m['cost_rate']['predicted_window']:#.4g}"
+                           for n, m in summary["methods"].items()
+                           if m.get("cost_rate", {}).get("predicted_window") is not None)
+        print(f"note: {summary['stationarity_note']}"
+              + (f"; expected cost rate over this window: {window}" if window else ""))
+    rrd = summary["rrd"]["path"]
+    if rrd:
+        print(f"wrote {rrd} and {out / 'summary.json'}; wall time {summary['wall_s']:.1f} s")
+        print(f"open it with: {viewer_command()} {shlex.quote(rrd)}")
+    if summary.get("interrupted"):
+        from ..interrupt import EXIT_STATUS
+        sig = summary["interrupted_by"]
+        kept = (f"{rrd} (traces to t = {summary['time_reached_s']:.6g} s)" if rrd
+                else "no traces (stopped before the first steps)")
+        print(f"auv-cosim: interrupted by {sig} at t = {summary['time_reached_s']:.6g} s of "
+              f"{summary['T']} s: kept {kept} and {out / 'summary.json'} (marked "
+              f"\"interrupted\": true; statistics over the seeds that completed)",
+              file=sys.stderr)
+        return EXIT_STATUS.get(sig, 130)
+    return 0

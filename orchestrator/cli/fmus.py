@@ -1,0 +1,138 @@
+"""``auv-cosim build``, ``validate`` and ``export``: the FMUs themselves, for this project
+and for other tools."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from controller_fmu.regulator import TRACKING_MODES
+from estimator_fmu.estimators import ESTIMATOR_MODES
+
+from ..outputs import file_stem, output_folder
+from .common import ROOT, add_scenario_options, scenario_of
+from .errors import UsageError
+
+__all__ = ["add_build", "add_export", "add_validate", "cmd_build", "cmd_export", "cmd_validate"]
+
+
+def cmd_build(args: argparse.Namespace) -> int:
+    from ..running import build, write_fmu_readme
+    sc = scenario_of(args)
+    with output_folder(args.out, "build") as out:
+        paths = build(sc, out)
+        if out.resolve() == (ROOT / "fmus").resolve():
+            write_fmu_readme(sc, out / "README.md")
+        for k, p in paths.items():
+            print(f"{k:>18s}: {p} ({p.stat().st_size} bytes)")
+        if sc.deployment == "per-vehicle":
+            print("(no cross-check references for the per-vehicle FMUs: they are written "
+                  "for the stacked deployment's three FMUs)")
+        elif not args.no_crosscheck:
+            from ..interop.crosscheck import write_crosscheck
+            from ..running import scenario_config
+            written = write_crosscheck(paths, scenario_config(sc), out / "crosscheck")
+            print(f"cross-check references (<Model>_in.csv, _ref.csv, _ref.opt) for "
+                  f"{', '.join(written)} in {out / 'crosscheck'}")
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    sc = scenario_of(args)
+    if args.format == "native":
+        from ..cosim.native import NativeBuildError, compiler
+        try:
+            compiler()                      # no C compiler: say so before any folder exists
+        except NativeBuildError as exc:
+            raise UsageError(str(exc)) from None
+    with output_folder(args.out or f"out/{file_stem(sc.name)}_{args.format}", "export") as out:
+        if args.format == "native":
+            from ..cosim.native import NativeBuildError
+            from ..interop.native import export_native
+            try:
+                paths = export_native(sc, out)
+            except NativeBuildError as exc:
+                raise UsageError(str(exc)) from None
+            fmus = [p.name for p in paths.values() if p.suffix == ".fmu"]
+            native = [f for f in fmus if f.endswith("Native.fmu")]
+            kept = [f for f in fmus if f not in native]
+            print(f"native FMUs for scenario {sc.name} in {out}: {', '.join(native)}"
+                  + (f" (and, not linear, needing Python: {', '.join(kept)})" if kept else "")
+                  + f"; OSP system {paths['system'].name}, SSP archive {paths['ssp'].name}")
+        elif args.format == "osp":
+            from ..interop.osp import export_osp
+            paths = export_osp(sc, out)
+            print(f"OSP system for scenario {sc.name} in {out}: {paths['system'].name}, "
+                  + ", ".join(p.name for k, p in paths.items() if k != "system"))
+            print(f"run it with libcosim: cosim run {paths['system']}  (or libcosimpy)")
+        else:
+            from ..interop.ssp import export_ssp
+            path = export_ssp(sc, out / f"{file_stem(sc.name)}.ssp")
+            print(f"SSP archive for scenario {sc.name}: {path} (fmpy: simulate_ssp('{path}'))")
+    return 0
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    import tempfile
+
+    from fmpy.validation import validate_fmu
+
+    from ..running import build
+    if args.fmus:
+        import zipfile
+        paths = {p.stem: p for p in (Path(x) for x in args.fmus)}
+        missing = [str(p) for p in paths.values() if not p.is_file()]
+        if missing:
+            raise UsageError(f"FMU file(s) not found: {', '.join(missing)}")
+        not_zip = [str(p) for p in paths.values() if not zipfile.is_zipfile(p)]
+        if not_zip:
+            raise UsageError(f"not an FMU (an FMU is a zip archive): {', '.join(not_zip)}")
+        tmp = None
+    else:
+        tmp = tempfile.TemporaryDirectory(prefix="auv_validate_")
+        paths = build(scenario_of(args), Path(tmp.name))
+    bad = 0
+    for name, p in paths.items():
+        problems = validate_fmu(str(p))
+        bad += len(problems)
+        verdict = "no problem" if not problems else f"{len(problems)} problem(s)"
+        print(f"{name:>10s}: {p.name}: {verdict}")
+        for prob in problems:
+            print(f"            - {prob}")
+    if tmp:
+        tmp.cleanup()
+    return 1 if bad else 0
+
+
+def add_build(sub: argparse._SubParsersAction) -> None:
+    """The ``build`` command's sub-parser."""
+    sp = sub.add_parser("build", help="build the three FMUs (default into fmus/)")
+    add_scenario_options(sp)
+    sp.add_argument("--out", default=str(ROOT / "fmus"), help="output folder (default: fmus/)")
+    sp.add_argument("--tracking", choices=TRACKING_MODES,
+                    help="the controller FMU's default tracking law (default: scenario's)")
+    sp.add_argument("--no-crosscheck", action="store_true",
+                    help="skip the FMI cross-check reference files (500 steps of the closed loop)")
+    sp.set_defaults(func=cmd_build)
+
+
+def add_export(sub: argparse._SubParsersAction) -> None:
+    """The ``export`` command's sub-parser."""
+    sp = sub.add_parser("export", help="the FMUs and a system file for other tools: an OSP "
+                                       "system (libcosim) or an SSP archive (fmpy, SSP tools); "
+                                       "native: compiled FMUs of the design, no Python needed, "
+                                       "with both system files")
+    sp.add_argument("format", choices=("osp", "ssp", "native"))
+    add_scenario_options(sp)
+    sp.add_argument("--tracking", choices=TRACKING_MODES, help="the controller's tracking law")
+    sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="the estimator's mode")
+    sp.add_argument("--seed", type=int, help="noise seed written as the plant's initial value")
+    sp.add_argument("--out", help="output folder (default: out/<scenario>_<format>)")
+    sp.set_defaults(func=cmd_export)
+
+
+def add_validate(sub: argparse._SubParsersAction) -> None:
+    """The ``validate`` command's sub-parser."""
+    sp = sub.add_parser("validate", help="fmpy validate the FMUs (built afresh, or given)")
+    add_scenario_options(sp, run=False)
+    sp.add_argument("fmus", nargs="*", help=".fmu files to validate instead of building")
+    sp.set_defaults(func=cmd_validate)

@@ -1,0 +1,34 @@
+"""``auv-cosim plot``: static figures of a run folder (the work is
+:mod:`orchestrator.plotting`'s)."""
+from __future__ import annotations
+
+import argparse
+
+from .errors import UsageError
+
+__all__ = ["add_plot", "cmd_plot"]
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    from ..plotting import RunFolderError, parse_formats, plot_run
+    try:
+        formats = parse_formats(args.format)
+        written = plot_run(args.run_dir, args.out, formats)
+    except (RunFolderError, ValueError) as exc:
+        raise UsageError(str(exc)) from None
+    for path in written:
+        print(path)
+    print(f"wrote {len(written)} files into {written[0].parent if written else args.out}")
+    return 0
+
+
+def add_plot(sub: argparse._SubParsersAction) -> None:
+    """The ``plot`` command's sub-parser."""
+    sp = sub.add_parser("plot", help="static figures of a run folder (PNG, SVG, PDF): the "
+                                     "paper's figures 2-7, or a fleet's paths and errors")
+    sp.add_argument("run_dir", metavar="RUN_DIR",
+                    help="a folder written by 'auv-cosim run' or 'compare'")
+    sp.add_argument("--out", help="output folder (default: RUN_DIR/figures)")
+    sp.add_argument("--format", default="png,svg",
+                    help="comma-separated formats from png, svg, pdf (default: png,svg)")
+    sp.set_defaults(func=cmd_plot)

@@ -1,0 +1,165 @@
+"""``auv-cosim run``, ``compare`` and ``envelope``: co-simulate a scenario, once, over
+methods and seeds, or over a grid of operating points."""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+
+from controller_fmu.regulator import TRACKING_MODES
+from controller_fmu.vehicle_law import ARCHITECTURES
+from estimator_fmu.estimators import ESTIMATOR_MODES
+
+from ..outputs import file_stem, output_folder
+from ..scenario import Scenario
+from .args import _count, parse_floats, parse_seeds, positive_metres
+from .common import add_fmu_options, add_scenario_options, print_summary, scenario_of
+from .errors import UsageError
+
+__all__ = ["add_compare", "add_envelope", "add_run", "cmd_compare", "cmd_envelope", "cmd_run"]
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from ..running import check_memory, simulate
+    sc = scenario_of(args)
+    check_memory(sc, 1)                     # before anything is created
+    with output_folder(args.out or f"out/{file_stem(sc.name)}_{sc.estimator}_seed{sc.seed}",
+                       "run") as out:
+        summary = simulate(sc, [sc.estimator], [sc.seed], out, progress=not args.quiet,
+                           log=(lambda s: None) if args.quiet else print)
+    return print_summary(summary, out)
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from ..running import check_memory, method_list, simulate
+    sc = scenario_of(args)
+    what = args.what or ("tracking" if sc.fleet is not None else "estimators")
+    if what == "plants":
+        return _compare_plants(sc, args)
+    if what == "architectures" and sc.deployment != "per-vehicle":
+        raise UsageError("--what architectures compares the centralized and distributed laws "
+                         "of the per-vehicle deployment: add --deployment per-vehicle (or set "
+                         "[simulation] deployment = \"per-vehicle\")")
+    choices = {"estimators": ESTIMATOR_MODES, "tracking": TRACKING_MODES,
+               "architectures": ARCHITECTURES}[what]
+    picked = list(choices)
+    if args.methods:
+        picked = [m.strip() for m in args.methods.split(",") if m.strip()]
+        unknown = [m for m in picked if m not in choices]
+        if unknown or not picked or len(set(picked)) < len(picked):
+            raise UsageError(
+                f"--methods {args.methods!r}: "
+                + (f"{', '.join(unknown)} is not one of the {what} ({', '.join(choices)})"
+                   if unknown else "give each method once, separated by commas"))
+    modes = picked if what == "estimators" else None
+    trackings = picked if what == "tracking" else None
+    architectures = picked if what == "architectures" else None
+    check_memory(sc, len(method_list(sc, modes, trackings, architectures)))
+    with output_folder(args.out or f"out/{file_stem(sc.name)}_compare", "compare") as out:
+        summary = simulate(sc, modes, args.seeds, out, progress=not args.quiet,
+                           log=(lambda s: None) if args.quiet else print, trackings=trackings,
+                           workers=args.workers, architectures=architectures)
+    return print_summary(summary, out)
+
+
+def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
+    """compare --what plants: the linear and the nonlinear REMUS 100, same FMUs otherwise."""
+    from plant_model.vehicles import REMUS_MODELS
+
+    from ..running.plants import compare_plants, plant_table
+    if sc.deployment != "per-vehicle":
+        raise UsageError("--what plants runs the nonlinear vehicle, which is its own FMU: add "
+                         "--deployment per-vehicle (or set [simulation] deployment = "
+                         "\"per-vehicle\")")
+    models = [v.get("model", "remus100") for v in sc.fleet["vehicles"]]
+    other = next((i for i, m in enumerate(models, 1) if m not in REMUS_MODELS), None)
+    if other is not None or args.methods:
+        raise UsageError("--what plants compares remus100 with remus100-6dof (no --methods)"
+                         + ("" if other is None else
+                            f"; vehicle {other} is a {models[other - 1]!r} model"))
+    with output_folder(args.out or f"out/{file_stem(sc.name)}_plants", "compare") as out:
+        summary = compare_plants(sc, args.seeds, out, progress=not args.quiet,
+                                 log=(lambda s: None) if args.quiet else print)
+    print("\n".join(plant_table(summary)))
+    print(f"wrote {out / 'summary.json'}")
+    if summary.get("interrupted"):
+        from ..interrupt import EXIT_STATUS
+        sig = summary.get("interrupted_by")
+        print(f"auv-cosim: interrupted by {sig}: kept what each plant's run produced and "
+              f"{out / 'summary.json'} (marked \"interrupted\": true)", file=sys.stderr)
+        return EXIT_STATUS.get(sig, 130)
+    return 0
+
+
+def cmd_envelope(args: argparse.Namespace) -> int:
+    """envelope: the grid of orchestrator.envelope, one line per point."""
+    from ..running.envelope import run_envelope
+    sc = scenario_of(args)
+    if sc.fleet is None or sc.deployment != "per-vehicle":
+        raise UsageError("envelope runs a per-vehicle fleet: give a fleet scenario and "
+                         "--deployment per-vehicle")
+    with output_folder(args.out or f"out/{file_stem(sc.name)}_envelope", "envelope") as out:
+        summary = run_envelope(sc, args.speeds, args.radii, args.currents, args.tolerance,
+                               out, log=print)
+    held = sum(p["holds"] for p in summary["envelope"]["points"])
+    print(f"{held} of {len(summary['envelope']['points'])} points hold within "
+          f"{args.tolerance:g} m; wrote {out / 'summary.json'}")
+    return 130 if summary["interrupted"] else 0
+
+
+def add_run(sub: argparse._SubParsersAction) -> None:
+    """The ``run`` command's sub-parser."""
+    sp = sub.add_parser("run", help="co-simulate one estimator mode, write .rrd and summary.json")
+    add_scenario_options(sp)
+    sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="estimator mode (default: kalman)")
+    sp.add_argument("--seed", type=int, help="noise seed (default: scenario's)")
+    sp.add_argument("--out", help="output folder (default: out/<scenario>_<estimator>_seed<seed>)")
+    sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
+    sp.add_argument("--tracking", choices=TRACKING_MODES,
+                    help="tracking law: lq (the paper) or regulator (default: scenario's)")
+    add_fmu_options(sp)
+    sp.set_defaults(func=cmd_run)
+
+
+def add_compare(sub: argparse._SubParsersAction) -> None:
+    """The ``compare`` command's sub-parser."""
+    sp = sub.add_parser("compare", help="the three estimator modes (or, for a fleet, the two "
+                                        "tracking laws) on the same noise and seeds")
+    add_scenario_options(sp)
+    sp.add_argument("--what", choices=("estimators", "tracking", "architectures", "plants"),
+                    help="compare the estimator modes (default for a single system), the "
+                         "tracking laws lq and regulator (default for a fleet), the "
+                         "centralized and distributed architectures (per-vehicle fleets) or "
+                         "the linear and the nonlinear 6-DOF REMUS 100 (per-vehicle fleets)")
+    sp.add_argument("--methods",
+                    help="which of them, comma-separated, e.g. 'kalman,ideal' or 'lq' "
+                         "(default: all; a mode impossible for the scenario is skipped and "
+                         "the summary says why)")
+    sp.add_argument("--seeds", type=parse_seeds, default=list(range(10)),
+                    help="seeds: '0-9' (default), '1,4,7' or one seed")
+    sp.add_argument("--out", help="output folder (default: out/<scenario>_compare)")
+    sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
+    sp.add_argument("--workers", type=_count,
+                    help="worker processes for the seeds after each method's first (default: "
+                         "one per core; 1: all in this process); the results do not depend "
+                         "on it")
+    add_fmu_options(sp)
+    sp.set_defaults(func=cmd_compare)
+
+
+def add_envelope(sub: argparse._SubParsersAction) -> None:
+    """The ``envelope`` command's sub-parser."""
+    sp = sub.add_parser("envelope", help="where a per-vehicle formation holds: a grid of "
+                                         "leader speed, turn radius and current strength")
+    add_scenario_options(sp)
+    sp.add_argument("--speeds", type=parse_floats, default=[1.0, 1.5, 2.0],
+                    help="leader speeds, m/s (default: 1,1.5,2)")
+    sp.add_argument("--radii", type=parse_floats, default=[math.inf, 50.0, 25.0],
+                    help="leader turn radii, m; inf: a straight line (default: inf,50,25)")
+    sp.add_argument("--currents", type=parse_floats, default=[0.1, 0.3],
+                    help="ocean-current standard deviations, m/s (default: 0.1,0.3)")
+    sp.add_argument("--tolerance", type=positive_metres, default=3.0,
+                    help="the formation holds when the largest tracking error over the "
+                         "window stays within this, m (default: 3)")
+    sp.add_argument("--out", help="output folder (default: out/<scenario>_envelope)")
+    sp.set_defaults(func=cmd_envelope)
