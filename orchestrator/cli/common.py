@@ -13,7 +13,7 @@ from plant_model.network import RECEIVERS
 from ..scenario import Scenario, builtin_scenarios, load_scenario
 from .args import _positive
 
-__all__ = ["ROOT", "add_fmu_options", "add_scenario_options", "print_summary", "scenario_of",
+__all__ = ["ROOT", "add_fmu_options", "add_force_option", "add_scenario_options", "print_summary", "scenario_of",
            "viewer_command"]
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -50,8 +50,20 @@ def add_scenario_options(sp: argparse.ArgumentParser, *, run: bool = True) -> No
 
 def add_fmu_options(sp: argparse.ArgumentParser) -> None:
     """The options of every command that runs the FMUs: run, compare, campaign and bench.
-    A flag added here is a flag of all four (none yet: each command's own options are in
-    its module)."""
+    A flag added here is a flag of all four."""
+    from fmu_common.native_form import FMU_IMPLEMENTATIONS
+    sp.add_argument("--fmus", choices=FMU_IMPLEMENTATIONS,
+                    help="python: the pythonfmu FMUs; native: compiled (C) FMUs of every "
+                         "component with a linear form, pythonfmu for the rest (the acoustic "
+                         "network, a nonlinear vehicle, the multi-rate estimator); needs a C "
+                         "compiler (default: the scenario's [simulation] fmus, else python)")
+
+
+def add_force_option(sp: argparse.ArgumentParser) -> None:
+    """--force: replace the outputs of another kind of run in the output folder."""
+    sp.add_argument("--force", action="store_true",
+                    help="replace what another kind of run (another deployment, "
+                         "architecture, links, vehicle model or FMU kind) wrote into --out")
 
 
 def scenario_of(args: argparse.Namespace) -> Scenario:
@@ -63,6 +75,7 @@ def scenario_of(args: argparse.Namespace) -> Scenario:
                        tracking=getattr(args, "tracking", None),
                        deployment=getattr(args, "deployment", None),
                        architecture=getattr(args, "architecture", None),
+                       fmus=getattr(args, "fmus", None),
                        network={k: v for k in ("latency", "period", "loss", "receiver")
                                 if (v := getattr(args, k, None)) is not None})
 

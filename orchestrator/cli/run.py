@@ -10,21 +10,39 @@ from controller_fmu.regulator import TRACKING_MODES
 from controller_fmu.vehicle_law import ARCHITECTURES
 from estimator_fmu.estimators import ESTIMATOR_MODES
 
-from ..outputs import file_stem, output_folder
+from ..outputs import claim_folder, output_folder
 from ..scenario import Scenario
 from .args import _count, parse_floats, parse_seeds, positive_metres
-from .common import add_fmu_options, add_scenario_options, print_summary, scenario_of
+from .common import (
+    add_fmu_options,
+    add_scenario_options,
+    print_summary,
+    scenario_of,
+)
 from .errors import UsageError
 
 __all__ = ["add_compare", "add_envelope", "add_run", "cmd_compare", "cmd_envelope", "cmd_run"]
 
 
+def _check_native(sc: Scenario) -> None:
+    """Native FMUs need a C compiler: say so in one line before any folder exists."""
+    if sc.fmus == "native":
+        from ..cosim.native import NativeBuildError, compiler
+        try:
+            compiler()
+        except NativeBuildError as exc:
+            raise UsageError(f"--fmus native: {exc}") from None
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from ..running import check_memory, simulate
+    from ..running.naming import default_out, run_identity
     sc = scenario_of(args)
     check_memory(sc, 1)                     # before anything is created
-    with output_folder(args.out or f"out/{file_stem(sc.name)}_{sc.estimator}_seed{sc.seed}",
+    _check_native(sc)
+    with output_folder(args.out or default_out(sc, sc.estimator, f"seed{sc.seed}"),
                        "run") as out:
+        claim_folder(out, run_identity(sc, "run"), force=args.force)
         summary = simulate(sc, [sc.estimator], [sc.seed], out, progress=not args.quiet,
                            log=(lambda s: None) if args.quiet else print)
     return print_summary(summary, out)
@@ -32,6 +50,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from ..running import check_memory, method_list, simulate
+    from ..running.naming import default_out, run_identity
     sc = scenario_of(args)
     what = args.what or ("tracking" if sc.fleet is not None else "estimators")
     if what == "plants":
@@ -55,7 +74,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
     trackings = picked if what == "tracking" else None
     architectures = picked if what == "architectures" else None
     check_memory(sc, len(method_list(sc, modes, trackings, architectures)))
-    with output_folder(args.out or f"out/{file_stem(sc.name)}_compare", "compare") as out:
+    _check_native(sc)
+    tail = "compare" if args.what is None else f"compare-{what}"
+    with output_folder(args.out or default_out(sc, tail), "compare") as out:
+        claim_folder(out, run_identity(sc, f"compare --what {what}"), force=args.force)
         summary = simulate(sc, modes, args.seeds, out, progress=not args.quiet,
                            log=(lambda s: None) if args.quiet else print, trackings=trackings,
                            workers=args.workers, architectures=architectures)
@@ -66,6 +88,7 @@ def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
     """compare --what plants: the linear and the nonlinear REMUS 100, same FMUs otherwise."""
     from plant_model.vehicles import REMUS_MODELS
 
+    from ..running.naming import default_out, run_identity
     from ..running.plants import compare_plants, plant_table
     if sc.deployment != "per-vehicle":
         raise UsageError("--what plants runs the nonlinear vehicle, which is its own FMU: add "
@@ -77,7 +100,9 @@ def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
         raise UsageError("--what plants compares remus100 with remus100-6dof (no --methods)"
                          + ("" if other is None else
                             f"; vehicle {other} is a {models[other - 1]!r} model"))
-    with output_folder(args.out or f"out/{file_stem(sc.name)}_plants", "compare") as out:
+    _check_native(sc)
+    with output_folder(args.out or default_out(sc, "plants"), "compare") as out:
+        claim_folder(out, run_identity(sc, "compare --what plants"), force=args.force)
         summary = compare_plants(sc, args.seeds, out, progress=not args.quiet,
                                  log=(lambda s: None) if args.quiet else print)
     print("\n".join(plant_table(summary)))
@@ -94,11 +119,14 @@ def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
 def cmd_envelope(args: argparse.Namespace) -> int:
     """envelope: the grid of orchestrator.envelope, one line per point."""
     from ..running.envelope import run_envelope
+    from ..running.naming import default_out, run_identity
     sc = scenario_of(args)
     if sc.fleet is None or sc.deployment != "per-vehicle":
         raise UsageError("envelope runs a per-vehicle fleet: give a fleet scenario and "
                          "--deployment per-vehicle")
-    with output_folder(args.out or f"out/{file_stem(sc.name)}_envelope", "envelope") as out:
+    _check_native(sc)
+    with output_folder(args.out or default_out(sc, "envelope"), "envelope") as out:
+        claim_folder(out, run_identity(sc, "envelope"), force=args.force)
         summary = run_envelope(sc, args.speeds, args.radii, args.currents, args.tolerance,
                                out, log=print)
     held = sum(p["holds"] for p in summary["envelope"]["points"])
@@ -113,7 +141,9 @@ def add_run(sub: argparse._SubParsersAction) -> None:
     add_scenario_options(sp)
     sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="estimator mode (default: kalman)")
     sp.add_argument("--seed", type=int, help="noise seed (default: scenario's)")
-    sp.add_argument("--out", help="output folder (default: out/<scenario>_<estimator>_seed<seed>)")
+    sp.add_argument("--out", help="output folder (default: out/<scenario>[_<system>]_<estimator>_"
+                                  "seed<seed>; <system> names a per-vehicle deployment and "
+                                  "architecture, links, nonlinear vehicles, native FMUs)")
     sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
     sp.add_argument("--tracking", choices=TRACKING_MODES,
                     help="tracking law: lq (the paper) or regulator (default: scenario's)")
@@ -137,7 +167,8 @@ def add_compare(sub: argparse._SubParsersAction) -> None:
                          "the summary says why)")
     sp.add_argument("--seeds", type=parse_seeds, default=list(range(10)),
                     help="seeds: '0-9' (default), '1,4,7' or one seed")
-    sp.add_argument("--out", help="output folder (default: out/<scenario>_compare)")
+    sp.add_argument("--out", help="output folder (default: out/<scenario>[_<system>]_compare"
+                                  "[-<what>])")
     sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
     sp.add_argument("--workers", type=_count,
                     help="worker processes for the seeds after each method's first (default: "
@@ -161,5 +192,5 @@ def add_envelope(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--tolerance", type=positive_metres, default=3.0,
                     help="the formation holds when the largest tracking error over the "
                          "window stays within this, m (default: 3)")
-    sp.add_argument("--out", help="output folder (default: out/<scenario>_envelope)")
+    sp.add_argument("--out", help="output folder (default: out/<scenario>[_<system>]_envelope)")
     sp.set_defaults(func=cmd_envelope)
