@@ -78,8 +78,11 @@ class NativeForm:
     nq: int                           #: state size
     h: float                          #: the step the design is for, s
     nxi: int = 0                      #: standard normals per step
-    seed: int = 0
-    stream: int = 0                   #: a second seed key (the vehicle), for streams apart
+    seed: int = 0                     #: the noise generators' seed
+    #: the noise streams filling xi in order: (key, count) each, a generator seeded as
+    #: numpy.random.default_rng([seed, key]) (default_rng(seed) for key None) drawing its
+    #: count of standard normals per step; () is one unkeyed stream of nxi
+    streams: tuple[tuple[int | None, int], ...] = ()
     static: bool = False              #: no state: any communication step works
     description: str = ""
     notes: dict[str, str] = field(default_factory=dict)
@@ -94,6 +97,19 @@ class NativeForm:
         """Number of scalar outputs."""
         return sum(s.size for s in self.outputs)
 
+    @property
+    def noise_streams(self) -> tuple[tuple[int | None, int], ...]:
+        """The streams of xi, (key, count) each (none without noise)."""
+        if not self.nxi:
+            return ()
+        return self.streams or ((None, self.nxi),)
+
+    @property
+    def stream(self) -> int | None:
+        """The key of the one keyed stream (an FMU parameter: a vehicle's number), or None."""
+        st = self.noise_streams
+        return st[0][0] if len(st) == 1 and st[0][0] is not None else None
+
     def role(self, key: str) -> Role | None:
         """The role with this key, or None (a zero matrix)."""
         return next((r for r in self.roles if r.key == key), None)
@@ -104,8 +120,11 @@ class NativeForm:
         Raises
         ------
         ValueError
-            If a role's shape or range does not fit.
+            If a role's shape or range does not fit, or the streams do not fill xi.
         """
+        if sum(c for _, c in self.noise_streams) != self.nxi:
+            raise ValueError(f"the noise streams draw {sum(c for _, c in self.noise_streams)} "
+                             f"normals per step, xi has {self.nxi}")
         rows = {"A": self.nq, "B": self.nq, "Bo": self.nq, "b": self.nq, "F": self.nq,
                 "C": self.ny, "D": self.ny, "c": self.ny, "G": self.ny, "q0": self.nq}
         cols = {"A": self.nq, "C": self.nq, "Bo": self.ny, "B": self.nu, "D": self.nu,

@@ -73,10 +73,9 @@ class AuvLeader(Fmi2Slave):
         self._u = np.zeros(0)
 
     def native_form(self) -> NativeForm:
-        """z = z_k, z+ = Phi z + Lq xi (native noise, stream 0: the leader's)."""
+        """z = z_k, z+ = Phi z + Lq xi (numpy's normals of the stream [seed, 0], as here)."""
         return plant_native_form(self.model, self._z0, range(self._out.size), *self.io_specs(),
-                                 seed=int(self.par["seed"]), stream=0,
-                                 description=self.description)
+                                 seed=int(self.par["seed"]), description=self.description)
 
     def compute_outputs(self) -> None:
         """Nothing to do: the plant keeps z of sample k in the output buffer."""

@@ -85,10 +85,9 @@ class AuvPlant(Fmi2Slave):
         self._u = self.io["u"]
 
     def native_form(self) -> NativeForm:
-        """y, ybar, x, w, z, e = Cq s (+ Lr xi), s+ = Ad s + Bd u + Lq xi (native noise)."""
+        """y, ybar, x, w, z, e = Cq s (+ Lr xi), s+ = Ad s + Bd u + Lq xi (this plant's normals)."""
         return plant_native_form(self.model, self._s0, range(self._out.size), *self.io_specs(),
-                                 seed=int(self.par["seed"]), stream=0,
-                                 description=self.description)
+                                 seed=int(self.par["seed"]), description=self.description)
 
     def compute_outputs(self) -> None:
         """Nothing to do: the plant keeps [y, ybar, x, w, z, e] of sample k in the buffer."""

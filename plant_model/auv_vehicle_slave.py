@@ -104,7 +104,7 @@ class AuvVehicle(Fmi2Slave):
         np.take(self._buf, self._from, out=self._out[:self._from.size])
 
     def native_form(self) -> NativeForm:
-        """y, x, w = Cq s (+ Lr xi), s+ = Ad s + Bd u + Lq xi (native noise, stream i).
+        """y, x, w = Cq s (+ Lr xi), s+ = Ad s + Bd u + Lq xi (numpy's normals, stream [seed, i]).
 
         Raises
         ------
@@ -115,8 +115,7 @@ class AuvVehicle(Fmi2Slave):
             raise NotImplementedError("AuvVehicle with navigation sensors has no native (C) "
                                       "form")
         return plant_native_form(self.model, self._s0, self._from, *self.io_specs(),
-                                 seed=int(self.par["seed"]), stream=int(self.par["vehicle"]),
-                                 description=self.description)
+                                 seed=int(self.par["seed"]), description=self.description)
 
     def compute_outputs(self) -> None:
         """Nothing to do: the outputs of sample k are copied when the step ends."""

@@ -1,7 +1,8 @@
 """Native (C) FMUs of the design (orchestrator.cosim.native, orchestrator.interop.native):
 the closed loop with native controller and estimator equals the all-pythonfmu loop, the
 native plant's noise has the designed covariance and gives the predicted cost, and the
-FMUs validate, round-trip their state, refuse bad parameters and load from awkward paths."""
+FMUs validate, round-trip their state, refuse bad parameters and load from awkward paths.
+The native noise equals numpy's draws: tests/test_native_noise.py."""
 from __future__ import annotations
 
 import dataclasses
@@ -100,7 +101,7 @@ def _with_plant_seed(system, seed):
 
 
 def test_the_native_plant_noise_has_the_designed_covariance(tmp_path):
-    """The all-native loop; the plant draws its own normals (xoshiro256**, polar method):
+    """The all-native loop; the plant draws numpy's normals in C (PCG64, ziggurat):
     over 40,000 steps the measurement noise y - C x has the covariance Rd and the process
     noise s+ - Ad s - Bd u the covariance Qd, within 5 standard errors; the same seed
     gives the same numbers, another seed others."""
@@ -130,8 +131,8 @@ def test_the_native_plant_noise_has_the_designed_covariance(tmp_path):
 
 @pytest.mark.slow
 def test_the_all_native_loop_gives_the_predicted_cost(tmp_path):
-    """The paper's loop, every FMU native (the plant's noise its own): the cost rate over
-    8 seeds agrees with the Lyapunov prediction within 4 standard errors."""
+    """The paper's loop, every FMU native (the plant's noise drawn in C, seeded by the host
+    through the plant's seed parameter): the cost rate over 8 seeds agrees with the Lyapunov prediction within 4 standard errors."""
     from controller_fmu.regulator import tracking_law
     from estimator_fmu.estimators import make_estimator
     from orchestrator.analysis.prediction import method_predictions
@@ -174,9 +175,10 @@ def test_native_fmus_validate_and_ship_their_sources(f4_native, tmp_path):
             names = set(z.namelist())
             root = etree.fromstring(z.read("modelDescription.xml"))
             assert [f.get("name") for f in root.iterfind("CoSimulation/SourceFiles/File")] == [
-                "linear_fmu.c"]
-            assert {"sources/linear_fmu.c", "sources/native_model.h",
-                    "sources/fmi2Functions.h", f"binaries/linux64/{path.stem}.so"} <= names
+                "linear_fmu.c", "numpy_random.c"]
+            assert {"sources/linear_fmu.c", "sources/numpy_random.c", "sources/numpy_random.h",
+                    "sources/native_model.h", "sources/fmi2Functions.h",
+                    f"binaries/linux64/{path.stem}.so"} <= names
             lib = tmp_path / f"{path.stem}.so"
             lib.write_bytes(z.read(f"binaries/linux64/{path.stem}.so"))
         needed = subprocess.run(["ldd", str(lib)], capture_output=True, text=True).stdout

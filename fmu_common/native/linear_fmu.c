@@ -11,13 +11,15 @@
  *     q(k+1) = A q + B u + Bo y + b + F xi              (fmi2DoStep, step = h)
  *
  * A matrix that the header leaves out is zero; B and D act on a contiguous range of the
- * inputs (their col0 in the ROLE table). The noise generator is xoshiro256** seeded
- * by splitmix64 from (seed, stream), normals by the Marsaglia polar method: the draws are
- * this file's own, not numpy's.
+ * inputs (their col0 in the ROLE table). The noise is numpy's (numpy_random.c): xi is
+ * filled stream by stream (the header's STREAMS table), each stream a PCG64 generator seeded
+ * as numpy.random.default_rng(seed) or default_rng([seed, key]) seeds it and drawing its
+ * count of ziggurat normals per step in order, so xi is bit for bit the standard normal
+ * row a pythonfmu plant of the same seed draws (plant_model.plant.NoiseStream).
  *
  * Value references (Real): 0 .. NPAR-1 the parameter entries, row major, in the order of
- * the header's ROLE table; NPAR: h; then the NU inputs, then the NY outputs. Integer: 0 seed,
- * 1 stream (only with noise).
+ * the header's ROLE table; NPAR: h; then the NU inputs, then the NY outputs. Integer: 0 seed
+ * (only with noise), 1 stream (the key of the one keyed stream, if HAS_STREAM_PARAM).
  *
  * Errors never crash the host: a bad parameter (not finite), a step other than h, a state
  * that turns non-finite or a call in the wrong state gives fmi2Error and a logged message
@@ -31,6 +33,7 @@
 #include <string.h>
 
 #include "fmi2Functions.h"
+#include "numpy_random.h"
 
 #define ALLOC(n) ((n) > 0 ? (n) : 1)
 typedef struct {
@@ -39,6 +42,11 @@ typedef struct {
     double sign;
     int vector;
 } RoleInfo;
+typedef struct {
+    int keyed;              /* default_rng([seed, key]) if 1, default_rng(seed) if 0 */
+    uint32_t key;
+    unsigned count;         /* normals per step, xi[offset .. offset + count) */
+} StreamInfo;
 
 #include "native_model.h"
 
@@ -58,9 +66,7 @@ typedef struct {
     double y[ALLOC(NY)];
     double q[ALLOC(NQ)];
     double xi[ALLOC(NXI)];
-    uint64_t rng[4];
-    double spare;           /* the polar method's second normal */
-    int has_spare;
+    NprPcg64 rng[ALLOC(NSTREAMS)];   /* one numpy PCG64 per noise stream */
     int seed, stream;
     int64_t k;
     int dirty;              /* y must be recomputed (an input or the state changed) */
@@ -103,47 +109,30 @@ static void var_name(fmi2ValueReference vr, char *out, size_t n) {
             }
         }
     }
-    if (vr == VR_H) { snprintf(out, n, "h"); return; }
-    snprintf(out, n, "%s", vr < VR_Y ? INPUT_NAMES[vr - VR_U] : OUTPUT_NAMES[vr - VR_Y]);
+    if (vr >= VR_U && vr < VR_Y) snprintf(out, n, "%s", INPUT_NAMES[vr - VR_U]);
+    else if (vr >= VR_Y && vr < NREAL) snprintf(out, n, "%s", OUTPUT_NAMES[vr - VR_Y]);
+    else if (vr == VR_H) snprintf(out, n, "h");
+    else snprintf(out, n, "value reference %u", vr);
 }
 
 /* ------------------------------------------------------------------ noise */
-static uint64_t splitmix64(uint64_t *x) {
-    uint64_t z = (*x += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return z ^ (z >> 31);
-}
-
-static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
-
-static uint64_t next_u64(uint64_t *s) {          /* xoshiro256** */
-    uint64_t r = rotl(s[1] * 5, 7) * 9, t = s[1] << 17;
-    s[2] ^= s[0]; s[3] ^= s[1]; s[1] ^= s[2]; s[0] ^= s[3];
-    s[2] ^= t; s[3] = rotl(s[3], 45);
-    return r;
-}
-
-static double uniform_pm1(Data *d) {             /* uniform in (-1, 1), 53 bits */
-    return ((double)(next_u64(d->rng) >> 11) + 0.5) * (2.0 / 9007199254740992.0) - 1.0;
-}
-
-static double normal(Data *d) {                  /* Marsaglia's polar method */
-    if (d->has_spare) { d->has_spare = 0; return d->spare; }
-    double a, b, s;
-    do { a = uniform_pm1(d); b = uniform_pm1(d); s = a * a + b * b; } while (s >= 1.0 || s == 0.0);
-    double f = sqrt(-2.0 * log(s) / s);
-    d->spare = b * f; d->has_spare = 1;
-    return a * f;
-}
-
 static void seed_rng(Data *d) {
-    uint64_t x = ((uint64_t)(uint32_t)d->seed << 32) ^ (uint64_t)(uint32_t)d->stream ^ 0x61757663ull;
-    for (int i = 0; i < 4; i++) d->rng[i] = splitmix64(&x);
-    d->has_spare = 0;
+    for (int i = 0; i < NSTREAMS; i++) {
+        uint64_t entropy[2] = {(uint64_t)(uint32_t)d->seed,
+                               HAS_STREAM_PARAM && i == 0 ? (uint64_t)(uint32_t)d->stream
+                                                          : (uint64_t)STREAMS[i].key};
+        npr_seed(&d->rng[i], entropy, STREAMS[i].keyed ? 2 : 1);
+    }
 }
 
-static void draw(Data *d) { for (int i = 0; i < NXI; i++) d->xi[i] = normal(d); }
+/* xi of the step: stream by stream, as many normals as numpy's standard_normal((n, count))
+   takes per row */
+static void draw(Data *d) {
+    int j = 0;
+    for (int i = 0; i < NSTREAMS; i++)
+        for (unsigned c = 0; c < STREAMS[i].count; c++)
+            d->xi[j++] = npr_standard_normal(&d->rng[i]);
+}
 
 /* ------------------------------------------------------------------ the equations */
 /* out += M v[col0 ...] for the role r (rows x cols, row major in par) */
@@ -269,7 +258,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
         logf_(in, fmi2Error, "parameter h = %g s must be a positive number", d->h);
         return fmi2Error;
     }
-    if (NXI > 0 && (d->seed < 0 || d->stream < 0)) {
+    if (NXI > 0 && (d->seed < 0 || (HAS_STREAM_PARAM && d->stream < 0))) {
         logf_(in, fmi2Error, "parameter %s = %d must not be negative",
               d->seed < 0 ? "seed" : "stream", d->seed < 0 ? d->seed : d->stream);
         return fmi2Error;
@@ -347,7 +336,7 @@ fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
     Instance *in = c;
     for (size_t i = 0; i < n; i++) {
         if (NXI > 0 && vr[i] == 0) v[i] = in->d.seed;
-        else if (NXI > 0 && vr[i] == 1) v[i] = in->d.stream;
+        else if (HAS_STREAM_PARAM && vr[i] == 1) v[i] = in->d.stream;
         else return bad_vr(in, "fmi2GetInteger", vr[i]);
     }
     return fmi2OK;
@@ -357,14 +346,14 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
                           const fmi2Integer v[]) {
     Instance *in = c;
     for (size_t i = 0; i < n; i++) {
+        if (!((NXI > 0 && vr[i] == 0) || (HAS_STREAM_PARAM && vr[i] == 1)))
+            return bad_vr(in, "fmi2SetInteger", vr[i]);
         if (in->d.phase != INSTANTIATED && in->d.phase != INIT) {
             logf_(in, fmi2Error, "parameter %s is fixed after initialization",
                   vr[i] == 0 ? "seed" : "stream");
             return fmi2Error;
         }
-        if (NXI > 0 && vr[i] == 0) in->d.seed = v[i];
-        else if (NXI > 0 && vr[i] == 1) in->d.stream = v[i];
-        else return bad_vr(in, "fmi2SetInteger", vr[i]);
+        if (vr[i] == 0) in->d.seed = v[i]; else in->d.stream = v[i];
     }
     return fmi2OK;
 }

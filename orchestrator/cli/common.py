@@ -13,8 +13,8 @@ from plant_model.network import RECEIVERS
 from ..scenario import Scenario, builtin_scenarios, load_scenario
 from .args import _positive
 
-__all__ = ["ROOT", "add_fmu_options", "add_force_option", "add_scenario_options", "print_summary", "scenario_of",
-           "viewer_command"]
+__all__ = ["ROOT", "add_fmu_options", "add_force_option", "add_scenario_options",
+           "print_summary", "scenario_of", "viewer_command"]
 
 ROOT = Path(__file__).resolve().parents[2]
 

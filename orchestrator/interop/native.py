@@ -107,7 +107,10 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
 
 
 def _shape(f: NativeForm) -> tuple[Any, ...]:
-    return (f.nq, f.nu, f.ny, f.nxi, tuple((r.key, r.name, r.value.shape) for r in f.roles))
+    # the noise streams are built in, but for the key of a single keyed one (a parameter)
+    streams = tuple((None if f.stream is not None else k, c) for k, c in f.noise_streams)
+    return (f.nq, f.nu, f.ny, f.nxi, f.stream is not None, streams,
+            tuple((r.key, r.name, r.value.shape) for r in f.roles))
 
 
 def export_native(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
