@@ -104,6 +104,12 @@ def print_summary(summary: dict, out: Path) -> int:
           f"{summary['steps']} steps, seeds {summary['seeds']}, "
           f"noise convention '{summary['noise_convention']}', statistics over "
           f"t in [{summary['stats_window_s'][0]:.3g}, {summary['stats_window_s'][1]:.3g}) s")
+    kinds: dict[str, list[str]] = {}
+    for key, entry in summary.get("fmus", {}).items():
+        kinds.setdefault(entry.get("kind", "python"), []).append(key)
+    if "native" in kinds:
+        print("FMUs: native " + ", ".join(kinds["native"])
+              + ("; pythonfmu " + ", ".join(kinds["python"]) if kinds.get("python") else ""))
     print(f"{'method':>10s} {'cost rate':>12s} {'(std)':>9s} {'predicted':>10s}   "
           "rms e (sim / pred)")
     for name, m in summary["methods"].items():

@@ -15,6 +15,7 @@ from ..scenario import Scenario
 from .args import _count, parse_floats, parse_seeds, positive_metres
 from .common import (
     add_fmu_options,
+    add_force_option,
     add_scenario_options,
     print_summary,
     scenario_of,
@@ -144,6 +145,7 @@ def add_run(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--out", help="output folder (default: out/<scenario>[_<system>]_<estimator>_"
                                   "seed<seed>; <system> names a per-vehicle deployment and "
                                   "architecture, links, nonlinear vehicles, native FMUs)")
+    add_force_option(sp)
     sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
     sp.add_argument("--tracking", choices=TRACKING_MODES,
                     help="tracking law: lq (the paper) or regulator (default: scenario's)")
@@ -169,6 +171,7 @@ def add_compare(sub: argparse._SubParsersAction) -> None:
                     help="seeds: '0-9' (default), '1,4,7' or one seed")
     sp.add_argument("--out", help="output folder (default: out/<scenario>[_<system>]_compare"
                                   "[-<what>])")
+    add_force_option(sp)
     sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
     sp.add_argument("--workers", type=_count,
                     help="worker processes for the seeds after each method's first (default: "
@@ -193,4 +196,5 @@ def add_envelope(sub: argparse._SubParsersAction) -> None:
                     help="the formation holds when the largest tracking error over the "
                          "window stays within this, m (default: 3)")
     sp.add_argument("--out", help="output folder (default: out/<scenario>[_<system>]_envelope)")
+    add_force_option(sp)
     sp.set_defaults(func=cmd_envelope)
