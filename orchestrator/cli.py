@@ -16,8 +16,8 @@ from pathlib import Path
 from controller_fmu.regulator import TRACKING_MODES
 from controller_fmu.vehicle_law import ARCHITECTURES, DEPLOYMENTS
 from estimator_fmu.estimators import ESTIMATOR_MODES
+from plant_model.acoustic.settings import RECEIVERS
 from plant_model.linalg_checks import ModelError
-from plant_model.network import RECEIVERS
 
 from .cli_args import _count, _positive, parse_floats, parse_seeds, positive_metres
 from .cli_bench import _fleet_sizes, cmd_bench

@@ -19,9 +19,9 @@ from estimator_fmu.estimators import make_estimator
 from plant_model.discretization import discretize
 from plant_model.linalg_checks import ModelError
 
+from .analysis.acoustic.blocks import predict_window_blocks
+from .analysis.acoustic.prediction import prediction_work
 from .analysis.distributed_verdict import predict_cost
-from .analysis.networked_blocks import predict_window_blocks
-from .analysis.networked_prediction import prediction_work
 from .analysis.per_vehicle import distributed_initial_state, distributed_loop_of
 from .analysis.prediction import Prediction, method_predictions
 from .analysis.summary import stats_window

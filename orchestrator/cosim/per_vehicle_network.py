@@ -26,7 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from plant_model.network import LinkTiming, link_key, resolve_links, timing_table
+from plant_model.acoustic.links import LinkTiming, link_key
+from plant_model.acoustic.settings import resolve_links, timing_table
 
 from .system import Connection
 
