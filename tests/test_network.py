@@ -1,4 +1,4 @@
-"""plant_model.network: an acoustic link's schedule, latency, loss and receiver."""
+"""plant_model.acoustic: an acoustic link's schedule, latency, loss and receiver."""
 from __future__ import annotations
 
 import math
@@ -6,8 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from plant_model.linalg_checks import ModelError
-from plant_model.network import (
+from plant_model.acoustic.links import (
     LinkChannel,
     arrival_step,
     check_link,
@@ -16,6 +15,7 @@ from plant_model.network import (
     send_steps,
     tdma_offsets,
 )
+from plant_model.linalg_checks import ModelError
 
 
 def _run(ch: LinkChannel, steps: int, size: int = 2):
@@ -156,7 +156,7 @@ PINS = [(1, 1.0)]
 
 
 def test_defaults_overrides_and_tdma_give_every_link_its_timing():
-    from plant_model.network import resolve_links
+    from plant_model.acoustic.settings import resolve_links
     perfect = resolve_links(4, EDGES, PINS, None, 0.01)
     assert set(perfect) == {(1, 2), (1, 3), (2, 4), (3, 4), ("leader", 1)}
     assert all((t.latency, t.period, t.loss) == (0.0, 0.01, 0.0) for t in perfect.values())
@@ -192,7 +192,7 @@ def test_defaults_overrides_and_tdma_give_every_link_its_timing():
     ({"latency": 1.0, "speed": 3}, "[network]: unknown key(s) speed"),
 ])
 def test_a_bad_network_table_is_one_line_naming_the_link_or_entry(net, fragment):
-    from plant_model.network import resolve_links
+    from plant_model.acoustic.settings import resolve_links
     with pytest.raises(ModelError) as exc:
         resolve_links(4, EDGES, PINS, net, 0.01)
     assert fragment in str(exc.value) and "\n" not in str(exc.value)
@@ -202,7 +202,7 @@ LINKS = [(1, 2), (1, 3), (2, 3), ("leader", 1)]
 
 
 def test_a_switching_schedule_in_order():
-    from plant_model.network_schedule import check_schedule
+    from plant_model.acoustic.schedule import check_schedule
     sched = check_schedule([{"t": 0.0, "edges": [[1, 2], ["leader", 1]]},
                             {"t": 60.0, "down": [[2, 3]]}], 3)
     assert sched == [(0.0, "edges", [(1, 2), ("leader", 1)]), (60.0, "down", [(2, 3)])]
@@ -211,7 +211,7 @@ def test_a_switching_schedule_in_order():
 def test_a_schedule_says_which_links_are_up_at_each_step():
     """edges: only those up; down: all but those; with a period it repeats, without it the
     last graph holds; the switch is at the step of the switch time."""
-    from plant_model.network_schedule import resolve_schedule
+    from plant_model.acoustic.schedule import resolve_schedule
     table = {"schedule": [{"t": 0.0, "edges": [[1, 2], ["leader", 1]]},
                           {"t": 0.5, "down": [[1, 3]]}]}
     once = resolve_schedule(table, LINKS, 0.1, 3)
@@ -229,7 +229,7 @@ def test_a_schedule_says_which_links_are_up_at_each_step():
 def test_joint_connectivity_is_the_union_over_a_period():
     """Each graph alone leaves a vehicle unreached; their union over the period reaches all;
     without a period only the last graph counts."""
-    from plant_model.network_schedule import connectivity, resolve_schedule
+    from plant_model.acoustic.schedule import connectivity, resolve_schedule
     sched = [{"t": 0.0, "edges": [["leader", 1], [1, 2]]},
              {"t": 1.0, "edges": [["leader", 1], [2, 3]]}]
     rep = resolve_schedule({"schedule": sched, "schedule_period": 2.0}, LINKS, 0.1, 3)
@@ -254,7 +254,7 @@ def test_joint_connectivity_is_the_union_over_a_period():
     ([{"t": 0.0, "up": []}], "entry 1: unknown key(s) up"),
 ])
 def test_a_bad_schedule_is_one_line_naming_the_entry(entries, fragment):
-    from plant_model.network_schedule import check_schedule
+    from plant_model.acoustic.schedule import check_schedule
     with pytest.raises(ModelError) as exc:
         check_schedule(entries, 3)
     assert fragment in str(exc.value) and "\n" not in str(exc.value)
@@ -270,7 +270,7 @@ def test_a_bad_schedule_is_one_line_naming_the_entry(entries, fragment):
     ({"schedule_period": 5.0}, "schedule_period needs a schedule"),
 ])
 def test_a_schedule_that_does_not_fit_the_links_is_one_line(table, fragment):
-    from plant_model.network_schedule import resolve_schedule
+    from plant_model.acoustic.schedule import resolve_schedule
     with pytest.raises(ModelError) as exc:
         resolve_schedule(table, LINKS, 0.1, 3)
     assert fragment in str(exc.value) and "\n" not in str(exc.value)

@@ -8,8 +8,8 @@ import pytest
 
 from orchestrator.cosim.build import build_fmus
 from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
-from plant_model.inbox import Inbox, LinkSettings
-from plant_model.network import LinkChannel, check_link, link_key
+from plant_model.acoustic.inbox import Inbox, LinkSettings
+from plant_model.acoustic.links import LinkChannel, check_link, link_key
 
 H, RECEIVER, SEED = 0.1, 3, 11
 FIELDS = [["eta", 3], ["eps", 2]]
@@ -83,7 +83,7 @@ def _drive(inst, inputs, k0):
 def _reference(config, inputs):
     """The same links as bare LinkChannels (M = I held without M): outputs per step; with a
     schedule a link loses what it sends while it is down."""
-    from plant_model.network_schedule import LinkSchedule
+    from plant_model.acoustic.schedule import LinkSchedule
     sch = config.get("schedule")
     layout = [(st, [n for _, n in config["fields"]]) for st in config["links"]]
     if config["leader_size"]:

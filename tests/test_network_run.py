@@ -230,7 +230,7 @@ def test_a_modem_range_loses_what_is_sent_out_of_range(tmp_path, architecture):
     formation, launched up to 33 m apart): the FMUs equal the reference, every message sent
     while its sender was out of range (true positions, computed here from the trajectory) is
     lost, and the prediction says it does not cover a range."""
-    from plant_model.network import send_steps
+    from plant_model.acoustic.links import send_steps
     sc = load_scenario("formation-4").with_run(
         T=30.0, deployment="per-vehicle", architecture=architecture,
         network={"latency": 1.0, "period": 2.0, "loss": 0.1, "range": 14.5})

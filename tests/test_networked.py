@@ -1,4 +1,4 @@
-"""orchestrator.analysis.message_form, .networked, .networked_prediction: the per-vehicle loop
+"""orchestrator.analysis.acoustic (message_form, loop, prediction): the per-vehicle loop
 over acoustic links, its exact second moment, mean-square stability and critical loss."""
 from __future__ import annotations
 
@@ -11,13 +11,13 @@ from scipy.linalg import solve_discrete_lyapunov
 from controller_fmu.regulator import tracking_law
 from controller_fmu.vehicle_law import centralized_rows
 from estimator_fmu.estimators import make_estimator
-from orchestrator.analysis.message_form import (
+from orchestrator.analysis.acoustic.loop import NetworkedLoop
+from orchestrator.analysis.acoustic.message_form import (
     centralized_message_form,
     distributed_message_form,
     perfect_links,
 )
-from orchestrator.analysis.networked import NetworkedLoop
-from orchestrator.analysis.networked_prediction import (
+from orchestrator.analysis.acoustic.prediction import (
     _Compiler,
     critical_loss,
     frozen_radius,
@@ -32,8 +32,8 @@ from orchestrator.analysis.per_vehicle import (
 )
 from orchestrator.analysis.prediction import method_predictions
 from orchestrator.scenario import load_scenario
+from plant_model.acoustic.links import LinkChannel, check_link, link_key
 from plant_model.discretization import discretize
-from plant_model.network import LinkChannel, check_link, link_key
 
 DATA = __import__("pathlib").Path(__file__).parent / "data"
 
@@ -89,7 +89,7 @@ def test_perfect_links_give_back_the_stacked_centralized_cost(f4, mode):
 
 
 def _channel_reference(form, net, X0, zeta, seed, receiver, timings, schedule=None):
-    """The cut loop stepped with one LinkChannel per link (plant_model.network); a link
+    """The cut loop stepped with one LinkChannel per link (plant_model.acoustic.links); a link
     down in the schedule loses what it sends."""
     ch = {k: LinkChannel(timings[k], form.h, seed, link_key(*k), form.senders[k[0]].Cm @ X0,
                          form.senders[k[0]].M(receiver)) for k in form.links}
@@ -144,7 +144,7 @@ def test_a_schedule_switches_the_links_as_link_channels_told_so(f4, architecture
     """Links switched on and off by a periodic schedule (a message sent while its link is
     down is lost): the augmented loop equals LinkChannels stepped per link, and a down
     link's messages never arrive."""
-    from plant_model.network_schedule import resolve_schedule
+    from plant_model.acoustic.schedule import resolve_schedule
     if architecture == "distributed":
         loop = distributed_loop_of(f4, "kalman", "regulator", f4.distributed)
         form = distributed_message_form(loop, *_H_offsets(f4))
@@ -178,8 +178,8 @@ def test_a_jointly_connected_schedule_predicted_and_simulated(f4):
     does): the exact expected cost over the window agrees with 16 simulated seeds, the
     radius over one 20 s period is below 1; propagating receivers lose almost nothing to
     the switching, holding ones more than double their cost."""
-    from plant_model.network import resolve_links
-    from plant_model.network_schedule import connectivity, resolve_schedule
+    from plant_model.acoustic.schedule import connectivity, resolve_schedule
+    from plant_model.acoustic.settings import resolve_links
     sc = f4.with_run(T=100.0)
     loop = distributed_loop_of(sc, "kalman", "regulator", sc.distributed)
     form = distributed_message_form(loop, *_H_offsets(sc))
@@ -216,7 +216,7 @@ def test_joint_connectivity_is_not_sufficient():
     probability 0.5 once per period and otherwise drifts by exp(0.05 x 20) in magnitude, so
     the radius per period is 0.5 e^2 = 3.69: the prediction gives it, and 400 simulated
     loss sequences grow as the predicted second moment does."""
-    from plant_model.network_schedule import connectivity, resolve_schedule
+    from plant_model.acoustic.schedule import connectivity, resolve_schedule
     sc = load_scenario(DATA / "spiral-leader-network.toml")
     loop = distributed_loop_of(sc, "kalman", "regulator", sc.distributed)
     form = distributed_message_form(loop, *_H_offsets(sc))
@@ -258,7 +258,7 @@ def test_predicted_cost_matches_simulation_over_seeds(f4, receiver, tdma):
     TDMA: the leader and vehicles 1..3 send in turn, four arrival steps per cycle): the
     exact expected cost over the window agrees with 16 simulated seeds within 4 standard
     errors."""
-    from plant_model.network import resolve_links
+    from plant_model.acoustic.settings import resolve_links
     sc = f4.with_run(T=100.0)
     loop = distributed_loop_of(sc, "kalman", "regulator", sc.distributed)
     form = distributed_message_form(loop, *_H_offsets(sc))
@@ -380,7 +380,7 @@ def test_the_centralized_law_has_a_critical_loss_where_the_distributed_has_none(
 def test_the_second_moment_in_blocks_equals_the_dense_one(f4, architecture, receiver):
     """networked_blocks keeps the held values apart (block-diagonal between arrivals): the
     same expected window cost as the dense propagation."""
-    from orchestrator.analysis.networked_blocks import predict_window_blocks
+    from orchestrator.analysis.acoustic.blocks import predict_window_blocks
     from orchestrator.running.network import network_setup
     sc = f4.with_run(T=60.0, deployment="per-vehicle", architecture=architecture,
                      network={"latency": 1.0, "period": 2.0, "loss": 0.2,

@@ -5,4 +5,5 @@
 - :mod:`.summary`: statistics of traces over seeds, the statistics window;
 - :mod:`.reference`: the same algorithm as one plain numpy loop (no FMI), for checks and
   benchmarks.
+- :mod:`.acoustic`: the per-vehicle loop over acoustic links and its exact predictions.
 """

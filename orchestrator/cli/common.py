@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from controller_fmu.vehicle_law import ARCHITECTURES, DEPLOYMENTS
-from plant_model.network import RECEIVERS
+from plant_model.acoustic.settings import RECEIVERS
 
 from ..scenario import Scenario, builtin_scenarios, load_scenario
 from .args import _positive

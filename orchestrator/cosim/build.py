@@ -78,8 +78,8 @@ FMU_KINDS: dict[str, FmuKind] = {
                                   "controller_fmu.auv_central_controller_slave",
                                   ("controller_fmu", "plant_model", "fmu_common"),
                                   "auv_central_controller_config.json", True),
-    # one vehicle's acoustic inbox (plant_model.network, plant_model.inbox)
-    "network": FmuKind("AuvNetwork", "plant_model.auv_network_slave",
+    # one vehicle's acoustic inbox (plant_model.acoustic: links, inbox)
+    "network": FmuKind("AuvNetwork", "plant_model.acoustic.auv_network_slave",
                        ("plant_model", "fmu_common"), "auv_network_config.json", False),
 }
 

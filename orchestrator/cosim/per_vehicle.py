@@ -38,8 +38,8 @@ from controller_fmu.vehicle_law import (
     centralized_rows,
     observer_start,
 )
+from plant_model.acoustic.links import link_sender
 from plant_model.fleet import fleet_graph, fleet_vehicles
-from plant_model.network import link_sender
 from plant_model.per_vehicle import leader_system, vehicle_views
 from plant_model.system import LinearSystem
 

@@ -1,7 +1,7 @@
 """The acoustic network of a per-vehicle fleet: which links exist, their FMU configurations
 and how they are wired.
 
-Each vehicle has one ``AuvNetwork`` FMU (:mod:`plant_model.auv_network_slave`): its modem's
+Each vehicle has one ``AuvNetwork`` FMU (:mod:`plant_model.acoustic.auv_network_slave`): its modem's
 inbox, every link that ends at it. One FMU per receiver rather than one per link keeps the
 component count at 1 + 4 N and gives every vehicle's links one place for their state (in
 flight, held, loss streams); one FMU for the whole fleet would put every vehicle's inbox in
@@ -15,9 +15,9 @@ Links of an architecture (:func:`fleet_links`):
   for every vehicle.
 
 Their timing comes from the scenario's ``[network]`` table
-(:func:`plant_model.network.resolve_links`), the message layouts, launch values and
+(:func:`plant_model.acoustic.settings.resolve_links`), the message layouts, launch values and
 propagation matrices from the loop's message form
-(:mod:`orchestrator.analysis.message_form`), so the FMUs and the predictions share them.
+(:mod:`orchestrator.analysis.acoustic.message_form`), so the FMUs and the predictions share them.
 """
 from __future__ import annotations
 
@@ -26,7 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from plant_model.network import LinkTiming, link_key, resolve_links, timing_table
+from plant_model.acoustic.links import LinkTiming, link_key
+from plant_model.acoustic.settings import resolve_links, timing_table
 
 from .system import Connection
 

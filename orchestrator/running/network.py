@@ -1,8 +1,8 @@
 """A per-vehicle fleet over acoustic links: the loop, its predictions and its reference.
 
 :func:`network_setup` cuts the method's loop at its messages
-(:mod:`orchestrator.analysis.message_form`) and puts the scenario's links between them
-(:class:`~orchestrator.analysis.networked.NetworkedLoop`); the network FMUs are configured
+(:mod:`orchestrator.analysis.acoustic.message_form`) and puts the scenario's links between them
+(:class:`~orchestrator.analysis.acoustic.loop.NetworkedLoop`); the network FMUs are configured
 from the same objects (:func:`orchestrator.cosim.per_vehicle_network.network_configs`), so
 the co-simulation, the monolithic reference (:func:`network_reference`) and the
 predictions (:func:`network_predictions`) share one description. Age of information:
@@ -18,17 +18,17 @@ import numpy as np
 
 from controller_fmu.regulator import tracking_law
 from controller_fmu.vehicle_law import centralized_rows
+from plant_model.acoustic.schedule import connectivity, resolve_schedule
 from plant_model.fleet import fleet_vehicles
-from plant_model.network_schedule import connectivity, resolve_schedule
 
-from ..analysis.message_form import (
+from ..analysis.acoustic.loop import NetworkedLoop
+from ..analysis.acoustic.message_form import (
     MessageForm,
     centralized_message_form,
     distributed_message_form,
     without_leader_links,
 )
-from ..analysis.networked import NetworkedLoop
-from ..analysis.networked_prediction import critical_loss, ms_spectral_radius, predict_window
+from ..analysis.acoustic.prediction import critical_loss, ms_spectral_radius, predict_window
 from ..analysis.per_vehicle import distributed_initial_state, distributed_loop_of, distributed_noise
 from ..analysis.prediction import Prediction
 from ..analysis.summary import stats_window

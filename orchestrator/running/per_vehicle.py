@@ -19,9 +19,9 @@ from estimator_fmu.estimators import make_estimator
 from plant_model.discretization import discretize
 from plant_model.linalg_checks import ModelError
 
+from ..analysis.acoustic.blocks import predict_window_blocks
+from ..analysis.acoustic.prediction import prediction_work
 from ..analysis.distributed_verdict import predict_cost
-from ..analysis.networked_blocks import predict_window_blocks
-from ..analysis.networked_prediction import prediction_work
 from ..analysis.per_vehicle import distributed_initial_state, distributed_loop_of
 from ..analysis.prediction import Prediction, method_predictions
 from ..analysis.summary import stats_window
@@ -64,7 +64,7 @@ NETWORK_PREDICTION_WORK = 1e13
 def prediction_path(net: Any, steps: int) -> str | None:
     """How the window prediction of a networked loop is computed: "dense" (up to
     NETWORK_PREDICTION_LIMIT states), "blocks", or None when the estimated work
-    (:func:`orchestrator.analysis.networked_prediction.prediction_work`) exceeds
+    (:func:`orchestrator.analysis.acoustic.prediction.prediction_work`) exceeds
     NETWORK_PREDICTION_WORK (long latencies at a message every step, all-to-all links)."""
     if net.n <= NETWORK_PREDICTION_LIMIT and prediction_work(net, steps) <= NETWORK_PREDICTION_WORK:
         return "dense"

@@ -19,7 +19,7 @@ A fleet scenario file has these sections (SI units, NED frame; vehicles are numb
     [noise]      convention, process (W_x), position (V_y), reference (V_ybar): numbers (times
                  the identity) or matrices, the same for every vehicle
     [cost]       Q, R per vehicle (numbers or matrices)
-    [network]    acoustic links of the per-vehicle deployment (plant_model.network): fleet-wide
+    [network]    acoustic links of the per-vehicle deployment (plant_model.acoustic): fleet-wide
                  latency (s), period (s), loss (probability), tdma (senders take turns),
                  receiver ("propagate" | "hold"), links = [{from, to, latency, period,
                  loss}, ...] per-link overrides (from: a vehicle or "leader")

@@ -29,9 +29,9 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from controller_fmu.vehicle_law import DistributedSettings
+from plant_model.acoustic.settings import check_network
 from plant_model.discretization import check_step
 from plant_model.linalg_checks import ModelError
-from plant_model.network import check_network
 from plant_model.system import LinearSystem
 
 from .errors import ScenarioError, validate_scenario

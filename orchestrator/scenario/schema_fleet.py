@@ -34,12 +34,12 @@ from pydantic import (
 
 from controller_fmu.distributed import REGULATOR_FORMS
 from controller_fmu.vehicle_law import LEADER_INFORMATION
+from plant_model.acoustic.settings import check_network
 from plant_model.fleet import CONSENSUS_FORMS, fleet_vehicles
 from plant_model.graph import communication_graph
 from plant_model.leader import LeaderPath, make_leader
 from plant_model.linalg_checks import ModelError, as_matrix, as_vector
 from plant_model.navigation import NavigationSensors
-from plant_model.network import check_network
 from plant_model.system import NOISE_CONVENTIONS
 from plant_model.vehicle_targets import leader_state_map, state_offset
 from plant_model.vehicles import REMUS_MODELS, VehicleModel
@@ -394,8 +394,8 @@ class FleetScenario(ScenarioFile):
     def network_fits_the_graph(cls, network: dict[str, Any] | None,
                                info: ValidationInfo) -> dict[str, Any] | None:
         """[network]: latency (s), period (s), loss, tdma, receiver and per-link overrides
-        naming communication edges (plant_model.network.resolve_links); every error one line
-        naming the link or entry."""
+        naming communication edges (plant_model.acoustic.settings.resolve_links); every error
+        one line naming the link or entry."""
         vehicles, sim = _valid_vehicles(info), info.data.get("simulation")
         if network is None or vehicles is None or sim is None:
             return network

@@ -1,15 +1,15 @@
 """The per-vehicle loop over acoustic links: held and in-flight messages as states.
 
-A :class:`~orchestrator.analysis.message_form.MessageForm` says what each vehicle computes
+A :class:`~orchestrator.analysis.acoustic.message_form.MessageForm` says what each vehicle computes
 alone, what each sender transmits and how a received value enters its receiver; the links'
-timing (:mod:`plant_model.network`) says when. Augmented state Z = [X; F; R]:
+timing (:mod:`plant_model.acoustic.links`) says when. Augmented state Z = [X; F; R]:
 
 - F: per sender and timing (a *group*: the links from one sender with one latency, period
   and offset share the message in flight), a shift register of q = ceil(D / P) slots, D the
   arrival delay and P the period in steps; a send at step k pushes msg_j(k) into slot 0;
 - R: per link, the value the receiver uses (held, or propagated by the sender's model M).
 
-One transition k -> k+1 (the order :class:`plant_model.network.LinkChannel` uses):
+One transition k -> k+1 (the order :class:`plant_model.acoustic.links.LinkChannel` uses):
 X+ = Phi X + Gam zeta + sum_l B_l R_l; sends push msg into F; an arrival at k + 1 sets
 R_l <- R_l + delta_l (F_slot - R_l) with delta_l = 1 if the message got through; then F and
 R are propagated by M. So Z[k+1] = A_k(delta) Z[k] + Gam_k(delta) zeta[k] with
@@ -36,16 +36,10 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from plant_model.acoustic.base import whole_steps
+from plant_model.acoustic.links import LINK_KEY_BASE, LinkTiming, arrival_step, in_range, link_key
+from plant_model.acoustic.schedule import LinkSchedule
 from plant_model.linalg_checks import ModelError
-from plant_model.network import (
-    LINK_KEY_BASE,
-    LinkTiming,
-    arrival_step,
-    in_range,
-    link_key,
-    whole_steps,
-)
-from plant_model.network_schedule import LinkSchedule
 
 from .message_form import RECEIVERS, MessageForm
 

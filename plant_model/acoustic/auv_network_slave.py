@@ -1,4 +1,4 @@
-"""FMI 2.0 co-simulation slave of one vehicle's acoustic modem inbox (plant_model.inbox).
+"""FMI 2.0 co-simulation slave of one vehicle's acoustic modem inbox (plant_model.acoustic.inbox).
 
 One FMU per receiving vehicle: its S neighbour links ``link[1..S]`` (messages made of the
 build configuration's ``fields``, e.g. eta and eps) and, if ``leader_size`` > 0, its leader
@@ -6,8 +6,8 @@ link ``leader`` (message z). Inputs ``<link>.tx.<field>``: what the sender sends
 outputs ``<link>.rx.<field>``: what the receiver uses at t_k (the newest message that has
 arrived, held or propagated by M, the launch value rx0 before the first arrival), the age
 of information ``<link>.age`` (s) and the counts ``delivered``, ``lost``, ``in_flight``.
-Timing, loss and the loss streams: plant_model.network. With a switching schedule
-(``schedule`` in the configuration, plant_model.network_schedule) the parameters
+Timing, loss and the loss streams: plant_model.acoustic.links. With a switching schedule
+(``schedule`` in the configuration, plant_model.acoustic.schedule) the parameters
 ``schedule.t`` (the switch times, s), ``schedule.period`` (s; 0: no repetition) and per
 link ``<link>.up`` (1 if the link carries messages in each graph, else 0): a message sent
 while its link is down is lost. No direct feedthrough: a message sent at t_k is heard at
@@ -22,10 +22,11 @@ from fmu_common.interface import ArraySpec
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
-from plant_model.inbox import Inbox, LinkSettings
+from plant_model.acoustic.base import whole_steps
+from plant_model.acoustic.inbox import Inbox, LinkSettings
+from plant_model.acoustic.links import check_link, in_range
+from plant_model.acoustic.schedule import LinkSchedule
 from plant_model.linalg_checks import ModelError
-from plant_model.network import check_link, in_range, whole_steps
-from plant_model.network_schedule import LinkSchedule
 from plant_model.parameters import sample_period_spec
 
 _STATS = (("age", "age of information: t - t_send of the message held", "s"),

@@ -1,6 +1,6 @@
 """The second moment of a networked loop with many links, kept in blocks.
 
-:mod:`.networked_prediction` propagates X2 = E[Z Z'] as one dense matrix, n^3 per product.
+:mod:`.prediction` propagates X2 = E[Z Z'] as one dense matrix, n^3 per product.
 With many links (the centralized law over all-to-all links: formation-20 has 400 links of
 12 values, 5271 states) most of Z is the receivers' held values R, and a step treats them
 simply: between arrivals R <- M R, block-diagonal (one M per link), and nothing else
@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from .networked import NetworkedLoop
-from .networked_prediction import NetworkPrediction, _Compiler, _pieces, doubled
+from .loop import NetworkedLoop
+from .prediction import NetworkPrediction, _Compiler, _pieces, doubled
 
 __all__ = ["predict_window_blocks"]
 
@@ -103,7 +103,7 @@ class _Lookup:
 
 
 class _BlockCompiler(_Compiler):
-    """The compiler of :mod:`.networked_prediction` with X2 kept in blocks."""
+    """The compiler of :mod:`.prediction` with X2 kept in blocks."""
 
     def __init__(self, net: NetworkedLoop):
         super().__init__(net)
@@ -190,7 +190,7 @@ class _BlockCompiler(_Compiler):
 
 def predict_window_blocks(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int,
                           spectral_radius: float) -> NetworkPrediction:
-    """:func:`.networked_prediction.predict_window` with X2 in blocks (many links).
+    """:func:`.prediction.predict_window` with X2 in blocks (many links).
 
     Parameters
     ----------

@@ -21,11 +21,11 @@ the co-simulation's fixed step h, all times in seconds:
   are fixed-gain receivers. Before the first arrival it holds the value exchanged before
   launch (sent at t = 0).
 
-The age of information is t - t_send of the message the receiver holds. :func:`resolve_links`
-gives every link of a fleet its timing from a ``[network]`` table (fleet-wide defaults,
-per-link overrides, TDMA); :mod:`plant_model.network_schedule` switches links on and off
-(a schedule of graphs). This module is the mathematics only: the FMU and the predictions build
-on it.
+The age of information is t - t_send of the message the receiver holds.
+:func:`~.settings.resolve_links` gives every link of a fleet its timing from a ``[network]``
+table (fleet-wide defaults, per-link overrides, TDMA); :mod:`.schedule` switches links on and
+off (a schedule of graphs). This module is the mathematics only: the FMU and the predictions
+build on it.
 """
 from __future__ import annotations
 
@@ -37,19 +37,14 @@ from typing import Any
 
 import numpy as np
 
-from .linalg_checks import ModelError
+from ..linalg_checks import ModelError
+from .base import _number
 
-__all__ = ["LINK_KEY_BASE", "RECEIVERS", "LinkTiming", "LinkChannel", "arrival_step",
-           "check_link", "check_network", "in_range", "link_key", "link_sender",
-           "modem_range", "propagate", "timing_table", "whole_steps",
-           "resolve_links", "send_steps", "tdma_offsets"]
+__all__ = ["LINK_KEY_BASE", "LinkTiming", "LinkChannel", "arrival_step", "check_link",
+           "in_range", "link_key", "link_sender", "propagate", "send_steps", "tdma_offsets"]
 
 #: added to the seed key of a link's generator (vehicles use 1..N, the leader 0)
 LINK_KEY_BASE = 1_000_000
-
-#: what a receiver does with the newest message between arrivals: hold it, or carry it
-#: forward with the sender's model
-RECEIVERS = ("hold", "propagate")
 
 
 @dataclass(frozen=True)
@@ -65,15 +60,6 @@ class LinkTiming:
     def max_in_flight(self) -> int:
         """ceil(latency / period) + 1: the most messages that can travel at once."""
         return math.ceil(self.latency / self.period) + 1
-
-
-def _number(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ModelError(f"{name} = {value!r} is not a number")
-    v = float(value)
-    if not math.isfinite(v):
-        raise ModelError(f"{name} = {v} is not finite")
-    return v
 
 
 def check_link(name: str, latency: Any, period: Any, loss: Any,
@@ -152,29 +138,10 @@ def propagate(value: np.ndarray, steps: int, Phi: np.ndarray) -> np.ndarray:
     return np.linalg.matrix_power(np.asarray(Phi, dtype=float), int(steps)) @ value
 
 
-def whole_steps(name: str, value: float, h: float) -> int:
-    """``value`` (s) as a whole number of steps h, or a one-line error naming it."""
-    n = float(value) / h
-    if abs(n - round(n)) > 1e-9 * max(1.0, abs(n)):
-        raise ModelError(f"{name} = {value:g} s is not a whole number of steps h = {h:g} s "
-                         "(messages leave on the co-simulation's steps)")
-    return int(round(n))
-
-
 def link_sender(key: int) -> int | str:
     """The sender of a link from its key (:func:`link_key`): a vehicle, or "leader"."""
     j = int(key) // 10_000
     return "leader" if j == 0 else j
-
-
-#: keys of a ``[network]`` table that are not the links' timing
-NOT_TIMING = ("receiver", "schedule", "schedule_period")
-
-
-def timing_table(table: Any) -> dict[str, Any]:
-    """The keys of a ``[network]`` table that :func:`resolve_links` reads (not ``receiver``
-    nor the switching schedule, :mod:`plant_model.network_schedule`)."""
-    return {k: v for k, v in dict(table or {}).items() if k not in NOT_TIMING}
 
 
 def link_key(sender: int | str, receiver: int) -> int:
@@ -333,165 +300,6 @@ def _set_rng_state(rng: np.random.Generator, words: np.ndarray) -> None:
     rng.bit_generator.state = st
 
 
-# ------------------------------------------------------------------------------------
-# a fleet's links from its graph and a [network] table
-def _vehicle(N: int, value: Any, where: str) -> int | str:
-    if value == "leader":
-        return "leader"
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise ModelError(f"{where}: {value!r} is not a vehicle number or \"leader\"")
-    if not 1 <= int(value) <= N:
-        raise ModelError(f"{where}: vehicle {value} does not exist (vehicles are 1..{N})")
-    return int(value)
-
-
-def _link_name(j: int | str, i: int) -> str:
-    return f"network link {j} -> {i}"
-
-
-def resolve_links(N: int, edges: Sequence[tuple[int, int, float]],
-                  pinning: Sequence[tuple[int, float]], network: Any,
-                  h: float) -> dict[tuple[int | str, int], LinkTiming]:
-    """The timing of every link that carries a message, from a ``[network]`` table.
-
-    Links are the graph's edges j -> i and leader -> i for the pinned vehicles. The
-    table's ``latency``, ``period`` and ``loss`` are the fleet-wide defaults (without them:
-    no latency, a message every step h, no loss); ``links = [{from, to, latency, period,
-    loss}, ...]`` overrides single links (``from`` a vehicle number or "leader"); with
-    ``tdma = true`` the senders take turns within the period, the leader first, then
-    vehicles 1..N (:func:`tdma_offsets`, rounded to whole steps), which needs one period
-    for every link. Every period must be a whole number of steps h.
-
-    Parameters
-    ----------
-    N : int
-        Number of vehicles.
-    edges : Sequence[tuple[int, int, float]]
-        (j, i, a_ij): vehicle i hears vehicle j.
-    pinning : Sequence[tuple[int, float]]
-        (i, a_i0): vehicle i hears the leader.
-    network : Mapping or None
-        The table (None: perfect links).
-    h : float
-        Communication step, s.
-
-    Returns
-    -------
-    dict[tuple[int | str, int], LinkTiming]
-        (sender, receiver) -> timing.
-
-    Raises
-    ------
-    ModelError
-        One line naming the link or the entry: an unknown key, a bad value, a link that is
-        not a communication edge, a vehicle that does not exist, periods that differ under
-        TDMA.
-    """
-    net = dict(network or {})
-    unknown = sorted(set(net) - {"latency", "period", "loss", "tdma", "links", "range"})
-    if unknown:
-        raise ModelError(f"[network]: unknown key(s) {', '.join(unknown)} (expected latency, "
-                         "period, loss, tdma, links, range, receiver, schedule, "
-                         "schedule_period)")
-    if "range" in net:
-        modem_range(net["range"])
-    base = check_link("[network]", net.get("latency", 0.0), net.get("period", h),
-                      net.get("loss", 0.0))
-    keys = [(int(j), int(i)) for j, i, _ in edges] + [("leader", int(i)) for i, _ in pinning]
-    settings = {k: {"latency": base.latency, "period": base.period, "loss": base.loss}
-                for k in keys}
-    entries = net.get("links", [])
-    if not isinstance(entries, (list, tuple)):
-        raise ModelError("[network] links must be a list of tables {from, to, ...}")
-    for n, entry in enumerate(entries, start=1):
-        where = f"[network] links entry {n}"
-        if not isinstance(entry, dict) or "from" not in entry or "to" not in entry:
-            raise ModelError(f"{where}: needs a table with from and to")
-        extra = sorted(set(entry) - {"from", "to", "latency", "period", "loss"})
-        if extra:
-            raise ModelError(f"{where}: unknown key(s) {', '.join(extra)}")
-        j = _vehicle(N, entry["from"], where)
-        i = _vehicle(N, entry["to"], where)
-        if (j, i) not in settings:
-            heard = sorted({str(a) for a, b in keys if b == i}, key=str)
-            raise ModelError(f"{_link_name(j, i)}: no such communication edge (vehicle {i} "
-                             f"hears {', '.join(heard) or 'nobody'})")
-        settings[(j, i)].update({k: entry[k] for k in ("latency", "period", "loss")
-                                 if k in entry})
-    tdma = net.get("tdma", False)
-    if not isinstance(tdma, bool):
-        raise ModelError(f"[network] tdma = {tdma!r} must be true or false")
-    offsets: dict[Any, float] = {}
-    if tdma:
-        periods = {float(s["period"]) for s in settings.values()}
-        if len(periods) > 1:
-            raise ModelError("[network] tdma = true needs one period for every link; the "
-                             f"links use {', '.join(f'{p:g}' for p in sorted(periods))} s")
-        period = base.period if not periods else periods.pop()
-        senders = sorted({k[0] for k in keys}, key=lambda v: -1 if v == "leader" else v)
-        if period < len(senders) * h * (1 - 1e-9):
-            raise ModelError(f"[network] tdma = true: {len(senders)} senders need a period of "
-                             f"at least {len(senders)} steps ({len(senders) * h:g} s), not "
-                             f"{period:g} s")
-        # each slot starts on a step of the co-simulation
-        offsets = {v: round(o / h) * h for v, o in tdma_offsets(senders, period).items()}
-    out = {k: check_link(_link_name(*k), s["latency"], s["period"], s["loss"],
-                         offsets.get(k[0], 0.0)) for k, s in settings.items()}
-    for k, t in out.items():
-        whole_steps(f"{_link_name(*k)}: period", t.period, h)
-    return out
-
-
-def modem_range(value: Any) -> float:
-    """The ``[network] range``: the distance (m, > 0) beyond which a message is not heard
-    (sender and receiver positions at its send time; simulation only: the predictions
-    assume every link in range)."""
-    r = _number("[network] range", value)
-    if r <= 0.0:
-        raise ModelError(f"[network] range = {r:g} m must be positive")
-    return r
-
-
 def in_range(a: np.ndarray, b: np.ndarray, limit: float | None) -> bool:
     """Are two NED positions (m) within the modem range ``limit`` (None: no limit)?"""
     return limit is None or float(np.linalg.norm(np.asarray(a) - np.asarray(b))) <= limit
-
-
-def check_network(table: Any, N: int, h: float) -> dict[str, Any]:
-    """A ``[network]`` table checked for a fleet of N vehicles: its ``receiver`` (one of
-    :data:`RECEIVERS`) and its timing; an override must name a link of at least one
-    architecture (every ordered pair of vehicles, the leader to any vehicle).
-
-    Parameters
-    ----------
-    table : Any
-        The table.
-    N : int
-        Number of vehicles.
-    h : float
-        Communication step, s.
-
-    Returns
-    -------
-    dict[str, Any]
-        The table as a dict.
-
-    Raises
-    ------
-    ModelError
-        One line naming the key, link or entry.
-    """
-    if not isinstance(table, dict):
-        raise ModelError(f"[network] must be a table, not {table!r}")
-    receiver = table.get("receiver", "propagate")
-    if receiver not in RECEIVERS:
-        raise ModelError(f"[network] receiver = {receiver!r} is not one of "
-                         f"{', '.join(RECEIVERS)}")
-    from .network_schedule import resolve_schedule
-    timing = timing_table(table)
-    every = [(j, i, 1.0) for i in range(1, N + 1) for j in range(1, N + 1) if j != i]
-    pins = [(i, 1.0) for i in range(1, N + 1)]
-    resolve_links(N, every, pins, timing, h)
-    resolve_schedule(table, [(j, i) for j, i, _ in every] + [("leader", i) for i, _ in pins],
-                     h, N)
-    return dict(table)

@@ -17,7 +17,7 @@ which links carry messages, not how a controller weighs them.
 Switch times and the period are whole numbers of steps h. Joint connectivity (the union of
 the graphs over a period lets the leader's information reach every vehicle) is necessary
 for tracking, not sufficient: the verdict is the spectral radius of the error second
-moment over one period (:mod:`orchestrator.analysis.networked_prediction`). Pure Python,
+moment over one period (:mod:`orchestrator.analysis.acoustic.prediction`). Pure Python,
 no FMI.
 """
 from __future__ import annotations
@@ -27,8 +27,8 @@ from collections.abc import Hashable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from .linalg_checks import ModelError
-from .network import _number, _vehicle, whole_steps
+from ..linalg_checks import ModelError
+from .base import _number, _vehicle, whole_steps
 
 __all__ = ["LinkSchedule", "check_schedule", "connectivity", "resolve_schedule"]
 

@@ -1,7 +1,7 @@
 """A per-vehicle loop cut at its messages: what each vehicle computes alone, and what it hears.
 
 With perfect links every vehicle reads its neighbours' current values; over acoustic links it
-reads what its modem last received (:mod:`plant_model.network`). To put a network between
+reads what its modem last received (:mod:`plant_model.acoustic.links`). To put a network between
 them, the stacked loop is written with the received values r_l (one per link l = j -> i) as
 inputs::
 
@@ -19,7 +19,7 @@ and perfect links are r_l = msg_j. Messages, as the FMUs send them:
   s <- Ad_j s + Bd_j u (u held); the leader sends z (propagated with Phi_F).
 
 Each message's one-step propagation matrix M_j (identity for a holding receiver) is part of
-the form, so the networked loop (:mod:`orchestrator.analysis.networked`) needs nothing else.
+the form, so the networked loop (:mod:`orchestrator.analysis.acoustic.loop`) needs nothing else.
 """
 from __future__ import annotations
 
@@ -30,9 +30,9 @@ from typing import Any
 import numpy as np
 from scipy.linalg import block_diag
 
-from plant_model.network import RECEIVERS
+from plant_model.acoustic.settings import RECEIVERS
 
-from .distributed import (
+from ..distributed import (
     DistributedLoop,
     SampledAgent,
     _assemble,

@@ -1,11 +1,11 @@
 """One vehicle's acoustic inbox: every link that ends at it, stepped together.
 
 A receiving vehicle hears some neighbours (and perhaps the leader) over acoustic links;
-each is a :class:`~plant_model.network.LinkChannel` (schedule, latency, loss, held or
+each is a :class:`~plant_model.acoustic.links.LinkChannel` (schedule, latency, loss, held or
 propagated message). :class:`Inbox` steps them with the co-simulation's step counter k
 (t = k h, s), exposes what the receiver uses now (``rx``, one array per link), each link's
 age of information (s) and message counts, and its whole state as one flat float array
-(the FMU state of plant_model.auv_network_slave). Pure numpy, no FMI.
+(the FMU state of plant_model.acoustic.auv_network_slave). Pure numpy, no FMI.
 """
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .network import LinkChannel, LinkTiming
+from .links import LinkChannel, LinkTiming
 
 __all__ = ["Inbox", "LinkSettings"]
 

@@ -1,7 +1,7 @@
 """Predictions of the loop over acoustic links: expected cost, mean-square stability, the
 critical loss probability.
 
-The second moment X2 = E[Z Z'] of :class:`~orchestrator.analysis.networked.NetworkedLoop`
+The second moment X2 = E[Z Z'] of :class:`~orchestrator.analysis.acoustic.loop.NetworkedLoop`
 evolves exactly as X2+ = Abar X2 Abar' + sum_l p_l (1 - p_l) D_l X2 D_l' + noise, with one
 loss term per link arriving at that step. A run of steps without arrivals is an affine map
 of X2 with a cost functional, a :class:`Segment` (G, W, S, c)::
@@ -33,7 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigs
 
-from .networked import NetworkedLoop
+from .loop import NetworkedLoop
 
 __all__ = ["NetworkPrediction", "Segment", "critical_loss", "frozen_radius", "ms_spectral_radius",
            "ms_stable", "predict_window", "prediction_work"]

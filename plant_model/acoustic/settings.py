@@ -1,0 +1,179 @@
+"""A fleet's acoustic network from its ``[network]`` table: the receivers, every link's timing.
+
+:func:`resolve_links` gives every link of a fleet its timing (:class:`~.links.LinkTiming`)
+from a ``[network]`` table (fleet-wide defaults, per-link overrides, TDMA);
+:func:`check_network` validates the whole table (receiver, timing, modem range and the
+switching schedule of :mod:`.schedule`) for a fleet of N vehicles. Pure Python, no FMI.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from ..linalg_checks import ModelError
+from .base import _number, _vehicle, whole_steps
+from .links import LinkTiming, check_link, tdma_offsets
+from .schedule import resolve_schedule
+
+__all__ = ["NOT_TIMING", "RECEIVERS", "check_network", "modem_range", "resolve_links",
+           "timing_table"]
+
+#: what a receiver does with the newest message between arrivals: hold it, or carry it
+#: forward with the sender's model
+RECEIVERS = ("hold", "propagate")
+
+
+#: keys of a ``[network]`` table that are not the links' timing
+NOT_TIMING = ("receiver", "schedule", "schedule_period")
+
+
+def timing_table(table: Any) -> dict[str, Any]:
+    """The keys of a ``[network]`` table that :func:`resolve_links` reads (not ``receiver``
+    nor the switching schedule, :mod:`.schedule`)."""
+    return {k: v for k, v in dict(table or {}).items() if k not in NOT_TIMING}
+
+
+def _link_name(j: int | str, i: int) -> str:
+    return f"network link {j} -> {i}"
+
+
+def resolve_links(N: int, edges: Sequence[tuple[int, int, float]],
+                  pinning: Sequence[tuple[int, float]], network: Any,
+                  h: float) -> dict[tuple[int | str, int], LinkTiming]:
+    """The timing of every link that carries a message, from a ``[network]`` table.
+
+    Links are the graph's edges j -> i and leader -> i for the pinned vehicles. The
+    table's ``latency``, ``period`` and ``loss`` are the fleet-wide defaults (without them:
+    no latency, a message every step h, no loss); ``links = [{from, to, latency, period,
+    loss}, ...]`` overrides single links (``from`` a vehicle number or "leader"); with
+    ``tdma = true`` the senders take turns within the period, the leader first, then
+    vehicles 1..N (:func:`tdma_offsets`, rounded to whole steps), which needs one period
+    for every link. Every period must be a whole number of steps h.
+
+    Parameters
+    ----------
+    N : int
+        Number of vehicles.
+    edges : Sequence[tuple[int, int, float]]
+        (j, i, a_ij): vehicle i hears vehicle j.
+    pinning : Sequence[tuple[int, float]]
+        (i, a_i0): vehicle i hears the leader.
+    network : Mapping or None
+        The table (None: perfect links).
+    h : float
+        Communication step, s.
+
+    Returns
+    -------
+    dict[tuple[int | str, int], LinkTiming]
+        (sender, receiver) -> timing.
+
+    Raises
+    ------
+    ModelError
+        One line naming the link or the entry: an unknown key, a bad value, a link that is
+        not a communication edge, a vehicle that does not exist, periods that differ under
+        TDMA.
+    """
+    net = dict(network or {})
+    unknown = sorted(set(net) - {"latency", "period", "loss", "tdma", "links", "range"})
+    if unknown:
+        raise ModelError(f"[network]: unknown key(s) {', '.join(unknown)} (expected latency, "
+                         "period, loss, tdma, links, range, receiver, schedule, "
+                         "schedule_period)")
+    if "range" in net:
+        modem_range(net["range"])
+    base = check_link("[network]", net.get("latency", 0.0), net.get("period", h),
+                      net.get("loss", 0.0))
+    keys = [(int(j), int(i)) for j, i, _ in edges] + [("leader", int(i)) for i, _ in pinning]
+    settings = {k: {"latency": base.latency, "period": base.period, "loss": base.loss}
+                for k in keys}
+    entries = net.get("links", [])
+    if not isinstance(entries, (list, tuple)):
+        raise ModelError("[network] links must be a list of tables {from, to, ...}")
+    for n, entry in enumerate(entries, start=1):
+        where = f"[network] links entry {n}"
+        if not isinstance(entry, dict) or "from" not in entry or "to" not in entry:
+            raise ModelError(f"{where}: needs a table with from and to")
+        extra = sorted(set(entry) - {"from", "to", "latency", "period", "loss"})
+        if extra:
+            raise ModelError(f"{where}: unknown key(s) {', '.join(extra)}")
+        j = _vehicle(N, entry["from"], where)
+        i = _vehicle(N, entry["to"], where)
+        if (j, i) not in settings:
+            heard = sorted({str(a) for a, b in keys if b == i}, key=str)
+            raise ModelError(f"{_link_name(j, i)}: no such communication edge (vehicle {i} "
+                             f"hears {', '.join(heard) or 'nobody'})")
+        settings[(j, i)].update({k: entry[k] for k in ("latency", "period", "loss")
+                                 if k in entry})
+    tdma = net.get("tdma", False)
+    if not isinstance(tdma, bool):
+        raise ModelError(f"[network] tdma = {tdma!r} must be true or false")
+    offsets: dict[Any, float] = {}
+    if tdma:
+        periods = {float(s["period"]) for s in settings.values()}
+        if len(periods) > 1:
+            raise ModelError("[network] tdma = true needs one period for every link; the "
+                             f"links use {', '.join(f'{p:g}' for p in sorted(periods))} s")
+        period = base.period if not periods else periods.pop()
+        senders = sorted({k[0] for k in keys}, key=lambda v: -1 if v == "leader" else v)
+        if period < len(senders) * h * (1 - 1e-9):
+            raise ModelError(f"[network] tdma = true: {len(senders)} senders need a period of "
+                             f"at least {len(senders)} steps ({len(senders) * h:g} s), not "
+                             f"{period:g} s")
+        # each slot starts on a step of the co-simulation
+        offsets = {v: round(o / h) * h for v, o in tdma_offsets(senders, period).items()}
+    out = {k: check_link(_link_name(*k), s["latency"], s["period"], s["loss"],
+                         offsets.get(k[0], 0.0)) for k, s in settings.items()}
+    for k, t in out.items():
+        whole_steps(f"{_link_name(*k)}: period", t.period, h)
+    return out
+
+
+def modem_range(value: Any) -> float:
+    """The ``[network] range``: the distance (m, > 0) beyond which a message is not heard
+    (sender and receiver positions at its send time; simulation only: the predictions
+    assume every link in range)."""
+    r = _number("[network] range", value)
+    if r <= 0.0:
+        raise ModelError(f"[network] range = {r:g} m must be positive")
+    return r
+
+
+def check_network(table: Any, N: int, h: float) -> dict[str, Any]:
+    """A ``[network]`` table checked for a fleet of N vehicles: its ``receiver`` (one of
+    :data:`RECEIVERS`) and its timing; an override must name a link of at least one
+    architecture (every ordered pair of vehicles, the leader to any vehicle).
+
+    Parameters
+    ----------
+    table : Any
+        The table.
+    N : int
+        Number of vehicles.
+    h : float
+        Communication step, s.
+
+    Returns
+    -------
+    dict[str, Any]
+        The table as a dict.
+
+    Raises
+    ------
+    ModelError
+        One line naming the key, link or entry.
+    """
+    if not isinstance(table, dict):
+        raise ModelError(f"[network] must be a table, not {table!r}")
+    receiver = table.get("receiver", "propagate")
+    if receiver not in RECEIVERS:
+        raise ModelError(f"[network] receiver = {receiver!r} is not one of "
+                         f"{', '.join(RECEIVERS)}")
+    timing = timing_table(table)
+    every = [(j, i, 1.0) for i in range(1, N + 1) for j in range(1, N + 1) if j != i]
+    pins = [(i, 1.0) for i in range(1, N + 1)]
+    resolve_links(N, every, pins, timing, h)
+    resolve_schedule(table, [(j, i) for j, i, _ in every] + [("leader", i) for i, _ in pins],
+                     h, N)
+    return dict(table)
