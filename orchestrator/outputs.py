@@ -190,12 +190,12 @@ def claim_folder(out: Path, identity: Mapping[str, str], *, force: bool = False)
     subfolders = [p for p in out.iterdir() if p.is_dir() and (p / "summary.json").exists()]
     outputs = [p for p in out.iterdir() if p.name in RUN_OUTPUTS or p.suffix == ".rrd"]
     identity = dict(identity)
-    if (outputs or subfolders) and previous != identity and not force:
-        what = ("a run of " + _describe(previous) if isinstance(previous, dict)
-                else "the outputs of an earlier run")
+    # outputs without a record (written before folders recorded their run) are replaced
+    if (outputs or subfolders) and isinstance(previous, dict) and previous != identity \
+            and not force:
         raise OutputFolderError(
-            f"output folder {out} holds {what}, not of {_describe(identity)}; choose "
-            "another --out, or add --force to replace them")
+            f"output folder {out} holds a run of {_describe(previous)}, not of "
+            f"{_describe(identity)}; choose another --out, or add --force to replace it")
     for p in outputs + subfolders:
         if p.is_dir() and not p.is_symlink():
             shutil.rmtree(p)

@@ -174,3 +174,34 @@ def test_the_lock_goes_with_a_killed_holder(tmp_path):
         holder.kill()
     with output_folder(out, "run") as o:               # the kernel released it
         assert Path(o) == out
+
+
+def test_a_folder_holding_another_kind_of_run_is_refused_unless_forced(tmp_path):
+    """claim_folder: the same kind of run replaces its earlier outputs (figures, recording,
+    per-plant subfolders removed); another kind is refused in one line naming both; with
+    force it replaces them."""
+    from orchestrator.outputs import RUN_MARKER, claim_folder
+    out = tmp_path / "o"
+    out.mkdir()
+    stacked = {"command": "run", "deployment": "stacked"}
+    claim_folder(out, stacked)
+    (out / "summary.json").write_text("{}")
+    (out / "paper.rrd").write_bytes(b"x")
+    (out / "figures").mkdir()
+    (out / "figures" / "error-1.png").write_bytes(b"x")
+    (out / "remus100").mkdir()
+    (out / "remus100" / "summary.json").write_text("{}")
+    (out / "notes.txt").write_text("the user's own file")
+    per_vehicle = {"command": "run", "deployment": "per-vehicle"}
+    with pytest.raises(OutputFolderError) as exc:
+        claim_folder(out, per_vehicle)
+    assert "deployment stacked" in str(exc.value) and "deployment per-vehicle" in str(exc.value)
+    assert "--force" in str(exc.value) and "\n" not in str(exc.value)
+    assert (out / "paper.rrd").exists()                       # nothing touched
+    claim_folder(out, stacked)                                # the same kind: replaced
+    assert not (out / "figures").exists() and not (out / "paper.rrd").exists()
+    assert not (out / "remus100").exists() and (out / "notes.txt").exists()
+    (out / "summary.json").write_text("{}")
+    claim_folder(out, per_vehicle, force=True)
+    assert not (out / "summary.json").exists()
+    assert json.loads((out / RUN_MARKER).read_text()) == per_vehicle

@@ -75,7 +75,8 @@ def scenario_of(args: argparse.Namespace) -> Scenario:
                        tracking=getattr(args, "tracking", None),
                        deployment=getattr(args, "deployment", None),
                        architecture=getattr(args, "architecture", None),
-                       fmus=getattr(args, "fmus", None),
+                       fmus=fmus if isinstance(fmus := getattr(args, "fmus", None), str)
+                       else None,              # validate's positional FMU files are a list
                        network={k: v for k in ("latency", "period", "loss", "receiver")
                                 if (v := getattr(args, k, None)) is not None})
 
