@@ -85,7 +85,8 @@ def test_the_summary_reports_the_network_and_the_age_of_information(tmp_path):
     r = subprocess.run([sys.executable, "-m", "orchestrator", "run", "--scenario",
                         "formation-4", "--deployment", "per-vehicle", "--architecture",
                         "distributed", "--latency", "1", "--period", "2", "--loss", "0.2",
-                        "--T", "40", "--h", "0.05", "--out", str(out), "--quiet"],
+                        "--T", "40", "--h", "0.05", "--out", str(out), "--quiet",
+                        "--predict", "full"],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     m = json.loads((out / "summary.json").read_text())["methods"]["kalman"]
@@ -141,7 +142,8 @@ def test_a_scenario_file_with_a_schedule_reports_joint_connectivity_and_the_verd
     out = tmp_path / "run"
     r = subprocess.run([sys.executable, "-m", "orchestrator", "run", "--scenario", str(src),
                         "--deployment", "per-vehicle", "--architecture", "distributed",
-                        "--T", "40", "--h", "0.05", "--out", str(out), "--quiet"],
+                        "--T", "40", "--h", "0.05", "--out", str(out), "--quiet",
+                        "--predict", "full"],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     m = json.loads((out / "summary.json").read_text())["methods"]["kalman"]

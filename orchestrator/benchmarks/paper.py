@@ -66,14 +66,18 @@ def _fmi_call_costs(fmus: dict[str, Path], cfg: dict[str, Any],
 def benchmark(sc: Scenario, mode: str = "kalman", seed: int = 0) -> dict[str, Any]:
     """Time one run both ways; returns the figures (also printed by the CLI)."""
     from ..recording import write_rrd
-
+    from ..running.setup import Method, make_setup
+    sc = sc.with_run(estimator=mode)
     cfg = scenario_config(sc)
     with tempfile.TemporaryDirectory(prefix="auv_bench_") as tmp:
         t = time.perf_counter()
-        fmus = build(sc, Path(tmp) / "fmus")
+        setup = make_setup(sc, Path(tmp) / "fmus")
+        method = Method.of(sc)
+        setup.fmus(method)                  # built (and, for --fmus native, compiled)
+        fmus = setup.python_fmus(method)
         build_s = time.perf_counter() - t
         t = time.perf_counter()
-        res = run_cosimulation(fmus, cfg, mode=mode, seed=seed, steps=sc.steps)
+        res = setup.run(method, seed)
         cosim_run_s = time.perf_counter() - t
         rrd = write_rrd(Path(tmp) / "bench.rrd", {mode: res.traces}, sc.h, recording_name="bench")
         t = time.perf_counter()
@@ -85,7 +89,7 @@ def benchmark(sc: Scenario, mode: str = "kalman", seed: int = 0) -> dict[str, An
     cosim_total = res.loop_s + rrd["rrd_s"]
     return {
         "scenario": sc.name, "mode": mode, "steps": sc.steps, "h": sc.h,
-        "build_s": build_s,
+        "fmu_kind": sc.fmus, "build_s": build_s,
         "cosim_setup_s": cosim_run_s - res.loop_s,
         "cosim_loop_s": res.loop_s,
         "rrd_write_s": rrd["rrd_s"],

@@ -202,7 +202,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     r = benchmark(sc, mode=sc.estimator, seed=sc.seed)
     if _printed_as_json(args, r):
         return 0
-    print(f"  co-simulation loop (3 FMUs)   {r['cosim_loop_s']:8.3f} s  "
+    print(f"{'  co-simulation loop (' + r['fmu_kind'] + ')':<32s}{r['cosim_loop_s']:8.3f} s  "
           f"{r['cosim_us_per_step']:7.2f} us/step")
     print(f"  .rrd writing                  {r['rrd_write_s']:8.3f} s  "
           f"({100 * r['rrd_fraction_of_run']:.1f} % of loop + rrd)")

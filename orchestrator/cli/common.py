@@ -13,8 +13,8 @@ from plant_model.acoustic.settings import RECEIVERS
 from ..scenario import Scenario, builtin_scenarios, load_scenario
 from .args import _positive
 
-__all__ = ["ROOT", "add_fmu_options", "add_force_option", "add_scenario_options",
-           "print_summary", "scenario_of", "viewer_command"]
+__all__ = ["ROOT", "add_fmu_options", "add_force_option", "add_predict_option",
+           "add_scenario_options", "print_summary", "scenario_of", "viewer_command"]
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -57,6 +57,14 @@ def add_fmu_options(sp: argparse.ArgumentParser) -> None:
                          "component with a linear form, pythonfmu for the rest (the acoustic "
                          "network, a nonlinear vehicle, the multi-rate estimator); needs a C "
                          "compiler (default: the scenario's [simulation] fmus, else python)")
+
+
+def add_predict_option(sp: argparse.ArgumentParser) -> None:
+    """--predict: what the summary predicts besides the simulation."""
+    sp.add_argument("--predict", choices=("stationary", "full"), default="stationary",
+                    help="stationary: each method's stationary and window predictions "
+                         "(seconds); full: also the acoustic links' critical loss (a search "
+                         "that takes minutes for a centralized loop) (default: stationary)")
 
 
 def add_force_option(sp: argparse.ArgumentParser) -> None:

@@ -16,6 +16,7 @@ from .args import _count, parse_floats, parse_seeds, positive_metres
 from .common import (
     add_fmu_options,
     add_force_option,
+    add_predict_option,
     add_scenario_options,
     print_summary,
     scenario_of,
@@ -45,7 +46,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                        "run") as out:
         claim_folder(out, run_identity(sc, "run"), force=args.force)
         summary = simulate(sc, [sc.estimator], [sc.seed], out, progress=not args.quiet,
-                           log=(lambda s: None) if args.quiet else print)
+                           log=(lambda s: None) if args.quiet else print,
+                           predict=args.predict)
     return print_summary(summary, out)
 
 
@@ -81,7 +83,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         claim_folder(out, run_identity(sc, f"compare --what {what}"), force=args.force)
         summary = simulate(sc, modes, args.seeds, out, progress=not args.quiet,
                            log=(lambda s: None) if args.quiet else print, trackings=trackings,
-                           workers=args.workers, architectures=architectures)
+                           workers=args.workers, architectures=architectures,
+                           predict=args.predict)
     return print_summary(summary, out)
 
 
@@ -146,6 +149,7 @@ def add_run(sub: argparse._SubParsersAction) -> None:
                                   "seed<seed>; <system> names a per-vehicle deployment and "
                                   "architecture, links, nonlinear vehicles, native FMUs)")
     add_force_option(sp)
+    add_predict_option(sp)
     sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
     sp.add_argument("--tracking", choices=TRACKING_MODES,
                     help="tracking law: lq (the paper) or regulator (default: scenario's)")
@@ -172,6 +176,7 @@ def add_compare(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--out", help="output folder (default: out/<scenario>[_<system>]_compare"
                                   "[-<what>])")
     add_force_option(sp)
+    add_predict_option(sp)
     sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
     sp.add_argument("--workers", type=_count,
                     help="worker processes for the seeds after each method's first (default: "

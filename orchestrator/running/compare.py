@@ -37,7 +37,8 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
              *, progress: bool = True, log: Callable[[str], None] = print,
              trackings: Sequence[str] | None = None,
              record_hz: float | None = None, workers: int | None = None,
-             architectures: Sequence[str] | None = None) -> dict[str, Any]:
+             architectures: Sequence[str] | None = None,
+             predict: str = "stationary") -> dict[str, Any]:
     """Co-simulate each method (estimator ``modes`` x tracking laws ``trackings`` x
     ``architectures``, each default the scenario's) on each seed; write
     ``<out>/<scenario>.rrd`` and summary.json.
@@ -74,6 +75,9 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
         Worker processes for the seeds after each method's first (default one per core;
         1: all in this process; :mod:`orchestrator.running.seeds`); results do not
         depend on it.
+    predict : str, optional
+        "stationary" (default) or "full": also the searches that take minutes (the links'
+        critical loss).
 
     Returns
     -------
@@ -87,7 +91,7 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     methods = method_list(sc, modes, trackings, architectures)
     check_memory(sc, len(methods))
     out = Path(out_dir)
-    setup = make_setup(sc, out / "fmus", methods)
+    setup = make_setup(sc, out / "fmus", methods, predict=predict)
     out.mkdir(parents=True, exist_ok=True)
     # the .rrd writer imports Rerun in a child while we simulate; SIGINT / SIGTERM stop
     # the runs between steps and keep what was simulated

@@ -191,8 +191,8 @@ def too_many_states(n: int, path: str | None, steps: int) -> str:
             "(the radius given is the perfect links')")
 
 
-def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True
-                    ) -> dict[str, Any]:
+def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True,
+                    search: bool = True) -> dict[str, Any]:
     """The summary's ``network`` entry of a method: the fleet-wide latency, period and loss,
     the receiver, the links, the message cycle and the critical loss probability."""
     table = dict(sc.network)
@@ -209,7 +209,11 @@ def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True
         out["range"] = float(table["range"])
     if setup.net.schedule is not None:
         out["schedule"] = schedule_summary(setup, radius=critical)
-    if critical and setup.net.modem is None:
+    if critical and not search:
+        out["critical_loss"], out["critical_loss_note"] = None, (
+            "not computed: the search certifies mean-square stability on a grid of losses "
+            "and bisects (minutes for a centralized loop); --predict full computes it")
+    elif critical and setup.net.modem is None:
         out["critical_loss"], out["critical_loss_note"] = critical_loss(setup.net)
     elif critical:
         out["critical_loss"], out["critical_loss_note"] = None, (

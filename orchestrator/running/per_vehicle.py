@@ -131,8 +131,8 @@ class PerVehicleSetup(RunSetup):
     deployment = "per-vehicle"
 
     def __init__(self, sc: Any, fmu_dir: Path | str, methods: Any = (), *,
-                 coupling: str = "gauss-seidel"):
-        super().__init__(sc, fmu_dir, methods, coupling=coupling)
+                 coupling: str = "gauss-seidel", predict: str = "stationary"):
+        super().__init__(sc, fmu_dir, methods, coupling=coupling, predict=predict)
         self._fmus: dict[str, dict[str, Path]] = {}
         self._network: dict[tuple[str, str, str], NetworkSetup] = {}
         for arch in dict.fromkeys(m.architecture for m in self.methods):
@@ -326,5 +326,5 @@ class PerVehicleSetup(RunSetup):
         setup = self.network(method.architecture, method.estimator, method.tracking)
         return {"network": network_summary(self.sc, setup,
                                            critical=prediction_path(setup.net, self.sc.steps)
-                                           == "dense"),
+                                           == "dense", search=self.predict == "full"),
                 "age_of_information": age_summary(runs, k0, setup)}

@@ -27,7 +27,12 @@ from ..outputs import file_stem
 from ..scenario import Scenario, ScenarioError
 from ..scenario.loader import check_deployment
 
-__all__ = ["Method", "Predictions", "RunSetup", "StackedSetup", "make_setup", "method_list"]
+__all__ = ["PREDICT_LEVELS", "Method", "Predictions", "RunSetup", "StackedSetup", "make_setup",
+           "method_list"]
+
+#: how much a run predicts: the stationary and window predictions of every method
+#: (seconds), or also the searches that take minutes (the critical loss of links)
+PREDICT_LEVELS = ("stationary", "full")
 
 
 @dataclass(frozen=True)
@@ -106,16 +111,19 @@ class RunSetup:
         The methods that will run (default: the scenario's own).
     coupling : str, optional
         The master's coupling, 'gauss-seidel' or 'jacobi'.
+    predict : str, optional
+        One of :data:`PREDICT_LEVELS`.
     """
 
     deployment = ""
 
     def __init__(self, sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = (),
-                 *, coupling: str = "gauss-seidel"):
+                 *, coupling: str = "gauss-seidel", predict: str = "stationary"):
         self.sc = sc
         self.fmu_dir = Path(fmu_dir)
         self.methods = tuple(methods) or (Method.of(sc),)
         self.coupling = coupling
+        self.predict = predict
         self._native: dict[Method, Any] = {}
         self._predictions: dict[Method, Predictions] = {}
 
@@ -245,8 +253,8 @@ class StackedSetup(RunSetup):
     deployment = "stacked"
 
     def __init__(self, sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = (),
-                 *, coupling: str = "gauss-seidel"):
-        super().__init__(sc, fmu_dir, methods, coupling=coupling)
+                 *, coupling: str = "gauss-seidel", predict: str = "stationary"):
+        super().__init__(sc, fmu_dir, methods, coupling=coupling, predict=predict)
         from .fmus import scenario_config
         self.config = scenario_config(sc)
         self._fmus: dict[str, Path] | None = None
@@ -317,7 +325,7 @@ def check_setup(sc: Scenario, coupling: str = "gauss-seidel") -> None:
 
 
 def make_setup(sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = (), *,
-               coupling: str = "gauss-seidel") -> RunSetup:
+               coupling: str = "gauss-seidel", predict: str = "stationary") -> RunSetup:
     """The setup of a scenario: the one place that branches on the deployment.
 
     Parameters
@@ -329,6 +337,8 @@ def make_setup(sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = ()
         The methods that will run (default: the scenario's own).
     coupling : str, optional
         The master's coupling.
+    predict : str, optional
+        One of :data:`PREDICT_LEVELS`.
 
     Returns
     -------
@@ -344,8 +354,8 @@ def make_setup(sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = ()
     check_setup(sc, coupling)
     if sc.deployment == "per-vehicle":
         from .per_vehicle import PerVehicleSetup
-        return PerVehicleSetup(sc, fmu_dir, methods, coupling=coupling)
-    return StackedSetup(sc, fmu_dir, methods, coupling=coupling)
+        return PerVehicleSetup(sc, fmu_dir, methods, coupling=coupling, predict=predict)
+    return StackedSetup(sc, fmu_dir, methods, coupling=coupling, predict=predict)
 
 
 def stats_context(sc: Scenario) -> tuple | None:
