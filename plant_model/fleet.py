@@ -52,8 +52,9 @@ from scipy.linalg import block_diag
 from .graph import CommunicationGraph, communication_graph
 from .linalg_checks import ModelError, as_matrix, as_vector
 from .system import LinearSystem
+from .vehicle_models import get, make_vehicle
 from .vehicle_targets import leader_state_map, state_offset
-from .vehicles import VehicleModel, make_vehicle
+from .vehicles import VehicleModel
 
 __all__ = ["CONSENSUS_FORMS", "ConsensusProtocol", "FleetInfo", "consensus_force_gain",
            "fleet_vehicles", "fleet_graph", "fleet_system", "fleet_info", "disturbance_of",
@@ -378,12 +379,6 @@ def fleet_system(spec: Mapping[str, Any]) -> LinearSystem:
     return LinearSystem.from_mapping(physics)
 
 
-_MODEL_KEYS = {"remus100": ("mass", "added_mass", "time_constant", "drag_coefficient",
-                            "cruise_speed"),
-               "remus100-fitted": (),
-               "generic": ("A", "B1", "B2", "C")}
-
-
 def resolve_fleet_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
     """A copy of ``spec`` with every default made explicit.
 
@@ -411,15 +406,7 @@ def resolve_fleet_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
     system = fleet_system(new)
     p = models[0].p
     for i, (v, mdl) in enumerate(zip(new["vehicles"], models)):
-        v["params"] = {k: (np.asarray(mdl.parameters[k]).tolist() if k in mdl.parameters
-                           else getattr(mdl, k).tolist())
-                       for k in _MODEL_KEYS.get(mdl.name, ())}
-        if mdl.name == "remus100-6dof":              # its data as given, defaults made explicit
-            par = mdl.parameters
-            v["params"] = {"cruise_speed": par["cruise_speed"], "design": par["design"],
-                           **par["nonlinear"],
-                           "autopilot": dict(par["autopilot"]),
-                           **({"substep": par["substep"]} if par["substep"] else {})}
+        v["params"] = get(mdl.name).explicit_params(mdl)
         v["x0"] = system.x0[i * p:(i + 1) * p].tolist()
         v["offset"] = list(np.asarray(v.get("offset", np.zeros(mdl.s)), dtype=float))
         if "disturbance" not in v:

@@ -13,9 +13,16 @@ from typing import Any
 import numpy as np
 
 from .linalg_checks import ModelError, as_matrix, as_vector
-from .vehicles import REMUS_MODELS, VehicleModel
+from .vehicle_models import find
+from .vehicles import VehicleModel
 
 __all__ = ["leader_state_map", "state_offset"]
+
+
+def _layout(model: VehicleModel) -> str | None:
+    """The model's state layout (plant_model.vehicle_models.LAYOUTS; None: unknown)."""
+    entry = find(model.name)
+    return None if entry is None else entry.layout
 
 
 def leader_state_map(model: VehicleModel, H_leader: Any, F_leader: Any) -> np.ndarray:
@@ -49,7 +56,7 @@ def leader_state_map(model: VehicleModel, H_leader: Any, F_leader: Any) -> np.nd
     F = as_matrix("leader F", F_leader)
     l_ = F.shape[0]
     F = as_matrix("leader F", F, (l_, l_))
-    if model.name in REMUS_MODELS:
+    if _layout(model) == "ned":
         H = as_matrix("leader H", H_leader)
         if H.shape[0] != 3:
             raise ModelError(
@@ -58,7 +65,7 @@ def leader_state_map(model: VehicleModel, H_leader: Any, F_leader: Any) -> np.nd
             )
         H = as_matrix("leader H", H, (3, l_))
         return np.vstack([H, H @ F])
-    if model.name == "generic":
+    if _layout(model) == "outputs":
         H = as_matrix("leader H", H_leader)
         if H.shape[0] != model.s:
             raise ModelError(
@@ -94,10 +101,10 @@ def state_offset(model: VehicleModel, offset: Any) -> np.ndarray:
     ModelError
         If ``offset`` has the wrong length or the model is unknown.
     """
-    if model.name in REMUS_MODELS:
+    if _layout(model) == "ned":
         d = as_vector("formation offset", offset, 3)
         return np.concatenate([d, np.zeros(3)])
-    if model.name == "generic":
+    if _layout(model) == "outputs":
         d = as_vector("formation offset", offset, model.s)
         return np.linalg.pinv(model.C) @ d
     raise ModelError(f"state_offset: unknown vehicle model {model.name!r}")

@@ -5,7 +5,9 @@ Every vehicle i of the formation is a linear time-invariant model
     x_i' = A x_i + B1 u_i + B2 w_i,      y_i = C x_i
 
 (the coupling terms sum_j A_ij x_j of eq. 1 come from the communication graph, see
-:mod:`plant_model.graph`). Two models are provided.
+:mod:`plant_model.graph`). Two models are provided here; every model name a scenario may
+use (these two, ``remus100-6dof`` and ``remus100-fitted`` of :mod:`plant_model.remus100`)
+is an entry of the registry :mod:`plant_model.vehicle_models`.
 
 ``remus100`` -- translational dynamics of a REMUS 100 torpedo AUV in the NED frame
 (north, east, down), one decoupled axis a in (n, e, d):
@@ -69,24 +71,17 @@ import numpy as np
 from .linalg_checks import ModelError, as_matrix, as_nonnegative, as_positive
 
 __all__ = [
+    "GENERIC_PARAMS",
     "REMUS100_MAX_SPEED",
-    "REMUS_MODELS",
-    "VEHICLE_MODELS",
+    "REMUS100_PARAMS",
     "VehicleModel",
     "generic",
+    "generic_from_params",
     "lamb_factors",
-    "make_vehicle",
     "remus100",
+    "remus100_from_params",
     "remus100_parameters",
 ]
-
-#: Names accepted by :func:`make_vehicle`.
-VEHICLE_MODELS = ("remus100", "remus100-6dof", "remus100-fitted", "generic")
-
-#: The REMUS 100 models: NED position and velocity states, forces in, positions out. The
-#: ``remus100-6dof`` vehicle is the nonlinear plant (plant_model.remus100_plant); its
-#: VehicleModel is the linear design model the estimator and controller are built on.
-REMUS_MODELS = ("remus100", "remus100-6dof", "remus100-fitted")
 
 #: Maximum speed of the REMUS 100 (m/s, propeller at 1525 rpm in zero current).
 REMUS100_MAX_SPEED = 2.5
@@ -102,9 +97,10 @@ def _readonly(a: np.ndarray) -> np.ndarray:
 class VehicleModel:
     """One vehicle's linear model x' = A x + B1 u + B2 w, y = C x (paper's A_ii etc.).
 
-    Build it with :func:`remus100`, :func:`generic` or :func:`make_vehicle`. The matrices
-    are stored read-only. ``position_states`` are the indices in x of north, east, down
-    (m), or None when the model has no NED position.
+    Build it with :func:`remus100`, :func:`generic` or by name with
+    :func:`plant_model.vehicle_models.make_vehicle`. The matrices are stored read-only.
+    ``position_states`` are the indices in x of north, east, down (m), or None when the
+    model has no NED position.
     """
 
     name: str
@@ -406,65 +402,42 @@ def generic(A: Any, B1: Any, B2: Any, C: Any) -> VehicleModel:
     )
 
 
-_REMUS_KEYS = ("mass", "added_mass", "time_constant", "drag_coefficient", "cruise_speed")
-_GENERIC_KEYS = ("A", "B1", "B2", "C")
+#: the parameters of a ``remus100`` vehicle (:func:`remus100`, all optional)
+REMUS100_PARAMS = ("mass", "added_mass", "time_constant", "drag_coefficient", "cruise_speed")
+#: the parameters of a ``generic`` vehicle (:func:`generic`, all required)
+GENERIC_PARAMS = ("A", "B1", "B2", "C")
 
 
-def make_vehicle(model: str, params: Mapping[str, Any], where: str) -> VehicleModel:
-    """Build a vehicle model by name from a parameter mapping (e.g. a scenario table).
+def _unknown_params(model: str, params: Mapping[str, Any], accepted: tuple[str, ...]) -> None:
+    unknown = sorted(str(k) for k in params if k not in accepted)
+    if unknown:
+        raise ModelError(f"unknown {model} parameter(s) {', '.join(unknown)}; "
+                         f"accepted: {', '.join(accepted)}")
 
-    Parameters
-    ----------
-    model : str
-        One of :data:`VEHICLE_MODELS`.
-    params : Mapping[str, Any]
-        The keyword arguments of :func:`remus100` (all optional) or of :func:`generic`
-        (all required).
-    where : str
-        Prefix of every error message (e.g. "vehicle 3").
 
-    Returns
-    -------
-    VehicleModel
-        The model.
+def remus100_from_params(params: Mapping[str, Any]) -> VehicleModel:
+    """``remus100`` from a scenario's parameter table (keys :data:`REMUS100_PARAMS`).
 
     Raises
     ------
     ModelError
-        If the model or a parameter is unknown, a generic matrix is missing or a value
-        is invalid.
+        Naming an unknown parameter or an invalid value.
     """
-    if model not in VEHICLE_MODELS:
-        raise ModelError(
-            f"{where}: unknown vehicle model {model!r}; known models: {', '.join(VEHICLE_MODELS)}"
-        )
-    if not isinstance(params, Mapping):
-        raise ModelError(f"{where}: the {model} parameters must be a table, got {params!r}")
-    from .remus100_models import remus100_6dof_design, remus100_fitted
-    if model == "remus100-6dof":
-        try:
-            return remus100_6dof_design(params)
-        except ModelError as exc:
-            raise ModelError(f"{where}: {exc}") from None
-    if model == "remus100-fitted":
-        if params:
-            raise ModelError(f"{where}: unknown remus100-fitted parameter(s) "
-                             f"{', '.join(sorted(map(str, params)))}; it takes none (fitted "
-                             "at 1.5 m/s)")
-        return remus100_fitted()
-    accepted = _REMUS_KEYS if model == "remus100" else _GENERIC_KEYS
-    unknown = sorted(str(k) for k in params if k not in accepted)
-    if unknown:
-        raise ModelError(
-            f"{where}: unknown {model} parameter(s) {', '.join(unknown)}; "
-            f"accepted: {', '.join(accepted)}"
-        )
-    try:
-        if model == "remus100":
-            return remus100(**dict(params))
-        missing = [k for k in _GENERIC_KEYS if k not in params]
-        if missing:
-            raise ModelError(f"missing generic matrices: {', '.join(missing)}")
-        return generic(**dict(params))
-    except ModelError as exc:
-        raise ModelError(f"{where}: {exc}") from None
+    _unknown_params("remus100", params, REMUS100_PARAMS)
+    return remus100(**dict(params))
+
+
+def generic_from_params(params: Mapping[str, Any]) -> VehicleModel:
+    """``generic`` from a scenario's parameter table (keys :data:`GENERIC_PARAMS`, all
+    required).
+
+    Raises
+    ------
+    ModelError
+        Naming an unknown parameter, the missing matrices or an invalid value.
+    """
+    _unknown_params("generic", params, GENERIC_PARAMS)
+    missing = [k for k in GENERIC_PARAMS if k not in params]
+    if missing:
+        raise ModelError(f"missing generic matrices: {', '.join(missing)}")
+    return generic(**dict(params))

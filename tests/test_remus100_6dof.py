@@ -1,4 +1,4 @@
-"""plant_model.remus100_6dof against independent facts: the published speed at 1525 rpm,
+"""plant_model.remus100.dynamics against independent facts: the published speed at 1525 rpm,
 energy conservation with every force off, the RK4 sub-step's convergence order, a
 turning circle's geometry, and one-line errors for bad data."""
 from __future__ import annotations
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from plant_model.linalg_checks import ModelError
-from plant_model.remus100_6dof import STATE_SIZE, Remus100, hull_mass, step
-from plant_model.rigid_body import coriolis_from_mass, rk4_step
+from plant_model.remus100.dynamics import STATE_SIZE, Remus100, hull_mass, step
+from plant_model.remus100.rigid_body import coriolis_from_mass, rk4_step
 
 FULL = np.array([0.0, 0.0, 1525.0])
 
@@ -78,7 +78,7 @@ def test_a_turning_circle_at_full_rudder_closes_with_radius_u_over_r():
     """Full rudder (30 deg) at 1525 rpm: a steady turn to starboard, banked and slowly
     diving (a helix). Its traced horizontal diameter equals 2 U_h / psi' (the NED speed
     over the heading rate, within 1 %): about 33 m, some 20 vehicle lengths."""
-    from plant_model.rigid_body import euler_kinematics
+    from plant_model.remus100.rigid_body import euler_kinematics
     v, x = Remus100(), np.zeros(STATE_SIZE)
     x[6], x[14] = 2.5, 1525.0
     cmd = np.array([math.radians(30), 0.0, 1525.0])

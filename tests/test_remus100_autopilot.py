@@ -1,18 +1,18 @@
-"""plant_model.remus100_autopilot on the nonlinear REMUS 100: a commanded NED velocity over
+"""plant_model.remus100.autopilot on the nonlinear REMUS 100: a commanded NED velocity over
 ground is reached and held, turned to, held across a current, and climbed or dived."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from plant_model.remus100_6dof import STATE_SIZE, Remus100, step
-from plant_model.remus100_autopilot import (
+from plant_model.remus100.autopilot import (
     AutopilotGains,
     ForceCommandedRemus,
     autopilot_command,
     wrap,
 )
-from plant_model.rigid_body import rotation_ned_body
+from plant_model.remus100.dynamics import STATE_SIZE, Remus100, step
+from plant_model.remus100.rigid_body import rotation_ned_body
 
 
 def _run(vehicle, v_ref, T=120.0, h=0.1):

@@ -1,13 +1,13 @@
 """The compiled REMUS 100 kernel against the numpy definition, term by term and in closed
-loop (plant_model.remus100_kernel, plant_model.remus100_6dof, plant_model.remus100_autopilot)."""
+loop (plant_model.remus100.kernel, plant_model.remus100.dynamics, plant_model.remus100.autopilot)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from plant_model import remus100_kernel as kernel
-from plant_model.remus100_6dof import Remus100, derivative
-from plant_model.remus100_autopilot import AutopilotGains, ForceCommandedRemus
+from plant_model.remus100 import kernel
+from plant_model.remus100.autopilot import AutopilotGains, ForceCommandedRemus
+from plant_model.remus100.dynamics import Remus100, derivative
 from plant_model.vehicles import remus100
 
 CURRENT = np.array([0.2, -0.15, 0.03])

@@ -1,5 +1,5 @@
-"""The nonlinear REMUS 100 as a scenario model and a sampled plant (plant_model.remus100_plant,
-plant_model.vehicles.remus100_6dof_design)."""
+"""The nonlinear REMUS 100 as a scenario model and a sampled plant (plant_model.remus100.plant,
+plant_model.remus100.models.remus100_6dof_design)."""
 from __future__ import annotations
 
 import numpy as np
@@ -9,15 +9,16 @@ from orchestrator.scenario import ScenarioError, load_scenario
 from plant_model.linalg_checks import ModelError
 from plant_model.per_vehicle import sample_vehicle, vehicle_views
 from plant_model.plant import Plant
-from plant_model.remus100_6dof import Remus100
-from plant_model.remus100_autopilot import AutopilotGains
-from plant_model.remus100_plant import (
+from plant_model.remus100.autopilot import AutopilotGains
+from plant_model.remus100.dynamics import Remus100
+from plant_model.remus100.plant import (
     Remus6dofPlant,
     default_substep,
     linear_mass_damping,
     substep_count,
 )
-from plant_model.vehicles import make_vehicle, remus100
+from plant_model.vehicle_models import make_vehicle
+from plant_model.vehicles import remus100
 
 
 @pytest.fixture(scope="module")
@@ -136,7 +137,7 @@ def test_state_round_trip_continues_identically(f4_6dof):
 
 
 def test_the_fitted_model_is_a_scenario_model_and_a_design_for_the_nonlinear_vehicle():
-    from plant_model.remus100_models import FITTED_HORIZONTAL, FITTED_VERTICAL
+    from plant_model.remus100.models import FITTED_HORIZONTAL, FITTED_VERTICAL
     fitted = make_vehicle("remus100-fitted", {}, "vehicle 1")
     assert 1.0 / fitted.B1[3, 0] == pytest.approx(FITTED_HORIZONTAL[0])
     assert fitted.B2[5, 2] / fitted.B1[5, 2] == pytest.approx(FITTED_VERTICAL[1])

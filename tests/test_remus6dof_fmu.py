@@ -19,9 +19,9 @@ from orchestrator.cosim.per_vehicle import (
 )
 from orchestrator.scenario import load_scenario
 from plant_model.per_vehicle import sample_vehicle, vehicle_views
-from plant_model.remus100_6dof import Remus100
-from plant_model.remus100_autopilot import AutopilotGains
-from plant_model.remus100_plant import (
+from plant_model.remus100.autopilot import AutopilotGains
+from plant_model.remus100.dynamics import Remus100
+from plant_model.remus100.plant import (
     Remus6dofPlant,
     default_substep,
     linear_mass_damping,

@@ -11,7 +11,7 @@ from orchestrator.analysis.remus_response import (
     fit_first_order,
     force_frequency_response,
 )
-from plant_model.remus100_models import FITTED_HORIZONTAL, FITTED_VERTICAL
+from plant_model.remus100.models import FITTED_HORIZONTAL, FITTED_VERTICAL
 
 
 @pytest.mark.parametrize("axis", [0, 1, 2])

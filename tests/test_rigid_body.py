@@ -1,11 +1,11 @@
-"""plant_model.rigid_body against independent facts: skew symmetry, energy conservation to
+"""plant_model.remus100.rigid_body against independent facts: skew symmetry, energy conservation to
 the integrator's order, rotation matrices, the parallel-axis theorem, righting moments."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from plant_model.rigid_body import (
+from plant_model.remus100.rigid_body import (
     coriolis_from_mass,
     coriolis_times,
     euler_kinematics,
@@ -100,7 +100,7 @@ def test_the_quaternion_is_the_rotation_matrix():
     """quaternion_xyzw against scipy's Rotation of R(Theta) (body to NED)."""
     from scipy.spatial.transform import Rotation
 
-    from plant_model.rigid_body import quaternion_xyzw, rotation_ned_body
+    from plant_model.remus100.rigid_body import quaternion_xyzw, rotation_ned_body
     rng = np.random.default_rng(7)
     att = rng.uniform([-np.pi, -1.4, -np.pi], [np.pi, 1.4, np.pi], size=(50, 3))
     q = quaternion_xyzw(att)

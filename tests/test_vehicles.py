@@ -8,11 +8,10 @@ import pytest
 
 from plant_model.leader import circle, straight
 from plant_model.linalg_checks import ModelError
+from plant_model.vehicle_models import VEHICLE_MODELS, make_vehicle
 from plant_model.vehicle_targets import leader_state_map, state_offset
 from plant_model.vehicles import (
-    VEHICLE_MODELS,
     generic,
-    make_vehicle,
     remus100,
     remus100_parameters,
 )

@@ -6,7 +6,7 @@ At a trim (straight and level at ``U0`` m/s north), a sinusoidal NED force of am
 after one period to settle, the velocity over ground on that axis is fitted over two
 periods by least squares to c + a sin(w t) + b cos(w t). The linear model's velocity per
 force is 1 / (M_a j w + D_a) (plant_model.vehicles.remus100 at cruise speed U0). The
-vehicle is stepped by the compiled kernel (plant_model.remus100_kernel, the same equations
+vehicle is stepped by the compiled kernel (plant_model.remus100.kernel, the same equations
 as ForceCommandedRemus to 1e-12).
 """
 from __future__ import annotations
@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from plant_model import remus100_kernel as kernel
-from plant_model.remus100_6dof import STATE_SIZE, Remus100
-from plant_model.remus100_autopilot import AutopilotGains
-from plant_model.rigid_body import rotation_ned_body
+from plant_model.remus100 import kernel
+from plant_model.remus100.autopilot import AutopilotGains
+from plant_model.remus100.dynamics import STATE_SIZE, Remus100
+from plant_model.remus100.rigid_body import rotation_ned_body
 from plant_model.vehicles import remus100
 
 __all__ = ["FIT_OMEGAS", "fit_first_order", "force_frequency_response"]

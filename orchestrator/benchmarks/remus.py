@@ -56,9 +56,10 @@ def _fmu_step_us(fmus: dict[str, Path], system: Any, component: str, steps: int)
 
 def benchmark_remus(steps: int = 20_000) -> dict[str, Any]:
     """The figures of the module docstring."""
-    from plant_model import remus100_kernel as kernel
-    from plant_model.remus100_6dof import Remus100, derivative
-    from plant_model.remus100_autopilot import AutopilotGains, ForceCommandedRemus
+    from plant_model.remus100 import kernel
+    from plant_model.remus100.autopilot import AutopilotGains, ForceCommandedRemus
+    from plant_model.remus100.dynamics import Remus100, derivative
+    from plant_model.vehicle_models import plants_of
     from plant_model.vehicles import remus100
 
     from ..cosim.build import build_fmus
@@ -85,9 +86,9 @@ def benchmark_remus(steps: int = 20_000) -> dict[str, Any]:
     r["step_kernel_us"] = _per_call(lambda: kernel.force_commanded_step(
         p, g, xs, vr, integ, F, cur, M, D, 0.01, 1, c3), 20_000)
     code = ("import time; t0 = time.perf_counter(); import numpy as np; "
-            "from plant_model import remus100_kernel as k; "
-            "from plant_model.remus100_6dof import Remus100; "
-            "from plant_model.remus100_autopilot import AutopilotGains; "
+            "from plant_model.remus100 import kernel as k; "
+            "from plant_model.remus100.dynamics import Remus100; "
+            "from plant_model.remus100.autopilot import AutopilotGains; "
             "x = np.zeros(15); x[6] = 1.5; c = np.zeros(3); "
             "k.force_commanded_step(k.pack(Remus100()), k.pack_gains(AutopilotGains()), x, "
             "np.ones(3), np.zeros(2), np.ones(3), np.zeros(3), np.ones(3), np.ones(3), 0.01, 1, "
@@ -102,7 +103,7 @@ def benchmark_remus(steps: int = 20_000) -> dict[str, Any]:
     r["compile_cold_s"] = float(cold.stdout.strip() or "nan")
     r["compile_cached_s"] = float(warm.stdout.strip() or "nan")
     with tempfile.TemporaryDirectory() as tmp:
-        for model in ("remus100", "remus100-6dof"):
+        for model in plants_of("remus100"):
             sc = load_scenario("formation-4").with_run(
                 T=10.0, deployment="per-vehicle", architecture="distributed"
             ).with_vehicle_model(model)

@@ -90,16 +90,17 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
     """compare --what plants: the linear and the nonlinear REMUS 100, same FMUs otherwise."""
-    from plant_model.vehicles import REMUS_MODELS
+    from plant_model.vehicle_models import family_of
 
     from ..running.naming import default_out, run_identity
-    from ..running.plants import compare_plants, plant_table
+    from ..running.plants import PLANTS, compare_plants, plant_table
     if sc.deployment != "per-vehicle":
         raise UsageError("--what plants runs the nonlinear vehicle, which is its own FMU: add "
                          "--deployment per-vehicle (or set [simulation] deployment = "
                          "\"per-vehicle\")")
     models = [v.get("model", "remus100") for v in sc.fleet["vehicles"]]
-    other = next((i for i, m in enumerate(models, 1) if m not in REMUS_MODELS), None)
+    other = next((i for i, m in enumerate(models, 1)
+                  if family_of(m) != family_of(PLANTS[0])), None)
     if other is not None or args.methods:
         raise UsageError("--what plants compares remus100 with remus100-6dof (no --methods)"
                          + ("" if other is None else

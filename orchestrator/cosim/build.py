@@ -63,7 +63,7 @@ FMU_KINDS: dict[str, FmuKind] = {
     # the per-vehicle deployment (orchestrator.cosim.per_vehicle)
     "vehicle": FmuKind("AuvVehicle", "plant_model.auv_vehicle_slave",
                        ("plant_model", "fmu_common"), "auv_vehicle_config.json", False),
-    "remus6dof": FmuKind("AuvRemus6dof", "plant_model.auv_remus6dof_slave",
+    "remus6dof": FmuKind("AuvRemus6dof", "plant_model.remus100.auv_remus6dof_slave",
                          ("plant_model", "fmu_common"), "auv_remus6dof_config.json", False),
     "leader": FmuKind("AuvLeader", "plant_model.auv_leader_slave",
                       ("plant_model", "fmu_common"), "auv_leader_config.json", False),

@@ -42,6 +42,7 @@ from plant_model.acoustic.links import link_sender
 from plant_model.fleet import fleet_graph, fleet_vehicles
 from plant_model.per_vehicle import leader_system, vehicle_views
 from plant_model.system import LinearSystem
+from plant_model.vehicle_models import get
 
 from .build import FMU_KINDS, interface_of
 from .per_vehicle_network import network_connections
@@ -166,7 +167,7 @@ def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tra
         if sc.sensors is not None:              # acoustic fixes, DVL, depth at their rates
             cfg["sensors"] = dict(sc.sensors)
         one = {"vehicle": dict(cfg, vehicle=i + 1), "vehicle_estimator": cfg}
-        if models[i].name == "remus100-6dof":               # the nonlinear vehicle FMU
+        if get(models[i].name).fmu_kind == "remus6dof":     # the nonlinear vehicle FMU
             par = models[i].parameters
             one = {"remus6dof": dict(cfg, vehicle=i + 1, remus=par["nonlinear"],
                                      autopilot=par["autopilot"], substep=par["substep"]),

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 
-from plant_model.rigid_body import quaternion_xyzw
+from plant_model.remus100.rigid_body import quaternion_xyzw
 
 from .blueprint import LEGEND_ENTITY, _blueprint, _fleet_blueprint
 from .layout import (

@@ -15,13 +15,15 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from plant_model.vehicle_models import plants_of
+
 from ..atomic import write_text_atomically
 from ..scenario import Scenario
 
 __all__ = ["PLANTS", "compare_plants", "plant_table"]
 
 #: the vehicle models compared, linear first
-PLANTS = ("remus100", "remus100-6dof")
+PLANTS = plants_of("remus100")
 
 
 def compare_plants(sc: Scenario, seeds: Sequence[int], out: Path, *, progress: bool,

@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from plant_model.vehicles import REMUS_MODELS
+from plant_model.vehicle_models import get
 
 from .errors import validate_scenario
 
@@ -73,7 +73,7 @@ def fleet_spec(scenario: FleetScenario) -> dict[str, Any]:
         if position is not None:
             x0 = np.zeros(mdl.p)
             x0[list(mdl.position_states)] = position
-            if mdl.name in REMUS_MODELS:
+            if get(mdl.name).layout == "ned":
                 x0[3:6] = velocity                     # start moving with the leader
             v["x0"] = x0.tolist()
         own_noise = v.pop("noise").model_dump(exclude_unset=True) if "noise" in v else {}

@@ -33,6 +33,7 @@ from plant_model.acoustic.settings import check_network
 from plant_model.discretization import check_step
 from plant_model.linalg_checks import ModelError
 from plant_model.system import LinearSystem
+from plant_model.vehicle_models import find
 
 from .errors import ScenarioError, validate_scenario
 from .fleet import fleet_spec, is_fleet_scenario
@@ -75,9 +76,10 @@ class Scenario:
 
     @property
     def nonlinear_vehicles(self) -> tuple[int, ...]:
-        """The vehicles (1-based) of the nonlinear model ``remus100-6dof``, each its own FMU."""
+        """The vehicles (1-based) of a nonlinear model (``remus100-6dof``), each its own FMU
+        (plant_model.vehicle_models: ``nonlinear``)."""
         return tuple(i for i, v in enumerate((self.fleet or {}).get("vehicles", []), start=1)
-                     if v.get("model") == "remus100-6dof")
+                     if getattr(find(v.get("model")), "nonlinear", False))
 
     def with_vehicle_model(self, model: str) -> Scenario:
         """The same fleet scenario with every vehicle of ``model`` (e.g. the nonlinear
@@ -156,7 +158,7 @@ def _check_step(sc: Scenario) -> None:
     for i in sc.nonlinear_vehicles:
         substep = sc.fleet["vehicles"][i - 1].get("params", {}).get("substep")
         if substep is not None:
-            from plant_model.remus100_plant import substep_count
+            from plant_model.remus100.plant import substep_count
             try:
                 substep_count(sc.h, float(substep))
             except ModelError as exc:

@@ -41,8 +41,9 @@ from plant_model.leader import LeaderPath, make_leader
 from plant_model.linalg_checks import ModelError, as_matrix, as_vector
 from plant_model.navigation import NavigationSensors
 from plant_model.system import NOISE_CONVENTIONS
+from plant_model.vehicle_models import get
 from plant_model.vehicle_targets import leader_state_map, state_offset
-from plant_model.vehicles import REMUS_MODELS, VehicleModel
+from plant_model.vehicles import VehicleModel
 
 from .schema import (
     CostSection,
@@ -326,7 +327,7 @@ class FleetScenario(ScenarioFile):
                                  "noise is [noise] position)")
             return None
         bad = next((i for i, m in enumerate(vehicles.models, 1)
-                    if m.name not in REMUS_MODELS), None)
+                    if get(m.name).layout != "ned"), None)
         if bad is not None:
             raise ModelError(f"[sensors] kind = \"remus\" needs REMUS 100 vehicles; vehicle "
                              f"{bad} is {vehicles.models[bad - 1].name!r}")

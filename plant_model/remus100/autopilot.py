@@ -33,7 +33,7 @@ __all__ = ["AutopilotGains", "ForceCommandedRemus", "autopilot_command", "wrap"]
 
 @dataclass(frozen=True)
 class AutopilotGains:
-    """Gains of the three loops (tuned on remus100_6dof; docs/remus100-6dof.md)."""
+    """Gains of the three loops (tuned on plant_model.remus100.dynamics; docs/remus100-6dof.md)."""
 
     U_max: float = 2.55        #: m/s, the model's speed at n_max (1525 rpm)
     n_max: float = 1525.0      #: rpm
@@ -58,7 +58,7 @@ def autopilot_command(g: AutopilotGains, x: np.ndarray, v_ref: np.ndarray,
                       integrals: np.ndarray, current: np.ndarray | None = None
                       ) -> tuple[np.ndarray, np.ndarray]:
     """The actuator command [delta_r, delta_s (rad), n (rpm)] for the vehicle state x
-    (plant_model.remus100_6dof), the NED velocity reference v_ref (m/s) and the loops'
+    (plant_model.remus100.dynamics), the NED velocity reference v_ref (m/s) and the loops'
     integrals [int (U_d - U) dt (m), int (gamma_d - gamma) dt (rad s)]; and the errors to
     integrate next, [U_d - U (m/s), gamma_d - gamma (rad)] (module docstring). With
     ``current`` (NED, m/s) the loops track the velocity through the water instead of over
@@ -101,7 +101,7 @@ class ForceCommandedRemus:
         The linear model's total mass (kg) and damping (kg/s) per NED axis
         (``remus100().parameters["total_mass"]``, ``["damping"]``).
     x0 : np.ndarray
-        Initial 6-DOF state (plant_model.remus100_6dof).
+        Initial 6-DOF state (plant_model.remus100.dynamics).
     gains : AutopilotGains, optional
         The loops' gains.
     """
@@ -118,7 +118,7 @@ class ForceCommandedRemus:
 
     def step(self, F: np.ndarray, h: float, substeps: int) -> None:
         """One communication step h (s) with the force F (N, NED) held."""
-        from .remus100_6dof import step as vehicle_step
+        from .dynamics import step as vehicle_step
         current = np.asarray(self.vehicle.current, dtype=float)
         self.command, err = autopilot_command(self.gains, self.x, self.v_ref, self.integrals,
                                               current)

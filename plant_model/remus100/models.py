@@ -1,19 +1,49 @@
 """The REMUS 100 models beside the linear ``remus100``: the nonlinear ``remus100-6dof``
-(its linear design model and its nonlinear data, plant_model.remus100_plant) and
+(its linear design model and its nonlinear data, plant_model.remus100.plant) and
 ``remus100-fitted`` (the first-order model fitted to the nonlinear vehicle). Units: kg,
 kg/s, m, s; NED axes as :mod:`plant_model.vehicles`.
 """
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import fields, replace
 from typing import Any
 
 import numpy as np
 
-from .linalg_checks import ModelError, as_positive
-from .vehicles import VehicleModel, _ned_axes_model, remus100, remus100_parameters
+from ..linalg_checks import ModelError, as_positive
+from ..vehicles import VehicleModel, _ned_axes_model, remus100, remus100_parameters
+from .autopilot import AutopilotGains
+from .dynamics import Remus100
 
-__all__ = ["FITTED_HORIZONTAL", "FITTED_VERTICAL", "remus100_6dof_design", "remus100_fitted"]
+__all__ = ["FITTED_HORIZONTAL", "FITTED_VERTICAL", "GAIN_FIELDS", "REMUS100_6DOF_PARAMS",
+           "REMUS_FIELDS", "remus100_6dof_design", "remus100_6dof_explicit_params",
+           "remus100_fitted", "remus100_fitted_from_params", "remus_from_parameters"]
+
+
+#: the scalar fields of :class:`Remus100` a scenario or an FMU parameter may set
+REMUS_FIELDS = tuple(f.name for f in fields(Remus100) if f.name not in ("current", "r_g"))
+#: the autopilot gains (:class:`AutopilotGains`)
+GAIN_FIELDS = tuple(f.name for f in fields(AutopilotGains))
+#: the parameters of a ``remus100-6dof`` vehicle (:func:`remus100_6dof_design`)
+REMUS100_6DOF_PARAMS = ("cruise_speed", "design", "substep", "autopilot", "r_g", *REMUS_FIELDS)
+
+
+def remus_from_parameters(values: dict[str, Any]) -> Remus100:
+    """A :class:`Remus100` from {field: value} (any of :data:`REMUS_FIELDS`, ``r_g``).
+
+    Raises
+    ------
+    ModelError
+        Naming an unknown field or an invalid value (:class:`Remus100` checks).
+    """
+    unknown = sorted(set(values) - set(REMUS_FIELDS) - {"r_g"})
+    if unknown:
+        raise ModelError(f"remus100-6dof: unknown parameter(s) {', '.join(unknown)}")
+    kw = {k: float(v) for k, v in values.items() if k != "r_g"}
+    if "r_g" in values:
+        kw["r_g"] = tuple(float(c) for c in np.asarray(values["r_g"], float).ravel())
+    return replace(Remus100(), **kw)
 
 
 #: ``remus100-fitted``: M and D (kg, kg/s) of the first-order model closest to the
@@ -44,6 +74,21 @@ def remus100_fitted() -> VehicleModel:
         "fitted_to": "remus100-6dof at 1.5 m/s, 0.02 to 0.3 rad/s"})
 
 
+def remus100_fitted_from_params(params: Mapping[str, Any]) -> VehicleModel:
+    """``remus100-fitted`` from a scenario's parameter table, which must be empty.
+
+    Raises
+    ------
+    ModelError
+        If ``params`` names any parameter (the model takes none).
+    """
+    if params:
+        raise ModelError(f"unknown remus100-fitted parameter(s) "
+                         f"{', '.join(sorted(map(str, params)))}; it takes none (fitted "
+                         "at 1.5 m/s)")
+    return remus100_fitted()
+
+
 def remus100_6dof_design(params: Mapping[str, Any]) -> VehicleModel:
     """The ``remus100-6dof`` vehicle: its linear design model and its nonlinear data.
 
@@ -51,8 +96,8 @@ def remus100_6dof_design(params: Mapping[str, Any]) -> VehicleModel:
     interface use: ``remus100``, default, or ``remus100-fitted``), ``cruise_speed`` (m/s,
     where the ``remus100`` design model's drag is linearized; default 1.5), ``substep``
     (s, the RK4 sub-step; default the longest divisor of h up to 0.05 s), ``autopilot``
-    (a table of :class:`plant_model.remus100_autopilot.AutopilotGains`) and any field
-    of :class:`plant_model.remus100_6dof.Remus100` (hull, fins, propeller, limits; ``r_g``
+    (a table of :class:`plant_model.remus100.autopilot.AutopilotGains`) and any field
+    of :class:`plant_model.remus100.dynamics.Remus100` (hull, fins, propeller, limits; ``r_g``
     a 3-vector). The ``remus100`` design model is :func:`remus100` of the same hull:
     rigid-body and added mass of the spheroid, time constants [T_surge, T_sway, T_sway],
     drag coefficient Cd_surge.
@@ -62,10 +107,7 @@ def remus100_6dof_design(params: Mapping[str, Any]) -> VehicleModel:
     ModelError
         Naming an unknown parameter or an invalid value.
     """
-    from .remus100_autopilot import AutopilotGains
-    from .remus100_plant import GAIN_FIELDS, REMUS_FIELDS, remus_from_parameters
-
-    accepted = ("cruise_speed", "design", "substep", "autopilot", "r_g", *REMUS_FIELDS)
+    accepted = REMUS100_6DOF_PARAMS
     unknown = sorted(str(k) for k in params if k not in accepted)
     if unknown:
         raise ModelError(f"unknown remus100-6dof parameter(s) {', '.join(unknown)}; "
@@ -106,3 +148,13 @@ def remus100_6dof_design(params: Mapping[str, Any]) -> VehicleModel:
         parameters={**lin.parameters, "nonlinear": nonlinear, "autopilot": gains,
                     "substep": substep, "design": design})
 
+
+def remus100_6dof_explicit_params(model: VehicleModel) -> dict[str, Any]:
+    """The parameters of a ``remus100-6dof`` vehicle (:func:`remus100_6dof_design`) with
+    every default made explicit: its data as given, the design model, the gains, the
+    sub-step if one was set."""
+    par = model.parameters
+    return {"cruise_speed": par["cruise_speed"], "design": par["design"],
+            **par["nonlinear"],
+            "autopilot": dict(par["autopilot"]),
+            **({"substep": par["substep"]} if par["substep"] else {})}

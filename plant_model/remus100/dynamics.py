@@ -2,7 +2,7 @@
 progress of the ``remus100-6dof`` model; see docs/remus100-6dof.md).
 
 State x = [eta (6); nu (6); delta_r, delta_s (rad); n (rpm)]: NED position and Euler
-angles, body velocities (plant_model.rigid_body), the rudder and stern-plane angles and
+angles, body velocities (plant_model.remus100.rigid_body), the rudder and stern-plane angles and
 the propeller speed. With the velocity relative to a current constant in NED,
 nu_r = nu - nu_c, nu_c = [R(Theta)' v_c; 0]:
 
@@ -34,7 +34,8 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from .linalg_checks import ModelError
+from ..linalg_checks import ModelError
+from ..vehicles import lamb_factors, remus100_parameters
 from .rigid_body import (
     coriolis_times,
     euler_kinematics,
@@ -43,7 +44,6 @@ from .rigid_body import (
     rk4_step,
     rotation_ned_body,
 )
-from .vehicles import lamb_factors, remus100_parameters
 
 __all__ = ["Remus100", "STATE_SIZE", "derivative", "hull_mass", "step"]
 

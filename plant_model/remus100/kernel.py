@@ -1,5 +1,5 @@
 """The nonlinear REMUS 100 as a compiled kernel: the same equations as
-:mod:`plant_model.remus100_6dof` and :mod:`plant_model.remus100_autopilot`, written on
+:mod:`plant_model.remus100.dynamics` and :mod:`plant_model.remus100.autopilot`, written on
 scalars over one flat parameter vector so that numba compiles them to machine code.
 
 Why a second form: the readable numpy form costs about 350 us per derivative (some 100
@@ -23,7 +23,7 @@ import os
 
 import numpy as np
 
-from .remus100_6dof import Remus100, _d
+from .dynamics import Remus100, _d
 
 __all__ = ["pack", "pack_gains", "derivative", "rk4", "autopilot", "force_commanded_step",
            "JIT"]
@@ -74,7 +74,7 @@ P_SX = 111         # strip centres (P_NS of them), m
 
 def pack(v: Remus100) -> np.ndarray:
     """The flat parameter vector of a vehicle (layout ``P_*``), from the same derived
-    numbers as the numpy form (:func:`plant_model.remus100_6dof._d`)."""
+    numbers as the numpy form (:func:`plant_model.remus100.dynamics._d`)."""
     d = _d(v)
     ns = len(d.strip_x)
     p = np.zeros(P_SX + ns)
@@ -101,7 +101,7 @@ def pack(v: Remus100) -> np.ndarray:
 
 
 def pack_gains(g: object) -> np.ndarray:
-    """The autopilot gains (:class:`plant_model.remus100_autopilot.AutopilotGains`) as
+    """The autopilot gains (:class:`plant_model.remus100.autopilot.AutopilotGains`) as
     [U_max, n_max, K_u, K_ui, K_chi, K_r, K_gamma, K_gi, K_theta, K_q, U_min,
     delta_max]."""
     return np.array([g.U_max, g.n_max, g.K_u, g.K_ui, g.K_chi, g.K_r, g.K_gamma, g.K_gi,
@@ -117,7 +117,7 @@ def _clip(a: float, lo: float, hi: float) -> float:
 def derivative(p: np.ndarray, x: np.ndarray, cmd: np.ndarray, cur: np.ndarray,
                out: np.ndarray) -> None:
     """out = x' (15) for the state x, the command [delta_r, delta_s (rad), n (rpm)] and
-    the current v_c (NED, m/s): :func:`plant_model.remus100_6dof.derivative` term by
+    the current v_c (NED, m/s): :func:`plant_model.remus100.dynamics.derivative` term by
     term."""
     phi, theta = x[3], x[4]
     cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
@@ -282,7 +282,7 @@ def _wrap(a: float) -> float:
 def autopilot(g: np.ndarray, x: np.ndarray, v_ref: np.ndarray, integ: np.ndarray,
               cur: np.ndarray, cmd: np.ndarray, err: np.ndarray) -> None:
     """cmd = [delta_r, delta_s, n], err = [U_d - U, gamma_d - gamma]: the three loops of
-    :func:`plant_model.remus100_autopilot.autopilot_command` on the velocity through the
+    :func:`plant_model.remus100.autopilot.autopilot_command` on the velocity through the
     water (gains vector of :func:`pack_gains`), with the same anti-windup."""
     U_max, n_max, K_u, K_ui, K_chi, K_r = g[0], g[1], g[2], g[3], g[4], g[5]
     K_gamma, K_gi, K_theta, K_q, U_min = g[6], g[7], g[8], g[9], g[10]
@@ -319,7 +319,7 @@ def force_commanded_step(p: np.ndarray, g: np.ndarray, x: np.ndarray, v_ref: np.
                          integ: np.ndarray, F: np.ndarray, cur: np.ndarray,
                          M: np.ndarray, D: np.ndarray, h: float, substeps: int,
                          cmd: np.ndarray) -> None:
-    """One communication step h (s) of :class:`plant_model.remus100_autopilot.
+    """One communication step h (s) of :class:`plant_model.remus100.autopilot.
     ForceCommandedRemus` in place: the loops' command (held), ``substeps`` RK4 steps, the
     integrals, then v_ref <- a v_ref + (1 - a) F / D, a = exp(-D h / M)."""
     err = np.empty(2)
@@ -336,7 +336,7 @@ def force_commanded_step(p: np.ndarray, g: np.ndarray, x: np.ndarray, v_ref: np.
 def plant_step(p: np.ndarray, g: np.ndarray, s: np.ndarray, u: np.ndarray, v: np.ndarray,
                Aw: np.ndarray, M: np.ndarray, D: np.ndarray, h: float, substeps: int,
                cmd: np.ndarray, limits: np.ndarray) -> float:
-    """One step of :class:`plant_model.remus100_plant.Remus6dofPlant` on its evolving
+    """One step of :class:`plant_model.remus100.plant.Remus6dofPlant` on its evolving
     vector s = [x (15), v_ref, integrals (2), w] in place: :func:`force_commanded_step` in
     the current w held, then the process noise v (9: position, velocity over ground,
     current) and w <- Aw w + v_w. Returns 1.0 when some command was at or beyond its limit."""

@@ -7,8 +7,8 @@ d, v_n, v_e, v_d] over ground (m, m/s) and w (the ocean current, m/s). Inside, t
 force drives the linear model's velocity through the water, v_ref' = (u - D v_ref) / M
 (M, D per axis from the linear design model: B1 = [0; diag(1/M)], B2 = [0; diag(D/M)]),
 which the autopilots track with rpm, rudder and stern planes
-(:mod:`plant_model.remus100_autopilot`); the 6-DOF equations
-(:mod:`plant_model.remus100_6dof`, compiled in :mod:`plant_model.remus100_kernel`) move
+(:mod:`plant_model.remus100.autopilot`); the 6-DOF equations
+(:mod:`plant_model.remus100.dynamics`, compiled in :mod:`plant_model.remus100.kernel`) move
 the vehicle, with ``substeps`` RK4 steps per communication step.
 
 What the linear vehicle has beside its physics stays as it is, drawn from the same noise
@@ -29,26 +29,21 @@ of sample k, measured on the true position and velocity over ground.
 from __future__ import annotations
 
 import math
-from dataclasses import fields, replace
-from typing import Any
 
 import numpy as np
 
-from . import remus100_kernel as kernel
-from .discretization import DiscreteModel
-from .linalg_checks import ModelError
-from .navigation import NAV_SIZE, NavigationSensors, SensorStream
-from .plant import NoiseStream
-from .remus100_6dof import STATE_SIZE, Remus100
-from .remus100_autopilot import AutopilotGains
+from ..discretization import DiscreteModel
+from ..linalg_checks import ModelError
+from ..navigation import NAV_SIZE, NavigationSensors, SensorStream
+from ..plant import NoiseStream
+from . import kernel
+from .autopilot import AutopilotGains
+from .dynamics import STATE_SIZE, Remus100
+from .models import GAIN_FIELDS, REMUS_FIELDS, remus_from_parameters
 
 __all__ = ["REMUS_FIELDS", "GAIN_FIELDS", "Remus6dofPlant", "default_substep",
            "initial_state", "linear_mass_damping", "remus_from_parameters", "substep_count"]
 
-#: the scalar fields of :class:`Remus100` a scenario or an FMU parameter may set
-REMUS_FIELDS = tuple(f.name for f in fields(Remus100) if f.name not in ("current", "r_g"))
-#: the autopilot gains (:class:`AutopilotGains`)
-GAIN_FIELDS = tuple(f.name for f in fields(AutopilotGains))
 #: the longest default RK4 sub-step, s (docs/remus100-6dof.md: converged at 0.05 s)
 MAX_SUBSTEP = 0.05
 
@@ -73,23 +68,6 @@ def substep_count(h: float, substep: float) -> int:
         raise ModelError(f"remus100-6dof: substep = {substep:g} s does not divide the step "
                          f"h = {h:g} s")
     return int(k)
-
-
-def remus_from_parameters(values: dict[str, Any]) -> Remus100:
-    """A :class:`Remus100` from {field: value} (any of :data:`REMUS_FIELDS`, ``r_g``).
-
-    Raises
-    ------
-    ModelError
-        Naming an unknown field or an invalid value (:class:`Remus100` checks).
-    """
-    unknown = sorted(set(values) - set(REMUS_FIELDS) - {"r_g"})
-    if unknown:
-        raise ModelError(f"remus100-6dof: unknown parameter(s) {', '.join(unknown)}")
-    kw = {k: float(v) for k, v in values.items() if k != "r_g"}
-    if "r_g" in values:
-        kw["r_g"] = tuple(float(c) for c in np.asarray(values["r_g"], float).ravel())
-    return replace(Remus100(), **kw)
 
 
 def linear_mass_damping(B1: np.ndarray, B2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -179,7 +157,7 @@ class Remus6dofPlant:
 
     def step(self, u: np.ndarray) -> None:
         """Advance one step with the force u (N, NED) held (module docstring; the
-        arithmetic in :func:`plant_model.remus100_kernel.plant_step`)."""
+        arithmetic in :func:`plant_model.remus100.kernel.plant_step`)."""
         self._saturated = kernel.plant_step(
             self._p, self._g, self.s, np.asarray(u, dtype=float), self._row[:9], self._Aw,
             self._M, self._D, self.model.h, self.substeps, self._cmd, self._limits)

@@ -1,5 +1,5 @@
 """FMI 2.0 co-simulation slave of one nonlinear REMUS 100 (model ``remus100-6dof``,
-per-vehicle deployment; plant_model.remus100_plant).
+per-vehicle deployment; plant_model.remus100.plant).
 
 The same inputs and first outputs as the linear ``AuvVehicle``: input u (NED force, N);
 outputs y (position fix), x (position and velocity over ground), w (current). Extra
@@ -29,9 +29,9 @@ from plant_model.parameters import (
     system_parameter_specs,
 )
 from plant_model.per_vehicle import sample_vehicle, vehicle_alone
-from plant_model.remus100_6dof import Remus100
-from plant_model.remus100_autopilot import AutopilotGains
-from plant_model.remus100_plant import (
+from plant_model.remus100.autopilot import AutopilotGains
+from plant_model.remus100.dynamics import Remus100
+from plant_model.remus100.plant import (
     GAIN_FIELDS,
     REMUS_FIELDS,
     Remus6dofPlant,
@@ -94,10 +94,10 @@ class AuvRemus6dof(Fmi2Slave):
                           "r_g", Remus100().r_g), float), unit="m"),
         ]
         specs += [ArraySpec(f"remus.{f}", (), "parameter", f"REMUS 100 data: {f} "
-                            "(plant_model.remus100_6dof.Remus100)", start=float(remus[f]),
+                            "(plant_model.remus100.dynamics.Remus100)", start=float(remus[f]),
                             unit=_UNITS.get(f)) for f in REMUS_FIELDS]
         specs += [ArraySpec(f"autopilot.{f}", (), "parameter", f"autopilot gain {f} "
-                            "(plant_model.remus100_autopilot.AutopilotGains)",
+                            "(plant_model.remus100.autopilot.AutopilotGains)",
                             start=float(gains[f]), unit=_UNITS.get(f)) for f in GAIN_FIELDS]
         return specs + sensor_parameter_specs(config) + [
             ArraySpec("u", (3,), "input", "NED force commanded (control and consensus)",
@@ -147,7 +147,7 @@ class AuvRemus6dof(Fmi2Slave):
         pass
 
     def advance(self, step: float) -> None:
-        """One sample period with u held (plant_model.remus100_plant.Remus6dofPlant.step).
+        """One sample period with u held (plant_model.remus100.plant.Remus6dofPlant.step).
 
         Parameters
         ----------

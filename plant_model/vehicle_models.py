@@ -1,0 +1,180 @@
+"""The registry of vehicle models: every name a scenario's ``[vehicles] model`` may take,
+with what the rest of the code asks about it.
+
+One :class:`ModelEntry` per name: how to build its :class:`~plant_model.vehicles.VehicleModel`
+from a parameter table (:func:`make_vehicle` dispatches through it), which parameters it
+accepts and which it makes explicit in a resolved fleet spec, its state layout, whether it is
+nonlinear (its own vehicle FMU, per-vehicle deployment only) and which per-vehicle FMU kind
+(:data:`orchestrator.cosim.build.FMU_KINDS`) runs it, whether it has a native (linear) form,
+and its family and linear design counterpart (``compare --what plants`` runs the linear and
+the nonlinear models of one family, :func:`plants_of`).
+
+A new model is one module (its constructor from parameters) and one entry of
+:data:`REGISTRY`. Code outside a model's own module asks the registry (:func:`get`,
+:func:`find`) and never tests a model by its name.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .linalg_checks import ModelError
+from .remus100.models import (
+    REMUS100_6DOF_PARAMS,
+    remus100_6dof_design,
+    remus100_6dof_explicit_params,
+    remus100_fitted_from_params,
+)
+from .vehicles import (
+    GENERIC_PARAMS,
+    REMUS100_PARAMS,
+    VehicleModel,
+    generic_from_params,
+    remus100_from_params,
+)
+
+__all__ = ["LAYOUTS", "REGISTRY", "VEHICLE_MODELS", "ModelEntry", "family_of", "find", "get",
+           "listed_params", "make_vehicle", "plants_of"]
+
+#: state layouts: ``ned`` x = [n, e, d, v_n, v_e, v_d] (m, m/s), NED forces in (N), NED
+#: positions out (the leader's position and velocity are a vehicle's target, navigation
+#: sensors fit); ``outputs`` any A, B1, B2, C (targets through pinv(C))
+LAYOUTS = ("ned", "outputs")
+
+
+@dataclass(frozen=True)
+class ModelEntry:
+    """What the code asks about one vehicle model."""
+
+    name: str                                       #: the scenario's model name
+    doc: str                                        #: one line for docs and listings
+    #: the model from a parameter table (raises ModelError without a location prefix)
+    build: Callable[[Mapping[str, Any]], VehicleModel]
+    params: tuple[str, ...]                         #: the parameters it accepts
+    #: its parameters with every default made explicit (a resolved fleet spec)
+    explicit_params: Callable[[VehicleModel], dict[str, Any]]
+    family: str                                     #: e.g. "remus100", "generic"
+    layout: str                                     #: one of :data:`LAYOUTS`
+    nonlinear: bool = False                         #: its own vehicle FMU (per-vehicle only)
+    fmu_kind: str = "vehicle"                       #: the per-vehicle FMU kind that runs it
+    native: bool = True                             #: has a native (linear) FMU form
+    #: a nonlinear model's linear design counterpart (the model its family compares it with)
+    design: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.layout not in LAYOUTS:
+            raise ValueError(f"{self.name}: layout {self.layout!r} is not one of {LAYOUTS}")
+        if self.nonlinear and self.design is None:
+            raise ValueError(f"{self.name}: a nonlinear model needs its linear design model")
+
+
+def listed_params(keys: tuple[str, ...]) -> Callable[[VehicleModel], dict[str, Any]]:
+    """An ``explicit_params`` that lists ``keys`` from the model's parameters (or its
+    matrices of that name), as JSON-ready lists and numbers."""
+    def explicit(model: VehicleModel) -> dict[str, Any]:
+        return {k: (np.asarray(model.parameters[k]).tolist() if k in model.parameters
+                    else getattr(model, k).tolist())
+                for k in keys}
+    return explicit
+
+
+REGISTRY: dict[str, ModelEntry] = {e.name: e for e in (
+    ModelEntry("remus100", "the linear REMUS 100 in NED, quadratic drag linearized at "
+               "cruise_speed (plant_model.vehicles.remus100)",
+               remus100_from_params, REMUS100_PARAMS, listed_params(REMUS100_PARAMS),
+               family="remus100", layout="ned"),
+    ModelEntry("remus100-6dof", "the nonlinear 6-DOF REMUS 100 behind the same force "
+               "interface, per-vehicle deployment only (docs/remus100-6dof.md)",
+               remus100_6dof_design, REMUS100_6DOF_PARAMS, remus100_6dof_explicit_params,
+               family="remus100", layout="ned", nonlinear=True, fmu_kind="remus6dof",
+               native=False, design="remus100"),
+    ModelEntry("remus100-fitted", "the first-order model fitted to remus100-6dof's "
+               "frequency responses at 1.5 m/s (plant_model.remus100.models)",
+               remus100_fitted_from_params, (), listed_params(()),
+               family="remus100", layout="ned"),
+    ModelEntry("generic", "any linear model A, B1, B2, C (plant_model.vehicles.generic)",
+               generic_from_params, GENERIC_PARAMS, listed_params(GENERIC_PARAMS),
+               family="generic", layout="outputs"),
+)}
+
+#: the model names, in the registry's order
+VEHICLE_MODELS: tuple[str, ...] = tuple(REGISTRY)
+
+
+def find(name: Any) -> ModelEntry | None:
+    """The entry of model ``name``, or None if there is none."""
+    return REGISTRY.get(name) if isinstance(name, str) else None
+
+
+def get(name: str) -> ModelEntry:
+    """The entry of model ``name``.
+
+    Raises
+    ------
+    ModelError
+        If no model has that name (listing the known ones).
+    """
+    entry = find(name)
+    if entry is None:
+        raise ModelError(f"unknown vehicle model {name!r}; known models: "
+                         f"{', '.join(VEHICLE_MODELS)}")
+    return entry
+
+
+def family_of(name: Any) -> str | None:
+    """The family of model ``name`` (None for an unknown name)."""
+    entry = find(name)
+    return None if entry is None else entry.family
+
+
+def plants_of(family: str) -> tuple[str, ...]:
+    """The models ``compare --what plants`` runs for ``family``: each nonlinear model of the
+    family after its linear design model, e.g. ("remus100", "remus100-6dof")."""
+    out: list[str] = []
+    for e in REGISTRY.values():
+        if e.family == family and e.nonlinear:
+            out += [n for n in (e.design, e.name) if n not in out]
+    return tuple(out)
+
+
+def make_vehicle(model: str, params: Mapping[str, Any], where: str) -> VehicleModel:
+    """Build a vehicle model by name from a parameter mapping (e.g. a scenario table).
+
+    Parameters
+    ----------
+    model : str
+        One of :data:`VEHICLE_MODELS`.
+    params : Mapping[str, Any]
+        The model's parameters (:attr:`ModelEntry.params`): the keyword arguments of
+        :func:`plant_model.vehicles.remus100` (all optional) or of
+        :func:`plant_model.vehicles.generic` (all required), those of
+        :func:`plant_model.remus100.models.remus100_6dof_design`, none for
+        ``remus100-fitted``.
+    where : str
+        Prefix of every error message (e.g. "vehicle 3").
+
+    Returns
+    -------
+    VehicleModel
+        The model.
+
+    Raises
+    ------
+    ModelError
+        If the model or a parameter is unknown, a generic matrix is missing or a value
+        is invalid.
+    """
+    entry = find(model)
+    if entry is None:
+        raise ModelError(
+            f"{where}: unknown vehicle model {model!r}; known models: {', '.join(VEHICLE_MODELS)}"
+        )
+    if not isinstance(params, Mapping):
+        raise ModelError(f"{where}: the {model} parameters must be a table, got {params!r}")
+    try:
+        return entry.build(params)
+    except ModelError as exc:
+        raise ModelError(f"{where}: {exc}") from None
