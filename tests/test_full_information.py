@@ -6,7 +6,8 @@ import pytest
 from scipy.linalg import expm, solve_discrete_are, solve_discrete_lyapunov
 
 from orchestrator.analysis.full_information import best_steady_motion, full_information_bound
-from orchestrator.running.setup import Method, make_setup
+from orchestrator.running.setup import Method
+from orchestrator.running.systems import make_setup
 from orchestrator.scenario import load_scenario
 from plant_model.per_vehicle import sample_vehicle, vehicle_views
 

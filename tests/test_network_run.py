@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from orchestrator.running.network import network_reference
-from orchestrator.running.setup import Method, make_setup
+from orchestrator.running.setup import Method
+from orchestrator.running.systems import make_setup
 from orchestrator.scenario import ScenarioError, load_scenario
 
 NET = {"latency": 1.0, "period": 2.0, "loss": 0.3}

@@ -88,7 +88,8 @@ def test_every_per_vehicle_fmu_validates_and_declares_its_structure(built, tmp_p
     from fmpy import read_model_description
     from fmpy.validation import validate_fmu
 
-    from orchestrator.running.setup import Method, make_setup
+    from orchestrator.running.setup import Method
+    from orchestrator.running.systems import make_setup
     fmus = dict(built[0])
     sc = load_scenario("formation-4").with_run(T=10.0, deployment="per-vehicle",
                                                architecture="centralized")

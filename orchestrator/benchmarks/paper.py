@@ -66,7 +66,8 @@ def _fmi_call_costs(fmus: dict[str, Path], cfg: dict[str, Any],
 def benchmark(sc: Scenario, mode: str = "kalman", seed: int = 0) -> dict[str, Any]:
     """Time one run both ways; returns the figures (also printed by the CLI)."""
     from ..recording import write_rrd
-    from ..running.setup import Method, make_setup
+    from ..running.setup import Method
+    from ..running.systems import make_setup
     sc = sc.with_run(estimator=mode)
     cfg = scenario_config(sc)
     with tempfile.TemporaryDirectory(prefix="auv_bench_") as tmp:

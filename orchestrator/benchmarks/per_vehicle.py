@@ -58,7 +58,8 @@ def benchmark_per_vehicle(N: int, *, architecture: str = "distributed", T: float
     from controller_fmu.vehicle_law import vehicle_law
 
     from ..analysis.distributed import agents_from_fleet_spec
-    from ..running.setup import Method, make_setup
+    from ..running.setup import Method
+    from ..running.systems import make_setup
     from ..scenario import scenario_from_dict
     from ..scenario.generator import survey_grid_fleet
 

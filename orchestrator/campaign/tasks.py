@@ -232,7 +232,8 @@ def _numpy_rows(task: Task, design: PointDesign, ver: str,
 
 
 def _fmu_rows(task: Task, ver: str) -> list[dict[str, Any]]:
-    from ..running.setup import Method, make_setup, run_statistics, stats_context
+    from ..running.setup import Method, run_statistics, stats_context
+    from ..running.systems import make_setup
     sc = task.scenario
     assert sc is not None
     work = tempfile.mkdtemp(prefix="auv_campaign_")

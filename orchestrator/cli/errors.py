@@ -11,6 +11,7 @@ from pathlib import Path
 from plant_model.linalg_checks import ModelError
 
 from ..cosim.instance import CosimError
+from ..cosim.native import NativeBuildError
 from ..cosim.system import AlgebraicLoopError
 from ..interop.common import ExportError
 from ..outputs import OutputFolderError
@@ -25,7 +26,7 @@ class UsageError(RuntimeError):
 
 # what bad input raises: printed as one line, exit status 2
 USER_ERRORS = (ScenarioError, ModelError, CosimError, ExportError, AlgebraicLoopError,
-               OutputFolderError, UsageError)
+               OutputFolderError, UsageError, NativeBuildError)
 
 
 def run_command(args: argparse.Namespace) -> int:

@@ -44,9 +44,11 @@ from plant_model.linalg_checks import ModelError
 
 from ..atomic import temporary_sibling
 from .build import FMU_KINDS, ROOT, patch_model_description
+from .system import SystemDescription
 
-__all__ = ["CFLAGS", "NATIVE_KINDS", "NativeBuildError", "build_native_fmu", "compiler",
-           "form_of", "native_model", "native_parameters", "native_specs"]
+__all__ = ["CFLAGS", "NATIVE_KINDS", "NativeBuildError", "NativeSystem", "build_native_fmu",
+           "compiler", "form_of", "native_model", "native_parameters", "native_specs",
+           "native_system"]
 
 #: the kinds that have a native form (the network is not linear: it stays pythonfmu)
 #: the kinds whose FMUs are linear once designed (the network and the nonlinear vehicle
@@ -334,3 +336,78 @@ def build_native_fmu(form: NativeForm, model: str, out_dir: Path | str, T: float
                 z.write(f, f"sources/{f.name}")
             z.write(lib, f"binaries/linux64/{model}.so")
     return fmu
+
+
+@dataclasses.dataclass(frozen=True)
+class NativeSystem:
+    """A system whose linear components are native FMUs."""
+
+    system: SystemDescription            #: the same wiring, native interfaces and parameters
+    fmus: dict[str, Path]                #: FMU key -> .fmu (native, or pythonfmu: network)
+    forms: dict[str, NativeForm]         #: component -> its linear form
+
+
+def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: Path | str,
+                  kinds: tuple[str, ...] = NATIVE_KINDS) -> NativeSystem:
+    """Build native FMUs for the components of ``kinds`` and the system that uses them.
+
+    Parameters
+    ----------
+    system : SystemDescription
+        The pythonfmu system.
+    fmus : Mapping[str, Path]
+        Its built pythonfmu FMUs (FMU key -> path).
+    out_dir : Path or str
+        Where the native FMUs go.
+    kinds : tuple[str, ...], optional
+        The FMU kinds to replace (default: every linear one).
+
+    Returns
+    -------
+    NativeSystem
+        The system with native components; the other components as they were.
+
+    Raises
+    ------
+    NativeBuildError
+        If two components of one kind have forms of different shapes (named).
+    """
+    forms: dict[str, NativeForm] = {}
+    for kind in dict.fromkeys(c.fmu for c in system.components if c.fmu in kinds):
+        try:
+            forms.update({c.name: form_of(c.fmu, Path(fmus[c.fmu]), c.parameters)
+                          for c in system.components if c.fmu == kind})
+        except NotImplementedError:         # not linear in this system (navigation sensors):
+            continue                        # its pythonfmu FMU stays
+    # a static law works at any step; its h is the system's, for the default experiment
+    forms = {k: dataclasses.replace(f, h=system.h) if f.static else f for k, f in forms.items()}
+    base: dict[str, NativeForm] = {}
+    for c in system.components:
+        if c.name in forms:
+            base.setdefault(c.fmu, forms[c.name])
+    problems = [f"{c.name}: its {c.fmu} form does not have the shape of "
+                f"{next(d.name for d in system.components if d.fmu == c.fmu)}'s"
+                for c in system.components if c.name in forms
+                and _shape(forms[c.name]) != _shape(base[c.fmu])]
+    if problems:
+        raise NativeBuildError("; ".join(problems))
+    built = {k: build_native_fmu(f, native_model(k), out_dir, system.T, system.h)
+             for k, f in base.items()}
+    comps = tuple(dataclasses.replace(c, interface=tuple(native_specs(forms[c.name])),
+                                      parameters=native_parameters(forms[c.name], base[c.fmu]))
+                  if c.name in forms else c for c in system.components)
+    # a connection that carries data only for some value of a replaced component's
+    # parameter (the truth in mode "ideal"): the native form has that value built in
+    conns = tuple(dataclasses.replace(c, when=None) if c.when and c.when[0] in forms
+                  and system.active(c) else c for c in system.connections)
+    paths = {k: Path(v) for k, v in fmus.items()}
+    paths.update(built)
+    return NativeSystem(system=dataclasses.replace(system, components=comps, connections=conns),
+                        fmus=paths, forms=forms)
+
+
+def _shape(f: NativeForm) -> tuple[Any, ...]:
+    # the noise streams are built in, but for the key of a single keyed one (a parameter)
+    streams = tuple((None if f.stream is not None else k, c) for k, c in f.noise_streams)
+    return (f.nq, f.nu, f.ny, f.nxi, f.stream is not None, streams,
+            tuple((r.key, r.name, r.value.shape) for r in f.roles))

@@ -280,7 +280,7 @@ def export_osp(sc: Scenario, out_dir: Path | str,
         If the wiring does not match the FMUs (before anything is built) or a written
         file does not validate against OSP's schemas.
     """
-    from ..running import build, scenario_system
+    from ..running.systems import build, scenario_system
 
     out = Path(out_dir)
     system = system or scenario_system(sc)
@@ -323,7 +323,7 @@ def typed_groups_used(sc: Scenario) -> dict[str, list[str]]:
     dict[str, list[str]]
         FMU key -> the typed group types used (e.g. ``LinearDisplacement``).
     """
-    from ..running import scenario_system
+    from ..running.systems import scenario_system
     system = scenario_system(sc)
     layout = _signal_layout(sc, system)
     return {c.fmu: _osp_model_description(c.interface, layout)[1] for c in system.components}

@@ -192,7 +192,7 @@ def export_ssp(sc: Scenario, out_path: Path | str, *,
         Naming every problem, if the connections do not match the FMUs' variables
         (before anything is written).
     """
-    from ..running import build, scenario_system
+    from ..running.systems import build, scenario_system
 
     out_path = Path(out_path)
     system = system or scenario_system(sc)

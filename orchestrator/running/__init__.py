@@ -4,16 +4,10 @@
 (:mod:`.per_vehicle`) and its acoustic links (:mod:`.network`), and the studies built on
 them: the plants compared (:mod:`.plants`) and the envelope (:mod:`.envelope`)."""
 from .compare import simulate
-from .fmus import (
-    build,
-    fleet_layout,
-    record_stride,
-    scenario_config,
-    scenario_system,
-    write_fmu_readme,
-)
+from .fmus import fleet_layout, record_stride, scenario_config, write_fmu_readme
 from .memory import check_memory
-from .setup import Method, Predictions, RunSetup, make_setup, method_list
+from .setup import Method, Predictions, RunSetup, method_list
+from .systems import build, make_setup, scenario_system
 
 __all__ = ["Method", "Predictions", "RunSetup", "build", "check_memory", "fleet_layout",
            "make_setup", "method_list", "record_stride", "scenario_config", "scenario_system",

@@ -23,7 +23,8 @@ from ..outputs import file_stem
 from ..scenario import Scenario
 from .fmus import fleet_layout, record_stride
 from .memory import check_memory
-from .setup import Method, RunSetup, make_setup, method_list, run_statistics, stats_context
+from .setup import Method, RunSetup, method_list, run_statistics, stats_context
+from .systems import make_setup
 
 __all__ = ["NONLINEAR_NOTE", "simulate"]
 

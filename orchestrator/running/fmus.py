@@ -1,5 +1,6 @@
-"""The scenario-to-FMU mapping: the FMUs' configuration, the system a scenario runs, the FMUs
-it is built into, the variable tables of ``fmus/README.md`` and the recording's layout."""
+"""The scenario-to-FMU mapping: the FMUs' configuration, the variable tables of
+``fmus/README.md`` and the recording's layout (the system a scenario runs and the FMUs it is
+built into: :func:`orchestrator.running.setup.scenario_system`, :func:`~.setup.build`)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,14 +9,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..cosim.build import build_fmus, fmu_config, variables_markdown
-from ..cosim.system import SystemDescription
 from ..scenario import Scenario
 
 if TYPE_CHECKING:
     from ..recording import FleetLayout
 
-__all__ = ["FMU_README_HEAD", "scenario_config", "scenario_system", "build", "build_fmus",
-           "write_fmu_readme", "fleet_layout", "record_stride"]
+__all__ = ["FMU_README_HEAD", "scenario_config", "build_fmus", "write_fmu_readme",
+           "fleet_layout", "record_stride"]
 
 FMU_README_HEAD = """# FMUs
 
@@ -110,26 +110,6 @@ def scenario_config(sc: Scenario) -> dict[str, Any]:
                       sc.tracking, sc.fleet)
 
 
-def scenario_system(sc: Scenario) -> SystemDescription:
-    """The system description of a scenario with its run settings (seed, estimator mode,
-    tracking law, architecture, FMU kind): what the master runs and the exports write.
-
-    Parameters
-    ----------
-    sc : Scenario
-        A validated scenario.
-
-    Returns
-    -------
-    SystemDescription
-        The paper's loop of plant, estimator and controller, named after the scenario; for
-        ``deployment = "per-vehicle"`` the leader and one vehicle, estimator and controller
-        per AUV (:mod:`orchestrator.cosim.per_vehicle`) in the scenario's architecture.
-    """
-    from .setup import Method, make_setup
-    return make_setup(sc, Path(".")).python_system(Method.of(sc), sc.seed)
-
-
 def write_fmu_readme(sc: Scenario, path: Path) -> None:
     """Write ``fmus/README.md``: what the FMUs need, and every variable of the FMUs built for
     ``sc`` (name, causality, variability, unit, start, description).
@@ -143,26 +123,6 @@ def write_fmu_readme(sc: Scenario, path: Path) -> None:
     """
     path.write_text(FMU_README_HEAD.format(scenario=sc.name)
                     + variables_markdown(scenario_config(sc)))
-
-
-def build(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
-    """The pythonfmu FMUs of a scenario (its deployment and architecture) in ``out_dir``
-    (taken from the FMU cache when an identical build exists).
-
-    Parameters
-    ----------
-    sc : Scenario
-        The scenario; its values are the FMUs' start values.
-    out_dir : Path or str
-        Folder for the ``.fmu`` files.
-
-    Returns
-    -------
-    dict
-        FMU key (plant, estimator, controller; or leader, vehicle, ...) -> path.
-    """
-    from .setup import Method, make_setup
-    return make_setup(sc, Path(out_dir)).python_fmus(Method.of(sc))
 
 
 def fleet_layout(sc: Scenario) -> FleetLayout | None:

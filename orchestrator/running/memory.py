@@ -51,7 +51,7 @@ def check_memory(sc: Scenario, n_methods: int, available: int | None = None) -> 
         Naming T, h, the number of steps and both sizes, if the estimate exceeds 80 % of
         the memory available.
     """
-    from .fmus import scenario_system
+    from .systems import scenario_system
     width = sum(spec.size for _, spec in scenario_system(sc).outputs())
     need = 8 * sc.steps * width * (n_methods + 2)
     available = available_memory() if available is None else available

@@ -5,8 +5,9 @@ A setup owns everything that differs between the systems a scenario can describe
 FMUs (pythonfmu, or native where a component has a linear form: ``[simulation] fmus``),
 the system description of a method and seed, the predictions of a method, how the traces
 map to the stacked layout, and what the summary adds (the acoustic links' figures). The
-branch on the deployment is :func:`make_setup`; :class:`StackedSetup` is the paper's loop
-of three FMUs, :class:`orchestrator.running.per_vehicle.PerVehicleSetup` one vehicle,
+branch on the deployment is :func:`orchestrator.running.systems.make_setup` (the registry
+of deployments); :class:`orchestrator.running.stacked.StackedSetup` is the paper's loop of
+three FMUs, :class:`orchestrator.running.per_vehicle.PerVehicleSetup` one vehicle,
 estimator and controller FMU per AUV, with or without acoustic links, linear or nonlinear
 vehicles. ``run``, ``compare`` (every ``--what``), the seed workers, ``campaign``'s FMU
 engine, ``envelope``, the benchmarks and the cross-check all run through it.
@@ -27,8 +28,8 @@ from ..outputs import file_stem
 from ..scenario import Scenario, ScenarioError
 from ..scenario.loader import check_deployment
 
-__all__ = ["PREDICT_LEVELS", "Method", "Predictions", "RunSetup", "StackedSetup", "make_setup",
-           "method_list"]
+__all__ = ["PREDICT_LEVELS", "Method", "Predictions", "RunSetup", "check_setup", "method_list",
+           "run_statistics", "stats_context"]
 
 #: how much a run predicts: the stationary and window predictions of every method
 #: (seconds), or also the searches that take minutes (the critical loss of links)
@@ -169,7 +170,7 @@ class RunSetup:
     def _native_system(self, method: Method) -> Any:
         """The method's system with native FMUs where a component has a linear form."""
         if method not in self._native:
-            from ..interop.native import native_system
+            from ..cosim.native import native_system
             folder = self.fmu_dir / "native"
             if len(self.methods) > 1:
                 folder = folder / file_stem(method.name)
@@ -246,67 +247,6 @@ class RunSetup:
         return state
 
 
-class StackedSetup(RunSetup):
-    """The paper's loop of three FMUs (plant, estimator, controller) for a single system or
-    a stacked fleet."""
-
-    deployment = "stacked"
-
-    def __init__(self, sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = (),
-                 *, coupling: str = "gauss-seidel", predict: str = "stationary"):
-        super().__init__(sc, fmu_dir, methods, coupling=coupling, predict=predict)
-        from .fmus import scenario_config
-        self.config = scenario_config(sc)
-        self._fmus: dict[str, Path] | None = None
-        self._model: Any = None
-
-    def python_fmus(self, method: Method) -> dict[str, Path]:
-        """The three FMUs (one build serves every method: they set their mode and law)."""
-        if self._fmus is None:
-            from ..cosim.build import build_fmus
-            self._fmus = build_fmus(self.config, self.fmu_dir)
-        return self._fmus
-
-    def python_system(self, method: Method, seed: int) -> SystemDescription:
-        """:func:`orchestrator.cosim.system.closed_loop_system` of the method and seed."""
-        from ..cosim.system import closed_loop_system
-        return closed_loop_system(dict(self.config, mode=method.estimator, seed=int(seed),
-                                       tracking=method.tracking), name=self.sc.name)
-
-    def model(self) -> Any:
-        """The sampled model (computed once)."""
-        if self._model is None:
-            from plant_model.discretization import discretize
-            self._model = discretize(self.sc.system, self.sc.h)
-        return self._model
-
-    def _predict(self, method: Method) -> Predictions:
-        from controller_fmu.regulator import tracking_law
-        from estimator_fmu.estimators import make_estimator
-
-        from ..analysis.prediction import method_predictions
-        sc = self.sc
-        est = make_estimator(sc.system, self.model(), method.estimator)
-        Ks = tracking_law(sc.system, method.tracking).Ks
-        parts = Predictions.of(method_predictions(sc, self.model(), est, Ks))
-        if self.coupling != "jacobi":
-            return parts
-        from ..analysis.jacobi import predict_stationary_jacobi
-        pj = predict_stationary_jacobi(sc.system, self.model(), est, Ks)
-        pred = dataclasses.replace(parts.stationary, rms_e=pj["rms_e"], rms_u=pj["rms_u"],
-                                   cost_rate=pj["cost_rate"], reason=pj["reason"])
-        return Predictions(pred, pred, None, parts.k0)
-
-    def design(self) -> Any:
-        from controller_fmu.regulator import tracking_law
-        return tracking_law(self.sc.system, self.methods[0].tracking).design
-
-    def __getstate__(self) -> dict[str, Any]:
-        state = super().__getstate__()
-        state["_model"] = None
-        return state
-
-
 def check_setup(sc: Scenario, coupling: str = "gauss-seidel") -> None:
     """Refuse, in one line naming the combination, what no setup can run.
 
@@ -322,40 +262,6 @@ def check_setup(sc: Scenario, coupling: str = "gauss-seidel") -> None:
         raise ScenarioError(f"{sc.source}: coupling {coupling!r} runs the stacked loop only "
                             "(its prediction is the Jacobi-coupled stacked loop's); the "
                             "per-vehicle deployment runs Gauss-Seidel")
-
-
-def make_setup(sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = (), *,
-               coupling: str = "gauss-seidel", predict: str = "stationary") -> RunSetup:
-    """The setup of a scenario: the one place that branches on the deployment.
-
-    Parameters
-    ----------
-    sc : Scenario
-    fmu_dir : Path or str
-        Where its FMUs go.
-    methods : sequence of Method, optional
-        The methods that will run (default: the scenario's own).
-    coupling : str, optional
-        The master's coupling.
-    predict : str, optional
-        One of :data:`PREDICT_LEVELS`.
-
-    Returns
-    -------
-    RunSetup
-
-    Raises
-    ------
-    ScenarioError
-        If the combination cannot run (:func:`check_setup`).
-    ModelError
-        If a centralized per-vehicle design would take too long (estimated).
-    """
-    check_setup(sc, coupling)
-    if sc.deployment == "per-vehicle":
-        from .per_vehicle import PerVehicleSetup
-        return PerVehicleSetup(sc, fmu_dir, methods, coupling=coupling, predict=predict)
-    return StackedSetup(sc, fmu_dir, methods, coupling=coupling, predict=predict)
 
 
 def stats_context(sc: Scenario) -> tuple | None:
@@ -376,4 +282,3 @@ def run_statistics(sc: Scenario, res: RunResult, k0: int,
     if formation is not None:
         stats["segments"] = run_segments(sc.fleet["leader"], res.traces, k0)
     return stats
-

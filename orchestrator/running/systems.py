@@ -1,0 +1,89 @@
+"""The registry of deployments and the one branch on it: :func:`make_setup` makes the
+:class:`~orchestrator.running.setup.RunSetup` of a scenario; :func:`scenario_system` and
+:func:`build` are its system and FMUs for the scenario's own method."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from ..cosim.system import SystemDescription
+from ..scenario import Scenario
+from .per_vehicle import PerVehicleSetup
+from .setup import Method, RunSetup, check_setup
+from .stacked import StackedSetup
+
+__all__ = ["DEPLOYMENT_SETUPS", "build", "make_setup", "scenario_system"]
+
+#: the setup of each deployment ([simulation] deployment)
+DEPLOYMENT_SETUPS: dict[str, type[RunSetup]] = {"stacked": StackedSetup,
+                                                "per-vehicle": PerVehicleSetup}
+
+
+def make_setup(sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = (), *,
+               coupling: str = "gauss-seidel", predict: str = "stationary") -> RunSetup:
+    """The setup of a scenario: the one place that branches on the deployment.
+
+    Parameters
+    ----------
+    sc : Scenario
+    fmu_dir : Path or str
+        Where its FMUs go.
+    methods : sequence of Method, optional
+        The methods that will run (default: the scenario's own).
+    coupling : str, optional
+        The master's coupling.
+    predict : str, optional
+        One of :data:`PREDICT_LEVELS`.
+
+    Returns
+    -------
+    RunSetup
+
+    Raises
+    ------
+    ScenarioError
+        If the combination cannot run (:func:`check_setup`).
+    ModelError
+        If a centralized per-vehicle design would take too long (estimated).
+    """
+    check_setup(sc, coupling)
+    return DEPLOYMENT_SETUPS[sc.deployment](sc, fmu_dir, methods, coupling=coupling,
+                                            predict=predict)
+
+
+def scenario_system(sc: Scenario) -> SystemDescription:
+    """The system description of a scenario with its run settings (seed, estimator mode,
+    tracking law, architecture, FMU kind): what the master runs and the exports write.
+
+    Parameters
+    ----------
+    sc : Scenario
+        A validated scenario.
+
+    Returns
+    -------
+    SystemDescription
+        The paper's loop of plant, estimator and controller, named after the scenario; for
+        ``deployment = "per-vehicle"`` the leader and one vehicle, estimator and controller
+        per AUV (:mod:`orchestrator.cosim.per_vehicle`) in the scenario's architecture.
+    """
+    return make_setup(sc, Path(".")).python_system(Method.of(sc), sc.seed)
+
+
+def build(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
+    """The pythonfmu FMUs of a scenario (its deployment and architecture) in ``out_dir``
+    (taken from the FMU cache when an identical build exists).
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario; its values are the FMUs' start values.
+    out_dir : Path or str
+        Folder for the ``.fmu`` files.
+
+    Returns
+    -------
+    dict
+        FMU key (plant, estimator, controller; or leader, vehicle, ...) -> path.
+    """
+    return make_setup(sc, Path(out_dir)).python_fmus(Method.of(sc))
