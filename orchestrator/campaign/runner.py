@@ -282,7 +282,7 @@ def _run_on_cluster(client: Any, tasks: list[Task], store: ResultStore, progress
 def run_campaign(spec_path: Path | str, out: Path | str | None = None, *,
                  scheduler: str | None = None, workers: int | None = None,
                  engine: str | None = None, progress: bool | None = None,
-                 log: Callable[[str], None] = print) -> int:
+                 log: Callable[[str], None] = print, fmus: str | None = None) -> int:
     """Run a campaign (module docstring) and print a table of its points.
 
     Parameters
@@ -301,6 +301,9 @@ def run_campaign(spec_path: Path | str, out: Path | str | None = None, *,
         Progress bar (default: when stderr is a terminal; else plain lines).
     log : callable, optional
         Receives the lines of the report.
+    fmus : str, optional
+        'python' or 'native': the base scenario's ``[simulation] fmus`` for every point
+        that does not sweep it (``--fmus``).
 
     Returns
     -------
@@ -317,6 +320,9 @@ def run_campaign(spec_path: Path | str, out: Path | str | None = None, *,
     """
     t_start = time.perf_counter()
     spec, seeds, base, base_where = load_spec(spec_path)
+    if fmus is not None:
+        base.setdefault("simulation", {})["fmus"] = fmus
+        base_where += f" (--fmus {fmus})"
     if engine is not None and engine not in ENGINES:
         raise SpecError(f"--engine {engine!r} is not one of {', '.join(ENGINES)}")
     if scheduler and workers:
