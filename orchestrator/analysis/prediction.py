@@ -39,6 +39,12 @@ __all__ = ["Prediction", "closed_loop", "deterministic_states", "method_predicti
            "predict_stationary", "window_average_covariance"]
 
 
+#: a spectral radius at or above this is not stationary: an eigenvalue on the unit circle
+#: (a circling reference) comes out of the eigenvalue solver within rounding of 1, on either
+#: side depending on the BLAS kernels (time constant over 1e9 steps)
+MARGINAL = 1.0 - 1e-9
+
+
 @dataclass(frozen=True)
 class Prediction:
     """Stationary RMS of e and u and the cost rate; ``None`` values when not stationary."""
@@ -208,9 +214,9 @@ def predict_stationary(system: LinearSystem, model: DiscreteModel, est: LinearEs
     # settling: every mode when all decay; else the noise-driven modes (a planned path
     # never settles, its mean motion is accounted for through ``window``)
     rho = float(np.max(np.abs(np.linalg.eigvals(Phi)))) if Phi.size else 0.0
-    if rho >= 1.0:
+    if rho >= MARGINAL:
         rho = float(np.max(np.abs(np.linalg.eigvals(PhiR)))) if PhiR.size else 0.0
-    if rho >= 1.0:
+    if rho >= MARGINAL:
         return Prediction(None, None, None, rho, float("inf"),
                           reason=f"the closed loop (with its exosystems) is not stationary: "
                                  f"spectral radius {rho:.6g} >= 1")

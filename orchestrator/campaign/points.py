@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 from plant_model.linalg_checks import ModelError
 
 from ..scenario import Scenario, ScenarioError, scenario_from_dict
+from ..scenario.fingerprint import resolved_scenario
 
 if TYPE_CHECKING:
     from .spec import CampaignSpec
@@ -163,39 +164,6 @@ def resolve_point(index: int, params: dict[str, Any], base: dict[str, Any],
         return DesignPoint(index, params, None, coupling, str(exc), resolved, frozenset(data))
     resolved = canonical_json({"scenario": resolved_scenario(sc), "coupling": coupling})
     return DesignPoint(index, params, sc, coupling, None, resolved, frozenset(data))
-
-
-def _plain(value: Any) -> Any:
-    """JSON-ready data of a resolved scenario's value (arrays as lists, dataclasses and
-    mappings as dicts, a vehicle model as its name and parameters)."""
-    import dataclasses
-
-    import numpy as np
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, dict) or hasattr(value, "items"):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
-    if value is None or isinstance(value, (bool, int, float, str)):
-        return value
-    raise TypeError(f"cannot key a scenario value of type {type(value).__name__}")
-
-
-def resolved_scenario(sc: Scenario) -> dict[str, Any]:
-    """Everything a resolved scenario runs, but its seed and its names, as JSON-ready data
-    (the run key's scenario part)."""
-    import dataclasses
-    skip = {"seed", "name", "description", "source", "raw", "system"}
-    out = {f.name: _plain(getattr(sc, f.name)) for f in dataclasses.fields(sc)
-           if f.name not in skip}
-    if sc.fleet is None:            # a fleet's system is made from its (resolved) fleet spec
-        out["system"] = _plain(sc.system.to_mapping())
-    return out
 
 
 def resolve_points(spec: CampaignSpec, base: dict[str, Any],

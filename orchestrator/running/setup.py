@@ -34,6 +34,8 @@ __all__ = ["PREDICT_LEVELS", "Method", "Predictions", "RunSetup", "check_setup",
 #: how much a run predicts: the stationary and window predictions of every method
 #: (seconds), or also the searches that take minutes (the critical loss of links)
 PREDICT_LEVELS = ("stationary", "full")
+#: predictions computed in this process, by what they depend on (RunSetup.predictions)
+_PREDICTIONS: dict[tuple, Predictions] = {}
 
 
 @dataclass(frozen=True)
@@ -164,7 +166,16 @@ class RunSetup:
             If the estimator or the design does not exist or the loop is unstable (named).
         """
         if method not in self._predictions:
-            self._predictions[method] = self._predict(method)
+            from ..scenario.fingerprint import scenario_digest
+            # what they depend on: the scenario but its seed and FMU kind, the method, the
+            # coupling (a second run of the same system in this process does not redo them)
+            key = (scenario_digest(self.sc, without=("fmus",)), method.estimator,
+                   method.tracking, method.architecture, self.coupling)
+            if key not in _PREDICTIONS:
+                _PREDICTIONS[key] = self._predict(method)
+                while len(_PREDICTIONS) > 64:
+                    _PREDICTIONS.pop(next(iter(_PREDICTIONS)))
+            self._predictions[method] = _PREDICTIONS[key]
         return self._predictions[method]
 
     def _native_system(self, method: Method) -> Any:
