@@ -20,7 +20,7 @@ from ..analysis.reference import run_monolithic
 from ..cosim.instance import Extracted, FmuInstance, pythonfmu_safe_tempdir
 from ..cosim.master import run_cosimulation
 from ..cosim.system import closed_loop_system
-from ..running import build, scenario_config, scenario_system
+from ..running import Method, make_setup, scenario_config, scenario_system
 from ..scenario import Scenario
 
 __all__ = ["benchmark", "benchmark_fleet", "benchmark_libcosim", "benchmark_startup",
@@ -66,8 +66,6 @@ def _fmi_call_costs(fmus: dict[str, Path], cfg: dict[str, Any],
 def benchmark(sc: Scenario, mode: str = "kalman", seed: int = 0) -> dict[str, Any]:
     """Time one run both ways; returns the figures (also printed by the CLI)."""
     from ..recording import write_rrd
-    from ..running.setup import Method
-    from ..running.systems import make_setup
     sc = sc.with_run(estimator=mode)
     cfg = scenario_config(sc)
     with tempfile.TemporaryDirectory(prefix="auv_bench_") as tmp:
@@ -158,12 +156,14 @@ def benchmark_fleet(N: int, *, T: float = 300.0, mode: str = "kalman", tracking:
     cfg = scenario_config(sc)
     with tempfile.TemporaryDirectory(prefix="auv_bench_") as tmp:
         t = time.perf_counter()
-        fmus = build(sc, Path(tmp) / "fmus")
+        setup = make_setup(sc, Path(tmp) / "fmus")
+        method = Method.of(sc)
+        fmus = setup.python_fmus(method)
         build_s = time.perf_counter() - t
         md_bytes = {k: _model_description_bytes(p) for k, p in fmus.items()}
         n_vars = {k: sum(1 for _ in _variables(p)) for k, p in fmus.items()}
         init_s = _instantiate_times(fmus, cfg)
-        res = run_cosimulation(fmus, cfg, mode=mode, seed=seed, steps=sc.steps, tracking=tracking)
+        res = setup.run(method, seed)
         calls = _fmi_call_costs(fmus, cfg, reps=2000)
     timing: dict[str, float] = {}
     ref = run_monolithic(sc.system, sc.h, mode, seed, sc.steps, tracking, timing=timing)
