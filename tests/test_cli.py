@@ -139,7 +139,7 @@ def test_a_refused_export_is_one_line(fmt, tmp_path, capsys, monkeypatch):
     problem (a system that lost its u -> plant connection), exit status 2, nothing written."""
     from dataclasses import replace
 
-    import orchestrator.running as wf
+    import orchestrator.running.systems as wf
     good = wf.scenario_system
     monkeypatch.setattr(wf, "scenario_system", lambda sc: replace(
         good(sc), connections=tuple(c for c in good(sc).connections if c.target != "plant")))
