@@ -27,6 +27,7 @@ from plant_model.linalg_checks import ModelError
 
 from ..scenario import Scenario, ScenarioError, scenario_from_dict
 from ..scenario.fingerprint import resolved_scenario
+from ..scenario.variants import set_key
 
 if TYPE_CHECKING:
     from .spec import CampaignSpec
@@ -97,17 +98,6 @@ def expand_points(spec: CampaignSpec) -> list[dict[str, Any]]:
     return [{**p, **g} for p in listed for g in grid]
 
 
-def _set(data: dict[str, Any], key: str, value: Any) -> None:
-    """data[a][b]... = value for key 'a.b...' (creating missing tables)."""
-    *tables, last = key.split(".")
-    node = data
-    for t in tables:
-        node = node.setdefault(t, {})
-        if not isinstance(node, dict):
-            raise ScenarioError(f"{key}: {t} is not a table in the base scenario")
-    node[last] = copy.deepcopy(value)
-
-
 def _regenerate_fleet(data: dict[str, Any], count: Any) -> None:
     """Offsets, positions, edges and pinning of ``count`` vehicles from the grid generator."""
     from ..scenario.generator import grid_fleet
@@ -149,10 +139,10 @@ def resolve_point(index: int, params: dict[str, Any], base: dict[str, Any],
         if key == "cosim.coupling":
             coupling = value
         elif key == "vehicles.count" and "leader" in data:
-            _set(data, key, value)
+            set_key(data, key, value)
             _regenerate_fleet(data, value)
         else:
-            _set(data, key, value)
+            set_key(data, key, value)
     where = f"{base_where} with " + ", ".join(f"{k} = {param_text(v)}"
                                               for k, v in params.items()) if params else base_where
     try:

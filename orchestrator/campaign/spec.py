@@ -162,11 +162,28 @@ def _free_table(model: Any, loc: list[str]) -> bool:
                for a in (annotation, *get_args(annotation)))
 
 
+def _section_problem(data: dict[str, Any], name: str) -> str | None:
+    """Why ``name`` is not a section a point may replace whole (None if it is)."""
+    if is_fleet_scenario(data):
+        from ..scenario.schema_fleet import FleetScenario as model
+    else:
+        from ..scenario.schema import SystemScenario as model
+    if name in ("simulation", "name", "description"):
+        return ("is not a dotted key 'section.key' (e.g. 'simulation.estimator'); only a "
+                "model section (e.g. 'leader') may be replaced whole")
+    if _model_at(model, [name]) is None and not _free_table(model, [name]):
+        return (f"is unknown: {name!r} is not a section of the base scenario (a key is "
+                "'section.key', or a section's name with a table value)")
+    return None
+
+
 def _key_problem(data: dict[str, Any], key: str) -> str | None:
     """Why ``key`` is not a dotted key of the scenario ``data``'s schema (None if it is)."""
     parts = key.split(".")
-    if len(parts) < 2 or not all(parts):
+    if not all(parts):
         return "is not a dotted key 'section.key' (e.g. 'simulation.estimator')"
+    if len(parts) == 1:                # a whole section, replaced by a table value
+        return _section_problem(data, parts[0])
     if parts[0] == "cosim":
         if len(parts) != 2 or parts[1] not in COSIM_KEYS:
             return f"is unknown; the cosim keys are {', '.join(COSIM_KEYS)}"
@@ -251,6 +268,9 @@ def load_spec(path: Path | str) -> tuple[CampaignSpec, list[int], dict[str, Any]
             values = value if table == "sweep" else [value]
             if table == "sweep" and not values:
                 raise SpecError(f"{where}: [sweep] key {key!r} has no values")
+            if "." not in key and not all(isinstance(v, dict) for v in values):
+                raise SpecError(f"{where}: [{table}] key {key!r} replaces a whole section: "
+                                "its value must be a table, e.g. {path = \"circle\", ...}")
             for v in values:
                 if isinstance(v, float) and not math.isfinite(v):
                     raise SpecError(f"{where}: [{table}] key {key!r}: {v} is not finite")

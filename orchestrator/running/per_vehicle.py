@@ -259,7 +259,7 @@ class PerVehicleSetup(RunSetup):
         steady filter's window and margin and no cost, saying why."""
         from plant_model.navigation import NavigationSensors
 
-        from .analysis.multirate_prediction import predict_multirate_cost
+        from ..analysis.multirate_prediction import predict_multirate_cost
         sc = self.sc
         sensors = NavigationSensors.from_mapping(sc.sensors)
         reason = ("no prediction for the multi-rate Kalman filter of [sensors] with the "

@@ -213,6 +213,10 @@ def _check_vehicle(name: str, v: dict[str, Any], mdl: VehicleModel) -> None:
         v["cost"].check(mdl.s, mdl.q, f"{name} cost ")
 
 
+#: how a fleet's vehicles start ([vehicles] start)
+VEHICLE_STARTS = ("given", "formation")
+
+
 class FleetVehiclesSection(Section):
     """[vehicles]: ``count`` vehicles of ``model`` with ``params`` (plant_model.fleet:
     known models and parameters, one state and output size for all), offsets (count x s),
@@ -225,6 +229,10 @@ class FleetVehiclesSection(Section):
     offsets: Matrix = None
     positions: Matrix = None
     x0: Matrix = None
+    #: "given": positions / x0 as given (in formation where none is); "formation": every
+    #: vehicle starts in formation behind the leader, whatever positions or x0 say (a
+    #: variant of a fleet with another leader path: envelope points, campaigns)
+    start: Annotated[str, one_of(VEHICLE_STARTS)] = "given"
     overrides: list[VehicleOverride] = Field(default_factory=list)
     _merged: list[dict[str, Any]] = PrivateAttr(default_factory=list)
     _models: list[VehicleModel] = PrivateAttr(default_factory=list)
@@ -238,7 +246,7 @@ class FleetVehiclesSection(Section):
             raise ModelError("give positions or x0, not both")
         for key, into, width in (("offsets", "offset", models[0].s),
                                  ("positions", "position", 3), ("x0", "x0", None)):
-            if key in self.model_fields_set:
+            if key in self.model_fields_set and (key == "offsets" or self.start == "given"):
                 for v, row in zip(vehicles, _rows(key, getattr(self, key), self.count, width)):
                     v.setdefault(into, row)
         for i, (v, mdl) in enumerate(zip(vehicles, models), start=1):
@@ -258,7 +266,7 @@ class FleetVehiclesSection(Section):
             if "model" in given and ov.model != target["model"]:
                 target["params"] = {}
             for key in ("model", "current", "x0", "offset", "position", "noise", "cost"):
-                if key in given:
+                if key in given and (self.start == "given" or key not in ("x0", "position")):
                     target[key] = getattr(ov, key)
             target["params"].update(ov.params)
         return vehicles
