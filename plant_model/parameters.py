@@ -14,7 +14,9 @@ from fmu_common.interface import ArraySpec
 
 from .system import LinearSystem
 
-__all__ = ["PARAMETER_DOCS", "sample_period_spec", "noise_convention_spec",
+__all__ = ["PARAMETER_DOCS", "sample_period_spec", "seed_spec", "vehicle_seed_spec",
+           "vehicle_number_spec",
+           "noise_convention_spec",
            "system_parameter_specs", "system_mapping_from_parameters",
            "model_parameter_specs", "system_from_parameters"]
 
@@ -104,6 +106,61 @@ def sample_period_spec(config: dict[str, Any], description: str) -> ArraySpec:
         The scalar Real parameter ``h`` with unit s.
     """
     return ArraySpec("h", (), "parameter", description, start=config["h"], unit="s")
+
+
+def seed_spec(config: dict[str, Any], description: str) -> ArraySpec:
+    """The Integer parameter ``seed`` (0..2**31 - 1) of an FMU that draws noise.
+
+    Parameters
+    ----------
+    config : dict[str, Any]
+        The FMU's build configuration; ``config['seed']`` is the start value.
+    description : str
+        The variable's description in modelDescription.xml.
+
+    Returns
+    -------
+    ArraySpec
+        The scalar Integer parameter ``seed``.
+    """
+    return ArraySpec("seed", (), "parameter", description, start=config["seed"],
+                     type="Integer", min=0, max=2**31 - 1)
+
+
+def vehicle_seed_spec(config: dict[str, Any]) -> ArraySpec:
+    """The ``seed`` of one vehicle's FMU: it draws from the generator seeded [seed, vehicle].
+
+    Parameters
+    ----------
+    config : dict[str, Any]
+        The FMU's build configuration; ``config['seed']`` is the start value.
+
+    Returns
+    -------
+    ArraySpec
+        The scalar Integer parameter ``seed``.
+    """
+    return seed_spec(config, "seed of the fleet's noise (numpy PCG64; this vehicle draws "
+                     "from the generator seeded [seed, vehicle])")
+
+
+def vehicle_number_spec(config: dict[str, Any], description: str) -> ArraySpec:
+    """The Integer parameter ``vehicle`` (1..N, start ``config.get('vehicle', 1)``).
+
+    Parameters
+    ----------
+    config : dict[str, Any]
+        The FMU's build configuration.
+    description : str
+        The variable's description in modelDescription.xml.
+
+    Returns
+    -------
+    ArraySpec
+        The scalar Integer parameter ``vehicle``.
+    """
+    return ArraySpec("vehicle", (), "parameter", description, start=config.get("vehicle", 1),
+                     type="Integer", min=1, max=2**31 - 1)
 
 
 def noise_convention_spec(config: dict[str, Any]) -> ArraySpec:
