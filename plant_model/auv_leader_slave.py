@@ -11,9 +11,9 @@ import numpy as np
 from fmu_common.interface import ArraySpec
 from fmu_common.native_form import NativeForm
 from plant_model.parameters import (
+    integer_spec,
     noise_convention_spec,
     sample_period_spec,
-    seed_spec,
     system_parameter_specs,
 )
 from plant_model.per_vehicle import leader_system, sample_leader
@@ -50,8 +50,8 @@ class AuvLeader(Fmi2Slave):
         """
         return system_parameter_specs(config, LEADER_PARAMETERS) + [
             sample_period_spec(config, "sample period the leader is discretized for"),
-            seed_spec(config, "seed of the fleet's noise (the leader draws from the generator "
-                      "seeded [seed, 0])"),
+            integer_spec("seed", "seed of the fleet's noise (the leader draws from the "
+                         "generator seeded [seed, 0])", config["seed"], 0),
             noise_convention_spec(config),
             ArraySpec("z", (config["dims"]["l"],), "output", "the leader's state z"),
         ]

@@ -10,10 +10,10 @@ from typing import Any
 from fmu_common.interface import ArraySpec
 from fmu_common.native_form import NativeForm
 from plant_model.parameters import (
+    integer_spec,
     model_parameter_specs,
     noise_convention_spec,
     sample_period_spec,
-    seed_spec,
 )
 from plant_model.plant import Plant
 
@@ -55,7 +55,7 @@ class AuvPlant(Fmi2Slave):
         return model_parameter_specs(config, "plant", PLANT_PARAMETERS) + [
             sample_period_spec(config, "sample period: the communication step the plant "
                                "is discretized for"),
-            seed_spec(config, "seed of the noise generator (numpy PCG64)"),
+            integer_spec("seed", "seed of the noise generator (numpy PCG64)", config["seed"], 0),
             noise_convention_spec(config),
             ArraySpec("u", (m,), "input", "control input u held over the step"),
             ArraySpec("y", (p,), "output", "measured vehicle output y = C x + n"),

@@ -21,10 +21,10 @@ from plant_model.navigation import (
     sensors_from_parameters,
 )
 from plant_model.parameters import (
+    integer_spec,
     noise_convention_spec,
     sample_period_spec,
     system_parameter_specs,
-    vehicle_number_spec,
     vehicle_seed_spec,
 )
 from plant_model.per_vehicle import sample_vehicle
@@ -66,8 +66,8 @@ class AuvVehicle(Fmi2Slave):
             sample_period_spec(config, "sample period: the communication step the vehicle "
                                "is discretized for"),
             vehicle_seed_spec(config),
-            vehicle_number_spec(config, "the vehicle's number in the fleet, 1..N (keys its "
-                                "noise stream)"),
+            integer_spec("vehicle", "the vehicle's number in the fleet, 1..N (keys its noise "
+                         "stream)", config.get("vehicle", 1), 1),
             noise_convention_spec(config),
             ArraySpec("u", (m,), "input", "total force u held over the step (control and "
                       "consensus)"),

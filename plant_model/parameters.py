@@ -14,8 +14,7 @@ from fmu_common.interface import ArraySpec
 
 from .system import LinearSystem
 
-__all__ = ["PARAMETER_DOCS", "sample_period_spec", "seed_spec", "vehicle_seed_spec",
-           "vehicle_number_spec",
+__all__ = ["PARAMETER_DOCS", "sample_period_spec", "integer_spec", "vehicle_seed_spec",
            "noise_convention_spec",
            "system_parameter_specs", "system_mapping_from_parameters",
            "model_parameter_specs", "system_from_parameters"]
@@ -108,59 +107,34 @@ def sample_period_spec(config: dict[str, Any], description: str) -> ArraySpec:
     return ArraySpec("h", (), "parameter", description, start=config["h"], unit="s")
 
 
-def seed_spec(config: dict[str, Any], description: str) -> ArraySpec:
-    """The Integer parameter ``seed`` (0..2**31 - 1) of an FMU that draws noise.
+def integer_spec(name: str, description: str, start: int, low: int) -> ArraySpec:
+    """A scalar Integer parameter from ``low`` to 2**31 - 1 (a seed, a vehicle number).
 
     Parameters
     ----------
-    config : dict[str, Any]
-        The FMU's build configuration; ``config['seed']`` is the start value.
+    name : str
+        The variable's name.
     description : str
-        The variable's description in modelDescription.xml.
+        Its description in modelDescription.xml.
+    start : int
+        Start value.
+    low : int
+        Smallest value.
 
     Returns
     -------
     ArraySpec
-        The scalar Integer parameter ``seed``.
+        The parameter.
     """
-    return ArraySpec("seed", (), "parameter", description, start=config["seed"],
-                     type="Integer", min=0, max=2**31 - 1)
+    return ArraySpec(name, (), "parameter", description, start=start, type="Integer", min=low,
+                     max=2**31 - 1)
 
 
 def vehicle_seed_spec(config: dict[str, Any]) -> ArraySpec:
-    """The ``seed`` of one vehicle's FMU: it draws from the generator seeded [seed, vehicle].
-
-    Parameters
-    ----------
-    config : dict[str, Any]
-        The FMU's build configuration; ``config['seed']`` is the start value.
-
-    Returns
-    -------
-    ArraySpec
-        The scalar Integer parameter ``seed``.
-    """
-    return seed_spec(config, "seed of the fleet's noise (numpy PCG64; this vehicle draws "
-                     "from the generator seeded [seed, vehicle])")
-
-
-def vehicle_number_spec(config: dict[str, Any], description: str) -> ArraySpec:
-    """The Integer parameter ``vehicle`` (1..N, start ``config.get('vehicle', 1)``).
-
-    Parameters
-    ----------
-    config : dict[str, Any]
-        The FMU's build configuration.
-    description : str
-        The variable's description in modelDescription.xml.
-
-    Returns
-    -------
-    ArraySpec
-        The scalar Integer parameter ``vehicle``.
-    """
-    return ArraySpec("vehicle", (), "parameter", description, start=config.get("vehicle", 1),
-                     type="Integer", min=1, max=2**31 - 1)
+    """The ``seed`` (start ``config['seed']``) of one vehicle's FMU, which draws from the
+    generator seeded [seed, vehicle]."""
+    return integer_spec("seed", "seed of the fleet's noise (numpy PCG64; this vehicle draws "
+                        "from the generator seeded [seed, vehicle])", config["seed"], 0)
 
 
 def noise_convention_spec(config: dict[str, Any]) -> ArraySpec:

@@ -20,10 +20,10 @@ from plant_model.navigation import (
     sensors_from_parameters,
 )
 from plant_model.parameters import (
+    integer_spec,
     noise_convention_spec,
     sample_period_spec,
     system_parameter_specs,
-    vehicle_number_spec,
     vehicle_seed_spec,
 )
 from plant_model.per_vehicle import sample_vehicle
@@ -83,7 +83,8 @@ class AuvRemus6dof(Fmi2Slave):
         specs = system_parameter_specs(config, VEHICLE_PARAMETERS) + [
             sample_period_spec(config, "sample period: the communication step"),
             vehicle_seed_spec(config),
-            vehicle_number_spec(config, "the vehicle's number in the fleet, 1..N"),
+            integer_spec("vehicle", "the vehicle's number in the fleet, 1..N",
+                         config.get("vehicle", 1), 1),
             noise_convention_spec(config),
             ArraySpec("substep", (), "parameter", "RK4 sub-step; must divide h",
                       start=config.get("substep") or default_substep(float(config["h"])),
