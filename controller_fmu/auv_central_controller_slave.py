@@ -12,11 +12,10 @@ from typing import Any
 
 import numpy as np
 
+# pythonfmu's loader looks for "class X(Fmi2Slave):"
+from controller_fmu.slave_common import StaticLawSlave as Fmi2Slave
 from fmu_common.interface import ArraySpec
 from fmu_common.native_form import NativeForm, Role
-
-# pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.slave_base import ArraySlave as Fmi2Slave
 
 
 def vehicle_inputs(N: int, what: str) -> list[str]:
@@ -76,25 +75,12 @@ class AuvCentralController(Fmi2Slave):
 
     def native_form(self) -> NativeForm:
         """u = u0 - K [xhat_1; what_1; ...; z]: a static gain (any communication step)."""
-        inputs, outputs = self.io_specs()
-        return NativeForm(inputs=inputs, outputs=outputs, nq=0, h=1.0, static=True,
-                          description=self.description, roles=[
-                              Role("D", "K", -self._negK, "the vehicle's rows of the stacked "
-                                   "gain: u = u0 - K [xhat_1; what_1; ...; z]", sign=-1.0),
-                              Role("c", "u0", self._u0, "constant force (formation offsets)",
-                                   unit="N")])
+        return self.static_native_form([
+            Role("D", "K", -self._negK, "the vehicle's rows of the stacked gain: u = u0 - K "
+                 "[xhat_1; what_1; ...; z]", sign=-1.0),
+            Role("c", "u0", self._u0, "constant force (formation offsets)", unit="N")])
 
     def compute_outputs(self) -> None:
         """u = u0 - K [xhat_1; what_1; ...; xhat_N; what_N; z] into the output buffer."""
         self._negK.dot(self._in, out=self._out)
         self._out += self._u0
-
-    def advance(self, step: float) -> None:
-        """Nothing to do: the law is static.
-
-        Parameters
-        ----------
-        step : float
-            The communication step, s (any step works).
-        """
-        pass

@@ -12,11 +12,11 @@ from typing import Any
 import numpy as np
 
 from controller_fmu.regulator import TRACKING_MODES, tracking_law
-from fmu_common.interface import ArraySpec
-from fmu_common.native_form import NativeForm, Role
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.slave_base import ArraySlave as Fmi2Slave
+from controller_fmu.slave_common import StaticLawSlave as Fmi2Slave
+from fmu_common.interface import ArraySpec
+from fmu_common.native_form import NativeForm, Role
 from plant_model.parameters import model_parameter_specs, system_from_parameters
 
 CONTROLLER_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "Q", "R")
@@ -86,25 +86,13 @@ class AuvController(Fmi2Slave):
 
     def native_form(self) -> NativeForm:
         """u = -Ks [xhat; what; zhat]: a static gain (any communication step)."""
-        inputs, outputs = self.io_specs()
-        return NativeForm(inputs=inputs, outputs=outputs, nq=0, h=1.0, static=True,
-                          description=self.description, roles=[
-                              Role("D", "Ks", -self._negK, "the designed gain: u = -Ks [xhat; "
-                                   f"what; zhat] ({self.par['tracking']} law)", sign=-1.0)])
+        return self.static_native_form([
+            Role("D", "Ks", -self._negK, "the designed gain: u = -Ks [xhat; what; zhat] "
+                 f"({self.par['tracking']} law)", sign=-1.0)])
 
     def compute_outputs(self) -> None:
         """u = -(Kx xhat + Kw what + Kz zhat) into the output buffer."""
         self._negK.dot(self._in, out=self._out)     # ndarray.dot: np.dot's gemv, less dispatch
-
-    def advance(self, step: float) -> None:
-        """Nothing to do: the law is static.
-
-        Parameters
-        ----------
-        step : float
-            The communication step, s (any step works).
-        """
-        pass
 
     restores_math_from_state = True       # the state carries the gain: no design on restore
 

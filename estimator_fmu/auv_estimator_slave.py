@@ -11,13 +11,12 @@ from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from estimator_fmu.slave_common import EstimatorSlave as Fmi2Slave
 from fmu_common.interface import ArraySpec
-from plant_model.discretization import discretize
 from plant_model.parameters import (
     model_parameter_specs,
     noise_convention_spec,
     sample_period_spec,
-    system_from_parameters,
 )
+from plant_model.slave_common import sampled_system
 
 ESTIMATOR_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "x0", "w0", "z0",
                         "W_x", "W_w", "W_z", "V_y", "V_ybar")
@@ -80,9 +79,7 @@ class AuvEstimator(Fmi2Slave):
             If the parameters do not make a valid system, h is not positive or the
             estimator of the chosen mode does not exist.
         """
-        system = system_from_parameters(self.config, "estimator", self.par, ESTIMATOR_PARAMETERS,
-                                        self.par["noise_convention"])
-        model = discretize(system, float(self.par["h"]))
+        system, model = sampled_system(self, "estimator", ESTIMATOR_PARAMETERS)
         self.estimator = make_estimator(system, model, self.par["mode"])
         nm = 2 * system.p + model.ns
         self._mvec = self._in[:nm]

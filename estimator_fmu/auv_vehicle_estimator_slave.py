@@ -18,10 +18,10 @@ from plant_model.navigation import NAV_SIZE, sensor_parameter_specs, sensors_fro
 from plant_model.parameters import (
     noise_convention_spec,
     sample_period_spec,
-    system_mapping_from_parameters,
     system_parameter_specs,
 )
-from plant_model.per_vehicle import sample_vehicle, vehicle_alone
+from plant_model.per_vehicle import sample_vehicle
+from plant_model.slave_common import vehicle_view
 
 ESTIMATOR_PARAMETERS = ("A", "B1", "B2", "C", "K", "x0", "w0", "W_x", "W_w", "V_y")
 MEASUREMENTS = ("y", "x", "w")
@@ -81,8 +81,7 @@ class AuvVehicleEstimator(Fmi2Slave):
         ModelError
             If the parameters do not make a valid vehicle or the estimator does not exist.
         """
-        mp = system_mapping_from_parameters(self.par, ESTIMATOR_PARAMETERS)
-        view = vehicle_alone(mp, int(self.config["dims"]["l"]), self.par["noise_convention"])
+        view = vehicle_view(self, ESTIMATOR_PARAMETERS)
         model = sample_vehicle(view, float(self.par["h"]), 1)
         if self.config.get("sensors"):        # acoustic fixes, DVL, depth at their rates
             self.estimator = navigation_estimator(view, model, self.par["mode"],

@@ -10,17 +10,17 @@ import numpy as np
 
 from fmu_common.interface import ArraySpec
 from fmu_common.native_form import NativeForm
-
-# pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
-from plant_model.native_plant import plant_native_form
 from plant_model.parameters import (
+    integer_spec,
     noise_convention_spec,
     sample_period_spec,
     system_parameter_specs,
 )
 from plant_model.per_vehicle import leader_system, sample_leader
 from plant_model.plant import Plant
+
+# pythonfmu's loader looks for "class X(Fmi2Slave):"
+from plant_model.slave_common import PlantSlave as Fmi2Slave
 
 LEADER_PARAMETERS = ("F", "z0", "W_z")
 
@@ -50,9 +50,8 @@ class AuvLeader(Fmi2Slave):
         """
         return system_parameter_specs(config, LEADER_PARAMETERS) + [
             sample_period_spec(config, "sample period the leader is discretized for"),
-            ArraySpec("seed", (), "parameter", "seed of the fleet's noise (the leader draws "
-                      "from the generator seeded [seed, 0])", start=config["seed"],
-                      type="Integer", min=0, max=2**31 - 1),
+            integer_spec("seed", "seed of the fleet's noise (the leader draws from the "
+                         "generator seeded [seed, 0])", config["seed"], 0),
             noise_convention_spec(config),
             ArraySpec("z", (config["dims"]["l"],), "output", "the leader's state z"),
         ]
@@ -74,19 +73,4 @@ class AuvLeader(Fmi2Slave):
 
     def native_form(self) -> NativeForm:
         """z = z_k, z+ = Phi z + Lq xi (numpy's normals of the stream [seed, 0], as here)."""
-        return plant_native_form(self.model, self._z0, range(self._out.size), *self.io_specs(),
-                                 seed=int(self.par["seed"]), description=self.description)
-
-    def compute_outputs(self) -> None:
-        """Nothing to do: the plant keeps z of sample k in the output buffer."""
-        pass
-
-    def advance(self, step: float) -> None:
-        """One sample period: z <- Phi z + v_z[k].
-
-        Parameters
-        ----------
-        step : float
-            The communication step, s (checked against h by the base class).
-        """
-        self.plant.step(self._u)
+        return self.plant_native_form(self._z0, range(self._out.size))

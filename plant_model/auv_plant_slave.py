@@ -9,18 +9,17 @@ from typing import Any
 
 from fmu_common.interface import ArraySpec
 from fmu_common.native_form import NativeForm
-
-# pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
-from plant_model.discretization import discretize
-from plant_model.native_plant import plant_native_form
 from plant_model.parameters import (
+    integer_spec,
     model_parameter_specs,
     noise_convention_spec,
     sample_period_spec,
-    system_from_parameters,
 )
 from plant_model.plant import Plant
+
+# pythonfmu's loader looks for "class X(Fmi2Slave):"
+from plant_model.slave_common import PlantSlave as Fmi2Slave
+from plant_model.slave_common import sampled_system
 
 PLANT_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "x0", "w0", "z0",
                     "W_x", "W_w", "W_z", "V_y", "V_ybar")
@@ -56,8 +55,7 @@ class AuvPlant(Fmi2Slave):
         return model_parameter_specs(config, "plant", PLANT_PARAMETERS) + [
             sample_period_spec(config, "sample period: the communication step the plant "
                                "is discretized for"),
-            ArraySpec("seed", (), "parameter", "seed of the noise generator (numpy PCG64)",
-                      start=config["seed"], type="Integer", min=0, max=2**31 - 1),
+            integer_spec("seed", "seed of the noise generator (numpy PCG64)", config["seed"], 0),
             noise_convention_spec(config),
             ArraySpec("u", (m,), "input", "control input u held over the step"),
             ArraySpec("y", (p,), "output", "measured vehicle output y = C x + n"),
@@ -76,9 +74,7 @@ class AuvPlant(Fmi2Slave):
         ModelError
             If the parameters do not make a valid system or h is not positive.
         """
-        system = system_from_parameters(self.config, "plant", self.par, PLANT_PARAMETERS,
-                                        self.par["noise_convention"])
-        self.model = discretize(system, float(self.par["h"]))
+        system, self.model = sampled_system(self, "plant", PLANT_PARAMETERS)
         # the plant writes [y, ybar, x, w, z, e] straight into this FMU's output buffer
         self._s0 = system.initial_state()
         self.plant = Plant(self.model, self._s0, int(self.par["seed"]), out=self._out)
@@ -86,19 +82,4 @@ class AuvPlant(Fmi2Slave):
 
     def native_form(self) -> NativeForm:
         """y, ybar, x, w, z, e = Cq s (+ Lr xi), s+ = Ad s + Bd u + Lq xi (this plant's normals)."""
-        return plant_native_form(self.model, self._s0, range(self._out.size), *self.io_specs(),
-                                 seed=int(self.par["seed"]), description=self.description)
-
-    def compute_outputs(self) -> None:
-        """Nothing to do: the plant keeps [y, ybar, x, w, z, e] of sample k in the buffer."""
-        pass                # outputs depend on no input: Plant keeps self._out current
-
-    def advance(self, step: float) -> None:
-        """One sample period: s <- Ad s + Bd u + v[k], then the outputs of sample k + 1.
-
-        Parameters
-        ----------
-        step : float
-            The communication step, s (checked against h by the base class).
-        """
-        self.plant.step(self._u)
+        return self.plant_native_form(self._s0, range(self._out.size))

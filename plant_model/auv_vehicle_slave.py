@@ -13,10 +13,6 @@ import numpy as np
 
 from fmu_common.interface import ArraySpec
 from fmu_common.native_form import NativeForm
-
-# pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
-from plant_model.native_plant import plant_native_form
 from plant_model.navigation import (
     NAV_SIZE,
     SensedVehicle,
@@ -25,13 +21,18 @@ from plant_model.navigation import (
     sensors_from_parameters,
 )
 from plant_model.parameters import (
+    integer_spec,
     noise_convention_spec,
     sample_period_spec,
-    system_mapping_from_parameters,
     system_parameter_specs,
+    vehicle_seed_spec,
 )
-from plant_model.per_vehicle import sample_vehicle, vehicle_alone
+from plant_model.per_vehicle import sample_vehicle
 from plant_model.plant import Plant
+
+# pythonfmu's loader looks for "class X(Fmi2Slave):"
+from plant_model.slave_common import PlantSlave as Fmi2Slave
+from plant_model.slave_common import vehicle_view
 
 VEHICLE_PARAMETERS = ("A", "B1", "B2", "C", "K", "x0", "w0", "W_x", "W_w", "V_y", "V_ybar")
 
@@ -64,12 +65,9 @@ class AuvVehicle(Fmi2Slave):
         return system_parameter_specs(config, VEHICLE_PARAMETERS) + [
             sample_period_spec(config, "sample period: the communication step the vehicle "
                                "is discretized for"),
-            ArraySpec("seed", (), "parameter", "seed of the fleet's noise (numpy PCG64; this "
-                      "vehicle draws from the generator seeded [seed, vehicle])",
-                      start=config["seed"], type="Integer", min=0, max=2**31 - 1),
-            ArraySpec("vehicle", (), "parameter", "the vehicle's number in the fleet, 1..N "
-                      "(keys its noise stream)", start=config.get("vehicle", 1),
-                      type="Integer", min=1, max=2**31 - 1),
+            vehicle_seed_spec(config),
+            integer_spec("vehicle", "the vehicle's number in the fleet, 1..N (keys its noise "
+                         "stream)", config.get("vehicle", 1), 1),
             noise_convention_spec(config),
             ArraySpec("u", (m,), "input", "total force u held over the step (control and "
                       "consensus)"),
@@ -86,8 +84,7 @@ class AuvVehicle(Fmi2Slave):
         ModelError
             If the parameters do not make a valid vehicle or h is not positive.
         """
-        mp = system_mapping_from_parameters(self.par, VEHICLE_PARAMETERS)
-        view = vehicle_alone(mp, int(self.config["dims"]["l"]), self.par["noise_convention"])
+        view = vehicle_view(self, VEHICLE_PARAMETERS)
         self.model = sample_vehicle(view, float(self.par["h"]), int(self.par["vehicle"]))
         self._buf = np.empty(3 * view.p + self.model.ns)      # [y, ybar, x, w, e]
         self._s0 = np.concatenate([view.x0, view.w0])
@@ -114,22 +111,17 @@ class AuvVehicle(Fmi2Slave):
         if self.config.get("sensors"):
             raise NotImplementedError("AuvVehicle with navigation sensors has no native (C) "
                                       "form")
-        return plant_native_form(self.model, self._s0, self._from, *self.io_specs(),
-                                 seed=int(self.par["seed"]), description=self.description)
-
-    def compute_outputs(self) -> None:
-        """Nothing to do: the outputs of sample k are copied when the step ends."""
-        pass
+        return self.plant_native_form(self._s0, self._from)
 
     def advance(self, step: float) -> None:
-        """One sample period: s <- Ad s + Bd u + v[k], then the outputs of sample k + 1.
+        """One sample period, then the outputs of sample k + 1 copied (compute_outputs: none).
 
         Parameters
         ----------
         step : float
             The communication step, s (checked against h by the base class).
         """
-        self.plant.step(self._u)
+        super().advance(step)
         self._copy()
 
     def restore_model_state(self, state: Any) -> None:

@@ -13,6 +13,7 @@ import numpy as np
 
 __all__ = [
     "ModelError",
+    "as_float",
     "as_matrix",
     "as_nonnegative",
     "as_number",
@@ -288,6 +289,17 @@ def as_number(name: str, value: Any) -> float:
     """
     if isinstance(value, bool):
         raise ModelError(f"{name}: expected a number, got {value!r}")
+    return as_float(name, value)
+
+
+def as_float(name: str, value: Any) -> float:
+    """``float(value)``, finite (a boolean counts as 0 or 1: see :func:`as_number`).
+
+    Raises
+    ------
+    ModelError
+        If ``value`` is not a number or not finite.
+    """
     try:
         x = float(value)
     except (TypeError, ValueError):

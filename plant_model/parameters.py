@@ -14,7 +14,8 @@ from fmu_common.interface import ArraySpec
 
 from .system import LinearSystem
 
-__all__ = ["PARAMETER_DOCS", "sample_period_spec", "noise_convention_spec",
+__all__ = ["PARAMETER_DOCS", "sample_period_spec", "integer_spec", "vehicle_seed_spec",
+           "noise_convention_spec",
            "system_parameter_specs", "system_mapping_from_parameters",
            "model_parameter_specs", "system_from_parameters"]
 
@@ -104,6 +105,36 @@ def sample_period_spec(config: dict[str, Any], description: str) -> ArraySpec:
         The scalar Real parameter ``h`` with unit s.
     """
     return ArraySpec("h", (), "parameter", description, start=config["h"], unit="s")
+
+
+def integer_spec(name: str, description: str, start: int, low: int) -> ArraySpec:
+    """A scalar Integer parameter from ``low`` to 2**31 - 1 (a seed, a vehicle number).
+
+    Parameters
+    ----------
+    name : str
+        The variable's name.
+    description : str
+        Its description in modelDescription.xml.
+    start : int
+        Start value.
+    low : int
+        Smallest value.
+
+    Returns
+    -------
+    ArraySpec
+        The parameter.
+    """
+    return ArraySpec(name, (), "parameter", description, start=start, type="Integer", min=low,
+                     max=2**31 - 1)
+
+
+def vehicle_seed_spec(config: dict[str, Any]) -> ArraySpec:
+    """The ``seed`` (start ``config['seed']``) of one vehicle's FMU, which draws from the
+    generator seeded [seed, vehicle]."""
+    return integer_spec("seed", "seed of the fleet's noise (numpy PCG64; this vehicle draws "
+                        "from the generator seeded [seed, vehicle])", config["seed"], 0)
 
 
 def noise_convention_spec(config: dict[str, Any]) -> ArraySpec:

@@ -26,7 +26,14 @@ from typing import Any
 
 import numpy as np
 
-from .linalg_checks import ModelError, as_matrix, as_vector, check_symmetric_pd, check_symmetric_psd
+from .linalg_checks import (
+    ModelError,
+    as_float,
+    as_matrix,
+    as_vector,
+    check_symmetric_pd,
+    check_symmetric_psd,
+)
 
 __all__ = ["LinearSystem", "NOISE_CONVENTIONS", "MATRIX_NAMES"]
 
@@ -146,13 +153,7 @@ class LinearSystem:
         def square(name: str, size: int, default: float) -> np.ndarray:
             v = d.get(name, default)
             if np.ndim(v) == 0:
-                try:
-                    x = float(v)
-                except (TypeError, ValueError):
-                    raise ModelError(f"{name}: not a number: {v!r}") from None
-                if not np.isfinite(x):
-                    raise ModelError(f"{name} = {x} is not finite")
-                return x * np.eye(size)
+                return as_float(name, v) * np.eye(size)
             return as_matrix(name, v, (size, size))
 
         Q = square("Q", p, 1.0)

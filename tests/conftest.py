@@ -10,6 +10,7 @@ import copy
 import pytest
 
 from plant_model.system import LinearSystem
+from support.recording import FLEET_STRIDE_IDS, FLEET_STRIDES
 
 #: The paper's example (docs/theory.md section 9): every noise intensity 2, Q = R = I, T = 300 s.
 PAPER_MAPPING = {
@@ -139,3 +140,17 @@ def built_scenario(tmp_path_factory):
         return cache[key]
 
     return get
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory):
+    """The paper layout's recording (support.recording), written once per test module."""
+    from support.recording import write_paper_recording
+    return write_paper_recording(tmp_path_factory)
+
+
+@pytest.fixture(scope="module", params=FLEET_STRIDES, ids=FLEET_STRIDE_IDS)
+def fleet_written(request, tmp_path_factory):
+    """The fleet layout's recording at each stride, written once per test module."""
+    from support.recording import write_fleet_recording
+    return write_fleet_recording(tmp_path_factory, request.param)

@@ -16,14 +16,10 @@ from orchestrator.recording import (
 from support.recording import (
     FLEET_H,
     FLEET_METHODS,
-    FLEET_STRIDE_IDS,
-    FLEET_STRIDES,
     N_VEH,
     TRAIL_S,
     make_fleet,
     make_fleet_runs,
-    write_fleet_recording,
-    write_paper_recording,
 )
 from support.rrd_readback import (
     read_rrd_blueprint_tree,
@@ -32,16 +28,6 @@ from support.rrd_readback import (
     read_rrd_visible_time_ranges,
     rrd_has_blueprint,
 )
-
-
-@pytest.fixture(scope="module")
-def written(tmp_path_factory):
-    return write_paper_recording(tmp_path_factory)
-
-
-@pytest.fixture(scope="module", params=FLEET_STRIDES, ids=FLEET_STRIDE_IDS)
-def fleet_written(request, tmp_path_factory):
-    return write_fleet_recording(tmp_path_factory, request.param)
 
 
 def _views(node):

@@ -19,22 +19,14 @@ from support.recording import (
     FLEET_H,
     FLEET_H_NS,
     FLEET_METHODS,
-    FLEET_STRIDE_IDS,
-    FLEET_STRIDES,
     N_VEH,
     STATE_NAMES,
     leader_position,
     make_fleet,
     make_fleet_runs,
     recorded_steps,
-    write_fleet_recording,
 )
 from support.rrd_readback import read_rrd_series_styles
-
-
-@pytest.fixture(scope="module", params=FLEET_STRIDES, ids=FLEET_STRIDE_IDS)
-def fleet_written(request, tmp_path_factory):
-    return write_fleet_recording(tmp_path_factory, request.param)
 
 
 def expected_fleet_series(runs, fleet, stride):

@@ -13,21 +13,13 @@ from support.recording import (
     FLEET_H_NS,
     FLEET_METHODS,
     FLEET_STEPS,
-    FLEET_STRIDE_IDS,
-    FLEET_STRIDES,
     N_VEH,
     TRAIL_SAMPLE_S,
     leader_position,
     make_fleet,
     make_fleet_runs,
     recorded_steps,
-    write_fleet_recording,
 )
-
-
-@pytest.fixture(scope="module", params=FLEET_STRIDES, ids=FLEET_STRIDE_IDS)
-def fleet_written(request, tmp_path_factory):
-    return write_fleet_recording(tmp_path_factory, request.param)
 
 
 def sampled_steps(every, stride, steps=FLEET_STEPS):

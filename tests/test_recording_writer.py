@@ -7,7 +7,6 @@ import time
 import warnings
 
 import numpy as np
-import pytest
 from rerun.chunk import RrdReader
 
 from orchestrator.recording import (
@@ -27,14 +26,8 @@ from support.recording import (
     H,
     expected_series,
     make_runs,
-    write_paper_recording,
 )
 from support.rrd_readback import read_rrd_series_styles
-
-
-@pytest.fixture(scope="module")
-def written(tmp_path_factory):
-    return write_paper_recording(tmp_path_factory)
 
 
 def test_every_series_round_trips_exactly(written):

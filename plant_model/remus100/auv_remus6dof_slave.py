@@ -14,21 +14,19 @@ from typing import Any
 import numpy as np
 
 from fmu_common.interface import ArraySpec
-
-# pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
 from plant_model.navigation import (
     nav_output_spec,
     sensor_parameter_specs,
     sensors_from_parameters,
 )
 from plant_model.parameters import (
+    integer_spec,
     noise_convention_spec,
     sample_period_spec,
-    system_mapping_from_parameters,
     system_parameter_specs,
+    vehicle_seed_spec,
 )
-from plant_model.per_vehicle import sample_vehicle, vehicle_alone
+from plant_model.per_vehicle import sample_vehicle
 from plant_model.remus100.autopilot import AutopilotGains
 from plant_model.remus100.dynamics import Remus100
 from plant_model.remus100.plant import (
@@ -40,6 +38,10 @@ from plant_model.remus100.plant import (
     remus_from_parameters,
     substep_count,
 )
+
+# pythonfmu's loader looks for "class X(Fmi2Slave):"
+from plant_model.slave_common import PlantSlave as Fmi2Slave
+from plant_model.slave_common import vehicle_view
 
 VEHICLE_PARAMETERS = ("A", "B1", "B2", "C", "K", "x0", "w0", "W_x", "W_w", "V_y", "V_ybar")
 
@@ -80,11 +82,9 @@ class AuvRemus6dof(Fmi2Slave):
                  **config.get("autopilot", {})}
         specs = system_parameter_specs(config, VEHICLE_PARAMETERS) + [
             sample_period_spec(config, "sample period: the communication step"),
-            ArraySpec("seed", (), "parameter", "seed of the fleet's noise (numpy PCG64; this "
-                      "vehicle draws from the generator seeded [seed, vehicle])",
-                      start=config["seed"], type="Integer", min=0, max=2**31 - 1),
-            ArraySpec("vehicle", (), "parameter", "the vehicle's number in the fleet, 1..N",
-                      start=config.get("vehicle", 1), type="Integer", min=1, max=2**31 - 1),
+            vehicle_seed_spec(config),
+            integer_spec("vehicle", "the vehicle's number in the fleet, 1..N",
+                         config.get("vehicle", 1), 1),
             noise_convention_spec(config),
             ArraySpec("substep", (), "parameter", "RK4 sub-step; must divide h",
                       start=config.get("substep") or default_substep(float(config["h"])),
@@ -124,8 +124,7 @@ class AuvRemus6dof(Fmi2Slave):
         ModelError
             Naming the parameter that is invalid (a vehicle datum, a gain, the sub-step).
         """
-        mp = system_mapping_from_parameters(self.par, VEHICLE_PARAMETERS)
-        view = vehicle_alone(mp, int(self.config["dims"]["l"]), self.par["noise_convention"])
+        view = vehicle_view(self, VEHICLE_PARAMETERS)
         h = float(self.par["h"])
         linear = sample_vehicle(view, h, int(self.par["vehicle"]))
         vehicle = remus_from_parameters(
@@ -141,17 +140,3 @@ class AuvRemus6dof(Fmi2Slave):
 
     def _who(self) -> str:
         return f"{super()._who()} (vehicle {int(self.par.get('vehicle', 0))})"
-
-    def compute_outputs(self) -> None:
-        """Nothing to do: the plant writes the outputs of sample k into the buffer."""
-        pass
-
-    def advance(self, step: float) -> None:
-        """One sample period with u held (plant_model.remus100.plant.Remus6dofPlant.step).
-
-        Parameters
-        ----------
-        step : float
-            The communication step, s (checked against h by the base class).
-        """
-        self.plant.step(self._u)
