@@ -51,3 +51,25 @@ def test_bad_grids_are_one_line(tmp_path, capsys):
     assert main(["envelope", "--scenario", "formation-4", "--out", str(tmp_path / "b")]) == 2
     assert "--deployment per-vehicle" in capsys.readouterr().err
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+@pytest.mark.slow
+def test_the_envelope_as_a_campaign_spec_gives_the_envelopes_figures(tmp_path, capsys):
+    """envelope --write-spec writes the grid as a campaign spec; the campaign (a real Dask
+    local cluster) gives, point by point, the envelope's max_error to 1e-12."""
+    from support.campaign import rows
+    grid = ["--scenario", "formation-4", "--deployment", "per-vehicle", "--architecture",
+            "distributed", "--T", "10", "--speeds", "1.5", "--radii", "inf,30",
+            "--currents", "0.1"]
+    assert main(["envelope", *grid, "--out", str(tmp_path / "env")]) == 0
+    spec = tmp_path / "env.toml"
+    assert main(["envelope", *grid, "--write-spec", str(spec)]) == 0
+    assert f"auv-cosim campaign {spec}" in capsys.readouterr().out
+    assert main(["campaign", str(spec), "--workers", "1", "--out", str(tmp_path / "c")]) == 0
+    table = sorted(rows(tmp_path / "c"), key=lambda r: r["point"])
+    points = json.loads((tmp_path / "env" / "summary.json").read_text())["envelope"]["points"]
+    assert len(table) == len(points) == 2
+    for r, p in zip(table, points):
+        assert r["status"] == "ok", r["error"]
+        assert r["max_error"] == pytest.approx(p["max_error"], rel=1e-12)
+        assert r["actuator_saturation_fraction"] == p["actuator_saturation_fraction"]

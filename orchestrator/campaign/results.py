@@ -23,6 +23,11 @@ from ..atomic import temporary_sibling, write_text_atomically
 
 __all__ = ["ResultStore", "write_table", "PARAM_PREFIX"]
 
+#: a fleet run's tracking figures in its row (orchestrator.analysis.tracking_segments, m and
+#: the saturated share): the envelope's verdict is max_error against a tolerance
+TRACKING_FIGURES = ("max_error", "max_error_straight", "max_error_turns", "rms_error_straight",
+                    "rms_error_turns", "actuator_saturation_fraction")
+
 #: swept parameters get one column each, named by their dotted key after this prefix
 PARAM_PREFIX = "param:"
 
@@ -171,7 +176,7 @@ def write_table(rows: list[dict[str, Any]], path: Path,
              "predicted_rms_u": pa.list_(pa.float64()), "rms_e_mean": pa.list_(pa.float64()),
              "rms_u_mean": pa.list_(pa.float64())}
     float_cols = ("cost_rate", "predicted_cost_rate", "wall_s", "loop_s", "design_s",
-                  "build_s", "window_start_s", "T", "h")
+                  "build_s", "window_start_s", "T", "h", *TRACKING_FIGURES)
     arrays = {}
     for name, values in columns.items():
         typ = types.get(name) or (pa.float64() if name in float_cols else None)

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..scenario import Scenario
+from .results import TRACKING_FIGURES
 
 __all__ = ["Task", "PointDesign", "point_design", "run_task", "error_rows"]
 
@@ -181,6 +182,13 @@ def _stats_row(row: dict[str, Any], stats: dict[str, Any], pred: dict[str, Any],
                window_start_s=window_start_s, design_s=design_s)
 
 
+def _tracking_figures(stats: dict[str, Any]) -> dict[str, Any]:
+    if "segments" not in stats:
+        return {}
+    seg = stats["segments"]
+    return {k: seg.get(k) for k in TRACKING_FIGURES}
+
+
 def run_task(task: Task) -> list[dict[str, Any]]:
     """Run every seed of ``task`` (on a worker); never raises for a failing run.
 
@@ -194,7 +202,7 @@ def run_task(task: Task) -> list[dict[str, Any]]:
         One row per seed: the keys of :func:`error_rows` plus, for a run that finished,
         ``cost_rate``, ``rms_e``, ``rms_u``, ``mean_e``, the predicted values, the
         statistics window, ``design_s`` (the point's design, once per task) and
-        ``loop_s``.
+        ``loop_s``; for a fleet through the FMUs also :data:`TRACKING_FIGURES`.
     """
     from ..analysis.summary import versions
     ver = json.dumps(versions(), sort_keys=True)
@@ -258,8 +266,9 @@ def _fmu_rows(task: Task, ver: str) -> list[dict[str, Any]]:
             t0 = time.perf_counter()
             try:
                 res = setup.run(method, seed)
-                _stats_row(row, run_statistics(sc, res, pred.k0, formation), expected,
-                           pred.k0 * sc.h, design_s)
+                stats = run_statistics(sc, res, pred.k0, formation)
+                _stats_row(row, stats, expected, pred.k0 * sc.h, design_s)
+                row.update(_tracking_figures(stats))
                 row["loop_s"] = res.loop_s
             except Exception as exc:
                 row["error"] = _message(exc)

@@ -129,6 +129,15 @@ def cmd_envelope(args: argparse.Namespace) -> int:
     if sc.fleet is None or sc.deployment != "per-vehicle":
         raise UsageError("envelope runs a per-vehicle fleet: give a fleet scenario and "
                          "--deployment per-vehicle")
+    if args.write_spec:                       # the grid as a campaign spec, not run here
+        from ..atomic import write_text_atomically
+        from ..running.envelope import envelope_spec
+        write_text_atomically(args.write_spec, envelope_spec(sc, args.speeds, args.radii,
+                                                             args.currents))
+        print(f"wrote {args.write_spec}: {len(args.speeds) * len(args.radii) * len(args.currents)}"
+              f" points; run them with: auv-cosim campaign {args.write_spec} (each row's "
+              f"max_error against the tolerance, {args.tolerance:g} m, says where it holds)")
+        return 0
     _check_native(sc)
     with output_folder(args.out or default_out(sc, "envelope"), "envelope") as out:
         claim_folder(out, run_identity(sc, "envelope"), force=args.force)
@@ -202,5 +211,8 @@ def add_envelope(sub: argparse._SubParsersAction) -> None:
                     help="the formation holds when the largest tracking error over the "
                          "window stays within this, m (default: 3)")
     sp.add_argument("--out", help="output folder (default: out/<scenario>[_<system>]_envelope)")
+    sp.add_argument("--write-spec", metavar="SPEC.toml",
+                    help="write the grid as a campaign spec instead of running it (auv-cosim "
+                         "campaign runs it on local workers or a Dask cluster)")
     add_force_option(sp)
     sp.set_defaults(func=cmd_envelope)

@@ -13,7 +13,6 @@ the folder of its run (``points/<i>``, its own .rrd and summary.json).
 """
 from __future__ import annotations
 
-import copy
 import itertools
 import json
 import math
@@ -24,9 +23,37 @@ from typing import Any
 import numpy as np
 
 from ..atomic import write_text_atomically
+from ..outputs import file_stem
 from ..scenario import Scenario, scenario_from_dict
+from ..scenario.variants import with_keys
 
-__all__ = ["envelope_point", "run_envelope"]
+__all__ = ["envelope_params", "envelope_point", "envelope_spec", "run_envelope"]
+
+
+def envelope_params(sc: Scenario, speed: float, radius: float, current: float
+                    ) -> dict[str, Any]:
+    """The keys one grid point sets on the scenario (:func:`orchestrator.scenario.variants.
+    set_key`): the leader's whole table (a straight line for ``radius`` inf, else a circle,
+    at the leader's depth, no path noise), the current's standard deviation, the vehicles
+    started in formation, and the run settings the scenario was given (its links too)."""
+    leader = sc.fleet["leader"]
+    depth = float((np.asarray(leader["H"], float) @ np.asarray(leader["z0"], float))[2])
+    if math.isinf(radius):
+        table = {"path": "straight", "speed": speed, "start": [0.0, 0.0, depth],
+                 "noise": 0.0}
+    else:
+        table = {"path": "circle", "radius": radius, "speed": speed,
+                 "center": [0.0, 0.0, depth], "noise": 0.0}
+    out: dict[str, Any] = {"leader": table, "current.sigma": current,
+                           "vehicles.start": "formation"}
+    out.update({f"simulation.{k}": getattr(sc, k) for k in RUN_KEYS})
+    if sc.network is not None:
+        out["network"] = dict(sc.network)
+    return out
+
+
+#: the run settings a point carries over from the scenario it varies
+RUN_KEYS = ("T", "h", "estimator", "tracking", "deployment", "architecture", "fmus")
 
 
 def envelope_point(sc: Scenario, speed: float, radius: float, current: float) -> Scenario:
@@ -37,28 +64,55 @@ def envelope_point(sc: Scenario, speed: float, radius: float, current: float) ->
     ScenarioError
         If the point does not make a valid scenario (named by the loader).
     """
-    data = copy.deepcopy(dict(sc.raw))
-    leader = sc.fleet["leader"]
-    depth = float((np.asarray(leader["H"], float) @ np.asarray(leader["z0"], float))[2])
-    if math.isinf(radius):
-        data["leader"] = {"path": "straight", "speed": speed, "start": [0.0, 0.0, depth],
-                          "noise": 0.0}
-    else:
-        data["leader"] = {"path": "circle", "radius": radius, "speed": speed,
-                          "center": [0.0, 0.0, depth], "noise": 0.0}
-    data.setdefault("current", {})["sigma"] = current
-    vehicles = data["vehicles"]
-    for key in ("positions", "x0"):                  # start in formation
-        vehicles.pop(key, None)
-    for o in vehicles.get("overrides", []):
-        o.pop("position", None)
-        o.pop("x0", None)
     where = f"{sc.source} (envelope: speed {speed:g} m/s, radius {radius:g} m, current " \
             f"{current:g} m/s)"
-    new = scenario_from_dict(data, where)
-    return new.with_run(T=sc.T, h=sc.h, seed=sc.seed, estimator=sc.estimator,
-                        tracking=sc.tracking, deployment=sc.deployment,
-                        architecture=sc.architecture, fmus=sc.fmus)
+    params = envelope_params(sc, speed, radius, current)
+    return scenario_from_dict(with_keys(sc.raw, params), where).with_run(seed=sc.seed)
+
+
+def envelope_spec(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
+                  currents: Sequence[float]) -> str:
+    """The envelope's grid as a campaign spec (TOML): the scenario as its base, one
+    ``[[points]]`` entry per grid point (:func:`envelope_params`), the scenario's seed.
+    ``auv-cosim campaign`` runs it on local workers or a Dask cluster; each row's
+    ``max_error`` is the envelope's figure at that point."""
+    base = _base_name(sc)
+    lines = [f"# auv-cosim envelope of {sc.name}: speeds {list(speeds)} m/s, radii "
+             f"{[None if math.isinf(r) else r for r in radii]} m (none: a straight line), "
+             f"currents {list(currents)} m/s",
+             f"name = {_toml(f'{file_stem(sc.name)}-envelope')}", f"base = {_toml(base)}",
+             f"seeds = {_toml(str(sc.seed))}", "seeds_per_task = 1", ""]
+    for speed, radius, current in itertools.product(speeds, radii, currents):
+        lines.append("[[points]]")
+        for key, value in envelope_params(sc, speed, radius, current).items():
+            lines.append(f"{_toml(key)} = {_toml(value)}")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _base_name(sc: Scenario) -> str:
+    """How a campaign spec names the scenario's file: a built-in name or the file's path."""
+    from ..scenario import SCENARIO_DIR
+    prefix = "built-in scenario '"
+    if sc.source.startswith(prefix):
+        return sc.source[len(prefix):].split("'")[0]
+    path = Path(sc.source)
+    return path.stem if path.parent == SCENARIO_DIR else str(path.resolve())
+
+
+def _toml(value: Any) -> str:
+    """A TOML value (strings, numbers, booleans, arrays, inline tables)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(float(value)) if isinstance(value, float) else str(value)
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{_toml(k)} = {_toml(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    raise TypeError(f"no TOML for {type(value).__name__}")
 
 
 def run_envelope(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
