@@ -155,16 +155,21 @@ def add_run(sub: argparse._SubParsersAction) -> None:
     add_scenario_options(sp)
     sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="estimator mode (default: kalman)")
     sp.add_argument("--seed", type=int, help="noise seed (default: scenario's)")
-    sp.add_argument("--out", help="output folder (default: out/<scenario>[_<system>]_<estimator>_"
-                                  "seed<seed>; <system> names a per-vehicle deployment and "
-                                  "architecture, links, nonlinear vehicles, native FMUs)")
-    add_force_option(sp)
-    add_predict_option(sp)
-    sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
+    _add_run_outputs(sp, "out/<scenario>[_<system>]_<estimator>_seed<seed>; <system> names a "
+                         "per-vehicle deployment and architecture, links, nonlinear vehicles, "
+                         "native FMUs")
     sp.add_argument("--tracking", choices=TRACKING_MODES,
                     help="tracking law: lq (the paper) or regulator (default: scenario's)")
     add_fmu_options(sp)
     sp.set_defaults(func=cmd_run)
+
+
+def _add_run_outputs(sp: argparse.ArgumentParser, default_out: str) -> None:
+    """--out, --force, --predict and --quiet of run and compare."""
+    sp.add_argument("--out", help=f"output folder (default: {default_out})")
+    add_force_option(sp)
+    add_predict_option(sp)
+    sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
 
 
 def add_compare(sub: argparse._SubParsersAction) -> None:
@@ -183,11 +188,7 @@ def add_compare(sub: argparse._SubParsersAction) -> None:
                          "the summary says why)")
     sp.add_argument("--seeds", type=parse_seeds, default=list(range(10)),
                     help="seeds: '0-9' (default), '1,4,7' or one seed")
-    sp.add_argument("--out", help="output folder (default: out/<scenario>[_<system>]_compare"
-                                  "[-<what>])")
-    add_force_option(sp)
-    add_predict_option(sp)
-    sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
+    _add_run_outputs(sp, "out/<scenario>[_<system>]_compare[-<what>]")
     sp.add_argument("--workers", type=_count,
                     help="worker processes for the seeds after each method's first (default: "
                          "one per core; 1: all in this process); the results do not depend "
