@@ -81,3 +81,22 @@ def test_formation_100_per_vehicle_native_equals_pythonfmu(tmp_path, capsys):
         assert np.nanmax(np.abs(rn[entity][2] - values)) <= 1e-12 * scale, entity
     (mp,), (mn,) = sp["methods"].values(), sn["methods"].values()
     assert mn["cost_rate"]["mean"] == pytest.approx(mp["cost_rate"]["mean"], rel=1e-12)
+
+
+@pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler (cc) for native FMUs")
+def test_compare_native_equals_pythonfmu_on_every_seed_and_method(tmp_path, capsys):
+    """compare --fmus native: each method's own native FMUs, every seed's noise (not only
+    the scenario's seed) equal to the pythonfmu compare's to 1e-12."""
+    per_seed = {}
+    for fmus in ("python", "native"):
+        out = tmp_path / fmus
+        assert main(["compare", "--T", "5", "--seeds", "0-2", "--methods", "kalman,ideal",
+                     "--workers", "1", "--quiet", "--fmus", fmus, "--out", str(out)]) == 0
+        s = json.loads((out / "summary.json").read_text())
+        per_seed[fmus] = {m: s["methods"][m]["cost_rate"]["per_seed"] for m in s["methods"]}
+        if fmus == "native":
+            assert (out / "fmus" / "native" / "kalman").is_dir()
+            assert "FMUs: native" in capsys.readouterr().out
+    for m, rates in per_seed["python"].items():
+        assert len(set(rates)) == 3                       # three different noise draws
+        assert per_seed["native"][m] == pytest.approx(rates, rel=1e-12)
