@@ -172,8 +172,8 @@ def _section_problem(data: dict[str, Any], name: str) -> str | None:
         return ("is not a dotted key 'section.key' (e.g. 'simulation.estimator'); only a "
                 "model section (e.g. 'leader') may be replaced whole")
     if _model_at(model, [name]) is None and not _free_table(model, [name]):
-        return (f"is unknown: {name!r} is not a section of the base scenario (a key is "
-                "'section.key', or a section's name with a table value)")
+        return (f"is not a dotted key 'section.key' (e.g. 'simulation.estimator'), nor a "
+                f"section of the base scenario to replace with a table ({name!r} is none)")
     return None
 
 
