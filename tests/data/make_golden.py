@@ -42,10 +42,36 @@ def blas_kernel() -> dict:
     import scipy
     cpu = next((ln.split(":", 1)[1].strip() for ln in Path("/proc/cpuinfo").read_text().splitlines()
                 if ln.startswith("model name")), platform.processor())
+    from threadpoolctl import threadpool_info
     return {"numpy": np.__version__, "scipy": scipy.__version__,
             "numpy_blas": np.show_config(mode="dicts")["Build Dependencies"]["blas"].get("version"),
             "scipy_blas": scipy.show_config(mode="dicts")["Build Dependencies"]["blas"].get("version"),
-            "cpu": cpu, "machine": platform.machine()}
+            "cpu": cpu, "machine": platform.machine(),
+            # the kernels OpenBLAS picked for this CPU: one model name ("AMD EPYC") covers
+            # CPUs with and without AVX-512, whose kernels give other last bits, and a fleet's
+            # noise factors (eigenvectors of repeated eigenvalues) other directions
+            "blas_kernels": sorted({str(i.get("architecture")) for i in threadpool_info()
+                                    if i.get("internal_api") == "openblas"})}
+
+
+def matches(recorded: dict, here: dict) -> bool:
+    """Whether golden traces recorded on ``recorded`` are expected bit for bit ``here``:
+    the same packages, CPU and BLAS kernels (a recording that predates ``blas_kernels``
+    matches any kernels but those it lists under ``not_blas_kernels``)."""
+    keys = set(recorded) - {"blas_kernels", "not_blas_kernels"}
+    if any(recorded[k] != here.get(k) for k in keys):
+        return False
+    if "blas_kernels" in recorded:
+        return recorded["blas_kernels"] == here.get("blas_kernels")
+    return not set(recorded.get("not_blas_kernels", ())) & set(here.get("blas_kernels", ()))
+
+
+def golden_sets() -> list[tuple[Path, Path]]:
+    """(json, npz) of every recording: the original first, then one per other platform
+    (``golden/<kernels>.json``, recorded with ``make_golden.py --platform``)."""
+    extra = sorted((HERE / "golden").glob("*.json"))
+    return [(HERE / "golden_traces.json", HERE / "golden_traces.npz"),
+            *((j, j.with_suffix(".npz")) for j in extra)]
 
 
 def golden_runs():
@@ -57,13 +83,28 @@ def golden_runs():
                     yield f"{name}|{mode}|{tracking}|{coupling}", name, mode, tracking, coupling, steps
 
 
-def main() -> None:
+def _scenario(name: str):
+    """A built-in scenario as the goldens run it: fleets in the in-plant consensus form
+    (they were recorded before the protocol form existed)."""
+    import tomllib
+
+    from orchestrator.scenario import SCENARIO_DIR, load_scenario, scenario_from_dict
+    if name == "paper":
+        return load_scenario(name)
+    data = tomllib.loads((SCENARIO_DIR / f"{name}.toml").read_text())
+    data["graph"]["consensus"] = "in-plant"
+    return scenario_from_dict(data, f"built-in scenario '{name}' (in-plant)")
+
+
+def main(platform_set: bool = False) -> None:
+    """Record the goldens: the original set (with the master of 7b2ae02 when run there), or
+    with ``platform_set`` (``--platform``) a set for this machine's BLAS kernels, recorded
+    with the current master, once it reproduces the original set where that one applies."""
     try:                            # the master the traces were recorded with (7b2ae02)
         from orchestrator.master import CosimError, run_cosimulation
     except ImportError:             # the current one
         from orchestrator.cosim.master import CosimError, run_cosimulation
     from orchestrator.running import build, scenario_config
-    from orchestrator.scenario import load_scenario
 
     arrays: dict[str, np.ndarray] = {}
     refused: dict[str, str] = {}
@@ -71,7 +112,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for key, name, mode, tracking, coupling, steps in golden_runs():
             if name not in built:
-                sc = load_scenario(name)
+                sc = _scenario(name)
                 built[name] = (build(sc, Path(tmp) / name), scenario_config(sc))
             fmus, cfg = built[name]
             try:
@@ -84,11 +125,15 @@ def main() -> None:
             for sig, arr in res.traces.items():
                 arrays[f"{key}|{sig}"] = np.ascontiguousarray(arr)
             print(key, {s: a.shape for s, a in res.traces.items()}, flush=True)
-    np.savez_compressed(HERE / "golden_traces.npz", **arrays)
-    (HERE / "golden_traces.json").write_text(json.dumps(
-        {"seed": 7, "horizons": HORIZONS, "platform": blas_kernel(),
-         "refused": refused}, indent=1) + "\n")
+    here = blas_kernel()
+    stem = (HERE / "golden" / "-".join(here["blas_kernels"] or ["unknown"]) if platform_set
+            else HERE / "golden_traces")
+    stem.parent.mkdir(exist_ok=True)
+    np.savez_compressed(stem.with_suffix(".npz"), **arrays)
+    stem.with_suffix(".json").write_text(json.dumps(
+        {"seed": 7, "horizons": HORIZONS, "platform": here, "refused": refused},
+        indent=1) + "\n")
 
 
 if __name__ == "__main__":
-    main()
+    main(platform_set="--platform" in sys.argv[1:])
