@@ -84,12 +84,13 @@ Vehicle i (continuous time, its own physics only; the consensus is control, not 
    (state units) besides eta_j. In continuous time, identical vehicles, full information:
    eps' = (I kron (A - B Kx) - c (L + G) kron B Kx) eps, whose blocks A - (1 + c lambda) B Kx
    are Hurwitz for every c >= 0 (the LQ gain margin: Re(1 + c lambda) >= 1/2); sampling
-   bounds c from above (:mod:`controller_fmu.distributed_loop`).
+   bounds c from above (:mod:`orchestrator.analysis.distributed`).
 
 Items 1-2 are in :mod:`controller_fmu.distributed_observer` (re-exported here), items 3-5
 below. The stacked sampled closed loop of all vehicles, its stability verdict per eigenvalue of
 L + G and the Lyapunov prediction of the cost rate are in
-:mod:`controller_fmu.distributed_loop`.
+:mod:`orchestrator.analysis.distributed` (its verdict in
+:mod:`orchestrator.analysis.distributed_verdict`).
 """
 from __future__ import annotations
 

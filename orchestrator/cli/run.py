@@ -122,7 +122,7 @@ def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
 
 
 def cmd_envelope(args: argparse.Namespace) -> int:
-    """envelope: the grid of orchestrator.envelope, one line per point."""
+    """envelope: the grid of orchestrator.running.envelope, one line per point."""
     from ..running.envelope import run_envelope
     from ..running.naming import default_out, run_identity
     sc = scenario_of(args)

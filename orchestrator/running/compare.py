@@ -54,7 +54,7 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     ----------
     sc : Scenario
         Any scenario: its deployment, links, vehicle models and FMU kind
-        (:func:`orchestrator.running.setup.make_setup`).
+        (:func:`orchestrator.running.systems.make_setup`).
     modes : sequence of str or None
         Estimator modes (None: the scenario's).
     seeds : sequence of int

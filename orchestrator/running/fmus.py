@@ -1,6 +1,6 @@
 """The scenario-to-FMU mapping: the FMUs' configuration, the variable tables of
 ``fmus/README.md`` and the recording's layout (the system a scenario runs and the FMUs it is
-built into: :func:`orchestrator.running.setup.scenario_system`, :func:`~.setup.build`)."""
+built into: :func:`orchestrator.running.systems.scenario_system`, :func:`~.systems.build`)."""
 from __future__ import annotations
 
 from pathlib import Path
