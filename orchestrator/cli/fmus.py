@@ -29,8 +29,9 @@ def cmd_build(args: argparse.Namespace) -> int:
                   "for the stacked deployment's three FMUs)")
         elif not args.no_crosscheck:
             from ..interop.crosscheck import write_crosscheck
-            from ..running import scenario_config
-            written = write_crosscheck(paths, scenario_config(sc), out / "crosscheck")
+            from ..running import scenario_config, scenario_system
+            written = write_crosscheck(paths, scenario_config(sc), out / "crosscheck",
+                                       system=scenario_system(sc))
             print(f"cross-check references (<Model>_in.csv, _ref.csv, _ref.opt) for "
                   f"{', '.join(written)} in {out / 'crosscheck'}")
     return 0
