@@ -39,27 +39,17 @@ def slot_names(S: int, what: str) -> list[str]:
 class AuvVehicleController(Fmi2Slave):
     """u_i from the vehicle's own estimates, its observer of the leader and its neighbours."""
 
-    config_file = "auv_vehicle_controller_config.json"
     step_parameter = "h"
     description = ("Distributed consensus tracking controller of one AUV (cooperative output "
                    "regulation with a distributed observer of the leader; neighbour-only "
                    "information)")
-    author = "auv-cosim"
 
     @staticmethod
     def interface(config: dict[str, Any]) -> list[ArraySpec]:
-        """Parameters (model, cost, leader, offset, gains, slot weights), inputs, outputs.
-
-        Parameters
-        ----------
-        config : dict[str, Any]
-            The build configuration (``dims``, ``system``, ``h``, ``slots``, ``offset``,
-            ``weights``, ``pinning``, ``mu``, ``cohesion``, ``regulator``, ``tracking``).
-
-        Returns
-        -------
-        list[ArraySpec]
-            As the module docstring.
+        """Parameters (model, cost, leader, offset, gains, slot weights), inputs and
+        outputs as the module docstring. Configuration keys (see
+        :meth:`ArraySlave.interface`): ``dims``, ``system``, ``h``, ``slots``, ``offset``,
+        ``weights``, ``pinning``, ``mu``, ``cohesion``, ``regulator``, ``tracking``.
         """
         d = config["dims"]
         n, m, r, p, l_ = d["n"], d["m"], d["r"], d["p"], d["l"]

@@ -78,10 +78,13 @@ def load_config(resources: str | None, filename: str) -> dict[str, Any]:
 class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
     """Base class of the project's slaves (see the module docstring)."""
 
-    #: name of the JSON configuration file in the FMU's resources/
+    #: name of the JSON configuration file in the FMU's resources/; by default the slave
+    #: module's name with ``_slave`` made ``_config.json`` (:meth:`__init_subclass__`)
     config_file: str = ""
     #: name of the parameter that fixes the sample period, if the slave has one
     step_parameter: str | None = None
+    #: the FMUs' author (pythonfmu reads it from the class, its base classes included)
+    author: str = "auv-cosim"
 
     # ------------------------------------------------------------------ hooks
     @staticmethod
@@ -145,8 +148,14 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
     restores_math_from_state: bool = False
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
+        """Whether the subclass checks its evolving vector; and a slave class in a module
+        ``<name>_slave`` reads ``<name>_config.json`` unless it names its own ``config_file``
+        (the name orchestrator.cosim.build ships it under)."""
         super().__init_subclass__(**kwargs)
         cls._checks_state = cls.evolving is not ArraySlave.evolving
+        stem = cls.__module__.rpartition(".")[2]
+        if "config_file" not in cls.__dict__ and stem.endswith("_slave"):
+            cls.config_file = stem.removesuffix("_slave") + "_config.json"
 
     _checks_state = False
 
