@@ -207,17 +207,9 @@ class AuvVehicleController(Fmi2Slave):
         return {"eta": self.eta.copy()}
 
     def restore_model_state(self, state: Any) -> None:
-        """Restore a :meth:`model_state` result.
-
-        Parameters
-        ----------
-        state : Any
-            The dict :meth:`model_state` returned.
-
-        Raises
-        ------
-        ValueError
-            If eta is not a real array of the observer's shape.
+        """Restore a :meth:`model_state` result (the dict it returned), validated first as
+        :meth:`ArraySlave.restore_model_state` asks: ValueError if eta is not a real array
+        of the observer's shape.
         """
         eta = np.asarray(state["eta"])
         if eta.dtype.kind != "f" or eta.shape != self.eta.shape:

@@ -111,20 +111,14 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
     def setup(self) -> None:  # pragma: no cover
         """Build the mathematics from ``self.par`` (called in exitInitializationMode).
 
-        Raises
-        ------
-        NotImplementedError
-            In the base class: every slave supplies its own.
+        Raises NotImplementedError in the base class, as :meth:`interface`.
         """
         raise NotImplementedError
 
     def compute_outputs(self) -> None:  # pragma: no cover
         """Fill the output arrays ``self.io[name]`` from the current inputs.
 
-        Raises
-        ------
-        NotImplementedError
-            In the base class: every slave supplies its own.
+        Raises NotImplementedError in the base class, as :meth:`interface`.
         """
         raise NotImplementedError
 
@@ -476,16 +470,8 @@ class DelegatedStateSlave(ArraySlave):
         return getattr(self, self.math_name).get_state()
 
     def restore_model_state(self, state: Any) -> None:
-        """Restore a :meth:`model_state` result (the mathematics' ``set_state``).
-
-        Parameters
-        ----------
-        state : Any
-            The value :meth:`model_state` returned.
-
-        Raises
-        ------
-        ValueError
-            If the state does not fit this instance (named by the mathematics).
+        """Restore a :meth:`model_state` result (the mathematics' ``set_state``, which
+        validates first: ValueError, named by the mathematics, if the state does not fit
+        this instance).
         """
         getattr(self, self.math_name).set_state(state)

@@ -116,15 +116,8 @@ class AuvVehicle(Fmi2Slave):
     def restore_model_state(self, state: Any) -> None:
         """Restore the plant's state (:meth:`Plant.set_state`) and its outputs.
 
-        Parameters
-        ----------
-        state : Any
-            The dict :meth:`model_state` returned.
-
-        Raises
-        ------
-        ValueError
-            If the state does not fit this vehicle (seed, shapes).
+        ``state`` is the dict :meth:`model_state` returned; ValueError if it does not fit
+        this vehicle (seed, shapes).
         """
         super().restore_model_state(state)
         self._copy()
