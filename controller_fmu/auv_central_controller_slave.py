@@ -26,25 +26,15 @@ def vehicle_inputs(N: int, what: str) -> list[str]:
 class AuvCentralController(Fmi2Slave):
     """u_i = u0 - K [xhat_1; what_1; ...; z]: one vehicle's rows of the stacked law."""
 
-    config_file = "auv_central_controller_config.json"
     description = ("Centralized consensus tracking controller of one AUV: its rows of the "
                    "paper's stacked LQ feedforward-feedback law (all-to-all information)")
-    author = "auv-cosim"
 
     @staticmethod
     def interface(config: dict[str, Any]) -> list[ArraySpec]:
-        """Parameters K, u0; inputs every vehicle's estimates and z; output u.
-
-        Parameters
-        ----------
-        config : dict[str, Any]
-            The build configuration (``dims``, ``vehicles`` N, ``gain``, ``u0``).
-
-        Returns
-        -------
-        list[ArraySpec]
-            K (m x (N n + N r + l)), u0 (m,), inputs vehicle[j].xhat (n,), vehicle[j].what
-            (r,), z (l,); output u (m,), which feeds through from every input.
+        """Parameters K (m x (N n + N r + l)), u0 (m,); inputs vehicle[j].xhat (n,),
+        vehicle[j].what (r,), z (l,); output u (m,), which feeds through from every input.
+        Configuration keys (see :meth:`ArraySlave.interface`): ``dims``, ``vehicles`` N,
+        ``gain``, ``u0``.
         """
         d = config["dims"]
         n, m, r, l_ = d["n"], d["m"], d["r"], d["l"]

@@ -26,26 +26,14 @@ ESTIMATES = ("xhat", "what", "zhat")
 class AuvController(Fmi2Slave):
     """u = -R^-1 B1' (P xhat + P1 zhat + P2 what)."""
 
-    config_file = "auv_controller_config.json"
     description = ("Optimal LQ feedforward-feedback consensus tracking controller "
                    "(Riccati and Sylvester equations) for AUVs with disturbances")
-    author = "auv-cosim"
 
     @staticmethod
     def interface(config: dict[str, Any]) -> list[ArraySpec]:
-        """The controller's FMU interface: model parameters, tracking mode, estimates, u.
-
-        Parameters
-        ----------
-        config : dict[str, Any]
-            The build configuration shipped in resources/ (``dims``, ``system``,
-            ``tracking``, ``fleet``).
-
-        Returns
-        -------
-        list[ArraySpec]
-            Parameters, the inputs xhat (n,), what (r,), zhat (l,) and the output u (m,),
-            which feeds through from the estimates.
+        """Model parameters and tracking mode; the estimates xhat (n,), what (r,), zhat (l,)
+        in; u (m,) out, fed through from the estimates. Configuration keys (see
+        :meth:`ArraySlave.interface`): ``dims``, ``system``, ``tracking``, ``fleet``.
         """
         d = config["dims"]
         n, m, r, l_ = d["n"], d["m"], d["r"], d["l"]

@@ -39,27 +39,17 @@ def slot_names(S: int, what: str) -> list[str]:
 class AuvVehicleController(Fmi2Slave):
     """u_i from the vehicle's own estimates, its observer of the leader and its neighbours."""
 
-    config_file = "auv_vehicle_controller_config.json"
     step_parameter = "h"
     description = ("Distributed consensus tracking controller of one AUV (cooperative output "
                    "regulation with a distributed observer of the leader; neighbour-only "
                    "information)")
-    author = "auv-cosim"
 
     @staticmethod
     def interface(config: dict[str, Any]) -> list[ArraySpec]:
-        """Parameters (model, cost, leader, offset, gains, slot weights), inputs, outputs.
-
-        Parameters
-        ----------
-        config : dict[str, Any]
-            The build configuration (``dims``, ``system``, ``h``, ``slots``, ``offset``,
-            ``weights``, ``pinning``, ``mu``, ``cohesion``, ``regulator``, ``tracking``).
-
-        Returns
-        -------
-        list[ArraySpec]
-            As the module docstring.
+        """Parameters (model, cost, leader, offset, gains, slot weights), inputs and
+        outputs as the module docstring. Configuration keys (see
+        :meth:`ArraySlave.interface`): ``dims``, ``system``, ``h``, ``slots``, ``offset``,
+        ``weights``, ``pinning``, ``mu``, ``cohesion``, ``regulator``, ``tracking``.
         """
         d = config["dims"]
         n, m, r, p, l_ = d["n"], d["m"], d["r"], d["p"], d["l"]
@@ -217,17 +207,9 @@ class AuvVehicleController(Fmi2Slave):
         return {"eta": self.eta.copy()}
 
     def restore_model_state(self, state: Any) -> None:
-        """Restore a :meth:`model_state` result.
-
-        Parameters
-        ----------
-        state : Any
-            The dict :meth:`model_state` returned.
-
-        Raises
-        ------
-        ValueError
-            If eta is not a real array of the observer's shape.
+        """Restore a :meth:`model_state` result (the dict it returned), validated first as
+        :meth:`ArraySlave.restore_model_state` asks: ValueError if eta is not a real array
+        of the observer's shape.
         """
         eta = np.asarray(state["eta"])
         if eta.dtype.kind != "f" or eta.shape != self.eta.shape:

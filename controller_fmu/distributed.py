@@ -387,14 +387,8 @@ def control_input(law: VehicleLaw, xhat: Any, what: Any | None, eta: Any,
 
     Parameters
     ----------
-    law : VehicleLaw
-        The vehicle's design.
-    xhat : Any
-        State estimate, (p,).
-    what : Any or None
-        Disturbance estimate, (r,) (None when r = 0).
-    eta : Any
-        The vehicle's estimate of the leader state, (l,).
+    law, xhat, what, eta
+        As :func:`regulation_error`.
     cohesion : Any or None, optional
         The term of :func:`cohesion_input`, (m,).
 

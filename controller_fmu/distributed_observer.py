@@ -175,14 +175,7 @@ def min_observer_gain(F: Any, LG: Any) -> float:
     Eigenvalues f - mu lambda need Re f - mu Re lambda < 0 for all pairs, i.e.
     mu > max Re f / min Re lambda. Returns 0.0 when max Re f <= 0: for a marginally stable
     F (every leader path of :mod:`plant_model.leader`) any mu > 0 works; for a Hurwitz F
-    even mu = 0 does. The inequality is strict.
-
-    Parameters
-    ----------
-    F : Any
-        Leader exosystem, l x l, 1/s.
-    LG : Any
-        L + G, N x N.
+    even mu = 0 does. The inequality is strict. F and LG as :func:`observer_error_matrix`.
 
     Returns
     -------
@@ -197,14 +190,7 @@ def min_observer_gain(F: Any, LG: Any) -> float:
 def check_observer_gain(F: Any, LG: Any, mu: float) -> float:
     """Refuse an observer gain mu for which the continuous observer does not converge.
 
-    Parameters
-    ----------
-    F : Any
-        Leader exosystem, l x l, 1/s.
-    LG : Any
-        L + G, N x N.
-    mu : float
-        Observer gain, 1/s.
+    Parameters as :func:`observer_error_matrix`.
 
     Returns
     -------
@@ -369,18 +355,8 @@ def _phi1(z: np.ndarray) -> np.ndarray:
 def sampled_observer_eigenvalues(F: Any, lam: complex, h: float, mu: float) -> np.ndarray:
     """Eigenvalues phi_f - mu lambda gam_f of the block Phi - mu lambda Gam_F.
 
-    Exact (also for a defective F: the block is an analytic function of F).
-
-    Parameters
-    ----------
-    F : Any
-        Leader exosystem, l x l, 1/s.
-    lam : complex
-        An eigenvalue of L + G.
-    h : float
-        Communication step, s.
-    mu : float
-        Observer gain, 1/s.
+    Exact (also for a defective F: the block is an analytic function of F). F, h and mu
+    as :func:`sampled_observer`; ``lam`` (complex) an eigenvalue of L + G.
 
     Returns
     -------
@@ -398,16 +374,8 @@ def sampled_observer_gain_range(F: Any, LG: Any, h: float) -> tuple[float, float
     c = lambda gam_f, i.e. |c|^2 mu^2 - 2 mu Re(conj(phi) c) + |phi|^2 - 1 < 0: an interval
     between the two roots; the answer is the intersection (mu_lo >= 0). For a marginally
     stable F, mu_lo = 0 (any small mu > 0 works), and mu_hi is about 2 Re lambda /
-    (|lambda|^2 h) for the worst lambda.
-
-    Parameters
-    ----------
-    F : Any
-        Leader exosystem, l x l, 1/s.
-    LG : Any
-        L + G, N x N.
-    h : float
-        Communication step, s.
+    (|lambda|^2 h) for the worst lambda. F and LG as :func:`observer_error_matrix`, the
+    communication step h (s) as :func:`sampled_observer`.
 
     Returns
     -------
@@ -442,16 +410,8 @@ def sampled_observer_gain_range(F: Any, LG: Any, h: float) -> tuple[float, float
 def check_sampled_observer(F: Any, LG: Any, h: float, mu: float) -> float:
     """Refuse an observer gain for which the sampled observer does not converge.
 
-    Parameters
-    ----------
-    F : Any
-        Leader exosystem, l x l, 1/s.
-    LG : Any
-        L + G, N x N.
-    h : float
-        Communication step, s.
-    mu : float
-        Observer gain, 1/s.
+    F, LG and mu as :func:`observer_error_matrix`, the communication step h (s) as
+    :func:`sampled_observer`.
 
     Returns
     -------

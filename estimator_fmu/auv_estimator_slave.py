@@ -26,28 +26,15 @@ MEASUREMENTS = ("y", "ybar", "x", "w", "z")
 class AuvEstimator(Fmi2Slave):
     """Steady-state Kalman filters on [x; w] and z, or the classical / ideal estimates."""
 
-    config_file = "auv_estimator_config.json"
-    step_parameter = "h"
     description = ("State estimator for the AUV tracking law: steady-state Kalman filters "
                    "(current-estimator form), the paper's classical law, or the true state")
-    author = "auv-cosim"
 
     @staticmethod
     def interface(config: dict[str, Any]) -> list[ArraySpec]:
-        """The estimator's FMU interface: model parameters, h, noise convention, mode, I/O.
-
-        Parameters
-        ----------
-        config : dict[str, Any]
-            The build configuration shipped in resources/ (``dims``, ``system``, ``h``,
-            ``mode``, ``fleet``).
-
-        Returns
-        -------
-        list[ArraySpec]
-            Parameters, the inputs y, ybar (p,), x (n,), w (r,), z (l,), u (m,) and the
-            outputs xhat (n,), what (r,), zhat (l,), which feed through from the
-            measurements.
+        """Model parameters, h, noise convention, mode; the inputs y, ybar (p,), x (n,),
+        w (r,), z (l,), u (m,); the outputs xhat (n,), what (r,), zhat (l,), which feed
+        through from the measurements. Configuration keys (see
+        :meth:`ArraySlave.interface`): ``dims``, ``system``, ``h``, ``mode``, ``fleet``.
         """
         d = config["dims"]
         n, m, r, p, l_ = d["n"], d["m"], d["r"], d["p"], d["l"]

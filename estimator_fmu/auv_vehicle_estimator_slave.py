@@ -30,26 +30,15 @@ MEASUREMENTS = ("y", "x", "w")
 class AuvVehicleEstimator(Fmi2Slave):
     """One vehicle's steady-state Kalman filter on [x; w] from its own y (or the truth)."""
 
-    config_file = "auv_vehicle_estimator_config.json"
-    step_parameter = "h"
     description = ("Estimator of one AUV (per-vehicle deployment): steady-state Kalman filter "
                    "on the vehicle and its ocean current from its own position fixes")
-    author = "auv-cosim"
 
     @staticmethod
     def interface(config: dict[str, Any]) -> list[ArraySpec]:
-        """The estimator's FMU interface: model parameters, h, noise convention, mode, I/O.
-
-        Parameters
-        ----------
-        config : dict[str, Any]
-            The build configuration (``dims``, ``system``, ``h``, ``mode``).
-
-        Returns
-        -------
-        list[ArraySpec]
-            Parameters, the inputs y (p,), x (n,), w (r,), u (m,) and the outputs xhat (n,),
-            what (r,), which feed through from the measurements.
+        """The vehicle's parameters, h, noise convention, mode; y (p,) (or the navigation
+        sensors), x (n,), w (r,), u (m,) in; xhat (n,), what (r,) out, fed through from the
+        measurements. Configuration keys (see :meth:`ArraySlave.interface`): ``dims``,
+        ``system``, ``h``, ``mode``.
         """
         d = config["dims"]
         n, m, r, p = d["n"], d["m"], d["r"], d["p"]

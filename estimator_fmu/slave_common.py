@@ -18,6 +18,8 @@ __all__ = ["EstimatorSlave"]
 class EstimatorSlave(DelegatedStateSlave):
     """est[k] = Ce q[k] + Dm mvec[k] (direct feedthrough), q[k+1] = Aq est[k] + Bu u[k]."""
 
+    step_parameter = "h"
+
     math_name = "estimator"
     evolving_name = "q"
 

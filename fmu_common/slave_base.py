@@ -78,10 +78,13 @@ def load_config(resources: str | None, filename: str) -> dict[str, Any]:
 class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
     """Base class of the project's slaves (see the module docstring)."""
 
-    #: name of the JSON configuration file in the FMU's resources/
+    #: name of the JSON configuration file in the FMU's resources/; by default the slave
+    #: module's name with ``_slave`` made ``_config.json`` (:meth:`__init_subclass__`)
     config_file: str = ""
     #: name of the parameter that fixes the sample period, if the slave has one
     step_parameter: str | None = None
+    #: the FMUs' author (pythonfmu reads it from the class, its base classes included)
+    author: str = "auv-cosim"
 
     # ------------------------------------------------------------------ hooks
     @staticmethod
@@ -108,20 +111,14 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
     def setup(self) -> None:  # pragma: no cover
         """Build the mathematics from ``self.par`` (called in exitInitializationMode).
 
-        Raises
-        ------
-        NotImplementedError
-            In the base class: every slave supplies its own.
+        Raises NotImplementedError in the base class, as :meth:`interface`.
         """
         raise NotImplementedError
 
     def compute_outputs(self) -> None:  # pragma: no cover
         """Fill the output arrays ``self.io[name]`` from the current inputs.
 
-        Raises
-        ------
-        NotImplementedError
-            In the base class: every slave supplies its own.
+        Raises NotImplementedError in the base class, as :meth:`interface`.
         """
         raise NotImplementedError
 
@@ -145,8 +142,14 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
     restores_math_from_state: bool = False
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
+        """Whether the subclass checks its evolving vector; and a slave class in a module
+        ``<name>_slave`` reads ``<name>_config.json`` unless it names its own ``config_file``
+        (the name orchestrator.cosim.build ships it under)."""
         super().__init_subclass__(**kwargs)
         cls._checks_state = cls.evolving is not ArraySlave.evolving
+        stem = cls.__module__.rpartition(".")[2]
+        if "config_file" not in cls.__dict__ and stem.endswith("_slave"):
+            cls.config_file = stem.removesuffix("_slave") + "_config.json"
 
     _checks_state = False
 
@@ -467,16 +470,8 @@ class DelegatedStateSlave(ArraySlave):
         return getattr(self, self.math_name).get_state()
 
     def restore_model_state(self, state: Any) -> None:
-        """Restore a :meth:`model_state` result (the mathematics' ``set_state``).
-
-        Parameters
-        ----------
-        state : Any
-            The value :meth:`model_state` returned.
-
-        Raises
-        ------
-        ValueError
-            If the state does not fit this instance (named by the mathematics).
+        """Restore a :meth:`model_state` result (the mathematics' ``set_state``, which
+        validates first: ValueError, named by the mathematics, if the state does not fit
+        this instance).
         """
         getattr(self, self.math_name).set_state(state)

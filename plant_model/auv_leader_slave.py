@@ -28,25 +28,13 @@ LEADER_PARAMETERS = ("F", "z0", "W_z")
 class AuvLeader(Fmi2Slave):
     """The virtual leader: a reference exosystem (a planned survey path or a noisy one)."""
 
-    config_file = "auv_leader_config.json"
-    step_parameter = "h"
     description = ("Virtual leader of an AUV fleet (per-vehicle deployment): the reference "
                    "exosystem z' = F z + m_z, exactly sampled")
-    author = "auv-cosim"
 
     @staticmethod
     def interface(config: dict[str, Any]) -> list[ArraySpec]:
-        """The leader's FMU interface: F, z0, W_z, h, seed, noise convention; output z.
-
-        Parameters
-        ----------
-        config : dict[str, Any]
-            The build configuration (``dims``, ``system``, ``h``, ``seed``).
-
-        Returns
-        -------
-        list[ArraySpec]
-            Parameters and the output z (l,).
+        """F, z0, W_z, h, seed and noise convention; the output z (l,). Configuration keys
+        (see :meth:`ArraySlave.interface`): ``dims``, ``system``, ``h``, ``seed``.
         """
         return system_parameter_specs(config, LEADER_PARAMETERS) + [
             sample_period_spec(config, "sample period the leader is discretized for"),

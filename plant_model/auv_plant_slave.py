@@ -28,27 +28,14 @@ PLANT_PARAMETERS = ("A", "B1", "B2", "C", "F", "H", "K", "x0", "w0", "z0",
 class AuvPlant(Fmi2Slave):
     """Vehicles, disturbance and reference exosystems and noisy sensors, sampled at h."""
 
-    config_file = "auv_plant_config.json"
-    step_parameter = "h"
     description = ("AUV consensus tracking plant (Yuan, Zhang, Zhou): linear vehicles, "
                    "disturbance and reference exosystems, noisy sensors; exact sampling")
-    author = "auv-cosim"
 
     @staticmethod
     def interface(config: dict[str, Any]) -> list[ArraySpec]:
-        """The plant's FMU interface: model parameters, h, seed, noise convention, u, outputs.
-
-        Parameters
-        ----------
-        config : dict[str, Any]
-            The build configuration shipped in resources/ (``dims``, ``system``, ``h``,
-            ``seed``, ``fleet``).
-
-        Returns
-        -------
-        list[ArraySpec]
-            Parameters, the input u (m,) and the outputs y, ybar (p,), x (n,), w (r,),
-            z (l,), e (p,).
+        """Model parameters, h, seed, noise convention; the input u (m,); the outputs y,
+        ybar (p,), x (n,), w (r,), z (l,), e (p,). Configuration keys (see
+        :meth:`ArraySlave.interface`): ``dims``, ``system``, ``h``, ``seed``, ``fleet``.
         """
         d = config["dims"]
         n, m, r, p, l_ = d["n"], d["m"], d["r"], d["p"], d["l"]

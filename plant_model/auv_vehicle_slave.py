@@ -40,25 +40,14 @@ VEHICLE_PARAMETERS = ("A", "B1", "B2", "C", "K", "x0", "w0", "W_x", "W_w", "V_y"
 class AuvVehicle(Fmi2Slave):
     """One AUV: its dynamics, its ocean current and its position sensor, sampled at h."""
 
-    config_file = "auv_vehicle_config.json"
-    step_parameter = "h"
     description = ("One AUV of a fleet (per-vehicle deployment): linear vehicle, its own "
                    "ocean current, noisy position sensor, its own noise stream; exact sampling")
-    author = "auv-cosim"
 
     @staticmethod
     def interface(config: dict[str, Any]) -> list[ArraySpec]:
-        """The vehicle's FMU interface: model parameters, h, seed, vehicle number, u, outputs.
-
-        Parameters
-        ----------
-        config : dict[str, Any]
-            The build configuration (``dims``, ``system``, ``h``, ``seed``, ``vehicle``).
-
-        Returns
-        -------
-        list[ArraySpec]
-            Parameters, the input u (m,) and the outputs y (p,), x (n,), w (r,).
+        """One vehicle's model parameters, h, seed and number; u (m,) in; y (p,), x (n,),
+        w (r,) out. Configuration keys (see :meth:`ArraySlave.interface`): ``dims``,
+        ``system``, ``h``, ``seed``, ``vehicle``.
         """
         d = config["dims"]
         n, m, r, p = d["n"], d["m"], d["r"], d["p"]
@@ -127,15 +116,8 @@ class AuvVehicle(Fmi2Slave):
     def restore_model_state(self, state: Any) -> None:
         """Restore the plant's state (:meth:`Plant.set_state`) and its outputs.
 
-        Parameters
-        ----------
-        state : Any
-            The dict :meth:`model_state` returned.
-
-        Raises
-        ------
-        ValueError
-            If the state does not fit this vehicle (seed, shapes).
+        ``state`` is the dict :meth:`model_state` returned; ValueError if it does not fit
+        this vehicle (seed, shapes).
         """
         super().restore_model_state(state)
         self._copy()

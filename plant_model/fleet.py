@@ -168,12 +168,8 @@ def fleet_graph(spec: Mapping[str, Any]) -> CommunicationGraph:
     Returns
     -------
     CommunicationGraph
-        The validated graph.
-
-    Raises
-    ------
-    ModelError
-        As :func:`plant_model.graph.communication_graph`.
+        :func:`plant_model.graph.communication_graph` of the spec's edges and pinning
+        (its ModelError if they do not make a valid graph).
     """
     g = spec.get("graph", {})
     return communication_graph(len(spec["vehicles"]), g.get("edges", []), g.get("pinning", []))
@@ -384,21 +380,8 @@ def resolve_fleet_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
 
     Model parameters, x0, offset, current and coupling are filled in, so that an FMU can
     expose all of them as parameters with their values; edges and pinning are normalized.
-
-    Parameters
-    ----------
-    spec : Mapping[str, Any]
-        The fleet spec (module docstring).
-
-    Returns
-    -------
-    dict[str, Any]
-        A new, JSON-ready spec.
-
-    Raises
-    ------
-    ModelError
-        If the spec is invalid.
+    ``spec`` is the fleet spec of the module docstring; the result a new, JSON-ready spec.
+    Raises ModelError if the spec is invalid.
     """
     import copy
     new = copy.deepcopy(dict(spec))

@@ -116,30 +116,15 @@ class LeaderPath:
     def position(self, t: Any) -> np.ndarray:
         """Leader position H expm(F t) z0, shape (len(t), s), in m (NED).
 
-        Parameters
-        ----------
-        t : Any
-            Time or 1-D array of times, s.
-
-        Returns
-        -------
-        np.ndarray
-            Positions, shape (len(t), s), m.
+        ``t`` and the errors as :meth:`state`; returns the positions, shape (len(t), s), m.
         """
         return self.state(t) @ self.H.T
 
     def velocity(self, t: Any) -> np.ndarray:
         """Leader velocity H F expm(F t) z0, shape (len(t), s), in m/s (NED).
 
-        Parameters
-        ----------
-        t : Any
-            Time or 1-D array of times, s.
-
-        Returns
-        -------
-        np.ndarray
-            Velocities, shape (len(t), s), m/s.
+        ``t`` and the errors as :meth:`state`; returns the velocities, shape (len(t), s),
+        m/s.
         """
         return self.state(t) @ self.velocity_matrix().T
 

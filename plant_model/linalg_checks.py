@@ -79,24 +79,9 @@ def as_matrix(name: str, value: Any, shape: Sequence[int | None] | None = None) 
 def as_vector(name: str, value: Any, length: int | None = None) -> np.ndarray:
     """Return ``value`` as a finite 1-D float array of the given length.
 
-    Parameters
-    ----------
-    name : str
-        The vector's name in error messages.
-    value : Any
-        A list, an array or a scalar (a vector of length 1).
-    length : int or None, optional
-        Expected length; None: any length.
-
-    Returns
-    -------
-    np.ndarray
-        A float copy, 1-D.
-
-    Raises
-    ------
-    ModelError
-        If ``value`` is not numeric, not 1-D, of the wrong length or not finite.
+    As :func:`as_matrix` for a vector: ``value`` a list, an array or a scalar (a vector of
+    length 1), ``length`` the expected length (None: any); returns a 1-D float copy; raises
+    ModelError if ``value`` is not numeric, not 1-D, of the wrong length or not finite.
     """
     try:
         arr = np.array(value, dtype=float)
@@ -165,19 +150,9 @@ def check_symmetric_psd(name: str, M: np.ndarray, *, definite: bool = False) -> 
 
 
 def check_symmetric_pd(name: str, M: np.ndarray) -> None:
-    """Require ``M`` symmetric positive definite.
-
-    Parameters
-    ----------
-    name : str
-        The matrix's name in error messages.
-    M : np.ndarray
-        Square matrix.
-
-    Raises
-    ------
-    ModelError
-        If ``M`` is not symmetric or not positive definite.
+    """Require ``M`` symmetric positive definite: :func:`check_symmetric_psd` with
+    ``definite=True`` (its parameters; ModelError if ``M`` is not symmetric or not positive
+    definite).
     """
     check_symmetric_psd(name, M, definite=True)
 
@@ -248,21 +223,9 @@ def unobservable_modes(A: np.ndarray, C: np.ndarray, *, only_unstable: bool = Tr
                        continuous: bool = True) -> list[complex]:
     """Eigenvalues lambda of A where rank [A - lambda I; C] < n (PBH test).
 
-    Parameters
-    ----------
-    A : np.ndarray
-        State matrix, n x n.
-    C : np.ndarray
-        Output matrix, p x n.
-    only_unstable : bool, optional
-        Report only the modes that are not asymptotically stable.
-    continuous : bool, optional
-        Stability in continuous time (Re lambda < 0) rather than discrete (|lambda| < 1).
-
-    Returns
-    -------
-    list[complex]
-        The unobservable (unstable) eigenvalues.
+    Parameters as :func:`uncontrollable_modes`, with the output matrix C (p x n) in place
+    of B; returns the unobservable (unstable) eigenvalues, the uncontrollable ones of
+    (A', C').
     """
     return uncontrollable_modes(A.T, C.T, only_unstable=only_unstable, continuous=continuous)
 
@@ -324,7 +287,7 @@ def as_positive(name: str, value: Any, unit: str) -> float:
     Returns
     -------
     float
-        ``float(value)``.
+        The number, checked by :func:`as_number` (booleans are refused).
 
     Raises
     ------
@@ -340,24 +303,8 @@ def as_positive(name: str, value: Any, unit: str) -> float:
 def as_nonnegative(name: str, value: Any, unit: str) -> float:
     """A finite float >= 0 (``unit`` only for the message).
 
-    Parameters
-    ----------
-    name : str
-        The quantity's name in error messages.
-    value : Any
-        A number.
-    unit : str
-        Its unit, for the message.
-
-    Returns
-    -------
-    float
-        ``float(value)``.
-
-    Raises
-    ------
-    ModelError
-        If ``value`` is not a finite number or is negative.
+    Parameters and returns as :func:`as_positive`; raises ModelError if ``value`` is not a
+    finite number or is negative.
     """
     x = as_number(name, value)
     if x < 0.0:

@@ -77,6 +77,8 @@ def vehicle_view(slave: Any, names: tuple[str, ...]) -> LinearSystem:
 class PlantSlave(DelegatedStateSlave):
     """Outputs kept current by ``self.plant``; a step is ``self.plant.step(self._u)``."""
 
+    step_parameter = "h"
+
     def plant_native_form(self, s0: Any, rows: Any) -> NativeForm:
         """The linear plant ``self.model`` started at ``s0`` as a native form, its outputs
         the rows ``rows`` of the plant's output vector (its noise: the stream of ``seed``).

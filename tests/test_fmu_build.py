@@ -143,3 +143,13 @@ def test_concurrent_builds_into_one_folder_leave_whole_fmus(tmp_path):
             with zipfile.ZipFile(f) as z:
                 assert z.testzip() is None, f
             assert validate_fmu(str(f)) == [], f
+
+
+@pytest.mark.parametrize("name", sorted(FMU_KINDS))
+def test_slave_reads_the_configuration_file_the_build_ships(name):
+    import importlib
+
+    kind = FMU_KINDS[name]
+    slave = getattr(importlib.import_module(kind.module), kind.model)
+    assert slave.config_file == kind.config_file
+    assert slave.author == "auv-cosim"

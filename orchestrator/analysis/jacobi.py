@@ -35,16 +35,8 @@ def jacobi_closed_loop(model: DiscreteModel, est: LinearEstimator,
         EST[k+1] = Ce q[k+1] + Dm mvec[k]
         U[k+1]   = -Ks EST[k]
 
-    u[k] = U[k] is the control the plant holds over step k; e[k] = E s[k].
-
-    Parameters
-    ----------
-    model : DiscreteModel
-        The plant sampled at the communication step h.
-    est : LinearEstimator
-        The estimator (its Ce, Dm, Aq, Bu, q0).
-    Ks : np.ndarray
-        Control gain, u = -Ks est, m x (n + r + l).
+    u[k] = U[k] is the control the plant holds over step k; e[k] = E s[k]. Parameters as
+    :func:`orchestrator.analysis.prediction.closed_loop`.
 
     Returns
     -------

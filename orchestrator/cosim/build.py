@@ -376,10 +376,8 @@ def cached_fmu(kind: FmuKind, config: dict[str, Any], cache: Path | None = None)
 
     Parameters
     ----------
-    kind : FmuKind
-        Which slave.
-    config : dict[str, Any]
-        The FMU's configuration.
+    kind, config
+        As :func:`build_key`.
     cache : Path or None, optional
         The cache folder; default :func:`fmu_cache_dir`.
 

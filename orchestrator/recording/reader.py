@@ -177,28 +177,9 @@ def _lengths(arr: pa.Array) -> np.ndarray:
 def read_rrd_points(path: str | Path, entity: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Read the temporal ``Points3D`` positions of one entity (e.g. ``world/kalman/vehicles``).
 
-    Parameters
-    ----------
-    path : str or Path
-        The .rrd file.
-    entity : str
-        Entity path.
-
-    Returns
-    -------
-    step : np.ndarray
-        Step index of each row, int64, sorted.
-    sim_time : np.ndarray
-        Simulation time of each row, int64 nanoseconds.
-    positions : np.ndarray
-        float32 of shape (rows, n, 3), m (NED).
-
-    Raises
-    ------
-    KeyError
-        If the entity has no positions.
-    ValueError
-        If rows hold different numbers of points.
+    Parameters and returns as :func:`read_rrd_series` (step, sim_time sorted by step), the
+    third array the positions, float32 of shape (rows, n, 3), m (NED). KeyError if the
+    entity has no positions, ValueError if rows hold different numbers of points.
     """
     step, sim_time, pieces = _entity_rows(path, entity, "Points3D:positions")
     rows = []
@@ -216,28 +197,9 @@ def read_rrd_line_strips(path: str | Path,
                          entity: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Read the temporal ``LineStrips3D`` strips of one entity (e.g. ``world/kalman/edges``).
 
-    Parameters
-    ----------
-    path : str or Path
-        The .rrd file.
-    entity : str
-        Entity path.
-
-    Returns
-    -------
-    step : np.ndarray
-        Step index of each row, int64, sorted.
-    sim_time : np.ndarray
-        Simulation time of each row, int64 nanoseconds.
-    strips : np.ndarray
-        float32 of shape (rows, strips per row, points per strip, 3), m (NED).
-
-    Raises
-    ------
-    KeyError
-        If the entity has no strips.
-    ValueError
-        If the rows are ragged.
+    Parameters and returns as :func:`read_rrd_series` (step, sim_time sorted by step), the
+    third array the strips, float32 of shape (rows, strips per row, points per strip, 3),
+    m (NED). KeyError if the entity has no strips, ValueError if the rows are ragged.
     """
     step, sim_time, pieces = _entity_rows(path, entity, "LineStrips3D:strips")
     rows = []
@@ -263,12 +225,8 @@ def _unpack_rgba(packed: int) -> tuple[int, int, int, int]:
 def read_rrd_series_lines(
         path: str | Path,
 ) -> dict[str, tuple[tuple[str, ...], tuple[tuple[int, int, int, int], ...]]]:
-    """Static series styles of a .rrd, every line: names and RGBA colours per entity.
-
-    Parameters
-    ----------
-    path : str or Path
-        The .rrd file.
+    """Static series styles of the .rrd file ``path``, every line: names and RGBA colours
+    per entity.
 
     Returns
     -------

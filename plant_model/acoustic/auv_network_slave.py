@@ -84,28 +84,18 @@ def _finite(name: str, value: np.ndarray) -> np.ndarray:
 class AuvNetwork(Fmi2Slave):
     """One vehicle's acoustic inbox: neighbour and leader links with latency and loss."""
 
-    config_file = "auv_network_config.json"
     step_parameter = "h"
     math_name = "inbox"
     evolving_name = "s"
     description = ("Acoustic modem inbox of one AUV: the links it hears (message schedule, "
                    "latency, independent losses), the receiver holding or propagating the "
                    "newest message")
-    author = "auv-cosim"
 
     @staticmethod
     def interface(config: dict[str, Any]) -> list[ArraySpec]:
-        """Per link: timing, loss, key, M, rx0; tx inputs; rx and statistics outputs.
-
-        Parameters
-        ----------
-        config : dict[str, Any]
-            The build configuration (:func:`link_layout`, ``h``, ``seed``).
-
-        Returns
-        -------
-        list[ArraySpec]
-            Parameters, inputs and outputs of every link, then h and seed.
+        """Per link: timing, loss, key, M, rx0; tx inputs; rx and statistics outputs; then
+        h and seed. Configuration keys (see :meth:`ArraySlave.interface`): those of
+        :func:`link_layout`, ``h``, ``seed``.
         """
         specs = []
         for p, label, fields, st in link_layout(config):

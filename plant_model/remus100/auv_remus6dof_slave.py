@@ -53,28 +53,16 @@ _UNITS = {"L": "m", "diam": "m", "rho": "kg/m3", "T_surge": "s", "T_sway": "s", 
 class AuvRemus6dof(Fmi2Slave):
     """One nonlinear 6-DOF REMUS 100 with its autopilots, current and position sensor."""
 
-    config_file = "auv_remus6dof_config.json"
-    step_parameter = "h"
     description = ("One nonlinear 6-DOF REMUS 100 (per-vehicle deployment): NED force in, "
                    "autopilots to rpm, rudder and stern planes, RK4 sub-steps; its own "
                    "ocean current and noisy position sensor")
-    author = "auv-cosim"
 
     @staticmethod
     def interface(config: dict[str, Any]) -> list[ArraySpec]:
         """Parameters (the linear design model, the vehicle's data, the autopilot gains,
-        the sub-step), the input u (3) and the outputs.
-
-        Parameters
-        ----------
-        config : dict[str, Any]
-            The build configuration (``dims``, ``system``, ``h``, ``seed``, ``vehicle``,
-            ``remus``: {field: value}, ``autopilot``: {gain: value}, ``substep``).
-
-        Returns
-        -------
-        list[ArraySpec]
-            Every array of the interface.
+        the sub-step), the input u (3) and the outputs. Configuration keys (see
+        :meth:`ArraySlave.interface`): ``dims``, ``system``, ``h``, ``seed``, ``vehicle``,
+        ``remus`` ({field: value}), ``autopilot`` ({gain: value}), ``substep``.
         """
         remus = {**{f: getattr(Remus100(), f) for f in REMUS_FIELDS},
                  **config.get("remus", {})}
