@@ -83,8 +83,7 @@ def scenario_of(args: argparse.Namespace) -> Scenario:
                        tracking=getattr(args, "tracking", None),
                        deployment=getattr(args, "deployment", None),
                        architecture=getattr(args, "architecture", None),
-                       fmus=fmus if isinstance(fmus := getattr(args, "fmus", None), str)
-                       else None,              # validate's positional FMU files are a list
+                       fmus=getattr(args, "fmus", None),
                        network={k: v for k in ("latency", "period", "loss", "receiver")
                                 if (v := getattr(args, k, None)) is not None})
 

@@ -78,9 +78,9 @@ def cmd_validate(args: argparse.Namespace) -> int:
     from fmpy.validation import validate_fmu
 
     from ..running import build
-    if args.fmus:
+    if args.fmu_files:
         import zipfile
-        paths = {p.stem: p for p in (Path(x) for x in args.fmus)}
+        paths = {p.stem: p for p in (Path(x) for x in args.fmu_files)}
         missing = [str(p) for p in paths.values() if not p.is_file()]
         if missing:
             raise UsageError(f"FMU file(s) not found: {', '.join(missing)}")
@@ -135,5 +135,6 @@ def add_validate(sub: argparse._SubParsersAction) -> None:
     """The ``validate`` command's sub-parser."""
     sp = sub.add_parser("validate", help="fmpy validate the FMUs (built afresh, or given)")
     add_scenario_options(sp, run=False)
-    sp.add_argument("fmus", nargs="*", help=".fmu files to validate instead of building")
+    sp.add_argument("fmu_files", metavar="fmus", nargs="*",
+                    help=".fmu files to validate instead of building")
     sp.set_defaults(func=cmd_validate)

@@ -184,8 +184,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
         if per_seed and formation is not None:
             entry.update(formation_summary([st["formation"] for st in per_seed],
                                            list(seeds[:len(per_seed)])))
-            if all("segments" in st for st in per_seed):
-                entry.update(segment_summary([st["segments"] for st in per_seed]))
+            entry.update(segment_summary([st["segments"] for st in per_seed]))
         entry.update(setup.method_entries(method, link_ages, k0))
         if per_seed and pred.window_from_start is not None:
             entry["cost_rate"]["predicted_window"] = pred.window_from_start.cost_rate

@@ -30,6 +30,10 @@ from ..scenario.variants import with_keys
 __all__ = ["envelope_params", "envelope_point", "envelope_spec", "run_envelope"]
 
 
+#: the run settings a point carries over from the scenario it varies
+RUN_KEYS = ("T", "h", "estimator", "tracking", "deployment", "architecture", "fmus")
+
+
 def envelope_params(sc: Scenario, speed: float, radius: float, current: float
                     ) -> dict[str, Any]:
     """The keys one grid point sets on the scenario (:func:`orchestrator.scenario.variants.
@@ -50,10 +54,6 @@ def envelope_params(sc: Scenario, speed: float, radius: float, current: float
     if sc.network is not None:
         out["network"] = dict(sc.network)
     return out
-
-
-#: the run settings a point carries over from the scenario it varies
-RUN_KEYS = ("T", "h", "estimator", "tracking", "deployment", "architecture", "fmus")
 
 
 def envelope_point(sc: Scenario, speed: float, radius: float, current: float) -> Scenario:

@@ -213,9 +213,9 @@ class RunSetup:
     def fmu_report(self, method: Method) -> dict[str, dict[str, Any]]:
         """Per FMU key of ``method``: its path, size and which kind ran ("python" for a
         pythonfmu slave, "native" for a compiled one)."""
-        native = (set() if self.sc.fmus != "native" else
-                  {c.fmu for c in self._native_system(method).system.components
-                   if c.name in self._native_system(method).forms})
+        ns = self._native_system(method) if self.sc.fmus == "native" else None
+        native = set() if ns is None else {c.fmu for c in ns.system.components
+                                           if c.name in ns.forms}
         return {k: {"path": str(p), "bytes": Path(p).stat().st_size,
                     "kind": "native" if k in native else "python"}
                 for k, p in self.fmus(method).items()}
