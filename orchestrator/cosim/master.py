@@ -46,8 +46,8 @@ from .checks import connection_problems, fmu_variables
 from .instance import CosimError, Extracted, FmuInstance
 from .system import SystemDescription, closed_loop_system, evaluation_order
 
-__all__ = ["COUPLINGS", "CosimError", "RunResult", "StepPlan", "compile_plan", "plan_steps",
-           "run_system", "run_cosimulation"]
+__all__ = ["COUPLINGS", "CosimError", "RunResult", "StepPlan", "compile_plan",
+           "initial_reads", "plan_steps", "run_system", "run_cosimulation"]
 
 #: how the master couples the FMUs within a step (see the module docstring)
 COUPLINGS = ("gauss-seidel", "jacobi")
@@ -285,15 +285,24 @@ def compile_plan(plan: StepPlan) -> tuple[Callable[[int, int, float, int], None]
     return ns["run"], src
 
 
+def initial_reads(plan: StepPlan) -> None:
+    """Jacobi: read the outputs at t = 0 into row 0 (the plan's ``after`` calls).
+
+    Raises
+    ------
+    CosimError
+        If a call fails (named, at t = 0.0 s).
+    """
+    for fn, c, vr, n, base, _, who, what, _ in plan.after:
+        st = fn(c, vr, n, base)
+        if st:
+            raise who.fail(f"{what} at t = 0.0 s", st)
+
+
 def _step_loop(plan: StepPlan, steps: int, h: float, bar: Any, stop: Any = None) -> int:
     """Run ``steps`` macro steps of the plan (t = k h) in chunks of 200 (progress bar,
     ``stop`` checked between chunks); returns the number of steps run."""
     run, _ = compile_plan(plan)
-    if plan.after:                              # Jacobi: the outputs at t = 0 first
-        for fn, c, vr, n, base, _, who, what, _ in plan.after:
-            st = fn(c, vr, n, base)
-            if st:
-                raise who.fail(f"{what} at t = 0.0 s", st)
     chunk = 200
     for k0 in range(0, steps, chunk):
         if stop:
@@ -306,8 +315,8 @@ def _step_loop(plan: StepPlan, steps: int, h: float, bar: Any, stop: Any = None)
 
 def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, *,
                coupling: str = "gauss-seidel", progress: Any = False,
-               instance_suffix: str = "",
-               stop: Any = None) -> tuple[dict[str, np.ndarray], float, dict[str, Any]]:
+               instance_suffix: str = "", stop: Any = None,
+               master: str = "auto") -> tuple[dict[str, np.ndarray], float, dict[str, Any]]:
     """Co-simulate ``system`` for ``steps`` communication steps of ``system.h``.
 
     Parameters
@@ -326,8 +335,13 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
     instance_suffix : str, optional
         Appended to each component's name to make its FMI instance name.
     stop : StopFlag, optional
-        Checked every 200 steps (:mod:`orchestrator.interrupt`): once true, the run ends
-        there and keeps the steps simulated.
+        Checked every 200 steps by the Python master, before every step by the compiled
+        one (:mod:`orchestrator.interrupt`): once true, the run ends there and keeps the
+        steps simulated.
+    master : str, optional
+        ``python`` (this module's loop, the reference), ``native`` (the same plan in C,
+        :mod:`orchestrator.cosim.native_master`) or ``auto`` (native when every component
+        is a native FMU and a C compiler is present, else python).
 
     Returns
     -------
@@ -337,13 +351,16 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
     loop_s : float
         Seconds spent in the step loop.
     info : dict[str, Any]
-        ``order`` (the evaluation order), ``calls_per_step``, ``steps_done`` and
-        ``interrupted_by`` (the signal's name, or None).
+        ``order`` (the evaluation order), ``calls_per_step``, ``steps_done``,
+        ``interrupted_by`` (the signal's name, or None), ``master`` (``native`` or
+        ``python``) and ``master_reason``.
 
     Raises
     ------
     ValueError
-        If the coupling is unknown.
+        If the coupling or the master is unknown.
+    NativeBuildError
+        ``master="native"`` and the compiled master cannot be built.
     CosimError
         If an FMU is missing, the system does not match its FMUs or an FMI call fails.
     """
@@ -366,6 +383,9 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
         if problems:
             raise CosimError(f"system {system.name!r} does not match its FMUs: "
                              + "; ".join(problems))
+        from .native_master import choose_master, run_native_loop
+        chosen, reason = choose_master(master, {c.name: mds[c.fmu]
+                                                for c in system.components})
         for comp in system.components:
             inst[comp.name] = FmuInstance(comp.name, fmus[comp.fmu], ex.dirs[comp.fmu],
                                           f"{comp.name}{instance_suffix}", mds[comp.fmu])
@@ -379,7 +399,9 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
         elif progress:
             bar = progress                      # a shared bar (an object with update(n))
         t_loop = time.perf_counter()
-        done = _step_loop(plan, steps, h, bar, stop)
+        initial_reads(plan)
+        done = (run_native_loop if chosen == "native" else _step_loop)(plan, steps, h, bar,
+                                                                         stop)
         loop_s = time.perf_counter() - t_loop
     finally:
         if progress is True and bar is not None:
@@ -397,6 +419,7 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
     calls = [op[7] for op in plan.exchange + plan.after]
     return traces, loop_s, {"order": plan.order, "steps_done": done,
                             "interrupted_by": getattr(stop, "name", None) if stop else None,
+                            "master": chosen, "master_reason": reason,
                             "calls_per_step": calls + [
         f"fmi2DoStep ({who.label})" for *_, who in plan.stepping]}
 
