@@ -13,7 +13,8 @@ from plant_model.acoustic.settings import RECEIVERS
 from ..scenario import Scenario, builtin_scenarios, load_scenario
 from .args import _positive
 
-__all__ = ["ROOT", "add_fmu_options", "add_force_option", "add_predict_option",
+__all__ = ["ROOT", "add_fmu_options", "add_force_option", "add_master_option",
+           "add_predict_option",
            "add_scenario_options", "print_summary", "scenario_of", "viewer_command"]
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -57,6 +58,15 @@ def add_fmu_options(sp: argparse.ArgumentParser) -> None:
                          "component with a linear form, pythonfmu for the rest (the acoustic "
                          "network, a nonlinear vehicle, the multi-rate estimator); needs a C "
                          "compiler (default: the scenario's [simulation] fmus, else python)")
+
+
+def add_master_option(sp: argparse.ArgumentParser) -> None:
+    """--master: which master runs the systems (run and compare)."""
+    sp.add_argument("--master", choices=("native", "python"),
+                    help="native: the step loop compiled in C (orchestrator/cosim/"
+                         "native_master.c); python: the Python loop, the reference; the "
+                         "traces are the same bit for bit (default: native when every FMU "
+                         "is native and a C compiler is present, else python)")
 
 
 def add_predict_option(sp: argparse.ArgumentParser) -> None:
@@ -118,6 +128,11 @@ def print_summary(summary: dict, out: Path) -> int:
     if "native" in kinds:
         print("FMUs: native " + ", ".join(kinds["native"])
               + ("; pythonfmu " + ", ".join(kinds["python"]) if kinds.get("python") else ""))
+    masters = summary.get("master") or {}
+    if "native" in masters.values():
+        print("master: compiled (C) step loop" + ("" if len(set(masters.values())) == 1 else
+              " for " + ", ".join(m for m, k in masters.items() if k == "native")
+              + "; Python for the others"))
     print(f"{'method':>10s} {'cost rate':>12s} {'(std)':>9s} {'predicted':>10s}   "
           "rms e (sim / pred)")
     for name, m in summary["methods"].items():

@@ -16,6 +16,7 @@ from .args import _count, parse_floats, parse_seeds, positive_metres
 from .common import (
     add_fmu_options,
     add_force_option,
+    add_master_option,
     add_predict_option,
     add_scenario_options,
     print_summary,
@@ -47,7 +48,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         claim_folder(out, run_identity(sc, "run"), force=args.force)
         summary = simulate(sc, [sc.estimator], [sc.seed], out, progress=not args.quiet,
                            log=(lambda s: None) if args.quiet else print,
-                           predict=args.predict)
+                           predict=args.predict, master=args.master or "auto")
     return print_summary(summary, out)
 
 
@@ -84,7 +85,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         summary = simulate(sc, modes, args.seeds, out, progress=not args.quiet,
                            log=(lambda s: None) if args.quiet else print, trackings=trackings,
                            workers=args.workers, architectures=architectures,
-                           predict=args.predict)
+                           predict=args.predict, master=args.master or "auto")
     return print_summary(summary, out)
 
 
@@ -161,6 +162,7 @@ def add_run(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--tracking", choices=TRACKING_MODES,
                     help="tracking law: lq (the paper) or regulator (default: scenario's)")
     add_fmu_options(sp)
+    add_master_option(sp)
     sp.set_defaults(func=cmd_run)
 
 
@@ -194,6 +196,7 @@ def add_compare(sub: argparse._SubParsersAction) -> None:
                          "one per core; 1: all in this process); the results do not depend "
                          "on it")
     add_fmu_options(sp)
+    add_master_option(sp)
     sp.set_defaults(func=cmd_compare)
 
 

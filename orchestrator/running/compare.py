@@ -39,7 +39,7 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
              trackings: Sequence[str] | None = None,
              record_hz: float | None = None, workers: int | None = None,
              architectures: Sequence[str] | None = None,
-             predict: str = "stationary") -> dict[str, Any]:
+             predict: str = "stationary", master: str = "auto") -> dict[str, Any]:
     """Co-simulate each method (estimator ``modes`` x tracking laws ``trackings`` x
     ``architectures``, each default the scenario's) on each seed; write
     ``<out>/<scenario>.rrd`` and summary.json.
@@ -79,6 +79,9 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     predict : str, optional
         "stationary" (default) or "full": also the searches that take minutes (the links'
         critical loss).
+    master : str, optional
+        auto (default), native or python (:func:`orchestrator.cosim.master.run_system`);
+        the summary's ``master`` says which ran each method.
 
     Returns
     -------
@@ -92,7 +95,7 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     methods = method_list(sc, modes, trackings, architectures)
     check_memory(sc, len(methods))
     out = Path(out_dir)
-    setup = make_setup(sc, out / "fmus", methods, predict=predict)
+    setup = make_setup(sc, out / "fmus", methods, predict=predict, master=master)
     out.mkdir(parents=True, exist_ok=True)
     # the .rrd writer imports Rerun in a child while we simulate; SIGINT / SIGTERM stop
     # the runs between steps and keep what was simulated
@@ -119,6 +122,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
     rrd_runs: dict[str, dict[str, np.ndarray]] = {}
     rrd_links: dict[str, list[str]] = {}
     loop_us: list[float] = []
+    masters: dict[str, str] = {}            # method -> the master that ran it here
     window: tuple[float, float] | None = None
     bar = _bar(sc, len(methods) * len(seeds), progress)
     if bar is not None:
@@ -163,6 +167,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
                     f"process), {loop_s:.2f} s")
                 continue
             res = setup.run(method, seed, progress=bar, stop=stop)
+            masters[name] = res.info["master"]
             if name not in rrd_runs and res.steps:
                 rrd_runs[name] = res.traces
                 if "links" in res.info:
@@ -231,6 +236,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
                                                                          "in-plant"),
         "deployment": sc.deployment,
         "fmu_kind": sc.fmus,
+        "master": masters,
         **fleet_comparison(sc, results),
         "stats_window_s": list(window) if window else None,
         "stationary": not notes,

@@ -119,6 +119,9 @@ class RunSetup:
     """
 
     deployment = ""
+    #: the master that runs the systems: auto, native or python
+    #: (:func:`orchestrator.cosim.master.run_system`; :func:`make_setup` sets it)
+    master = "auto"
 
     def __init__(self, sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = (),
                  *, coupling: str = "gauss-seidel", predict: str = "stationary"):
@@ -243,7 +246,7 @@ class RunSetup:
         system = system if system is not None else self.system(method, seed)
         traces, loop_s, info = run_system(system, self.fmus(method), self.sc.steps,
                                           coupling=self.coupling, progress=progress,
-                                          stop=stop,
+                                          stop=stop, master=self.master,
                                           instance_suffix=f"_{method.estimator}_{seed}")
         return RunResult(mode=method.estimator, seed=int(seed), h=self.sc.h,
                          traces=self.stacked(system, traces, info),

@@ -20,7 +20,8 @@ DEPLOYMENT_SETUPS: dict[str, type[RunSetup]] = {"stacked": StackedSetup,
 
 
 def make_setup(sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = (), *,
-               coupling: str = "gauss-seidel", predict: str = "stationary") -> RunSetup:
+               coupling: str = "gauss-seidel", predict: str = "stationary",
+               master: str = "auto") -> RunSetup:
     """The setup of a scenario: the one place that branches on the deployment.
 
     Parameters
@@ -34,6 +35,8 @@ def make_setup(sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = ()
         The master's coupling.
     predict : str, optional
         One of :data:`PREDICT_LEVELS`.
+    master : str, optional
+        auto, native or python (:func:`orchestrator.cosim.master.run_system`).
 
     Returns
     -------
@@ -47,8 +50,10 @@ def make_setup(sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = ()
         If a centralized per-vehicle design would take too long (estimated).
     """
     check_setup(sc, coupling)
-    return DEPLOYMENT_SETUPS[sc.deployment](sc, fmu_dir, methods, coupling=coupling,
-                                            predict=predict)
+    setup = DEPLOYMENT_SETUPS[sc.deployment](sc, fmu_dir, methods, coupling=coupling,
+                                             predict=predict)
+    setup.master = master
+    return setup
 
 
 def scenario_system(sc: Scenario) -> SystemDescription:
