@@ -11,6 +11,7 @@ import os
 import re
 import shutil
 import tempfile
+import weakref
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -129,6 +130,12 @@ def _check_pythonfmu_resources(label: str, md: Any, unzip_dir: str) -> None:
                          "crash the process on it")
 
 
+#: live instances by FMI instance name: fmpy's logger proxy (addLoggerProxy) keeps one
+#: callback per process, the last instance's, so a message is filed under the instance
+#: name the FMU gives with it
+_BY_NAME: weakref.WeakValueDictionary[str, FmuInstance] = weakref.WeakValueDictionary()
+
+
 class FmuInstance:
     """One FMU instance with a message log and raw FMI entry points for the hot loop."""
 
@@ -140,6 +147,8 @@ class FmuInstance:
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.types = {v.name: v.type for v in self.md.modelVariables}
         self.messages: list[tuple[str, str]] = []
+        self.instance_name = instance_name
+        _BY_NAME[instance_name] = self
         self.slave = FMU2Slave(guid=self.md.guid, unzipDirectory=unzip_dir,
                                modelIdentifier=self.md.coSimulation.modelIdentifier,
                                instanceName=instance_name)
@@ -173,7 +182,9 @@ class FmuInstance:
     def _log(self, env: int | None, instance: bytes | None, status: int,
              category: bytes | None, message: bytes | None) -> None:
         text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
-        self.messages.append((STATUS[status] if 0 <= status < 6 else str(status), text))
+        name = instance.decode("utf-8", "replace") if isinstance(instance, bytes) else None
+        target = _BY_NAME.get(name, self) if name else self
+        target.messages.append((STATUS[status] if 0 <= status < 6 else str(status), text))
 
     def errors(self) -> str:
         """The messages the FMU logged with status Warning, Discard, Error or Fatal.
