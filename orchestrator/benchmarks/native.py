@@ -4,12 +4,19 @@ Measured in one run, on one machine, for the same scenario and number of steps:
 
 - ``python``: the three pythonfmu FMUs in our master (fmpy, ctypes);
 - ``native_ctrl_est``: native controller and estimator, pythonfmu plant, in our master;
-- ``native_master``: every FMU native, in our master (about 10 ctypes calls per step);
+- ``native_master``: every FMU native, in our Python master (about 10 ctypes calls per
+  step);
+- ``native_compiled``: every FMU native, in our compiled master (the same step plan in
+  C, :mod:`orchestrator.cosim.native_master`; target at most 3 us/step);
 - ``native_c_host``: every FMU native, in the C host of tests/c_host (no Python at all);
 - ``native_ecos``: every FMU native, in the ecos engine (C++), its own loop timer, no CSV;
 - ``fused_numpy``: the same closed loop as one matrix-vector product per step
   ([Phi Gam] [X; eta], orchestrator.analysis.prediction.closed_loop), the lower bound of
   a Python program.
+
+:func:`benchmark_native_fleet` times a per-vehicle fleet of native FMUs (formation-100,
+distributed: 301 FMUs) for a short T in both masters: ms/step and the 300 s run projected
+from it (target at most 1 ms/step).
 
 Speeds are figures, not assertions: the machine is shared and noisy.
 """
@@ -29,7 +36,8 @@ from ..cosim.master import run_system
 from ..interop.native import export_native, native_system
 from ..scenario import Scenario
 
-__all__ = ["benchmark_native", "c_host_binary", "fused_loop_us", "write_c_host_system"]
+__all__ = ["benchmark_native", "benchmark_native_fleet", "c_host_binary", "fused_loop_us",
+           "write_c_host_system"]
 
 ROOT = Path(__file__).resolve().parents[2]
 C_HOST = ROOT / "tests" / "c_host" / "c_host.c"
@@ -168,9 +176,12 @@ def benchmark_native(sc: Scenario, steps: int = 20000) -> dict[str, Any]:
         py = build(sc, t / "py")
         mixed = native_system(system, py, t / "mixed", ("estimator", "controller"))
         full = native_system(system, py, t / "full")
-        for key, (s, f) in {"python": (system, py), "native_ctrl_est": (mixed.system, mixed.fmus),
-                            "native_master": (full.system, full.fmus)}.items():
-            _, loop_s, _ = run_system(s, f, steps)
+        for key, (s, f, master) in {
+                "python": (system, py, "python"),
+                "native_ctrl_est": (mixed.system, mixed.fmus, "python"),
+                "native_master": (full.system, full.fmus, "python"),
+                "native_compiled": (full.system, full.fmus, "native")}.items():
+            _, loop_s, _ = run_system(s, f, steps, master=master)
             out[key] = loop_s / steps * 1e6
         try:
             exe = c_host_binary(t)
@@ -184,4 +195,52 @@ def benchmark_native(sc: Scenario, steps: int = 20000) -> dict[str, Any]:
         paths = export_native(sc, t / "export")
         out["native_ecos"] = _ecos_us(paths["ssp"], sc.h, steps, t)
         out["fused_numpy"] = fused_loop_us(sc, steps)
+    return out
+
+
+def benchmark_native_fleet(name: str = "formation-100", T: float = 2.0,
+                          run_T: float = 300.0) -> dict[str, Any]:
+    """ms/step of a per-vehicle fleet of native FMUs (distributed architecture) in the
+    compiled and the Python master, over ``T`` s, and the ``run_T`` s run projected.
+
+    Parameters
+    ----------
+    name : str, optional
+        A fleet scenario.
+    T : float, optional
+        Simulated time of each timed run, s.
+    run_T : float, optional
+        The run to project, s.
+
+    Returns
+    -------
+    dict[str, Any]
+        ``setup_s`` (design, FMU builds, native FMUs: what a run does before its loop),
+        ``components``, ``calls_per_step``, per master ``<master>_ms_per_step`` and
+        ``<master>_projected_loop_s`` (``run_T`` / h steps), ``traces_equal`` (bit for bit),
+        the load average and the CPUs.
+    """
+    from ..running.systems import make_setup
+    from ..scenario import load_scenario
+    sc = load_scenario(name).with_run(T=T, deployment="per-vehicle",
+                                      architecture="distributed", fmus="native")
+    out: dict[str, Any] = {"scenario": name, "T": T, "h": sc.h, "steps": sc.steps,
+                           "run_T": run_T, "loadavg": list(os.getloadavg()),
+                           "cpus": os.cpu_count()}
+    with tempfile.TemporaryDirectory(prefix="auv_bench_fleet_") as tmp:
+        t0 = time.perf_counter()
+        setup = make_setup(sc, Path(tmp))
+        method = setup.methods[0]
+        system, fmus = setup.system(method, sc.seed), setup.fmus(method)
+        out["setup_s"] = time.perf_counter() - t0
+        out["components"] = len(system.components)
+        traces = {}
+        for master in ("native", "python"):
+            traces[master], loop_s, info = run_system(system, fmus, sc.steps, master=master)
+            out[f"{master}_ms_per_step"] = loop_s / sc.steps * 1e3
+            out[f"{master}_projected_loop_s"] = loop_s / sc.steps * round(run_T / sc.h)
+            out["calls_per_step"] = len(info["calls_per_step"])
+        out["traces_equal"] = all(np.array_equal(traces["native"][k], traces["python"][k])
+                                  for k in traces["python"])
+    out["loadavg_after"] = list(os.getloadavg())
     return out

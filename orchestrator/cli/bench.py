@@ -100,14 +100,16 @@ def cmd_bench_tools(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_native(args: argparse.Namespace) -> int:
-    from ..benchmarks.native import benchmark_native
+    from ..benchmarks.native import benchmark_native, benchmark_native_fleet
     sc = scenario_of(args)
     r = benchmark_native(sc, int(round((args.T or 200.0) / sc.h)))
+    r["fleet"] = benchmark_native_fleet()
     if _printed_as_json(args, r):
         return 0
     rows = (("python", "pythonfmu FMUs, our master"),
             ("native_ctrl_est", "native controller + estimator, pythonfmu plant, our master"),
-            ("native_master", "all native, our master (fmpy, ctypes)"),
+            ("native_master", "all native, our Python master (fmpy, ctypes)"),
+            ("native_compiled", "all native, our compiled master (C loop; target <= 3)"),
             ("native_c_host", "all native, C host (tests/c_host)"),
             ("native_ecos", "all native, ecos (C++), no CSV"),
             ("fused_numpy", "fused numpy loop, one gemv per step"))
@@ -115,6 +117,15 @@ def cmd_bench_native(args: argparse.Namespace) -> int:
         v = r[key]
         print(f"  {label:62s} " + ("      -  (not available)" if v is None
                                    else f"{v:8.2f} us/step"))
+    f = r["fleet"]
+    print(f"  {f['scenario']} per-vehicle distributed, all native ({f['components']} FMUs, "
+          f"{f['calls_per_step']} FMI calls/step), {f['steps']} steps; load average "
+          f"{f['loadavg'][0]:.2f}; set-up {f['setup_s']:.1f} s; traces equal: "
+          f"{f['traces_equal']}")
+    for master, label in (("native", "compiled master (target <= 1 ms/step)"),
+                          ("python", "Python master")):
+        print(f"  {label:62s} {f[f'{master}_ms_per_step']:8.3f} ms/step, {f['run_T']:g} s run: "
+              f"loop {f[f'{master}_projected_loop_s']:.0f} s (projected)")
     return 0
 
 
@@ -241,9 +252,11 @@ def add_bench(sub: argparse._SubParsersAction) -> None:
                          "local workers (FMU engine) and the numpy engine, overhead per task, "
                          "design-cache gain at N = 50")
     sp.add_argument("--native", action="store_true",
-                    help="us/step of the loop with native FMUs: in our master (with the "
-                         "pythonfmu plant, all native), in the C host, in ecos, and a fused "
-                         "numpy loop (--T sets the simulated time, default 200 s)")
+                    help="us/step of the loop with native FMUs: in our Python master (with "
+                         "the pythonfmu plant, all native), in our compiled master, in the C "
+                         "host, in ecos, and a fused numpy loop (--T sets the simulated time, "
+                         "default 200 s); ms/step of formation-100 per-vehicle native in both "
+                         "masters")
     sp.add_argument("--remus", action="store_true",
                     help="the nonlinear REMUS 100: derivative and step in numpy and compiled, "
                          "vehicle FMU doStep against the linear one, compile time")
