@@ -197,3 +197,39 @@ def test_a_sigint_stops_the_compiled_master_and_keeps_what_it_simulated(tmp_path
     assert f"{reached:.6g}" in lines[0]
     k, _, e1 = read_rrd_scalars(out / "paper.rrd")["error/1/kalman"]
     assert np.array_equal(k, np.arange(steps)) and np.all(np.isfinite(e1))
+
+
+def test_compare_over_seeds_gives_the_same_statistics_in_both_masters(tmp_path):
+    """`compare --fmus native` over 3 seeds, once per master: every seed's cost rate is the
+    same float and summary.json's ``master`` names the master that ran."""
+    from orchestrator.cli import main
+    summaries = {}
+    for master in ("native", "python"):
+        out = tmp_path / master
+        assert main(["compare", "--fmus", "native", "--master", master, "--seeds", "0-2",
+                     "--T", "20", "--methods", "kalman", "--quiet", "--out", str(out)]) == 0
+        summaries[master] = json.loads((out / "summary.json").read_text())
+        assert summaries[master]["master"] == {"kalman": master}
+    per_seed = [s["methods"]["kalman"]["cost_rate"]["per_seed"] for s in summaries.values()]
+    assert per_seed[0] == per_seed[1] and len(set(per_seed[0])) == 3
+
+
+def test_a_hard_stop_waits_for_the_loop_before_the_fmus_are_freed(paper_native):
+    """A KeyboardInterrupt in the waiting thread (a second signal) stops the compiled loop
+    and waits for it: it propagates, and no loop thread is left calling freed FMUs."""
+    import threading
+    sc, ns = paper_native
+
+    class Interrupting:
+        def __init__(self) -> None:
+            self.seen = 0
+
+        def update(self, n: int) -> None:
+            self.seen += n
+            raise KeyboardInterrupt
+
+    bar = Interrupting()
+    with pytest.raises(KeyboardInterrupt):
+        run_system(ns.system, ns.fmus, 200_000, progress=bar, master="native")
+    assert 0 < bar.seen < 200_000
+    assert not [t for t in threading.enumerate() if t.name == "auv-cosim compiled master"]
