@@ -198,7 +198,7 @@ def benchmark_native(sc: Scenario, steps: int = 20000) -> dict[str, Any]:
     return out
 
 
-def benchmark_native_fleet(name: str = "formation-100", T: float = 2.0,
+def benchmark_native_fleet(name: str = "formation-100", T: float = 5.0,
                           run_T: float = 300.0) -> dict[str, Any]:
     """ms/step of a per-vehicle fleet of native FMUs (distributed architecture) in the
     compiled and the Python master, over ``T`` s, and the ``run_T`` s run projected.
