@@ -92,14 +92,16 @@ def test_the_compiled_master_equals_the_python_master_on_a_per_vehicle_fleet(fle
     _assert_identical(ref, got)
 
 
-def test_with_acoustic_links_auto_runs_python_and_native_equals_it(fleet_links):
-    """The network FMUs are pythonfmu: ``auto`` runs the Python master and says why;
-    asked for, the compiled master runs them (pythonfmu takes the GIL in each call) to the
-    same traces, the links' ages included."""
+@pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
+def test_with_acoustic_links_auto_runs_python_and_native_equals_it(fleet_links, coupling):
+    """formation-4 with links (latency 1 s, period 2 s, loss 0.2): the network FMUs are
+    pythonfmu, so ``auto`` runs the Python master and says why; asked for, the compiled
+    master runs them (pythonfmu takes the GIL in each call) to the same traces, the links'
+    ages included."""
     sc, system, fmus = fleet_links
-    ref, _, info = run_system(system, fmus, sc.steps)
+    ref, _, info = run_system(system, fmus, sc.steps, coupling=coupling)
     assert info["master"] == "python" and "not native FMUs (network_1" in info["master_reason"]
-    got, _, info = run_system(system, fmus, sc.steps, master="native")
+    got, _, info = run_system(system, fmus, sc.steps, coupling=coupling, master="native")
     assert info["master"] == "native" and info["master_reason"] == "asked for"
     _assert_identical(ref, got)
     age = [k for k in got if "age" in k]
