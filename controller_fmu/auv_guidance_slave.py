@@ -30,11 +30,12 @@ RATES = ("speed_rate", "course_rate", "depth_rate")
 
 
 def guidance_defaults() -> dict[str, Any]:
-    """Start values when a build names none: the design model ``remus100`` at its default
-    cruise speed (plant_model.vehicles), at rest, 0 m deep, course north."""
+    """Start values when a build names none: the design model of ``remus100-6dof`` with
+    its default parameters (``remus100`` linearized at its default cruise speed;
+    plant_model.vehicle_models), at rest, 0 m deep, course north."""
     from plant_model.remus100.autopilot import AutopilotGains
-    from plant_model.vehicles import remus100
-    par = remus100().parameters
+    from plant_model.vehicle_models import get
+    par = get("remus100-6dof").build({}).parameters
     return {"M": list(par["total_mass"]), "D": list(par["damping"]), "v0": [0.0] * 3,
             "depth0": 0.0, "course0": 0.0, "U_min": AutopilotGains().U_min}
 
@@ -69,13 +70,15 @@ class AuvGuidance(Fmi2Slave):
                       start=float(g["U_min"]), unit="m/s", min=0.0),
             ArraySpec("u", (3,), "input", "NED force commanded by the formation controller",
                       unit="N"),
-            ArraySpec("speed", (), "output", "speed set-point through the water |v_ref|",
+            ArraySpec("speed", (), "output", "speed set-point through the water, the norm of "
+                      "v_ref",
                       unit="m/s"),
             ArraySpec("course", (), "output", "course set-point atan2(v_E, v_N) through the "
                       "water (held below U_min)", unit="rad"),
             ArraySpec("depth", (), "output", "depth set-point: depth0 + integral of v_ref_D",
                       unit="m"),
-            ArraySpec("speed_rate", (), "output", "rate of the speed set-point v.v'/|v|",
+            ArraySpec("speed_rate", (), "output",
+                      "rate of the speed set-point, v_ref . v_ref' / speed",
                       unit="m/s2", depends_on=("u",)),
             ArraySpec("course_rate", (), "output", "rate of the course set-point",
                       unit="rad/s", depends_on=("u",)),

@@ -462,13 +462,17 @@ def _start_text(spec: ArraySpec) -> str:
     return "`" + json.dumps(arr.tolist()) + "`"
 
 
-def variables_markdown(config: dict[str, Any]) -> str:
+def variables_markdown(config: dict[str, Any],
+                       kinds: dict[str, dict[str, Any]] | None = None) -> str:
     """A table per FMU: name, causality, variability, unit, start, description.
 
     Parameters
     ----------
     config : dict[str, Any]
         The FMUs' configuration.
+    kinds : dict[str, dict[str, Any]] or None, optional
+        Key of :data:`FMU_KINDS` -> its configuration; default the stacked FMUs
+        (:data:`STACKED_KINDS`), all with ``config``.
 
     Returns
     -------
@@ -476,12 +480,13 @@ def variables_markdown(config: dict[str, Any]) -> str:
         Markdown, one section per FMU.
     """
     lines = []
-    for key in STACKED_KINDS:
+    todo = kinds if kinds is not None else dict.fromkeys(STACKED_KINDS, config)
+    for key, cfg in todo.items():
         kind = FMU_KINDS[key]
         lines += [f"### {kind.model}.fmu ({key})", "",
                   "| name | causality | variability | unit | start | description |",
                   "|---|---|---|---|---|---|"]
-        for spec in interface_of(kind, config):
+        for spec in interface_of(kind, cfg):
             if spec.shape:
                 idx = ",".join(f"{'ijk'[a]}" for a in range(len(spec.shape)))
                 rng = ", ".join(f"{'ijk'[a]}=1..{n}" for a, n in enumerate(spec.shape))
