@@ -37,6 +37,19 @@ def test_the_export_ships_the_guidance_fmus_beside_the_system(exported):
     assert "AuvGuidance" not in system            # beside the system, not a simulator in it
 
 
+def test_the_ssp_archive_ships_them_too(tmp_path):
+    import zipfile
+
+    from orchestrator.interop.ssp import export_ssp
+    from orchestrator.scenario import load_scenario
+    ssp = export_ssp(load_scenario(str(EXAMPLES / "straight-leader.toml")), tmp_path / "s.ssp")
+    with zipfile.ZipFile(ssp) as z:
+        names = set(z.namelist())
+        ssd = z.read("SystemStructure.ssd").decode()
+    assert {"resources/AuvGuidance.fmu", "resources/AuvAutopilot.fmu"} <= names
+    assert "AuvGuidance" not in ssd
+
+
 @pytest.mark.parametrize("host", HOSTS)
 def test_the_example_imports_nothing_of_the_project_and_has_at_most_30_lines_of_glue(host):
     files = [EXAMPLES / f"{host}.py", EXAMPLES / "torpedo.py"]
