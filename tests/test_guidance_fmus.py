@@ -82,10 +82,10 @@ def test_the_guidance_fmu_is_its_mathematics(fmus, tmp_path):
         course = math.atan2(v[1], v[0]) if math.hypot(v[0], v[1]) > U_min else course
     assert worst < 1e-12
     assert np.ptp(out[:3]) > 0.0 and k == 599        # it moved
-    state = s.getFMUstate()                          # v_ref, depth, course round-trip
+    blob = s.serializeFMUstate(s.getFMUstate())       # v_ref, depth, course round-trip
     s.doStep(600 * h, h)
     after = s.getReal(_vr(inst, SETPOINTS))
-    s.setFMUstate(state)
+    s.setFMUstate(s.deSerializeFMUstate(blob))
     s.setReal(_vr(inst, U), list(u))
     s.doStep(600 * h, h)
     assert s.getReal(_vr(inst, SETPOINTS)) == after
