@@ -36,7 +36,7 @@ def guidance_defaults() -> dict[str, Any]:
     from plant_model.remus100.autopilot import AutopilotGains
     from plant_model.vehicle_models import get
     par = get("remus100-6dof").build({}).parameters
-    return {"M": list(par["total_mass"]), "D": list(par["damping"]), "v0": [0.0] * 3,
+    return {"M": list(par["total_mass"]), "D": list(par["damping"]), "v_ref0": [0.0] * 3,
             "depth0": 0.0, "course0": 0.0, "U_min": AutopilotGains().U_min}
 
 
@@ -49,7 +49,7 @@ class AuvGuidance(Fmi2Slave):
 
     @staticmethod
     def interface(config: dict[str, Any]) -> list[ArraySpec]:
-        """Parameters M, D, v0, depth0, course0, U_min; input u (3); outputs the six
+        """Parameters M, D, v_ref0, depth0, course0, U_min; input u (3); outputs the six
         set-points and v_ref (3). Configuration key ``guidance`` ({name: start value}),
         default :func:`guidance_defaults`."""
         g = {**guidance_defaults(), **config.get("guidance", {})}
@@ -58,8 +58,8 @@ class AuvGuidance(Fmi2Slave):
                       "design model per NED axis: v' = (u - D v)/M", start=g["M"], unit="kg"),
             ArraySpec("D", (3,), "parameter", "linear damping of the design model per NED "
                       "axis", start=g["D"], unit="kg/s"),
-            ArraySpec("v0", (3,), "parameter", "initial reference velocity through the water, "
-                      "NED", start=g["v0"], unit="m/s"),
+            ArraySpec("v_ref0", (3,), "parameter", "initial reference velocity through the water, "
+                      "NED", start=g["v_ref0"], unit="m/s"),
             ArraySpec("depth0", (), "parameter", "initial depth set-point (the vehicle's "
                       "depth at the start)", start=float(g["depth0"]), unit="m"),
             ArraySpec("course0", (), "parameter", "course held while the horizontal "
@@ -89,7 +89,7 @@ class AuvGuidance(Fmi2Slave):
         ]
 
     def setup(self) -> None:
-        """Check M, D (positive), v0, depth0, course0 (finite) and start the state.
+        """Check M, D (positive), v_ref0, depth0, course0 (finite) and start the state.
 
         Raises
         ------
@@ -97,12 +97,12 @@ class AuvGuidance(Fmi2Slave):
             Naming the parameter that is invalid.
         """
         self.M, self.D = check_mass_damping(self.par["M"], self.par["D"])
-        for name in ("v0", "depth0", "course0", "U_min"):
+        for name in ("v_ref0", "depth0", "course0", "U_min"):
             if not np.all(np.isfinite(self.par[name])):
                 raise ValueError(f"parameter {name} = {self.par[name].tolist()} is not finite")
         self.U_min = float(self.par["U_min"])
         self.s = np.zeros(5)           # [v_ref (3), depth, held course]
-        self.s[:3] = self.par["v0"]
+        self.s[:3] = self.par["v_ref0"]
         self.s[3] = float(self.par["depth0"])
         self.s[4] = self._course(self.s[:3], float(self.par["course0"]))
 

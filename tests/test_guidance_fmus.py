@@ -56,7 +56,7 @@ def test_both_validate_and_are_built_for_remus_scenarios_only(fmus):
     design = remus100(cruise_speed=2.0).parameters
     assert cfg["guidance"]["M"] == design["total_mass"]
     assert cfg["guidance"]["D"] == design["damping"]
-    assert cfg["guidance"]["v0"] == pytest.approx([1.9, 0.05, 0.0])
+    assert cfg["guidance"]["v_ref0"] == pytest.approx([1.9, 0.05, 0.0])
 
 
 def test_the_guidance_fmu_is_its_mathematics(fmus, tmp_path):
@@ -64,7 +64,7 @@ def test_the_guidance_fmu_is_its_mathematics(fmus, tmp_path):
     inst = _instance(fmus, "guidance", tmp_path)
     s = inst.slave
     s.exitInitializationMode()
-    names = ["M[1]", "M[2]", "M[3]", "D[1]", "D[2]", "D[3]", "v0[1]", "v0[2]", "v0[3]",
+    names = ["M[1]", "M[2]", "M[3]", "D[1]", "D[2]", "D[3]", "v_ref0[1]", "v_ref0[2]", "v_ref0[3]",
              "depth0", "course0", "U_min"]
     par = np.array(s.getReal(_vr(inst, names)))
     M, D, v, depth, course, U_min = par[:3], par[3:6], par[6:9], par[9], par[10], par[11]

@@ -159,7 +159,7 @@ def guidance_configs(sc: Scenario) -> dict[str, dict[str, Any]]:
     v0 = np.asarray(view.x0, float)[3:6] - np.asarray(view.w0, float)[:3]
     base = {"dims": {}, "h": float(sc.h), "T": float(sc.T), "seed": int(sc.seed)}
     guidance = {"M": [float(v) for v in par["total_mass"]],
-                "D": [float(v) for v in par["damping"]], "v0": v0.tolist(),
+                "D": [float(v) for v in par["damping"]], "v_ref0": v0.tolist(),
                 "depth0": float(view.x0[2]),
                 "course0": float(math.atan2(v0[1], v0[0]))}
     return {"guidance": dict(base, guidance=guidance),
