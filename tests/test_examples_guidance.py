@@ -50,6 +50,23 @@ def test_the_ssp_archive_ships_them_too(tmp_path):
     assert "AuvGuidance" not in ssd
 
 
+def test_the_native_export_ships_them_beside_its_native_fmus(tmp_path):
+    import zipfile
+
+    from orchestrator.cosim.native import NativeBuildError, compiler
+    from orchestrator.interop.native import export_native
+    from orchestrator.scenario import load_scenario
+    try:
+        compiler()
+    except NativeBuildError as exc:
+        pytest.skip(str(exc))
+    paths = export_native(load_scenario(str(EXAMPLES / "straight-leader.toml")), tmp_path)
+    assert (tmp_path / "AuvGuidance.fmu").is_file() and (tmp_path / "AuvAutopilot.fmu").is_file()
+    assert (tmp_path / "AuvVehicleControllerNative.fmu").is_file()
+    with zipfile.ZipFile(paths["ssp"]) as z:
+        assert {"resources/AuvGuidance.fmu", "resources/AuvAutopilot.fmu"} <= set(z.namelist())
+
+
 @pytest.mark.parametrize("host", HOSTS)
 def test_the_example_imports_nothing_of_the_project_and_has_at_most_30_lines_of_glue(host):
     files = [EXAMPLES / f"{host}.py", EXAMPLES / "torpedo.py"]

@@ -219,9 +219,10 @@ def export_ssp(sc: Scenario, out_path: Path | str, *,
                 z.write(fmus[key], f"resources/{models[key]}.fmu")
             for comp in system.names:
                 z.writestr(parameter_set_path(comp), ssv[comp])
+            in_system = {c.fmu for c in system.components}
             for key in GUIDANCE_KINDS:       # beside the system: for a host's own vehicle
-                if key in fmus and key not in models:
-                    z.write(fmus[key], f"resources/{FMU_KINDS[key].model}.fmu")
+                if key in fmus and key not in in_system:
+                    z.write(fmus[key], f"resources/{Path(fmus[key]).stem}.fmu")
     return out_path
 
 
