@@ -72,7 +72,8 @@ outputs `y`, `x`, `w`, plus `attitude`, `rpm`, `rudder`, `stern` and `saturated`
 valid flags), which the estimator reads in place of `y`.
 
 Native FMUs, no Python needed (`auv-cosim export native`, docs/native.md): once designed,
-every FMU but `AuvNetwork` is a linear system, y = C q + D u + c + G xi and
+every FMU but `AuvNetwork`, `AuvRemus6dof` and the guidance interface (`AuvGuidance`,
+`AuvAutopilot`, below) is a linear system, y = C q + D u + c + G xi and
 q+ = A q + B u + Bo y + b + F xi. The export compiles it from one C99 file
 (`AuvControllerNative`, `AuvEstimatorNative`, `AuvPlantNative`, and per vehicle
 `AuvLeaderNative`, `AuvVehicleNative`, `AuvVehicleEstimatorNative`,
