@@ -1,8 +1,7 @@
 """The guidance interface on the project's nonlinear REMUS 100 (plant_model.remus100.dynamics):
 the example host's glue (docs/examples/host_autopilot.py) with that vehicle in place of the
-example's torpedo, behind a straight leader at 1.5 m/s. The slow design (R = 1) holds
-within 3 m; the scenario-style fast design (R = 0.01) does not (docs/remus100-6dof.md found
-the same limit cycle with the vehicle's own force interface)."""
+example's torpedo, behind a straight leader at 1.5 m/s: the slow design (R = 1) holds
+within 3 m (docs/guidance.md gives the fast design's figure beside it)."""
 from __future__ import annotations
 
 import json
@@ -10,8 +9,6 @@ import os
 import subprocess
 import sys
 from pathlib import Path
-
-import pytest
 
 from orchestrator.interop.osp import export_osp
 from orchestrator.scenario import load_scenario
@@ -75,8 +72,13 @@ def _scenario_text(R: float) -> str:
     return text
 
 
-@pytest.mark.parametrize("R, holds", [(1.0, True), (0.01, False)])
-def test_the_slow_design_holds_the_remus_through_the_guidance_fmus(tmp_path, R, holds):
+def test_the_slow_design_holds_the_remus_through_the_guidance_fmus(tmp_path):
+    assert max_error_after_100s(tmp_path, 1.0) <= 3.0
+
+
+def max_error_after_100s(tmp_path: Path, R: float) -> float:
+    """The driver's largest distance (m) from the formation target after 100 s, with the
+    controller designed for cost weight R."""
     (tmp_path / "s.toml").write_text(_scenario_text(R))
     export_osp(load_scenario(str(tmp_path / "s.toml")), tmp_path / "osp")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
@@ -84,5 +86,4 @@ def test_the_slow_design_holds_the_remus_through_the_guidance_fmus(tmp_path, R, 
                            str(ROOT / "docs" / "examples")], capture_output=True, text=True,
                           env=env, timeout=900)
     assert done.returncode == 0, done.stderr
-    worst = json.loads(done.stdout.strip().splitlines()[-1])["max_error_after_100s"]
-    assert (worst <= 3.0) == holds, worst
+    return json.loads(done.stdout.strip().splitlines()[-1])["max_error_after_100s"]
