@@ -235,3 +235,20 @@ def test_a_hard_stop_waits_for_the_loop_before_the_fmus_are_freed(paper_native):
         run_system(ns.system, ns.fmus, 200_000, progress=bar, master="native")
     assert 0 < bar.seen < 200_000
     assert not [t for t in threading.enumerate() if t.name == "auv-cosim compiled master"]
+
+
+def test_without_a_compiler_auto_runs_python_and_native_is_refused(paper_native,
+                                                                    monkeypatch):
+    """No C compiler (CC names none) and no library loaded yet: ``auto`` runs the Python
+    master and says why; ``native`` is refused in one line naming the master."""
+    from orchestrator.cosim import native_master
+    from orchestrator.cosim.native import NativeBuildError
+    sc, ns = paper_native
+    monkeypatch.setattr(native_master, "_LIBRARY", None)
+    monkeypatch.setenv("CC", "no-such-compiler")
+    _, _, info = run_system(ns.system, ns.fmus, 10)
+    assert info["master"] == "python"
+    assert info["master_reason"].startswith("the compiled master is not available: no C "
+                                            "compiler: 'no-such-compiler'")
+    with pytest.raises(NativeBuildError, match="^master native: no C compiler"):
+        run_system(ns.system, ns.fmus, 10, master="native")

@@ -166,14 +166,17 @@ def choose_master(requested: str, model_descriptions: Mapping[str, Any]) -> tupl
         raise ValueError(f"master {requested!r} is not one of {', '.join(MASTER_CHOICES)}")
     if requested == "python":
         return "python", "asked for"
+    from .native import NativeBuildError
     if requested == "native":
-        load_library()
+        try:
+            load_library()
+        except NativeBuildError as exc:
+            raise NativeBuildError(f"master native: {exc}") from None
         return "native", "asked for"
     others = sorted(c for c, md in model_descriptions.items() if not is_native_fmu(md))
     if others:
         return "python", (f"{len(others)} component(s) are not native FMUs "
                           f"({', '.join(others[:3])}{', ...' if len(others) > 3 else ''})")
-    from .native import NativeBuildError
     try:
         load_library()
     except NativeBuildError as exc:
