@@ -1,9 +1,10 @@
 """Stop a long run between steps on SIGINT or SIGTERM, keeping what it simulated.
 
 :func:`stop_on_signals` installs handlers that only set a :class:`StopFlag`; the master
-checks it between chunks of steps (:func:`orchestrator.cosim.master.run_system`) and
-returns the traces simulated so far. No exception is raised inside FMU code (a
-KeyboardInterrupt raised in a pythonfmu slave turns into fmi2Fatal). A second signal while
+checks it between chunks of steps (:func:`orchestrator.cosim.master.run_system`; the
+compiled master before every step) and returns the traces simulated so far. No
+exception is raised inside FMU code (a KeyboardInterrupt raised in a pythonfmu slave turns
+into fmi2Fatal). A second signal while
 stopping restores the default handlers and raises KeyboardInterrupt (a hard stop).
 """
 from __future__ import annotations

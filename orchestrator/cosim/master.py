@@ -26,6 +26,10 @@ outputs feeding one component; the FMUs read and write the trace arrays in place
 of a component's trace is the buffer fmi2GetReal fills and the buffer its consumers'
 inputs are set from). A connection that carries nothing in the run (the truth signals
 outside mode ``ideal``) is not in the plan.
+
+:func:`compile_plan` writes the plan out as a Python loop, the reference;
+:mod:`orchestrator.cosim.native_master` runs the same plan in a compiled C loop, to the
+same traces bit for bit (``run_system(master=...)``; by default when every FMU is native).
 """
 from __future__ import annotations
 
