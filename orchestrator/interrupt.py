@@ -4,8 +4,8 @@
 checks it between chunks of steps (:func:`orchestrator.cosim.master.run_system`; the
 compiled master before every step) and returns the traces simulated so far. No
 exception is raised inside FMU code (a KeyboardInterrupt raised in a pythonfmu slave turns
-into fmi2Fatal). A second signal while
-stopping restores the default handlers and raises KeyboardInterrupt (a hard stop).
+into fmi2Fatal). A second signal while stopping restores the default handlers and raises
+KeyboardInterrupt (a hard stop).
 """
 from __future__ import annotations
 
