@@ -9,8 +9,10 @@ Sampled exactly (z[k+1] = expm(F dt) z[k]) every ``dt`` seconds over [0, T], the
 - a horizontal turn radius |v_h|^3 / |v_n a_e - v_e a_n| (m), against its smallest;
 - a depth rate |v_d| (m/s), against its largest.
 
-The current is not counted (the target speed is over ground). The first time each limit
-is exceeded is reported, per vehicle, as one line (:func:`finding_line`).
+The current is not counted (the target speed is over ground). The worst excess of each
+limit is reported with its time and the share of the horizon the limit is exceeded, per
+vehicle, as one line (:func:`finding_line`; vehicles with the same finding together,
+:func:`finding_lines`).
 """
 from __future__ import annotations
 
@@ -20,30 +22,46 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
-__all__ = ["Finding", "finding_line", "path_demands", "path_findings"]
+__all__ = ["Finding", "finding_line", "finding_lines", "path_demands", "path_findings"]
 
 
 @dataclass(frozen=True)
 class Finding:
-    """The first time vehicle ``vehicle`` (1-based) asks more than ``limit`` allows."""
+    """Vehicle ``vehicle`` (1-based) asks more than ``limit`` allows: the worst sample."""
 
     vehicle: int
-    time: float          #: s
+    time: float          #: s, of the worst sample
     limit: str           #: "speed", "turn radius" or "depth rate"
-    value: float         #: what the path asks (m/s or m)
+    value: float         #: what the path asks there (m/s or m)
     bound: float         #: what the vehicle can do (m/s or m)
     source: str = ""     #: where the bound comes from
+    fraction: float = 0.0  #: share of the samples over [0, T] beyond the limit
 
 
-def finding_line(f: Finding) -> str:
+def finding_line(f: Finding, vehicles: str | None = None) -> str:
     """One line: ``vehicle 3 at t = 42.5 s: target speed 3.02 m/s above the top speed
-    2.55 m/s (...)``."""
+    2.55 m/s (beyond it 12 % of the time; <source>)``; ``vehicles`` replaces
+    ``vehicle 3``."""
     what = {"speed": ("target speed", "m/s", "above the top speed"),
             "turn radius": ("target turn radius", "m", "below the smallest turn radius"),
             "depth rate": ("target depth rate", "m/s", "above the largest depth rate")}
     name, unit, rel = what[f.limit]
-    return (f"vehicle {f.vehicle} at t = {f.time:.4g} s: {name} {f.value:.3g} {unit} {rel} "
-            f"{f.bound:.3g} {unit}" + (f" ({f.source})" if f.source else ""))
+    who = vehicles or f"vehicle {f.vehicle}"
+    return (f"{who} at t = {f.time:.4g} s: {name} {f.value:.3g} {unit} {rel} "
+            f"{f.bound:.3g} {unit} (beyond it {f.fraction:.0%} of the time"
+            + (f"; {f.source})" if f.source else ")"))
+
+
+def finding_lines(findings: Sequence[Finding]) -> list[str]:
+    """:func:`finding_line` per distinct finding, the vehicles that share it named
+    together (``vehicles 1, 2, 3, 4``)."""
+    groups: dict[tuple, list[Finding]] = {}
+    for f in findings:
+        groups.setdefault((f.limit, f.time, f.value, f.bound, f.source, f.fraction),
+                          []).append(f)
+    return [finding_line(fs[0], None if len(fs) == 1 else
+                         "vehicles " + ", ".join(str(f.vehicle) for f in fs))
+            for fs in groups.values()]
 
 
 def path_demands(F: np.ndarray, H: np.ndarray, z0: np.ndarray, T: float, dt: float
@@ -83,7 +101,7 @@ def path_demands(F: np.ndarray, H: np.ndarray, z0: np.ndarray, T: float, dt: flo
 
 def path_findings(F: np.ndarray, H: np.ndarray, z0: np.ndarray, T: float,
                   limits: Sequence[object], dt: float = 0.1) -> list[Finding]:
-    """Per vehicle, the first time each of its known limits is exceeded.
+    """Per vehicle, the worst excess of each of its known limits.
 
     Parameters
     ----------
@@ -106,15 +124,15 @@ def path_findings(F: np.ndarray, H: np.ndarray, z0: np.ndarray, T: float,
     t, speed, radius, depth_rate = path_demands(F, H, z0, T, dt)
     out: list[Finding] = []
     for i, lim in enumerate(limits, start=1):
-        checks = (("speed", speed, lim.max_speed, speed > (lim.max_speed or 0)),
+        checks = (("speed", speed, lim.max_speed, speed > (lim.max_speed or 0), 1.0),
                   ("turn radius", radius, lim.min_turn_radius,
-                   radius < (lim.min_turn_radius or 0)),
+                   radius < (lim.min_turn_radius or 0), -1.0),
                   ("depth rate", depth_rate, lim.max_depth_rate,
-                   depth_rate > (lim.max_depth_rate or 0)))
-        for name, values, bound, bad in checks:
+                   depth_rate > (lim.max_depth_rate or 0), 1.0))
+        for name, values, bound, bad, sign in checks:
             if bound is None or not bad.any():
                 continue
-            k = int(np.argmax(bad))
+            k = int(np.argmax(sign * values))          # the worst sample
             out.append(Finding(i, float(t[k]), name, float(values[k]), float(bound),
-                               getattr(lim, "source", "")))
+                               getattr(lim, "source", ""), float(bad.mean())))
     return out

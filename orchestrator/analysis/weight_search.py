@@ -32,7 +32,7 @@ from controller_fmu.weight_design import (
 )
 from plant_model.fleet import fleet_vehicles
 from plant_model.linalg_checks import ModelError
-from plant_model.path_feasibility import Finding, finding_line, path_findings
+from plant_model.path_feasibility import Finding, finding_line, finding_lines, path_findings
 from plant_model.remus100.limits import VehicleLimits
 from plant_model.vehicle_models import get
 from plant_model.vehicles import REMUS100_MAX_SPEED, VehicleModel
@@ -123,7 +123,7 @@ class DesignResult:
                        f"{self.bandwidth:.3g} rad/s"
                        + ("" if self.bandwidth_target is None
                           else f" (target {self.bandwidth_target:g} rad/s)"))
-        out += [f"path check: {finding_line(f)}" for f in self.findings]
+        out += [f"path check: {line}" for line in finding_lines(self.findings)]
         return out
 
     def summary(self) -> dict[str, Any]:

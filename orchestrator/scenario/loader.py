@@ -71,6 +71,9 @@ class Scenario:
     #: the navigation sensors' [sensors] table (plant_model.navigation; None: a position
     #: fix every step)
     sensors: dict[str, Any] | None = None
+    #: what [design] chose and found (orchestrator.analysis.weight_search.DesignResult;
+    #: None without a [design] section)
+    design: Any = None
     #: the parsed file the scenario was validated from (for variants of it)
     raw: Mapping[str, Any] | None = field(default=None, repr=False, compare=False)
 
@@ -236,6 +239,32 @@ def _scenario(file: ScenarioFile, where: str, system: LinearSystem,
     return sc
 
 
+def _design(fleet: Any, spec: dict[str, Any], where: str) -> Any:
+    """[design] at work (orchestrator.analysis.weight_search): the limits, u_max, the
+    searched R (set in ``spec`` for every vehicle) and the path check, which refuses here
+    with ``path_check = "refuse"``."""
+    from plant_model.path_feasibility import finding_line
+
+    from ..analysis.weight_search import apply_weight, design_fleet
+    options = fleet.design.model_dump()
+    sim = fleet.simulation
+    try:
+        result = design_fleet(spec, options, h=sim.h, T=sim.T, estimator=sim.estimator,
+                              tracking=sim.tracking, regulator=fleet.distributed.regulator)
+    except ModelError as exc:
+        text = str(exc)
+        text = text if text.startswith("[design]") else f"[design] {text}"
+        raise ScenarioError(f"{where}: {text}") from None
+    if options["path_check"] == "refuse" and result.findings:
+        raise ScenarioError(f"{where}: [design] path_check = \"refuse\": "
+                            f"{finding_line(result.findings[0])}"
+                            + (f" (and {len(result.findings) - 1} more)"
+                               if len(result.findings) > 1 else ""))
+    if result.R is not None:
+        apply_weight(spec, result.R, [m.q for m in fleet.vehicles.models])
+    return result
+
+
 def _resolve(spec: str | Path) -> Path:
     p = Path(spec)
     if p.suffix == ".toml" or p.exists():
@@ -279,9 +308,10 @@ def scenario_from_dict(data: Mapping[str, Any], where: str = "scenario") -> Scen
         from .schema_fleet import FleetScenario
         fleet = validate_scenario(FleetScenario, data, where)
         spec = fleet_spec(fleet)
+        design = _design(fleet, spec, where) if fleet.design is not None else None
         system = _built(where, fleet_system, spec)
         sc = _scenario(fleet, where, system, _built(where, resolve_fleet_spec, spec))
-        return replace(sc, raw=copy.deepcopy(dict(data)))
+        return replace(sc, raw=copy.deepcopy(dict(data)), design=design)
     single = validate_scenario(SystemScenario, data, where)
     system = _built(where, LinearSystem.from_mapping, single.system_mapping())
     return replace(_scenario(single, where, system), raw=copy.deepcopy(dict(data)))

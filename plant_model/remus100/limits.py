@@ -88,6 +88,5 @@ def remus_limits(v: Remus100, duration: float = 80.0, tail: float = 20.0) -> Veh
         z = _manoeuvre(v, (0.0, ds, full), duration, tail)[:, 2]
         rates.append(abs(float(np.polyfit(np.arange(z.size) * _STEP, z, 1)[0])))
     return VehicleLimits(max_speed=speed, min_turn_radius=radius, max_depth_rate=min(rates),
-                         source=f"remus100-6dof simulated: {duration:g} s at n_max = "
-                                f"{v.n_max:g} rpm, fins at 0 / full rudder / full stern "
-                                f"planes (+-{math.degrees(v.delta_max):g} deg)")
+                                  source=f"remus100-6dof simulated at {v.n_max:g} rpm, fins "
+                                f"+-{math.degrees(v.delta_max):g} deg")
