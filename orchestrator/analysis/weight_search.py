@@ -32,7 +32,7 @@ from controller_fmu.weight_design import (
 )
 from plant_model.fleet import fleet_vehicles
 from plant_model.linalg_checks import ModelError
-from plant_model.path_feasibility import Finding, finding_line, finding_lines, path_findings
+from plant_model.path_feasibility import Finding, finding_lines, path_findings
 from plant_model.remus100.limits import VehicleLimits
 from plant_model.vehicle_models import get
 from plant_model.vehicles import REMUS100_MAX_SPEED, VehicleModel
@@ -106,6 +106,7 @@ class DesignResult:
     clip: bool                      #: the controllers clip their force at u_max
     limits: list[dict[str, Any]]    #: per vehicle its limits
     findings: list[Finding] = field(default_factory=list)
+    checked: bool = True            #: the path was checked (path_check is not "off")
 
     def lines(self) -> list[str]:
         """The printout: the choice in one line, then one line per path finding."""
@@ -132,8 +133,15 @@ class DesignResult:
                 "force_3sigma": self.force_3sigma, "force_ratio": self.force_ratio,
                 "force_vehicle": self.force_vehicle, "bandwidth_target": self.bandwidth_target,
                 "force_budget": self.force_budget, "u_max": self.u_max, "clip": self.clip,
-                "limits": self.limits,
-                "path_findings": [finding_line(f) for f in self.findings]}
+                "limits": self.limits, "path_findings": finding_lines(self.findings),
+                "printout": self.lines()}
+
+    def over(self, T: float, F: np.ndarray, H: np.ndarray, z0: np.ndarray) -> DesignResult:
+        """The same design with the path checked over [0, T] (a run's own horizon)."""
+        from types import SimpleNamespace
+        lims = [SimpleNamespace(**lim) for lim in self.limits]
+        return replace(self, findings=path_findings(F, H, z0, T, lims) if self.checked
+                       else [])
 
 
 def _noise_gain(agent: Agent, r: float, leader: Mapping[str, np.ndarray], tracking: str,
@@ -195,7 +203,8 @@ def design_fleet(spec: Mapping[str, Any], options: Mapping[str, Any], *, h: floa
                 u_max=[u.tolist() for u in umax], clip=u_opt is not None,
                 limits=[{"max_speed": lim.max_speed, "min_turn_radius": lim.min_turn_radius,
                          "max_depth_rate": lim.max_depth_rate, "source": lim.source}
-                        for lim in limits], findings=findings)
+                        for lim in limits], findings=findings,
+                checked=options.get("path_check") != "off")
     if options.get("bandwidth") is None and options.get("force_budget") is None:
         return DesignResult(**base)
     agents, _, leader = agents_from_fleet_spec(spec)

@@ -134,6 +134,8 @@ def print_summary(summary: dict, out: Path) -> int:
     if "native" in kinds:
         print("FMUs: native " + ", ".join(kinds["native"])
               + ("; pythonfmu " + ", ".join(kinds["python"]) if kinds.get("python") else ""))
+    for line in (summary.get("design") or {}).get("printout", []):
+        print(line)                          # what [design] chose, and the path check
     print(f"{'method':>10s} {'cost rate':>12s} {'(std)':>9s} {'predicted':>10s}   "
           "rms e (sim / pred)")
     for name, m in summary["methods"].items():

@@ -89,8 +89,6 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     from .seeds import seed_pool
 
     t0 = time.perf_counter()
-    for line in (sc.design.lines() if sc.design is not None else []):
-        log(line)                           # what [design] chose and the path check
     methods = method_list(sc, modes, trackings, architectures)
     check_memory(sc, len(methods))
     out = Path(out_dir)

@@ -28,6 +28,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
+import numpy as np
+
 from controller_fmu.vehicle_law import DistributedSettings
 from plant_model.acoustic.settings import check_network
 from plant_model.discretization import check_step
@@ -146,6 +148,10 @@ class Scenario:
                "tracking": new.tracking, "deployment": new.deployment,
                "architecture": new.architecture, "fmus": new.fmus}
         validate_scenario(RunSettings, {"simulation": run}, new.source)
+        if new.design is not None and new.T != self.T:      # the path over the run's horizon
+            ld = new.fleet["leader"]
+            new = replace(new, design=new.design.over(new.T, *(np.asarray(ld[k], float)
+                                                               for k in ("F", "H", "z0"))))
         _check_step(new)
         check_deployment(new)
         return new
@@ -243,7 +249,7 @@ def _design(fleet: Any, spec: dict[str, Any], where: str) -> Any:
     """[design] at work (orchestrator.analysis.weight_search): the limits, u_max, the
     searched R (set in ``spec`` for every vehicle) and the path check, which refuses here
     with ``path_check = "refuse"``."""
-    from plant_model.path_feasibility import finding_line
+    from plant_model.path_feasibility import finding_lines
 
     from ..analysis.weight_search import apply_weight, design_fleet
     options = fleet.design.model_dump()
@@ -256,10 +262,9 @@ def _design(fleet: Any, spec: dict[str, Any], where: str) -> Any:
         text = text if text.startswith("[design]") else f"[design] {text}"
         raise ScenarioError(f"{where}: {text}") from None
     if options["path_check"] == "refuse" and result.findings:
-        raise ScenarioError(f"{where}: [design] path_check = \"refuse\": "
-                            f"{finding_line(result.findings[0])}"
-                            + (f" (and {len(result.findings) - 1} more)"
-                               if len(result.findings) > 1 else ""))
+        lines = finding_lines(result.findings)
+        raise ScenarioError(f"{where}: [design] path_check = \"refuse\": {lines[0]}"
+                            + (f" (and {len(lines) - 1} more)" if len(lines) > 1 else ""))
     if result.R is not None:
         apply_weight(spec, result.R, [m.q for m in fleet.vehicles.models])
     return result
