@@ -72,8 +72,8 @@ def force_limit(par: dict[str, Any]) -> np.ndarray | None:
     bad = np.flatnonzero(~(u_max > 0.0))
     if bad.size:
         k = int(bad[0])
-        raise ValueError(f"parameter u_max[{k + 1}] = {u_max[k]!r} must be a positive force "
-                         "in N (the actuator limit)")
+        raise ValueError(f"parameter u_max[{k + 1}] = {float(u_max[k])!r} must be a positive "
+                         "force in N (the actuator limit)")
     return None if np.all(u_max >= UNLIMITED) else u_max
 
 
