@@ -216,3 +216,72 @@ def test_anti_windup_matters_after_a_saturating_transient(tmp_path):
     assert e_aw[k_aw:].max() < 1.5
     assert e_naive[k_naive:].max() > 10.0
     assert np.abs(w_aw).max() < 0.5 < 5.0 < np.abs(w_naive).max()
+
+
+def _limited(tmp_path, deployment: str):
+    """formation-4 with [design] bandwidth 0.3 rad/s and u_max = 12, 12, 4 N, as a file."""
+    data = copy.deepcopy(dict(load_scenario("formation-4").raw))
+    data["cost"].pop("R")
+    data["simulation"]["deployment"] = deployment
+    if deployment == "per-vehicle":
+        data["simulation"]["architecture"] = "distributed"
+    data["design"] = {"bandwidth": 0.3, "u_max": [12.0, 12.0, 4.0], "path_check": "off"}
+    path = tmp_path / "limited.toml"
+    path.write_text(_toml(data))
+    return path
+
+
+def test_the_stacked_controller_clips_at_the_design_limit(tmp_path):
+    """The stacked deployment's AuvController gets every vehicle's u_max: the run's force
+    reaches the limit and never exceeds it."""
+    from orchestrator.running.setup import method_list
+    from orchestrator.running.systems import make_setup
+    sc = load_scenario(_limited(tmp_path, "stacked")).with_run(T=20.0)
+    method = method_list(sc)[0]
+    setup = make_setup(sc, tmp_path / "fmus", [method])
+    setup.fmus(method)
+    u = np.abs(setup.run(method, 0).traces["u"])
+    limit = np.tile([12.0, 12.0, 4.0], 4)
+    assert np.all(u <= limit)
+    assert np.mean(u == limit) > 0.05
+
+
+def test_a_run_with_a_force_limit_reports_and_says_so(tmp_path, capsys):
+    """`auv-cosim run` (per-vehicle, distributed) with [design] u_max and a bandwidth
+    target: summary.json holds the chosen R and the limits; the printout has the design
+    line and names the vehicles saturated more than 10 % of the window."""
+    import json
+
+    from orchestrator.cli import main
+    path = _limited(tmp_path, "per-vehicle")
+    assert main(["run", "--scenario", str(path), "--T", "40", "--quiet", "--out",
+                 str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out.splitlines()
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    d = summary["design"]
+    assert d["bandwidth"] == pytest.approx(0.3, rel=1e-8) and d["clip"] is True
+    assert d["u_max"] == [[12.0, 12.0, 4.0]] * 4 and d["binding"] == "bandwidth"
+    assert out[1].startswith(f"design: R = {d['R']:.4g} (the bandwidth target sets it)")
+    sat = summary["methods"]["kalman"]["actuator_saturation_fraction_per_vehicle"]
+    assert len(sat) == 4 and max(sat) > 0.1
+    note = [line for line in out if "saturated more than 10%" in line]
+    assert len(note) == 1
+    assert all(f"vehicle {i}" in note[0] for i, f in enumerate(sat, start=1) if f > 0.1)
+
+
+def _toml(data: dict) -> str:
+    """A small TOML writer for the scenario tables (numbers, strings, lists, tables)."""
+    def value(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, str):
+            return '"' + v + '"'
+        if isinstance(v, list):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        if isinstance(v, dict):
+            return "{ " + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + " }"
+        return repr(float(v)) if isinstance(v, float) else str(v)
+    top = [f"{k} = {value(v)}" for k, v in data.items() if not isinstance(v, dict)]
+    tables = [f"[{k}]\n" + "\n".join(f"{kk} = {value(vv)}" for kk, vv in v.items())
+              for k, v in data.items() if isinstance(v, dict)]
+    return "\n".join(top) + "\n\n" + "\n\n".join(tables) + "\n"
