@@ -1,7 +1,7 @@
 """FMI 2.0 co-simulation slave of one vehicle's centralized controller (per-vehicle deployment).
 
 The paper's stacked law cut by vehicle (controller_fmu.vehicle_law.centralized_rows): vehicle
-i applies its rows u_i = u0 - K [xhat_1; what_1; ...; xhat_N; what_N; z] of the stacked
+i applies its rows u_i = sat(u0 - K [xhat_1; what_1; ...; xhat_N; what_N; z]) of the stacked
 gain, consensus force included. It reads every vehicle's estimate and the leader's state:
 O(N) inputs, the one FMU of the per-vehicle deployment whose size grows with the fleet (all-to-all
 information is what the centralized architecture means). The stacked Riccati and

@@ -1,7 +1,8 @@
 """FMI 2.0 co-simulation slave of the LQ feedforward-feedback controller.
 
 Solves the paper's design (eq. 13-15, corrected) in exitInitializationMode from whatever
-parameters the host set, then u = -(Kx xhat + Kw what + Kz zhat) on demand (direct
+parameters the host set, then u = sat(-(Kx xhat + Kw what + Kz zhat)) on demand (clipped at
+the parameter u_max, controller_fmu.slave_common; direct
 feedthrough from the estimates); with tracking = 'regulator' the feedforward comes from the
 output-regulation equations instead (controller_fmu.regulator). Static law: any
 communication step works. FMU state: the gain matrix (restored as is, the design is not

@@ -6,7 +6,8 @@ in-degree) the neighbour's leader estimate nbr[k].eta and regulation error nbr[k
 weight a[k] (0: an unused slot); the leader's state z with weight a0 (0: not pinned). Outputs
 
     eps = xhat - X eta - Xw what - xc                               (feeds through)
-    u   = U eta + Uw what + uc - Kx eps + c Kx (sum_k a[k] nbr[k].eps - d eps)
+    u   = sat(U eta + Uw what + uc - Kx eps + c Kx (sum_k a[k] nbr[k].eps - d eps))
+          (clipped per axis at the parameter u_max, controller_fmu.slave_common)
     eta   the vehicle's distributed observer of the leader (a state: no feedthrough),
           eta[k+1] = (Phi - mu d Gam_F) eta + mu Gam_F (sum_k a[k] nbr[k].eta + a0 z)
 
