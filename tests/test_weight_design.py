@@ -196,3 +196,16 @@ def test_the_chosen_r_is_the_scenarios_r():
     assert sc.design.bandwidth == pytest.approx(0.2, rel=1e-8)
     assert np.allclose(sc.system.R, R * np.eye(12))
     assert sc.design.lines()[0].startswith(f"design: R = {R:.4g} (the bandwidth target sets it)")
+
+
+def test_the_path_force_of_a_straight_leader_is_its_drag():
+    """Straight at 2 m/s with u_max = D * 2.5 m/s (the linear REMUS): the path needs
+    D * 2 / (D * 2.5) = 0.8 of u_max, whatever D."""
+    data = copy.deepcopy(FLEET)
+    data["cost"].pop("R")
+    data["leader"] = {"path": "straight", "speed": 2.0, "start": [0.0, 0.0, 20.0]}
+    data["design"] = {"bandwidth": 0.2, "u_max": "vehicle"}
+    sc = scenario_from_dict(data, "case.toml")
+    assert sc.design.path_force_ratio == pytest.approx(0.8, rel=1e-12)
+    assert sc.design.findings == []
+    assert sc.design.lines()[0].endswith("the path itself needs up to 0.8 of u_max")

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+from scipy.linalg import expm
 
 from controller_fmu.vehicle_law import vehicle_law
 from controller_fmu.weight_design import (
@@ -107,6 +108,9 @@ class DesignResult:
     limits: list[dict[str, Any]]    #: per vehicle its limits
     findings: list[Finding] = field(default_factory=list)
     checked: bool = True            #: the path was checked (path_check is not "off")
+    #: the largest force the target path itself needs, M_a a_a + D_a v_a over u_max_a (the
+    #: worst vehicle and axis; R-independent, not in the budget; None: not a NED model)
+    path_force_ratio: float | None = None
 
     def lines(self) -> list[str]:
         """The printout: the choice in one line, then one line per path finding."""
@@ -123,7 +127,10 @@ class DesignResult:
             out.append(f"design: R = {self.R:.4g} ({why}): {force}bandwidth "
                        f"{self.bandwidth:.3g} rad/s"
                        + ("" if self.bandwidth_target is None
-                          else f" (target {self.bandwidth_target:g} rad/s)"))
+                          else f" (target {self.bandwidth_target:g} rad/s)")
+                       + ("" if self.path_force_ratio is None else
+                          f"; the path itself needs up to {self.path_force_ratio:.2g} of "
+                          "u_max"))
         out += [f"path check: {line}" for line in finding_lines(self.findings)]
         return out
 
@@ -134,6 +141,7 @@ class DesignResult:
                 "force_vehicle": self.force_vehicle, "bandwidth_target": self.bandwidth_target,
                 "force_budget": self.force_budget, "u_max": self.u_max, "clip": self.clip,
                 "limits": self.limits, "path_findings": finding_lines(self.findings),
+                "path_force_ratio": self.path_force_ratio,
                 "printout": self.lines()}
 
     def over(self, T: float, F: np.ndarray, H: np.ndarray, z0: np.ndarray) -> DesignResult:
@@ -152,6 +160,30 @@ def _noise_gain(agent: Agent, r: float, leader: Mapping[str, np.ndarray], tracki
                       R=r * np.eye(agent.B.shape[1]), F=leader["F"], H=leader["H"],
                       offset=agent.offset, tracking=tracking, regulator=regulator, h=h)
     return law.Kx, np.hstack([law.Kx, -law.gain_what])
+
+
+def path_force_ratio(models: Sequence[VehicleModel], umax: Sequence[np.ndarray],
+                     F: np.ndarray, H: np.ndarray, z0: np.ndarray, T: float,
+                     dt: float = 0.1) -> float | None:
+    """max over t, vehicles and axes of |M_a a_a(t) + D_a v_a(t)| / u_max_a: the force the
+    target path needs in still water (v = H F z, a = H F^2 z; M_a = 1 / B_v, D_a = -A_vv M_a
+    of a NED design model). None when a model is not NED or there is no u_max."""
+    if not umax or any(get(m.name).layout != "ned" for m in models):
+        return None
+    n = int(np.floor(T / dt + 1e-9)) + 1
+    Phi = expm(np.asarray(F, float) * dt)
+    Z = np.empty((n, F.shape[0]))
+    z = np.asarray(z0, float)
+    for k in range(n):
+        Z[k] = z
+        z = Phi @ z
+    V, A = Z @ (H @ F).T, Z @ (H @ F @ F).T
+    worst = 0.0
+    for mdl, lim in zip(models, umax):
+        M = 1.0 / np.diag(np.asarray(mdl.B1, float)[3:6, :3])
+        D = -np.diag(np.asarray(mdl.A, float)[3:6, 3:6]) * M
+        worst = max(worst, float(np.max(np.abs(A * M + V * D) / lim)))
+    return worst
 
 
 def _key(a: Agent) -> bytes:
@@ -204,7 +236,8 @@ def design_fleet(spec: Mapping[str, Any], options: Mapping[str, Any], *, h: floa
                 limits=[{"max_speed": lim.max_speed, "min_turn_radius": lim.min_turn_radius,
                          "max_depth_rate": lim.max_depth_rate, "source": lim.source}
                         for lim in limits], findings=findings,
-                checked=options.get("path_check") != "off")
+                checked=options.get("path_check") != "off",
+                path_force_ratio=path_force_ratio(models, umax, F, H, z0, T))
     if options.get("bandwidth") is None and options.get("force_budget") is None:
         return DesignResult(**base)
     agents, _, leader = agents_from_fleet_spec(spec)
