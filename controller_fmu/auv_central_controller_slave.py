@@ -14,7 +14,7 @@ import numpy as np
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from controller_fmu.slave_common import StaticLawSlave as Fmi2Slave
-from controller_fmu.slave_common import force_limit, refuse_native_clip, u_max_spec
+from controller_fmu.slave_common import clip_roles, force_limit, u_max_spec
 from fmu_common.interface import ArraySpec
 from fmu_common.native_form import NativeForm, Role
 
@@ -68,13 +68,13 @@ class AuvCentralController(Fmi2Slave):
         self._umax = force_limit(self.par)
 
     def native_form(self) -> NativeForm:
-        """u = u0 - K [xhat_1; what_1; ...; z]: a static gain (any communication step);
-        refused while u_max limits the force."""
-        refuse_native_clip(self._umax, "AuvCentralController")
+        """u = u0 - K [xhat_1; what_1; ...; z]: a static gain (any communication step); the
+        force clipped at u_max when it is limited (controller_fmu.slave_common.clip_roles)."""
         return self.static_native_form([
             Role("D", "K", -self._negK, "the vehicle's rows of the stacked gain: u = u0 - K "
                  "[xhat_1; what_1; ...; z]", sign=-1.0),
-            Role("c", "u0", self._u0, "constant force (formation offsets)", unit="N")])
+            Role("c", "u0", self._u0, "constant force (formation offsets)", unit="N"),
+            *clip_roles(self._umax)])
 
     def compute_outputs(self) -> None:
         """u = u0 - K [xhat_1; what_1; ...; xhat_N; what_N; z] into the output buffer."""

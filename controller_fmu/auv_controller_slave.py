@@ -16,7 +16,7 @@ from controller_fmu.regulator import TRACKING_MODES, tracking_law
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from controller_fmu.slave_common import StaticLawSlave as Fmi2Slave
-from controller_fmu.slave_common import force_limit, refuse_native_clip, u_max_spec
+from controller_fmu.slave_common import clip_roles, force_limit, u_max_spec
 from fmu_common.interface import ArraySpec
 from fmu_common.native_form import NativeForm, Role
 from plant_model.parameters import model_parameter_specs, system_from_parameters
@@ -78,12 +78,11 @@ class AuvController(Fmi2Slave):
                  f"relative residuals {self.design.residuals}")
 
     def native_form(self) -> NativeForm:
-        """u = -Ks [xhat; what; zhat]: a static gain (any communication step); refused
-        while u_max limits the force (controller_fmu.slave_common.refuse_native_clip)."""
-        refuse_native_clip(self._umax, "AuvController")
+        """u = -Ks [xhat; what; zhat]: a static gain (any communication step); the
+        force clipped at u_max when it is limited (controller_fmu.slave_common.clip_roles)."""
         return self.static_native_form([
             Role("D", "Ks", -self._negK, "the designed gain: u = -Ks [xhat; what; zhat] "
-                 f"({self.par['tracking']} law)", sign=-1.0)])
+                 f"({self.par['tracking']} law)", sign=-1.0), *clip_roles(self._umax)])
 
     def compute_outputs(self) -> None:
         """u = sat(-(Kx xhat + Kw what + Kz zhat)) into the output buffer."""

@@ -21,7 +21,7 @@ import numpy as np
 
 from controller_fmu.distributed import REGULATOR_FORMS, sampled_observer
 from controller_fmu.regulator import TRACKING_MODES
-from controller_fmu.slave_common import force_limit, refuse_native_clip, u_max_spec
+from controller_fmu.slave_common import clip_roles, force_limit, u_max_spec
 from controller_fmu.vehicle_law import vehicle_law
 from fmu_common.interface import ArraySpec
 from fmu_common.native_form import BlockLayout, NativeForm, Role
@@ -145,9 +145,9 @@ class AuvVehicleController(Fmi2Slave):
                   + uc - Geps xc
             eta+ = Aobs eta + Bobs (sum_k a_k eta_k + a0 z)
 
-        Refused while u_max limits the force (controller_fmu.slave_common).
+        With a force limit u is then clipped at u_max (the role sat,
+        controller_fmu.slave_common.clip_roles).
         """
-        refuse_native_clip(self._umax, "AuvVehicleController")
         inputs, outputs = self.io_specs()
         In, Out = BlockLayout(inputs), BlockLayout(outputs)
         l_, n = self.eta.size, self._X.shape[0]
@@ -175,6 +175,7 @@ class AuvVehicleController(Fmi2Slave):
                                    "feedthrough of the estimates and the neighbours' eps)"),
                               Role("c", "y0", c, "constant part of the outputs (offsets)"),
                               Role("q0", "eta0", self.eta, "the observer's initial state"),
+                              *clip_roles(self._umax, Out["u"].start),
                           ])
 
     def compute_outputs(self) -> None:

@@ -15,7 +15,8 @@ the estimator's model states (the velocity and the current estimate, the regulat
 internal model of the disturbance) are driven by the force the vehicle was given, not by
 the law's wish: they do not wind up while the force is limited. The distributed
 observer of the leader (eta) is driven by the neighbours' and the leader's messages only,
-never by u, so nothing else in the loop integrates the clipped difference.
+never by u, so nothing else in the loop integrates the clipped difference. The native (C)
+form clips the same way (the role ``sat``, :func:`clip_roles`).
 """
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ from fmu_common.interface import ArraySpec
 from fmu_common.native_form import NativeForm, Role
 from fmu_common.slave_base import ArraySlave
 
-__all__ = ["StaticLawSlave", "UNLIMITED", "force_limit", "refuse_native_clip", "saturate",
+__all__ = ["StaticLawSlave", "UNLIMITED", "clip_roles", "force_limit", "saturate",
            "u_max_spec"]
 
 #: the default actuator limit: no limit (N)
@@ -77,17 +78,26 @@ def force_limit(par: dict[str, Any]) -> np.ndarray | None:
     return None if np.all(u_max >= UNLIMITED) else u_max
 
 
-def refuse_native_clip(limit: np.ndarray | None, who: str) -> None:
-    """The native (C) form has no clip yet: refuse it when a limit is set.
+def clip_roles(limit: np.ndarray | None, row0: int = 0) -> list[Role]:
+    """The native form's clip of the force outputs (rows row0.. of y): the role ``sat``
+    named ``u_max`` (fmu_common.native_form), none without a limit (today's form).
 
-    Raises
-    ------
-    ValueError
-        When ``limit`` is not None.
+    Parameters
+    ----------
+    limit : np.ndarray or None
+        u_max per axis (N), as :func:`force_limit` returns it.
+    row0 : int, optional
+        The first output row of the force u.
+
+    Returns
+    -------
+    list[Role]
+        [] or the one role.
     """
-    if limit is not None:
-        raise ValueError(f"{who}: the native (C) form cannot clip its force at u_max yet "
-                         "(the linear form has no saturation); use the pythonfmu controller")
+    if limit is None:
+        return []
+    return [Role("sat", "u_max", limit, "actuator limit per force axis: the output u is "
+                 "clipped to [-u_max, u_max]", row0=row0, unit="N")]
 
 
 class StaticLawSlave(ArraySlave):

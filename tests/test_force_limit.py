@@ -3,7 +3,8 @@
 - the distributed controller FMU with u_max set equals the plain law clipped,
   sat(u) = min(max(u, -u_max), u_max), to 1e-12 (the law and its observer stepped in numpy);
   the centralized and stacked controllers equal their unclipped outputs clipped, bit for bit;
-- a bad u_max is an error status naming the element;
+- a bad u_max is an error status naming the element; the native (C) controllers clip as
+  the pythonfmu ones (1e-12);
 - anti-windup matters: one vehicle's loop (leader, vehicle, estimator, controller FMUs)
   started 58 m off its target with 22 N per horizontal axis. With the clipped force fed to
   the estimator (the system's wiring) it settles without overshoot; with the law's force
@@ -31,7 +32,7 @@ from orchestrator.cosim.per_vehicle import (
     per_vehicle_configs,
     per_vehicle_system,
 )
-from orchestrator.scenario import ScenarioError, load_scenario, scenario_from_dict
+from orchestrator.scenario import load_scenario, scenario_from_dict
 
 T = 10.0
 UMAX = [60.0, 40.0, 20.0]
@@ -144,12 +145,26 @@ def test_a_bad_limit_is_an_error_status_naming_it(built, value, fragment):
     assert fragment in str(exc.value)
 
 
-def test_a_force_limit_with_native_fmus_is_refused_at_the_loader():
-    data = copy.deepcopy(dict(load_scenario("formation-4").raw))
-    data["simulation"]["fmus"] = "native"
-    data["design"] = {"u_max": 20.0}
-    with pytest.raises(ScenarioError, match=r"\[design\] u_max needs \[simulation\] fmus"):
-        scenario_from_dict(data, "case.toml")
+@pytest.mark.parametrize("deployment", ["per-vehicle", "stacked"])
+def test_the_native_controllers_clip_as_the_pythonfmu_ones(tmp_path, deployment):
+    """fmus = "native" with [design] u_max: the compiled controllers (role sat of
+    linear_fmu.c) give the pythonfmu run's force to 1e-12, at the limit where it clips."""
+    from orchestrator.running.setup import method_list
+    from orchestrator.running.systems import make_setup
+    path = _limited(tmp_path, deployment)
+    forces = {}
+    for fmus in ("python", "native"):
+        sc = load_scenario(path).with_run(T=10.0, fmus=fmus)
+        method = method_list(sc)[0]
+        setup = make_setup(sc, tmp_path / fmus, [method])
+        setup.fmus(method)
+        key = "controller" if deployment == "stacked" else "vehicle_controller"
+        assert setup.fmu_report(method)[key]["kind"] == fmus
+        forces[fmus] = setup.run(method, 0).traces["u"]
+    limit = np.tile([12.0, 12.0, 4.0], 4)
+    assert np.max(np.abs(forces["native"] - forces["python"])) <= 1e-12 * limit.max()
+    assert np.mean(np.abs(forces["native"]) == limit) > 0.05
+    assert np.all(np.abs(forces["native"]) <= limit)
 
 
 def _one_vehicle_loop(sc, parts, anti_windup: bool, umax: list[float], T_run: float):

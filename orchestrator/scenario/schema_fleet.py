@@ -404,8 +404,7 @@ class FleetScenario(ScenarioFile):
     @classmethod
     def design_replaces_r(cls, design: DesignSection | None,
                           info: ValidationInfo) -> DesignSection | None:
-        """A searched weight replaces R: no [cost] R or per-vehicle cost R beside it; a
-        force limit is a pythonfmu controller's (the native form has no clip yet)."""
+        """A searched weight replaces R: no [cost] R or per-vehicle cost R beside it."""
         if design is None:
             return design
         cost, vehicles = info.data.get("cost"), _valid_vehicles(info)
@@ -416,10 +415,6 @@ class FleetScenario(ScenarioFile):
                 if ov.cost is not None and "R" in ov.cost.model_fields_set:
                     raise ModelError(f"[design] bandwidth / force_budget choose R: remove the "
                                      f"cost R of vehicle {ov.vehicle} in [vehicles] overrides")
-        sim = info.data.get("simulation")
-        if design.u_max is not None and sim is not None and sim.fmus == "native":
-            raise ModelError("[design] u_max needs [simulation] fmus = \"python\": the native "
-                             "(C) controllers cannot clip their force yet")
         return design
 
     @field_validator("network")
