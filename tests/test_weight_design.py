@@ -209,3 +209,14 @@ def test_the_path_force_of_a_straight_leader_is_its_drag():
     assert sc.design.path_force_ratio == pytest.approx(0.8, rel=1e-12)
     assert sc.design.findings == []
     assert sc.design.lines()[0].endswith("the path itself needs up to 0.8 of u_max")
+
+
+def test_a_run_checks_the_path_over_its_own_horizon():
+    """formation-4's lawnmower turns tighter than 16 m from t = 1.6 s on: a 1 s run has no
+    finding, the file's 600 s do."""
+    data = copy.deepcopy(FLEET)
+    data["design"] = {"min_turn_radius": 16.0}
+    sc = scenario_from_dict(data, "case.toml")
+    assert [f.limit for f in sc.design.findings] == ["turn radius"] * 4
+    assert sc.with_run(T=1.0).design.findings == []
+    assert len(sc.with_run(T=1.0).with_run(T=30.0).design.findings) == 4
