@@ -27,6 +27,7 @@ UNIT_DEFINITIONS: dict[str, dict[str, int]] = {
     "rad": {"rad": 1},
     "rad/s": {"rad": 1, "s": -1},
     "kg": {"kg": 1},
+    "kg/s": {"kg": 1, "s": -1},
     "1/s": {"s": -1},
     "1/m2": {"m": -2},
     "1/N2": {"kg": -2, "m": -2, "s": 4},

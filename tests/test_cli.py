@@ -127,10 +127,13 @@ def test_build_writes_fmus_and_variable_tables(tmp_path, capsys):
 
 def test_committed_fmu_readme_matches_the_generator():
     from orchestrator.cosim.build import variables_markdown
-    from orchestrator.running.fmus import FMU_README_HEAD, scenario_config
+    from orchestrator.running.fmus import FMU_README_HEAD, fmu_readme, scenario_config
     sc = load_scenario("paper")
-    expected = FMU_README_HEAD.format(scenario=sc.name) + variables_markdown(scenario_config(sc))
-    assert (ROOT / "fmus" / "README.md").read_text() == expected
+    text = (ROOT / "fmus" / "README.md").read_text()
+    assert text == fmu_readme(sc)
+    assert text.startswith(FMU_README_HEAD.format(scenario=sc.name)
+                           + variables_markdown(scenario_config(sc)))
+    assert "### AuvGuidance.fmu (guidance)" in text and "`M[i]` (i=1..3)" in text
 
 
 @pytest.mark.parametrize("fmt", ["osp", "ssp"])

@@ -61,7 +61,7 @@ def test_the_rk4_sub_step_is_small_enough_and_converges_at_fourth_order():
     v = Remus100()
     x0 = np.zeros(STATE_SIZE)
     x0[6], x0[14] = 2.0, 1525.0
-    cmd = np.array([math.radians(30), math.radians(10), 1525.0])
+    cmd = np.array([math.radians(15), math.radians(10), 1525.0])
 
     def run(sub):
         x = x0.copy()
@@ -75,13 +75,13 @@ def test_the_rk4_sub_step_is_small_enough_and_converges_at_fourth_order():
 
 
 def test_a_turning_circle_at_full_rudder_closes_with_radius_u_over_r():
-    """Full rudder (30 deg) at 1525 rpm: a steady turn to starboard, banked and slowly
+    """Full rudder (15 deg) at 1525 rpm: a steady turn to starboard, banked and slowly
     diving (a helix). Its traced horizontal diameter equals 2 U_h / psi' (the NED speed
-    over the heading rate, within 1 %): about 33 m, some 20 vehicle lengths."""
+    over the heading rate, within 1 %): about 34 m, some 21 vehicle lengths."""
     from plant_model.remus100.rigid_body import euler_kinematics
     v, x = Remus100(), np.zeros(STATE_SIZE)
     x[6], x[14] = 2.5, 1525.0
-    cmd = np.array([math.radians(30), 0.0, 1525.0])
+    cmd = np.array([math.radians(15), 0.0, 1525.0])
     path = []
     for k in range(600):
         x = step(v, x, cmd, 0.2, 2)

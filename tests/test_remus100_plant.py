@@ -148,3 +148,18 @@ def test_the_fitted_model_is_a_scenario_model_and_a_design_for_the_nonlinear_veh
     with pytest.raises(ModelError, match="design = 'linear' is not one of remus100, "
                                          "remus100-fitted"):
         make_vehicle("remus100-6dof", {"design": "linear"}, "vehicle 1")
+
+
+def test_the_vehicle_starts_at_its_scenario_velocity_over_ground_in_a_current():
+    """x0's velocity is over ground: in a current w0 the hull starts with its nose along the
+    velocity through the water v_g - w0 and moves over ground at v_g (before the fix, its
+    surge was the through-water speed, so it started off by the current)."""
+    from plant_model.remus100.plant import initial_state
+    from plant_model.remus100.rigid_body import rotation_ned_body
+    v_g, w0 = np.array([1.2, 0.5, 0.1]), np.array([0.3, -0.4, 0.0])
+    x, v_ref = initial_state(Remus100(), AutopilotGains(), np.r_[0, 0, 5, v_g], w0)
+    assert np.allclose(rotation_ned_body(*x[3:6]) @ x[6:9], v_g, atol=1e-12)
+    assert np.allclose(v_ref, v_g - w0)
+    vw = rotation_ned_body(*x[3:6]).T @ (v_g - w0)        # through the water, body axes
+    assert vw[0] == pytest.approx(np.linalg.norm(v_g - w0)) and np.allclose(vw[1:], 0,
+                                                                             atol=1e-12)

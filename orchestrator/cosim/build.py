@@ -28,8 +28,8 @@ from fmu_common.interface import UNIT_DEFINITIONS, ArraySpec, expand
 
 from ..atomic import copy_atomically
 
-__all__ = ["FMU_KINDS", "STACKED_KINDS", "FmuKind", "build_fmus", "build_key", "cached_fmu",
-           "fmu_cache_dir", "fmu_config", "interface_of",
+__all__ = ["FMU_KINDS", "GUIDANCE_KINDS", "STACKED_KINDS", "FmuKind", "build_fmus", "build_key",
+           "cached_fmu", "fmu_cache_dir", "fmu_config", "interface_of",
            "patch_model_description", "variables_markdown"]
 
 ROOT = Path(__file__).resolve().parent.parent.parent
@@ -81,7 +81,17 @@ FMU_KINDS: dict[str, FmuKind] = {
     # one vehicle's acoustic inbox (plant_model.acoustic: links, inbox)
     "network": FmuKind("AuvNetwork", "plant_model.acoustic.auv_network_slave",
                        ("plant_model", "fmu_common"), "auv_network_config.json", False),
+    # the guidance interface for a host's own vehicle (docs/guidance.md): standalone
+    # components, not wired into the scenario's system
+    "guidance": FmuKind("AuvGuidance", "controller_fmu.auv_guidance_slave",
+                        ("controller_fmu", "plant_model", "fmu_common"),
+                        "auv_guidance_config.json", True),
+    "autopilot": FmuKind("AuvAutopilot", "plant_model.remus100.auv_autopilot_slave",
+                         ("plant_model", "fmu_common"), "auv_autopilot_config.json", True),
 }
+
+#: the FMUs built beside a scenario's system for a host's own vehicle stack
+GUIDANCE_KINDS = ("guidance", "autopilot")
 
 #: the FMUs of the stacked deployment (one plant, one estimator, one controller)
 STACKED_KINDS = ("plant", "estimator", "controller")
@@ -452,13 +462,17 @@ def _start_text(spec: ArraySpec) -> str:
     return "`" + json.dumps(arr.tolist()) + "`"
 
 
-def variables_markdown(config: dict[str, Any]) -> str:
+def variables_markdown(config: dict[str, Any],
+                       kinds: dict[str, dict[str, Any]] | None = None) -> str:
     """A table per FMU: name, causality, variability, unit, start, description.
 
     Parameters
     ----------
     config : dict[str, Any]
         The FMUs' configuration.
+    kinds : dict[str, dict[str, Any]] or None, optional
+        Key of :data:`FMU_KINDS` -> its configuration; default the stacked FMUs
+        (:data:`STACKED_KINDS`), all with ``config``.
 
     Returns
     -------
@@ -466,12 +480,13 @@ def variables_markdown(config: dict[str, Any]) -> str:
         Markdown, one section per FMU.
     """
     lines = []
-    for key in STACKED_KINDS:
+    todo = kinds if kinds is not None else dict.fromkeys(STACKED_KINDS, config)
+    for key, cfg in todo.items():
         kind = FMU_KINDS[key]
         lines += [f"### {kind.model}.fmu ({key})", "",
                   "| name | causality | variability | unit | start | description |",
                   "|---|---|---|---|---|---|"]
-        for spec in interface_of(kind, config):
+        for spec in interface_of(kind, cfg):
             if spec.shape:
                 idx = ",".join(f"{'ijk'[a]}" for a in range(len(spec.shape)))
                 rng = ", ".join(f"{'ijk'[a]}=1..{n}" for a, n in enumerate(spec.shape))

@@ -43,7 +43,7 @@ from fmu_common.native_form import NativeForm
 from plant_model.linalg_checks import ModelError
 
 from ..atomic import temporary_sibling
-from .build import FMU_KINDS, ROOT, patch_model_description
+from .build import FMU_KINDS, GUIDANCE_KINDS, ROOT, patch_model_description
 from .system import SystemDescription
 
 __all__ = ["CFLAGS", "NATIVE_KINDS", "NativeBuildError", "NativeSystem", "build_native_fmu",
@@ -51,9 +51,11 @@ __all__ = ["CFLAGS", "NATIVE_KINDS", "NativeBuildError", "NativeSystem", "build_
            "native_system"]
 
 #: the kinds that have a native form (the network is not linear: it stays pythonfmu)
-#: the kinds whose FMUs are linear once designed (the network and the nonlinear vehicle
-#: are not; with navigation sensors the vehicle and estimator FMUs are not either)
-NATIVE_KINDS = tuple(k for k in FMU_KINDS if k not in ("network", "remus6dof"))
+#: the kinds whose FMUs are linear once designed (the network, the nonlinear vehicle and
+#: the guidance interface are not; with navigation sensors the vehicle and estimator FMUs
+#: are not either)
+NATIVE_KINDS = tuple(k for k in FMU_KINDS
+                     if k not in ("network", "remus6dof", *GUIDANCE_KINDS))
 NATIVE_DIR = ROOT / "fmu_common" / "native"
 #: the C sources compiled into every native FMU (the first is the FMU itself)
 C_SOURCES = (NATIVE_DIR / "linear_fmu.c", NATIVE_DIR / "numpy_random.c")

@@ -272,7 +272,10 @@ def export_osp(sc: Scenario, out_dir: Path | str,
     -------
     dict[str, Path]
         ``{"system": OspSystemStructure.xml, <FMU key>: the .fmu,
-        "<FMU key>_osp": its <model>_OspModelDescription.xml}``.
+        "<FMU key>_osp": its <model>_OspModelDescription.xml}``; for REMUS 100 vehicles
+        also ``guidance`` and ``autopilot`` (AuvGuidance, AuvAutopilot): FMUs beside the
+        system, not simulators in it, for a host to wire to its own vehicle
+        (docs/guidance.md).
 
     Raises
     ------
@@ -299,6 +302,13 @@ def export_osp(sc: Scenario, out_dir: Path | str,
         paths[key] = Path(fmus[key])
         paths[f"{key}_osp"] = p
         written.append(p)
+    for key, specs in _standalone_interfaces(sc, fmus).items():   # not in the system
+        xml, _ = _osp_model_description(specs, {})
+        p = out / f"{Path(fmus[key]).stem}_OspModelDescription.xml"
+        write_bytes_atomically(p, xml)
+        paths[key] = Path(fmus[key])
+        paths[f"{key}_osp"] = p
+        written.append(p)
     system_file = out / "OspSystemStructure.xml"
     write_bytes_atomically(system_file, _system_structure(system, fmu_files, variables))
     paths["system"] = system_file
@@ -308,6 +318,18 @@ def export_osp(sc: Scenario, out_dir: Path | str,
         raise ExportError(["the exported OSP files do not validate against OSP's schemas",
                            *problems])
     return paths
+
+
+def _standalone_interfaces(sc: Scenario, fmus: Mapping[str, Path]
+                           ) -> dict[str, tuple[ArraySpec, ...]]:
+    """The interfaces of the FMUs built beside the system for a host's own vehicle stack
+    (AuvGuidance, AuvAutopilot: :func:`orchestrator.running.fmus.guidance_configs`) that
+    are among ``fmus``."""
+    from ..cosim.build import FMU_KINDS, GUIDANCE_KINDS, interface_of
+    from ..running.fmus import guidance_configs
+    configs = guidance_configs(sc)
+    return {k: tuple(interface_of(FMU_KINDS[k], configs[k])) for k in GUIDANCE_KINDS
+            if k in fmus and k in configs}
 
 
 def typed_groups_used(sc: Scenario) -> dict[str, list[str]]:

@@ -12,6 +12,9 @@ Layout of the ``.ssp`` (a ZIP archive, SSP 1.0 section 3)::
     resources/plant.ssv          one parameter set per component: every parameter of
     resources/estimator.ssv      the FMU with the scenario's value, under the FMU's own
     resources/controller.ssv     variable name (``A[1,2]``, ``h``, ``seed``, ``tracking``)
+    resources/AuvGuidance.fmu    REMUS 100 vehicles only: the guidance interface, beside
+    resources/AuvAutopilot.fmu   the system (no component), for a host's own vehicle
+                                 (docs/guidance.md)
 
 Each component binds its set (``<ParameterBinding source="resources/plant.ssv">``): by
 SSP 1.0 the names in a component's parameter source are the FMU's variable names, so no
@@ -47,7 +50,7 @@ from typing import TYPE_CHECKING
 from lxml import etree
 
 from ..atomic import temporary_sibling
-from ..cosim.build import FMU_KINDS
+from ..cosim.build import FMU_KINDS, GUIDANCE_KINDS
 from ..cosim.checks import Variable, fmu_variables
 from ..cosim.system import SystemDescription, evaluation_order
 from ..scenario import Scenario
@@ -216,6 +219,10 @@ def export_ssp(sc: Scenario, out_path: Path | str, *,
                 z.write(fmus[key], f"resources/{models[key]}.fmu")
             for comp in system.names:
                 z.writestr(parameter_set_path(comp), ssv[comp])
+            in_system = {c.fmu for c in system.components}
+            for key in GUIDANCE_KINDS:       # beside the system: for a host's own vehicle
+                if key in fmus and key not in in_system:
+                    z.write(fmus[key], f"resources/{Path(fmus[key]).stem}.fmu")
     return out_path
 
 

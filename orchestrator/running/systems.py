@@ -84,6 +84,14 @@ def build(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
     Returns
     -------
     dict
-        FMU key (plant, estimator, controller; or leader, vehicle, ...) -> path.
+        FMU key (plant, estimator, controller; or leader, vehicle, ...) -> path; for
+        REMUS 100 vehicles also 'guidance' and 'autopilot' (AuvGuidance, AuvAutopilot:
+        standalone, for a host's own vehicle; :func:`.fmus.guidance_configs`).
     """
-    return make_setup(sc, Path(out_dir)).python_fmus(Method.of(sc))
+    from ..cosim.build import build_fmus
+    from .fmus import guidance_configs
+    paths = dict(make_setup(sc, Path(out_dir)).python_fmus(Method.of(sc)))
+    extra = guidance_configs(sc)
+    if extra:
+        paths.update(build_fmus(None, Path(out_dir), kinds=extra))
+    return paths

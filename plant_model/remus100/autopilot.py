@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from .dynamics import Remus100
 from .rigid_body import rotation_ned_body
 
 __all__ = ["AutopilotGains", "ForceCommandedRemus", "autopilot_command", "wrap"]
@@ -33,20 +34,21 @@ __all__ = ["AutopilotGains", "ForceCommandedRemus", "autopilot_command", "wrap"]
 
 @dataclass(frozen=True)
 class AutopilotGains:
-    """Gains of the three loops (tuned on plant_model.remus100.dynamics; docs/remus100-6dof.md)."""
+    """Gains of the three loops (tuned on plant_model.remus100.dynamics with the 2025 data;
+    docs/remus100-6dof.md)."""
 
     U_max: float = 2.55        #: m/s, the model's speed at n_max (1525 rpm)
-    n_max: float = 1525.0      #: rpm
+    n_max: float = Remus100.n_max          #: rpm, the vehicle's limit
     K_u: float = 300.0         #: rpm per m/s
     K_ui: float = 30.0         #: rpm per m
-    K_chi: float = 1.0         #: rad of rudder per rad of course error
+    K_chi: float = 2.0         #: rad of rudder per rad of course error
     K_r: float = 1.0           #: rad of rudder per rad/s of yaw rate
     K_gamma: float = 1.0
     K_gi: float = 0.2          #: 1/s
     K_theta: float = 2.0       #: rad of stern plane per rad of pitch error
     K_q: float = 1.0           #: rad of stern plane per rad/s of pitch rate
     U_min: float = 0.1         #: m/s: below it the heading is held
-    delta_max: float = math.radians(30.0)  #: rad: the fin limit (anti-windup)
+    delta_max: float = Remus100.delta_max  #: rad: the fin limit (anti-windup)
 
 
 def wrap(a: float) -> float:

@@ -1,5 +1,10 @@
-"""A nonlinear 6-DOF REMUS 100: the vehicle its formation controller will meet (work in
-progress of the ``remus100-6dof`` model; see docs/remus100-6dof.md).
+"""The nonlinear 6-DOF REMUS 100: the vehicle its formation controller meets (model
+``remus100-6dof``; docs/remus100-6dof.md).
+
+The model follows T. I. Fossen's Python Vehicle Simulator, ``vehicles/remus100.py`` as
+published on 2025-01-15 (repository cybergalactic/PythonVehicleSimulator, commit
+7e1db8e; unchanged up to its 2025-05-13 head c717e07), with ``lib/gnc.py`` of the same
+version. Deliberate differences are listed in :class:`Remus100` and docs/remus100-6dof.md.
 
 State x = [eta (6); nu (6); delta_r, delta_s (rad); n (rpm)]: NED position and Euler
 angles, body velocities (plant_model.remus100.rigid_body), the rudder and stern-plane angles and
@@ -12,17 +17,19 @@ nu_r = nu - nu_c, nu_c = [R(Theta)' v_c; 0]:
 - M = M_RB + M_A: a prolate spheroid of the hull's length and diameter filled with
   water (neutrally buoyant), CG 2 cm below CB; added mass from Lamb's k-factors, roll
   added inertia 0.3 I_x;
-- C(nu_r) from M (skew symmetric, Munk moments included);
-- D(nu_r): linear damping from time constants (surge, sway and yaw fading as
-  exp(-3 U_r), where drag and lift take over), cross-flow drag by strip theory in both
-  planes (the hull is axisymmetric), hull lift and drag against the angle of attack;
-- fins: lift 1/2 rho U^2 A CL_delta delta at the tail (moment r x F), drag with the same
-  coefficient times delta^2;
+- C(nu_r) = C_RB(nu_r) + C_A(nu_r) from M, with the reference's eight entries of C_A
+  removed in skew-symmetric pairs (the Munk moments in pitch and yaw and the velocity
+  products that pair with them; :func:`_munk_balance`);
+- D(nu_r): linear damping from time constants (surge and sway fading as exp(-3 U_r),
+  where drag and lift take over), cross-flow drag by strip theory, hull lift and drag
+  against the angle of attack;
+- fins: two rudders and two stern planes, lift 1/2 rho U^2 A CL_delta delta at the tail
+  (moment r x F), drag with the same coefficient times delta^2;
 - propeller: thrust rho D^4 KT(J_a) n|n| with KT linear in the advance ratio
   J_a = V_a / (n D), V_a = 0.944 U (wake), thrust deduction 0.1; its torque
-  rho D^5 KQ(J_a) n|n| rolls the hull;
-- actuators: first-order lags (time constant 1 s) towards the commands, rate limited to
-  their range per time constant, saturated at +-30 deg and 1525 rpm.
+  rho D^5 KQ(J_a) n|n|, scaled by 0.1 as the reference does, rolls the hull;
+- actuators: first-order lags (fins 0.1 s, propeller 1 s) towards the commands, rate
+  limited to their range per time constant, saturated at +-15 deg and 1525 rpm.
 
 Units: m, s, rad, N, N m, rpm for the propeller. Integrated with fixed RK4 sub-steps
 (:func:`step`); docs/remus100-6dof.md shows the sub-step is small enough.
@@ -53,42 +60,54 @@ G = 9.81   #: m/s^2
 
 @dataclass(frozen=True)
 class Remus100:
-    """REMUS 100 data. Sources: [F] T. I. Fossen, Handbook of Marine Craft Hydrodynamics
-    and Motion Control, 2nd ed., Wiley 2021, section 8.4.2 and its Python Vehicle
-    Simulator (remus100.py, lib/gnc.py); [A] B. Allen, W. S. Vorus, T. Prestero,
-    "Propulsion system performance enhancements on REMUS AUVs", OCEANS 2000; [H] S. F.
-    Hoerner, Fluid-Dynamic Drag, 1965 (2D cross-flow drag of a circular section)."""
+    """REMUS 100 data. Sources: [P] T. I. Fossen, Python Vehicle Simulator,
+    ``vehicles/remus100.py`` of 2025-01-15 (commit 7e1db8e) and ``lib/gnc.py``; [F] T. I.
+    Fossen, Handbook of Marine Craft Hydrodynamics and Motion Control, 2nd ed., Wiley 2021,
+    section 8.4.2; [A] B. Allen, W. S. Vorus, T. Prestero, "Propulsion system performance
+    enhancements on REMUS AUVs", OCEANS 2000; [H] S. F. Hoerner, Fluid-Dynamic Drag, 1965
+    (2D cross-flow drag of a circular section, as [P]'s ``Hoerner(B, T)`` at B/2T = 0.5).
 
-    L: float = 1.6                  #: length, m [F, A]
-    diam: float = 0.19              #: hull diameter, m [F, A]
-    rho: float = 1026.0             #: sea water, kg/m^3 [F]
-    r_g: tuple[float, float, float] = (0.0, 0.0, 0.02)   #: CG from CO (= CB), m [F]
-    r44: float = 0.3                #: roll added inertia A44 = r44 I_x [F]
-    Cd_surge: float = 0.42          #: hull drag on the frontal area pi b^2 [A]
-    hull_area_ratio: float = 0.7    #: lifting area S = 0.7 L diam [F]
-    oswald: float = 0.7             #: Oswald efficiency of the hull as a wing [F]
-    Cd_crossflow: float = 1.198     #: 2D cross-flow drag, Hoerner's curve at B/2T = 0.5 [H, F]
-    T_surge: float = 20.0           #: low-speed damping time constants, s [F]
-    T_sway: float = 20.0
-    T_yaw: float = 5.0
-    zeta_roll: float = 0.3          #: relative damping in roll and pitch [F]
+    Deliberate differences from [P] (each measured in docs/remus100-6dof.md):
+    cross-flow drag in both planes (the hull is axisymmetric; [P] has it in sway and yaw
+    only) over 20 strips by the midpoint rule ([P] sums 21 points over L + dx); with
+    ``published_crossflow = 1`` the model takes [P]'s cross-flow drag as it is. Fin and
+    propeller commands rate limited to their range per time constant and saturated before
+    the lag ([P] saturates the lagged value only); RK4 sub-steps instead of forward Euler."""
+
+    L: float = 1.6                  #: length, m [P, A]
+    diam: float = 0.19              #: hull diameter, m [P, A]
+    rho: float = 1026.0             #: sea water, kg/m^3 [P]
+    r_g: tuple[float, float, float] = (0.0, 0.0, 0.02)   #: CG from CO (= CB), m [P]
+    r44: float = 0.3                #: roll added inertia A44 = r44 I_x [P]
+    Cd_surge: float = 0.42          #: hull drag on the frontal area pi b^2 [A, P]
+    hull_area_ratio: float = 0.7    #: lifting area S = 0.7 L diam [P]
+    oswald: float = 0.7             #: Oswald efficiency of the hull as a wing [P]
+    Cd_crossflow: float = 1.198     #: 2D cross-flow drag, Hoerner's curve at B/2T = 0.5 [H, P]
+    T_surge: float = 20.0           #: low-speed damping time constants, s [P]
+    T_sway: float = 20.0            #: (heave: the same) [P]
+    T_yaw: float = 1.0              #: s, not fading with speed [P]
+    zeta_roll: float = 0.3          #: relative damping in roll and pitch [P]
     zeta_pitch: float = 0.8
-    A_rudder: float = 0.10 * 0.05   #: one rudder, m^2 [F]
-    CL_rudder: float = 0.5          #: rudder lift slope, 1/rad [F]
-    A_stern: float = 2 * 0.10 * 0.05  #: two stern planes, m^2 [F]
-    CL_stern: float = 0.7           #: stern-plane lift slope, 1/rad [F]
-    delta_max: float = math.radians(30.0)  #: fin limit, rad [F]
-    T_delta: float = 1.0            #: fin time constant, s [F]
-    n_max: float = 1525.0           #: propeller limit, rpm (about 2.5 m/s) [F, A]
-    T_n: float = 1.0                #: propeller time constant, s [F]
-    D_prop: float = 0.14            #: propeller diameter (5.5 in), m [F, A]
-    thrust_deduction: float = 0.1   #: [F]
-    wake_factor: float = 0.944      #: V_a = 0.944 U [A]
-    KT0: float = 0.4566             #: Wageningen B3-71.8 (BAR 0.718), J = 0 [F]
+    A_rudder: float = 2 * 0.00665   #: two rudder fins of 0.00665 m^2 [P]
+    CL_rudder: float = 0.5          #: rudder lift slope, 1/rad [P]
+    A_stern: float = 2 * 0.00665    #: two stern planes of 0.00665 m^2 [P]
+    CL_stern: float = 0.7           #: stern-plane lift slope, 1/rad [P]
+    delta_max: float = math.radians(15.0)  #: fin limit, rad [P]
+    T_delta: float = 0.1            #: fin time constant, s [P]
+    n_max: float = 1525.0           #: propeller limit, rpm (2.55 m/s) [P, A]
+    T_n: float = 1.0                #: propeller time constant, s [P]
+    D_prop: float = 0.14            #: propeller diameter (5.5 in), m [P, A]
+    thrust_deduction: float = 0.1   #: [P]
+    wake_factor: float = 0.944      #: V_a = 0.944 U [A, P]
+    KT0: float = 0.4566             #: Wageningen B3-71.8 (BAR 0.718), J = 0 [P]
     KQ0: float = 0.0700
-    KT_max: float = 0.1798          #: at J_a = 0.6632 (2.5 m/s at 1525 rpm) [F]
+    KT_max: float = 0.1798          #: at J_a = 0.6632 (2.5 m/s at 1525 rpm) [P]
     KQ_max: float = 0.0312
     Ja_max: float = 0.6632
+    torque_scale: float = 0.1       #: propeller roll moment scale, "to match experimental
+    #: results" [P]
+    published_crossflow: float = 0.0   #: 1: [P]'s cross-flow sum (21 points, sway and yaw
+    #: only); 0: 20 midpoint strips in both planes
     current: tuple[float, float, float] = field(default=(0.0, 0.0, 0.0))  #: NED, m/s
 
     def __post_init__(self) -> None:
@@ -99,6 +118,12 @@ class Remus100:
                 raise ModelError(f"remus100-6dof: {f.name} = {v!r} is not a finite number")
         positive = ("L", "diam", "rho", "A_rudder", "A_stern", "delta_max", "T_delta",
                     "n_max", "T_n", "D_prop", "T_surge", "T_sway", "T_yaw", "Ja_max")
+        if self.published_crossflow not in (0.0, 1.0):
+            raise ModelError(f"remus100-6dof: published_crossflow = "
+                             f"{self.published_crossflow:g} must be 0 or 1")
+        if self.torque_scale < 0.0:
+            raise ModelError(f"remus100-6dof: torque_scale = {self.torque_scale:g} must be "
+                             "non-negative")
         for name in positive:
             if getattr(self, name) <= 0.0:
                 raise ModelError(f"remus100-6dof: {name} = {getattr(self, name):g} must be "
@@ -143,6 +168,7 @@ class _Derived:
     taus: np.ndarray       #: actuator time constants, s
     strip_x: np.ndarray    #: cross-flow strip centres, m
     strip_k: float         #: 1/2 rho Cd diam dx
+    vertical: float        #: 1: cross-flow drag in heave and pitch too; 0: not
 
 
 def _derived(v: Remus100) -> _Derived:
@@ -156,13 +182,17 @@ def _derived(v: Remus100) -> _Derived:
     S = v.hull_area_ratio * v.L * v.diam
     strips = 20
     dx = v.L / strips
+    if v.published_crossflow:      # [P]: x = -L/2 + i dx, i = 0..20, each weighted dx
+        strip_x = -v.L / 2 + dx * np.arange(strips + 1)
+    else:                          # midpoint rule over the hull
+        strip_x = -v.L / 2 + dx * (np.arange(strips) + 0.5)
     return _Derived(M=M, Ma=M_a, Minv=np.linalg.inv(M), W=W, lin=lin,
                     CD0=v.Cd_surge * math.pi * (v.diam / 2) ** 2 / S, S=S,
                     current=np.asarray(v.current, dtype=float), r_g=np.asarray(v.r_g, float),
                     limits=np.array([v.delta_max, v.delta_max, v.n_max]),
                     taus=np.array([v.T_delta, v.T_delta, v.T_n]),
-                    strip_x=-v.L / 2 + dx * (np.arange(strips) + 0.5),
-                    strip_k=0.5 * v.rho * v.Cd_crossflow * v.diam * dx)
+                    strip_x=strip_x, strip_k=0.5 * v.rho * v.Cd_crossflow * v.diam * dx,
+                    vertical=0.0 if v.published_crossflow else 1.0)
 
 
 _CACHE: dict[Remus100, _Derived] = {}
@@ -176,13 +206,13 @@ def _d(v: Remus100) -> _Derived:
 
 
 def _crossflow(d: _Derived, nu_r: np.ndarray) -> np.ndarray:
-    """Strip-theory cross-flow drag in sway/yaw and heave/pitch: each of 20 strips at x
-    sees the transverse velocity v + x r (or w - x q) and resists with
-    1/2 rho Cd diam |.|(.) dx."""
+    """Strip-theory cross-flow drag in sway/yaw and (unless ``published_crossflow``)
+    heave/pitch: each strip at x sees the transverse velocity v + x r (or w - x q) and
+    resists with 1/2 rho Cd diam |.|(.) dx."""
     x, k = d.strip_x, d.strip_k
     vy = nu_r[1] + x * nu_r[5]
     vz = nu_r[2] - x * nu_r[4]
-    Fy, Fz = -k * np.abs(vy) * vy, -k * np.abs(vz) * vz
+    Fy, Fz = -k * np.abs(vy) * vy, -d.vertical * k * np.abs(vz) * vz
     return np.array([0.0, Fy.sum(), Fz.sum(), 0.0, -(x * Fz).sum(), (x * Fy).sum()])
 
 
@@ -203,19 +233,20 @@ def _hull_lift_drag(v: Remus100, d: _Derived, nu_r: np.ndarray) -> np.ndarray:
 
 
 def _munk_balance(d: _Derived, nu_r: np.ndarray) -> np.ndarray:
-    """The hull's lift moment taken equal and opposite to the added mass's Munk moment in
-    pitch and yaw (the terms of C_A(nu_r) nu_r in u w, u v and the roll coupling), as [F]
-    does by leaving those terms out of C_A: C stays skew symmetric (kinetic energy is
-    conserved without forces) while a slender hull is not left to the destabilizing Munk
-    moment alone."""
-    # C_A = [[0, -S(a)], [-S(a), -S(b)]], a = M_A11 nu1, b = M_A22 nu2 (M_A diagonal):
-    # C_A[4,0] = -a3, C_A[4,3] = -b3, C_A[5,0] = a2, C_A[5,1] = -a1
-    Xu, Yv, Zw, _, _, Nr = np.diag(d.Ma)
-    u, v_, w, p, r = nu_r[0], nu_r[1], nu_r[2], nu_r[3], nu_r[5]
-    out = np.zeros(6)
-    out[4] = -Zw * w * u - Nr * r * p
-    out[5] = (Yv - Xu) * u * v_
-    return out
+    """The part of C_A(nu_r) nu_r that [P] removes, to be added back: [P] sets the entries
+    C_A[4,0], C_A[0,4], C_A[4,2], C_A[2,4] (pitch) and C_A[5,0], C_A[0,5], C_A[5,1],
+    C_A[1,5] (yaw) to zero, "destabilizing if quadratic rotational damping is missing".
+    They go in skew-symmetric pairs, so C stays skew symmetric and the kinetic energy is
+    conserved without forces. With M_A = diag(X, Y, Z, K, M, N) (positive added masses),
+    a = [X u, Y v, Z w] and C_A = [[0, -S(a)], [-S(a), -S(b)]]:
+
+        surge (Z w) q - (Y v) r,  sway (X u) r,  heave -(X u) q,
+        pitch (X - Z) u w,        yaw (Y - X) u v      (N, N m)
+    """
+    X, Y, Z = d.Ma[0, 0], d.Ma[1, 1], d.Ma[2, 2]
+    u, v_, w, q, r = nu_r[0], nu_r[1], nu_r[2], nu_r[4], nu_r[5]
+    return np.array([Z * w * q - Y * v_ * r, X * u * r, -X * u * q, 0.0,
+                     (X - Z) * u * w, (Y - X) * u * v_])
 
 
 def _propeller(v: Remus100, n_rpm: float, U: float) -> tuple[float, float]:
@@ -255,9 +286,9 @@ def derivative(v: Remus100, x: np.ndarray, command: np.ndarray) -> np.ndarray:
         (1.0 - v.thrust_deduction) * thrust
         - 0.5 * v.rho * (U_h2 * v.A_rudder * v.CL_rudder * dr * dr
                          + U_v2 * v.A_stern * v.CL_stern * ds * ds),
-        Yr, Zs, torque, -x_tail * Zs, x_tail * Yr])
+        Yr, Zs, v.torque_scale * torque, -x_tail * Zs, x_tail * Yr])
     lin = d.lin.copy()
-    lin[[0, 1, 5]] *= math.exp(-3.0 * U_r)
+    lin[[0, 1]] *= math.exp(-3.0 * U_r)
     force = (tau + _crossflow(d, nu_r) + _hull_lift_drag(v, d, nu_r)
              + _munk_balance(d, nu_r) - coriolis_times(d.M, nu_r) - lin * nu_r
              - restoring_forces(eta, d.W, d.W, d.r_g, _ZERO3))

@@ -69,7 +69,9 @@ P_CDI = 107        # 1 / (pi e AR)
 P_CD0 = 108
 P_SK = 109         # strip coefficient 1/2 rho Cd diam dx
 P_NS = 110         # number of strips
-P_SX = 111         # strip centres (P_NS of them), m
+P_TQS = 111        # propeller torque scale
+P_CFV = 112        # 1: cross-flow drag in heave and pitch too
+P_SX = 113         # strip centres (P_NS of them), m
 
 
 def pack(v: Remus100) -> np.ndarray:
@@ -96,6 +98,7 @@ def pack(v: Remus100) -> np.ndarray:
     p[P_CLA] = math.pi * AR / (1.0 + math.sqrt(1.0 + (AR / 2.0) ** 2))
     p[P_CDI] = 1.0 / (math.pi * v.oswald * AR)
     p[P_CD0], p[P_SK], p[P_NS] = d.CD0, d.strip_k, ns
+    p[P_TQS], p[P_CFV] = v.torque_scale, d.vertical
     p[P_SX:] = d.strip_x
     return p
 
@@ -148,7 +151,7 @@ def derivative(p: np.ndarray, x: np.ndarray, cmd: np.ndarray, cur: np.ndarray,
         KTn = p[P_KT0] * abs(n) * n
         KQn = p[P_KQ0] * abs(n) * n
     D4 = p[P_DPROP] ** 4
-    thrust, torque = rho * D4 * KTn, rho * D4 * p[P_DPROP] * KQn
+    thrust, torque = rho * D4 * KTn, p[P_TQS] * rho * D4 * p[P_DPROP] * KQn
     # fins
     U_h2, U_v2 = ur * ur + vr * vr, ur * ur + wr * wr
     Yr = -0.5 * rho * U_h2 * p[P_ARUD] * dr
@@ -165,7 +168,7 @@ def derivative(p: np.ndarray, x: np.ndarray, cmd: np.ndarray, cur: np.ndarray,
         xs = p[P_SX + i]
         vy = vr + xs * r
         vz = wr - xs * q
-        fy, fz = -k * abs(vy) * vy, -k * abs(vz) * vz
+        fy, fz = -k * abs(vy) * vy, -p[P_CFV] * k * abs(vz) * vz
         Fy += fy
         Fz += fz
         My += xs * fz
@@ -184,9 +187,13 @@ def derivative(p: np.ndarray, x: np.ndarray, cmd: np.ndarray, cur: np.ndarray,
         ca, sa = math.cos(alpha), math.sin(alpha)
         f[0] += -ca * drag + sa * lift
         f[2] += -sa * drag - ca * lift
-    # Munk moment balance
-    f[4] += -p[P_MA + 2] * wr * ur - p[P_MA + 5] * r * pr
-    f[5] += (p[P_MA + 1] - p[P_MA]) * ur * vr
+    # the C_A entries the reference removes, added back (dynamics._munk_balance)
+    Xa, Ya, Za = p[P_MA], p[P_MA + 1], p[P_MA + 2]
+    f[0] += Za * wr * q - Ya * vr * r
+    f[1] += Xa * ur * r
+    f[2] -= Xa * ur * q
+    f[4] += (Xa - Za) * ur * wr
+    f[5] += (Ya - Xa) * ur * vr
     # Coriolis C(nu_r) nu_r = [nu2 x a; nu1 x a + nu2 x b], [a; b] = M nu_r
     ab = np.zeros(6)
     for i in range(6):
@@ -201,11 +208,11 @@ def derivative(p: np.ndarray, x: np.ndarray, cmd: np.ndarray, cur: np.ndarray,
     f[3] -= vr * a2 - wr * a1 + q * b2 - r * b1
     f[4] -= wr * a0 - ur * a2 + r * b0 - pr * b2
     f[5] -= ur * a1 - vr * a0 + pr * b1 - q * b0
-    # linear damping, fading with speed in surge, sway and yaw
+    # linear damping, fading with speed in surge and sway
     fade = math.exp(-3.0 * U_r)
     for i in range(6):
         li = p[P_LIN + i]
-        if i == 0 or i == 1 or i == 5:
+        if i == 0 or i == 1:
             li *= fade
         f[i] -= li * nr[i]
     # restoring forces (W = B, CB at CO)

@@ -40,6 +40,7 @@ from . import kernel
 from .autopilot import AutopilotGains
 from .dynamics import STATE_SIZE, Remus100
 from .models import GAIN_FIELDS, REMUS_FIELDS, remus_from_parameters
+from .rigid_body import rotation_ned_body
 
 __all__ = ["REMUS_FIELDS", "GAIN_FIELDS", "Remus6dofPlant", "default_substep",
            "initial_state", "linear_mass_damping", "remus_from_parameters", "substep_count"]
@@ -85,16 +86,19 @@ def initial_state(v: Remus100, gains: AutopilotGains, x0: np.ndarray, w0: np.nda
                   ) -> tuple[np.ndarray, np.ndarray]:
     """The 6-DOF state and v_ref at the linear state x0 = [p; v_g] (m, m/s) in the current
     w0 (m/s): the nose along the velocity through the water v_g - w0 (heading and flight
-    path angle; at rest: north, level), that speed in surge, the propeller at the speed's
-    feedforward rpm, the fins at 0. Returns (x (15), v_ref (3))."""
+    path angle; at rest: north, level), the body velocity nu = R(Theta)' v_g so that the
+    vehicle moves over ground as the scenario says (through the water: v_g - w0, all in
+    surge), the propeller at that speed's feedforward rpm, the fins at 0.
+    Returns (x (15), v_ref (3) = v_g - w0)."""
     x = np.zeros(STATE_SIZE)
     x[:3] = x0[:3]
-    vw = np.asarray(x0[3:6], float) - np.asarray(w0, float)
+    v_g = np.asarray(x0[3:6], float)
+    vw = v_g - np.asarray(w0, float)
     U = float(np.linalg.norm(vw))
     if U > gains.U_min:
         x[5] = math.atan2(vw[1], vw[0])
         x[4] = math.atan2(-vw[2], math.hypot(vw[0], vw[1]))
-    x[6] = U
+    x[6:9] = rotation_ned_body(0.0, x[4], x[5]).T @ v_g
     x[14] = min(v.n_max, gains.n_max * U / gains.U_max)
     return x, vw
 
