@@ -1,7 +1,8 @@
 """FMI 2.0 co-simulation slave of the LQ feedforward-feedback controller.
 
 Solves the paper's design (eq. 13-15, corrected) in exitInitializationMode from whatever
-parameters the host set, then u = -(Kx xhat + Kw what + Kz zhat) on demand (direct
+parameters the host set, then u = sat(-(Kx xhat + Kw what + Kz zhat)) on demand (clipped at
+the parameter u_max, controller_fmu.slave_common; direct
 feedthrough from the estimates); with tracking = 'regulator' the feedforward comes from the
 output-regulation equations instead (controller_fmu.regulator). Static law: any
 communication step works. FMU state: the gain matrix (restored as is, the design is not
@@ -15,6 +16,7 @@ from controller_fmu.regulator import TRACKING_MODES, tracking_law
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from controller_fmu.slave_common import StaticLawSlave as Fmi2Slave
+from controller_fmu.slave_common import clip_roles, force_limit, u_max_spec
 from fmu_common.interface import ArraySpec
 from fmu_common.native_form import NativeForm, Role
 from plant_model.parameters import model_parameter_specs, system_from_parameters
@@ -42,10 +44,12 @@ class AuvController(Fmi2Slave):
                       "tracking law: 'lq' (the paper, eq. 12-15) or 'regulator' (zero steady "
                       "error for persistent references: output regulation with the same Riccati "
                       "feedback)", start=config.get("tracking", "lq"), type="String"),
+            u_max_spec(config, m),
             ArraySpec("xhat", (n,), "input", "estimate of the vehicle state x"),
             ArraySpec("what", (r,), "input", "estimate of the disturbance state w"),
             ArraySpec("zhat", (l_,), "input", "estimate of the reference state z"),
-            ArraySpec("u", (m,), "output", "control input u = -(Kx xhat + Kw what + Kz zhat)",
+            ArraySpec("u", (m,), "output", "control input u = sat(-(Kx xhat + Kw what + Kz "
+                      "zhat)), clipped at u_max",
                       depends_on=ESTIMATES),
         ]
 
@@ -68,19 +72,23 @@ class AuvController(Fmi2Slave):
         self.law = tracking_law(system, mode)
         self.design = self.law.design
         self._negK = -self.law.Ks
+        self._umax = force_limit(self.par)
         poles = self.design.closed_loop_poles
         self.log(f"design ({mode}): slowest closed-loop pole {poles[np.argmax(poles.real)]:.6g}, "
                  f"relative residuals {self.design.residuals}")
 
     def native_form(self) -> NativeForm:
-        """u = -Ks [xhat; what; zhat]: a static gain (any communication step)."""
+        """u = -Ks [xhat; what; zhat]: a static gain (any communication step); the
+        force clipped at u_max when it is limited (controller_fmu.slave_common.clip_roles)."""
         return self.static_native_form([
             Role("D", "Ks", -self._negK, "the designed gain: u = -Ks [xhat; what; zhat] "
-                 f"({self.par['tracking']} law)", sign=-1.0)])
+                 f"({self.par['tracking']} law)", sign=-1.0), *clip_roles(self._umax)])
 
     def compute_outputs(self) -> None:
-        """u = -(Kx xhat + Kw what + Kz zhat) into the output buffer."""
+        """u = sat(-(Kx xhat + Kw what + Kz zhat)) into the output buffer."""
         self._negK.dot(self._in, out=self._out)     # ndarray.dot: np.dot's gemv, less dispatch
+        if self._umax is not None:
+            np.minimum(np.maximum(self._out, -self._umax), self._umax, out=self._out)
 
     restores_math_from_state = True       # the state carries the gain: no design on restore
 
@@ -113,3 +121,4 @@ class AuvController(Fmi2Slave):
             raise ValueError(f"the controller gain in the state must be a real array of shape "
                              f"{shape}, got {getattr(gain, 'shape', type(gain).__name__)}")
         self._negK = -gain
+        self._umax = force_limit(self.par)

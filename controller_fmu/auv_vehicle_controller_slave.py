@@ -6,7 +6,8 @@ in-degree) the neighbour's leader estimate nbr[k].eta and regulation error nbr[k
 weight a[k] (0: an unused slot); the leader's state z with weight a0 (0: not pinned). Outputs
 
     eps = xhat - X eta - Xw what - xc                               (feeds through)
-    u   = U eta + Uw what + uc - Kx eps + c Kx (sum_k a[k] nbr[k].eps - d eps)
+    u   = sat(U eta + Uw what + uc - Kx eps + c Kx (sum_k a[k] nbr[k].eps - d eps))
+          (clipped per axis at the parameter u_max, controller_fmu.slave_common)
     eta   the vehicle's distributed observer of the leader (a state: no feedthrough),
           eta[k+1] = (Phi - mu d Gam_F) eta + mu Gam_F (sum_k a[k] nbr[k].eta + a0 z)
 
@@ -20,6 +21,7 @@ import numpy as np
 
 from controller_fmu.distributed import REGULATOR_FORMS, sampled_observer
 from controller_fmu.regulator import TRACKING_MODES
+from controller_fmu.slave_common import clip_roles, force_limit, u_max_spec
 from controller_fmu.vehicle_law import vehicle_law
 from fmu_common.interface import ArraySpec
 from fmu_common.native_form import BlockLayout, NativeForm, Role
@@ -76,6 +78,7 @@ class AuvVehicleController(Fmi2Slave):
             ArraySpec("regulator", (), "parameter", "regulator equations: 'continuous' or "
                       "'sampled' (zero error at the samples)",
                       start=config.get("regulator", "continuous"), type="String"),
+            u_max_spec(config, m),
             ArraySpec("xhat", (n,), "input", "the vehicle's estimate of its state"),
             ArraySpec("what", (r,), "input", "the vehicle's estimate of its disturbance"),
             ArraySpec("z", (l_,), "input", "the leader's state (read when a0 > 0)"),
@@ -85,7 +88,8 @@ class AuvVehicleController(Fmi2Slave):
                           f"neighbour slot {k}: its estimate of the leader"),
                 ArraySpec(f"nbr[{k}].eps", (n,), "input",
                           f"neighbour slot {k}: its regulation error"))),
-            ArraySpec("u", (m,), "output", "total force of the distributed law",
+            ArraySpec("u", (m,), "output", "total force of the distributed law, clipped at "
+                      "u_max",
                       depends_on=est + tuple(slot_names(S, "eps"))),
             ArraySpec("eta", (l_,), "output", "the vehicle's estimate of the leader's state "
                       "(sent to the neighbours)"),
@@ -128,6 +132,7 @@ class AuvVehicleController(Fmi2Slave):
         self._nbr_eta, self._nbr_eps = slots[:, :l_], slots[:, l_:]
         self._o_u, self._o_eps, self._o_eta = io["u"], io["eps"], io["eta"]
         self.law, self.observer = law, obs
+        self._umax = force_limit(par)
         self.log(f"distributed law ({par['tracking']}, {par['regulator']}): slowest local "
                  f"pole {law.poles[np.argmax(law.poles.real)]:.6g}, observer gain mu = "
                  f"{obs.mu:g} 1/s, in-degree {d:g}")
@@ -139,6 +144,9 @@ class AuvVehicleController(Fmi2Slave):
             u   = (U - Geps X) eta + Geps xhat + (Uw - Geps Xw) what + c Kx sum_k a_k eps_k
                   + uc - Geps xc
             eta+ = Aobs eta + Bobs (sum_k a_k eta_k + a0 z)
+
+        With a force limit u is then clipped at u_max (the role sat,
+        controller_fmu.slave_common.clip_roles).
         """
         inputs, outputs = self.io_specs()
         In, Out = BlockLayout(inputs), BlockLayout(outputs)
@@ -167,6 +175,7 @@ class AuvVehicleController(Fmi2Slave):
                                    "feedthrough of the estimates and the neighbours' eps)"),
                               Role("c", "y0", c, "constant part of the outputs (offsets)"),
                               Role("q0", "eta0", self.eta, "the observer's initial state"),
+                              *clip_roles(self._umax, Out["u"].start),
                           ])
 
     def compute_outputs(self) -> None:
@@ -176,6 +185,8 @@ class AuvVehicleController(Fmi2Slave):
         u = self._U.dot(self.eta) + self._Uw.dot(self._what) + self._uc + self._Geps.dot(eps)
         if self._c:
             u += self._cK.dot(self._a.dot(self._nbr_eps))
+        if self._umax is not None:
+            u = np.minimum(np.maximum(u, -self._umax), self._umax)
         self._o_u[:] = u
         self._o_eta[:] = self.eta
 

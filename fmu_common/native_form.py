@@ -5,6 +5,8 @@ is not the acoustic network is linear: with inputs u, state q and standard norma
 drawn once per step,
 
     y      = C q + D u + c + G xi           (outputs at t_k; D: direct feedthrough)
+    y_j    = min(max(y_j, -s_j), s_j)       (the rows of the role ``sat``, if any: a
+                                             controller's force limit u_max)
     q(k+1) = A q + B u + Bo y + b + F xi    (one step h)
 
 A :class:`NativeForm` holds those matrices under the names the native FMU gives its
@@ -29,8 +31,8 @@ __all__ = ["FMU_IMPLEMENTATIONS", "ROLE_KEYS", "BlockLayout", "NativeForm", "Rol
 FMU_IMPLEMENTATIONS = ("python", "native")
 
 #: the matrices of the equations above; B and D act on a range of u, F and G on one of xi,
-#: G also writes into a range of y
-ROLE_KEYS = ("A", "B", "Bo", "b", "F", "C", "D", "c", "G", "q0")
+#: G also writes into a range of y; sat (a vector of positive limits) clips a range of y
+ROLE_KEYS = ("A", "B", "Bo", "b", "F", "C", "D", "c", "G", "q0", "sat")
 
 
 @dataclass(frozen=True)
@@ -58,8 +60,8 @@ class Role:
 
     @property
     def vector(self) -> bool:
-        """b, c and q0 are vectors."""
-        return self.key in ("b", "c", "q0")
+        """b, c, q0 and sat are vectors."""
+        return self.key in ("b", "c", "q0", "sat")
 
     @property
     def matrix(self) -> np.ndarray:
@@ -126,12 +128,13 @@ class NativeForm:
             raise ValueError(f"the noise streams draw {sum(c for _, c in self.noise_streams)} "
                              f"normals per step, xi has {self.nxi}")
         rows = {"A": self.nq, "B": self.nq, "Bo": self.nq, "b": self.nq, "F": self.nq,
-                "C": self.ny, "D": self.ny, "c": self.ny, "G": self.ny, "q0": self.nq}
+                "C": self.ny, "D": self.ny, "c": self.ny, "G": self.ny, "q0": self.nq,
+                "sat": self.ny}
         cols = {"A": self.nq, "C": self.nq, "Bo": self.ny, "B": self.nu, "D": self.nu,
-                "F": self.nxi, "G": self.nxi, "b": 1, "c": 1, "q0": 1}
+                "F": self.nxi, "G": self.nxi, "b": 1, "c": 1, "q0": 1, "sat": 1}
         for r in self.roles:
             m = r.matrix
-            fits = (r.row0 + m.shape[0] <= rows["G"] if r.key == "G"
+            fits = (r.row0 + m.shape[0] <= rows[r.key] if r.key in ("G", "sat")
                     else m.shape[0] == rows[r.key])
             if not fits:
                 raise ValueError(f"native role {r.name} ({r.key}) has {m.shape[0]} rows, the "
@@ -156,6 +159,10 @@ class NativeForm:
             m = r.matrix
             add = m[:, 0] if r.vector else m @ vecs[key][r.col0:r.col0 + m.shape[1]]
             y[r.row0:r.row0 + m.shape[0]] += add
+        sat = self.role("sat")
+        if sat is not None:
+            rows = slice(sat.row0, sat.row0 + sat.value.size)
+            y[rows] = np.minimum(np.maximum(y[rows], -sat.value), sat.value)
         vecs["Bo"] = y
         for key in ("A", "B", "Bo", "b", "F"):
             r = self.role(key)

@@ -8,6 +8,8 @@
  * q (NQ) and the noise draw xi (NXI standard normals of step k):
  *
  *     y      = C q + D u + c + G xi                     (outputs, NY; D: direct feedthrough)
+ *     y_j    = min(max(y_j, -s_j), s_j)                 (rows row0.. of the role sat, if any:
+ *                                                        a controller's force limit u_max)
  *     q(k+1) = A q + B u + Bo y + b + F xi              (fmi2DoStep, step = h)
  *
  * A matrix that the header leaves out is zero; B and D act on a contiguous range of the
@@ -156,6 +158,18 @@ static void add_vector(const Data *d, int r, double *out) {
     for (unsigned i = 0; i < ri->rows; i++) out[i] += ri->sign * d->par[ri->offset + i];
 }
 
+/* y[row0 + i] clipped to [-s_i, s_i] for the role r (a vector of limits) */
+static void clip(const Data *d, int r, double *y) {
+    if (r < 0) return;
+    const RoleInfo *ri = &ROLES[r];
+    y += ri->row0;
+    for (unsigned i = 0; i < ri->rows; i++) {
+        double lim = d->par[ri->offset + i];
+        y[i] = y[i] < -lim ? -lim : y[i];                /* numpy.maximum(y, -lim) */
+        y[i] = y[i] > lim ? lim : y[i];                  /* numpy.minimum(., lim) */
+    }
+}
+
 static void outputs(Data *d) {
     if (!d->dirty) return;
     for (int i = 0; i < NY; i++) d->y[i] = 0.0;
@@ -163,6 +177,7 @@ static void outputs(Data *d) {
     gemv_add(d, ROLE_D, d->u, d->y);
     add_vector(d, ROLE_c, d->y);
     gemv_add(d, ROLE_G, d->xi, d->y);
+    clip(d, ROLE_sat, d->y);
     d->dirty = 0;
 }
 
@@ -252,6 +267,17 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
             var_name((fmi2ValueReference)i, nm, sizeof nm);
             logf_(in, fmi2Error, "parameter %s = %g is not finite", nm, d->par[i]);
             return fmi2Error;
+        }
+    }
+    if (ROLE_sat >= 0) {
+        for (unsigned i = 0; i < ROLES[ROLE_sat].rows; i++) {
+            unsigned vr = ROLES[ROLE_sat].offset + i;
+            if (!(d->par[vr] > 0.0)) {
+                var_name((fmi2ValueReference)vr, nm, sizeof nm);
+                logf_(in, fmi2Error, "parameter %s = %g must be a positive force in N (the "
+                      "actuator limit)", nm, d->par[vr]);
+                return fmi2Error;
+            }
         }
     }
     if (!(d->h > 0.0) || !isfinite(d->h)) {

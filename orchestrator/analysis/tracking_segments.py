@@ -19,7 +19,7 @@ NED position error from the formation slot). Over the statistics window [k0, K):
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -87,6 +87,31 @@ def segment_stats(e: np.ndarray, turning: np.ndarray, k0: int,
         out["actuator_saturation_fraction"] = float(sat.mean())
         out["actuator_saturation_fraction_per_vehicle"] = sat.mean(axis=0).tolist()
     return out
+
+
+def force_saturation(u: np.ndarray, u_max: Sequence[Sequence[float]],
+                     prior: np.ndarray | None = None) -> np.ndarray:
+    """(K, N) 1 where vehicle i's commanded force is at its limit on some axis,
+    |u_a| >= u_max_a (1 - 1e-9) (the controllers clip at u_max), or-ed with ``prior`` (the
+    vehicles' own actuator saturation, when they report it).
+
+    Parameters
+    ----------
+    u : np.ndarray
+        The stacked force, (K, sum of the vehicles' inputs), N.
+    u_max : sequence of sequences
+        Per vehicle its limit per axis, N.
+    prior : np.ndarray or None
+        (K, N) saturation already known, or None.
+    """
+    cols, start = [], 0
+    for lim in u_max:
+        m = len(lim)
+        at = np.abs(u[:, start:start + m]) >= np.asarray(lim, float) * (1.0 - 1e-9)
+        cols.append(at.any(axis=1))
+        start += m
+    sat = np.column_stack(cols).astype(float)
+    return sat if prior is None else np.maximum(sat, np.asarray(prior) > 0.5)
 
 
 def segment_summary(per_seed: list[dict[str, Any]]) -> dict[str, Any]:

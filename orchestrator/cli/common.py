@@ -115,6 +115,22 @@ def viewer_command() -> str:
         return shlex.quote(str(ours))
 
 
+#: the share of the statistics window above which a design is said to live saturated
+SATURATION_NOTE = 0.10
+
+
+def saturation_line(method: str, per_vehicle: list[float] | None) -> str | None:
+    """One line naming the vehicles saturated more than SATURATION_NOTE of the window
+    (None when none is)."""
+    over = [(i, f) for i, f in enumerate(per_vehicle or [], start=1) if f > SATURATION_NOTE]
+    if not over:
+        return None
+    return (f"note: {method}: saturated more than {SATURATION_NOTE:.0%} of the statistics "
+            "window: " + ", ".join(f"vehicle {i} {f:.0%}" for i, f in over)
+            + " (the design asks more force than the vehicle gives: [design] force_budget "
+            "or bandwidth)")
+
+
 def print_summary(summary: dict, out: Path) -> int:
     """Print the summary table and where the files are; the exit status: 0, or 130 / 143
     for a run stopped by SIGINT / SIGTERM (after one line saying what was kept)."""
@@ -133,6 +149,8 @@ def print_summary(summary: dict, out: Path) -> int:
         print("master: compiled (C) step loop" + ("" if len(set(masters.values())) == 1 else
               " for " + ", ".join(m for m, k in masters.items() if k == "native")
               + "; Python for the others"))
+    for line in (summary.get("design") or {}).get("printout", []):
+        print(line)                          # what [design] chose, and the path check
     print(f"{'method':>10s} {'cost rate':>12s} {'(std)':>9s} {'predicted':>10s}   "
           "rms e (sim / pred)")
     for name, m in summary["methods"].items():
@@ -164,6 +182,10 @@ def print_summary(summary: dict, out: Path) -> int:
                      f"; closest approach {sep['m']:#.3g} m (vehicles {sep['vehicles'][0]} "
                      f"and {sep['vehicles'][1]} at t = {sep['time_s']:.4g} s, seed "
                      f"{sep['seed']})"))
+    for name, m in summary["methods"].items():
+        line = saturation_line(name, m.get("actuator_saturation_fraction_per_vehicle"))
+        if line:
+            print(line)
     notes = {m.get("prediction_note") for m in summary["methods"].values()} - {None}
     for note in sorted(notes):
         print(f"note: {note}")

@@ -228,7 +228,7 @@ def _header(form: NativeForm, guid: str) -> str:
         f"#define NSTREAMS {len(streams)}",
         f"#define HAS_STREAM_PARAM {int(form.stream is not None)}",
         *(f"#define ROLE_{k} {index.get(k, -1)}" for k in
-          ("A", "B", "Bo", "b", "F", "C", "D", "c", "G", "q0")),
+          ("A", "B", "Bo", "b", "F", "C", "D", "c", "G", "q0", "sat")),
         "static const RoleInfo ROLES[ALLOC(NROLES)] = {", *roles, "};",
         "static const StreamInfo STREAMS[ALLOC(NSTREAMS)] = {",
         *(streams or ["    {0, 0u, 0u},"]), "};",

@@ -162,6 +162,8 @@ def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tra
     eta0 = observer_start(leader["z0"], settings)
     models = fleet_vehicles(spec)
     out: list[dict[str, dict[str, Any]]] = [{"leader": dict(base, system=_mapping(v0, leader))}]
+    design = getattr(sc, "design", None)
+    limit = design.u_max if design is not None and design.clip else None
     for i, view in enumerate(views):
         cfg = dict(base, system=_mapping(view, leader))
         if sc.sensors is not None:              # acoustic fixes, DVL, depth at their rates
@@ -172,13 +174,14 @@ def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tra
             one = {"remus6dof": dict(cfg, vehicle=i + 1, remus=par["nonlinear"],
                                      autopilot=par["autopilot"], substep=par["substep"]),
                    "vehicle_estimator": cfg}
+        ctrl = cfg if limit is None else dict(cfg, u_max=list(limit[i]))
         if rows is not None:
             K, u0 = rows[i]
-            one["central_controller"] = dict(cfg, vehicles=N, gain=K.tolist(), u0=u0.tolist())
+            one["central_controller"] = dict(ctrl, vehicles=N, gain=K.tolist(), u0=u0.tolist())
         else:
             d = np.asarray(spec["vehicles"][i].get("offset", np.zeros(view.p)), float)
             one["vehicle_controller"] = dict(
-                cfg, slots=slots.S, offset=d.tolist(), weights=slots.weights[i].tolist(),
+                ctrl, slots=slots.S, offset=d.tolist(), weights=slots.weights[i].tolist(),
                 pinning=float(slots.pinning[i]), mu=settings.mu, cohesion=settings.cohesion,
                 regulator=settings.regulator, eta0=eta0.tolist())
         if network is not None:

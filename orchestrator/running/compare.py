@@ -242,12 +242,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
         "stationary": not notes,
         "stationarity_note": "; ".join(sorted(notes)) or None,
         "methods": results,
-        "design": None if design is None else {
-            "closed_loop_poles": [[float(z.real), float(z.imag)] for z in design.closed_loop_poles],
-            "residuals": design.residuals,
-            **({} if sc.fleet is not None else
-               {"Kx": design.Kx.tolist(), "Kz": design.Kz.tolist(), "Kw": design.Kw.tolist()}),
-        },
+        "design": _design_entry(sc, design),
         "interrupted": bool(stop),
         "interrupted_by": stop.name,
         "time_reached_s": recorded * sc.h if stop else sc.T,
@@ -260,6 +255,21 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
     }
     write_text_atomically(out / "summary.json", json.dumps(summary, indent=2))
     return summary
+
+
+def _design_entry(sc: Scenario, design: Any) -> dict[str, Any] | None:
+    """summary.json's ``design``: the stacked design's poles and residuals (and gains of a
+    single system), and what [design] chose (``R``, ``bandwidth``, ``force_3sigma``,
+    ``u_max``, ``path_findings``, ...: orchestrator.analysis.weight_search)."""
+    out = None if design is None else {
+        "closed_loop_poles": [[float(z.real), float(z.imag)] for z in design.closed_loop_poles],
+        "residuals": design.residuals,
+        **({} if sc.fleet is not None else
+           {"Kx": design.Kx.tolist(), "Kz": design.Kz.tolist(), "Kw": design.Kw.tolist()}),
+    }
+    if sc.design is not None:
+        out = {**(out or {}), **sc.design.summary()}
+    return out
 
 
 def _fmu_entries(setup: RunSetup, methods: list[Method]) -> dict[str, dict[str, Any]]:

@@ -123,10 +123,14 @@ def scenario_config(sc: Scenario) -> dict[str, Any]:
     -------
     dict
         JSON-ready configuration the three FMUs are built with
-        (:func:`orchestrator.cosim.build.fmu_config`).
+        (:func:`orchestrator.cosim.build.fmu_config`); with a [design] force limit the
+        controller's ``u_max``, every vehicle's axes in the stacked input order.
     """
-    return fmu_config(sc.system.to_mapping(), sc.system.dims, sc.h, sc.T, sc.seed, sc.estimator,
-                      sc.tracking, sc.fleet)
+    cfg = fmu_config(sc.system.to_mapping(), sc.system.dims, sc.h, sc.T, sc.seed, sc.estimator,
+                     sc.tracking, sc.fleet)
+    if sc.design is not None and sc.design.clip:
+        cfg["u_max"] = [float(x) for row in sc.design.u_max for x in row]
+    return cfg
 
 
 def guidance_configs(sc: Scenario) -> dict[str, dict[str, Any]]:

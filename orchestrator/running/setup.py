@@ -294,5 +294,10 @@ def run_statistics(sc: Scenario, res: RunResult, k0: int,
     from ..analysis.tracking_segments import run_segments
     stats = run_stats(res.traces, sc.system.Q, sc.system.R, k0, formation)
     if formation is not None:
-        stats["segments"] = run_segments(sc.fleet["leader"], res.traces, k0)
+        traces = res.traces
+        if sc.design is not None and sc.design.clip:     # the controllers' force limit
+            from ..analysis.tracking_segments import force_saturation
+            traces = dict(traces, saturated=force_saturation(traces["u"], sc.design.u_max,
+                                                             traces.get("saturated")))
+        stats["segments"] = run_segments(sc.fleet["leader"], traces, k0)
     return stats

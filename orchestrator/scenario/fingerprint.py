@@ -36,6 +36,8 @@ def resolved_scenario(sc: Scenario, *, without: tuple[str, ...] = ()) -> dict[st
     """Everything a resolved scenario runs, but its seed, its names and the fields in
     ``without``, as JSON-ready data (the run key's scenario part)."""
     skip = {"seed", "name", "description", "source", "raw", "system", *without}
+    if sc.design is None:           # no [design]: the key of every scenario before it
+        skip.add("design")
     out = {f.name: _plain(getattr(sc, f.name)) for f in dataclasses.fields(sc)
            if f.name not in skip}
     if sc.fleet is None:            # a fleet's system is made from its (resolved) fleet spec

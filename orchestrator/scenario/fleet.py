@@ -19,6 +19,10 @@ A fleet scenario file has these sections (SI units, NED frame; vehicles are numb
     [noise]      convention, process (W_x), position (V_y), reference (V_ybar): numbers (times
                  the identity) or matrices, the same for every vehicle
     [cost]       Q, R per vehicle (numbers or matrices)
+    [design]     the weight from the vehicle (docs/design.md): bandwidth (rad/s) and/or
+                 force_budget (3-sigma force / maximum force) choose R = r I; u_max (N,
+                 "vehicle" or per axis) the controllers' force limit; path_check ("warn" |
+                 "refuse" | "off"); max_speed, min_turn_radius, max_depth_rate
     [network]    acoustic links of the per-vehicle deployment (plant_model.acoustic): fleet-wide
                  latency (s), period (s), loss (probability), tdma (senders take turns),
                  receiver ("propagate" | "hold"), links = [{from, to, latency, period,

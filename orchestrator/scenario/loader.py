@@ -28,6 +28,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
+import numpy as np
+
 from controller_fmu.vehicle_law import DistributedSettings
 from plant_model.acoustic.settings import check_network
 from plant_model.discretization import check_step
@@ -71,6 +73,9 @@ class Scenario:
     #: the navigation sensors' [sensors] table (plant_model.navigation; None: a position
     #: fix every step)
     sensors: dict[str, Any] | None = None
+    #: what [design] chose and found (orchestrator.analysis.weight_search.DesignResult;
+    #: None without a [design] section)
+    design: Any = None
     #: the parsed file the scenario was validated from (for variants of it)
     raw: Mapping[str, Any] | None = field(default=None, repr=False, compare=False)
 
@@ -143,6 +148,10 @@ class Scenario:
                "tracking": new.tracking, "deployment": new.deployment,
                "architecture": new.architecture, "fmus": new.fmus}
         validate_scenario(RunSettings, {"simulation": run}, new.source)
+        if new.design is not None and new.T != self.T:      # the path over the run's horizon
+            ld = new.fleet["leader"]
+            new = replace(new, design=new.design.over(new.T, *(np.asarray(ld[k], float)
+                                                               for k in ("F", "H", "z0"))))
         _check_step(new)
         check_deployment(new)
         return new
@@ -236,6 +245,31 @@ def _scenario(file: ScenarioFile, where: str, system: LinearSystem,
     return sc
 
 
+def _design(fleet: Any, spec: dict[str, Any], where: str) -> Any:
+    """[design] at work (orchestrator.analysis.weight_search): the limits, u_max, the
+    searched R (set in ``spec`` for every vehicle) and the path check, which refuses here
+    with ``path_check = "refuse"``."""
+    from plant_model.path_feasibility import finding_lines
+
+    from ..analysis.weight_search import apply_weight, design_fleet
+    options = fleet.design.model_dump()
+    sim = fleet.simulation
+    try:
+        result = design_fleet(spec, options, h=sim.h, T=sim.T, estimator=sim.estimator,
+                              tracking=sim.tracking, regulator=fleet.distributed.regulator)
+    except ModelError as exc:
+        text = str(exc)
+        text = text if text.startswith("[design]") else f"[design] {text}"
+        raise ScenarioError(f"{where}: {text}") from None
+    if options["path_check"] == "refuse" and result.findings:
+        lines = finding_lines(result.findings)
+        raise ScenarioError(f"{where}: [design] path_check = \"refuse\": {lines[0]}"
+                            + (f" (and {len(lines) - 1} more)" if len(lines) > 1 else ""))
+    if result.R is not None:
+        apply_weight(spec, result.R, [m.q for m in fleet.vehicles.models])
+    return result
+
+
 def _resolve(spec: str | Path) -> Path:
     p = Path(spec)
     if p.suffix == ".toml" or p.exists():
@@ -279,9 +313,10 @@ def scenario_from_dict(data: Mapping[str, Any], where: str = "scenario") -> Scen
         from .schema_fleet import FleetScenario
         fleet = validate_scenario(FleetScenario, data, where)
         spec = fleet_spec(fleet)
+        design = _design(fleet, spec, where) if fleet.design is not None else None
         system = _built(where, fleet_system, spec)
         sc = _scenario(fleet, where, system, _built(where, resolve_fleet_spec, spec))
-        return replace(sc, raw=copy.deepcopy(dict(data)))
+        return replace(sc, raw=copy.deepcopy(dict(data)), design=design)
     single = validate_scenario(SystemScenario, data, where)
     system = _built(where, LinearSystem.from_mapping, single.system_mapping())
     return replace(_scenario(single, where, system), raw=copy.deepcopy(dict(data)))

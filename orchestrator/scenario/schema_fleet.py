@@ -55,6 +55,7 @@ from .schema import (
     expect,
     one_of,
 )
+from .schema_design import DesignSection
 
 __all__ = ["FleetScenario", "CurrentSection", "VehicleNoise", "VehicleOverride"]
 
@@ -311,6 +312,7 @@ class FleetScenario(ScenarioFile):
     disturbance: FleetDisturbanceSection | None = None
     noise: FleetNoiseSection = Field(default_factory=FleetNoiseSection)
     cost: CostSection = Field(default_factory=CostSection)
+    design: DesignSection | None = None
     distributed: DistributedSection = Field(default_factory=DistributedSection)
     network: dict[str, Any] | None = None
     sensors: dict[str, Any] | None = None
@@ -397,6 +399,23 @@ class FleetScenario(ScenarioFile):
         if (vehicles := _valid_vehicles(info)) is not None:
             noise.check(vehicles.models[0].p, vehicles.models[0].s)
         return noise
+
+    @field_validator("design")
+    @classmethod
+    def design_replaces_r(cls, design: DesignSection | None,
+                          info: ValidationInfo) -> DesignSection | None:
+        """A searched weight replaces R: no [cost] R or per-vehicle cost R beside it."""
+        if design is None:
+            return design
+        cost, vehicles = info.data.get("cost"), _valid_vehicles(info)
+        if design.chooses_weight and cost is not None and "R" in cost.model_fields_set:
+            raise ModelError("[design] bandwidth / force_budget choose R: remove [cost] R")
+        if design.chooses_weight and vehicles is not None:
+            for ov in vehicles.overrides:
+                if ov.cost is not None and "R" in ov.cost.model_fields_set:
+                    raise ModelError(f"[design] bandwidth / force_budget choose R: remove the "
+                                     f"cost R of vehicle {ov.vehicle} in [vehicles] overrides")
+        return design
 
     @field_validator("network")
     @classmethod

@@ -1,0 +1,138 @@
+"""Can each vehicle fly its target path? (issue 26, item 3).
+
+Vehicle i's target is the leader's position plus its formation offset, H z(t) + d_i (NED,
+m; :mod:`plant_model.vehicle_targets`), so its target velocity and acceleration are the
+leader's, v = H F z, a = H F^2 z, with z(t) = expm(F t) z0 (:mod:`plant_model.leader`).
+Sampled exactly (z[k+1] = expm(F dt) z[k]) every ``dt`` seconds over [0, T], the target asks
+
+- a speed |v| (m/s), against the vehicle's top speed through the water;
+- a horizontal turn radius |v_h|^3 / |v_n a_e - v_e a_n| (m), against its smallest;
+- a depth rate |v_d| (m/s), against its largest.
+
+The current is not counted (the target speed is over ground). The worst excess of each
+limit is reported with its time and the share of the horizon the limit is exceeded, per
+vehicle, as one line (:func:`finding_line`; vehicles with the same finding together,
+:func:`finding_lines`).
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm
+
+__all__ = ["Finding", "finding_line", "finding_lines", "path_demands", "path_findings"]
+
+
+@dataclass(frozen=True)
+class Finding:
+    """Vehicle ``vehicle`` (1-based) asks more than ``limit`` allows: the worst sample."""
+
+    vehicle: int
+    time: float          #: s, of the worst sample
+    limit: str           #: "speed", "turn radius" or "depth rate"
+    value: float         #: what the path asks there (m/s or m)
+    bound: float         #: what the vehicle can do (m/s or m)
+    source: str = ""     #: where the bound comes from
+    fraction: float = 0.0  #: share of the samples over [0, T] beyond the limit
+
+
+def finding_line(f: Finding, vehicles: str | None = None) -> str:
+    """One line: ``vehicle 3 at t = 42.5 s: target speed 3.02 m/s above the top speed
+    2.55 m/s (beyond it 12 % of the time; <source>)``; ``vehicles`` replaces
+    ``vehicle 3``."""
+    what = {"speed": ("target speed", "m/s", "above the top speed"),
+            "turn radius": ("target turn radius", "m", "below the smallest turn radius"),
+            "depth rate": ("target depth rate", "m/s", "above the largest depth rate")}
+    name, unit, rel = what[f.limit]
+    who = vehicles or f"vehicle {f.vehicle}"
+    return (f"{who} at t = {f.time:.4g} s: {name} {f.value:.3g} {unit} {rel} "
+            f"{f.bound:.3g} {unit} (beyond it {f.fraction:.0%} of the time"
+            + (f"; {f.source})" if f.source else ")"))
+
+
+def finding_lines(findings: Sequence[Finding]) -> list[str]:
+    """:func:`finding_line` per distinct finding, the vehicles that share it named
+    together (``vehicles 1, 2, 3, 4``)."""
+    groups: dict[tuple, list[Finding]] = {}
+    for f in findings:
+        groups.setdefault((f.limit, f.time, f.value, f.bound, f.source, f.fraction),
+                          []).append(f)
+    return [finding_line(fs[0], None if len(fs) == 1 else
+                         "vehicles " + ", ".join(str(f.vehicle) for f in fs))
+            for fs in groups.values()]
+
+
+def path_demands(F: np.ndarray, H: np.ndarray, z0: np.ndarray, T: float, dt: float
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(t, speed, turn radius, depth rate) of the leader's path every ``dt`` s over [0, T].
+
+    Parameters
+    ----------
+    F, H, z0 : np.ndarray
+        The leader's exosystem (l x l, 1/s), NED position output (3 x l, m) and start.
+    T, dt : float
+        Horizon and sampling interval, s.
+
+    Returns
+    -------
+    tuple of np.ndarray
+        Times (s), |v| (m/s), the horizontal turn radius (m; inf on a straight line),
+        |v_d| (m/s), each of length floor(T / dt) + 1.
+    """
+    F, H = np.asarray(F, float), np.asarray(H, float)
+    n = int(np.floor(T / dt + 1e-9)) + 1
+    Phi = expm(F * dt)
+    Z = np.empty((n, F.shape[0]))
+    z = np.asarray(z0, float)
+    for k in range(n):
+        Z[k] = z
+        z = Phi @ z
+    V = Z @ (H @ F).T
+    A = Z @ (H @ F @ F).T
+    speed = np.linalg.norm(V, axis=1)
+    vh = np.hypot(V[:, 0], V[:, 1])
+    cross = np.abs(V[:, 0] * A[:, 1] - V[:, 1] * A[:, 0])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        radius = np.where(cross > 1e-12 * np.maximum(vh, 1e-12) ** 3, vh ** 3 / cross, np.inf)
+    return np.arange(n) * dt, speed, radius, np.abs(V[:, 2])
+
+
+def path_findings(F: np.ndarray, H: np.ndarray, z0: np.ndarray, T: float,
+                  limits: Sequence[object], dt: float = 0.1) -> list[Finding]:
+    """Per vehicle, the worst excess of each of its known limits.
+
+    Parameters
+    ----------
+    F, H, z0 : np.ndarray
+        The leader's path (:func:`path_demands`).
+    T : float
+        Horizon, s.
+    limits : sequence
+        Per vehicle (1-based order) an object with ``max_speed``, ``min_turn_radius``,
+        ``max_depth_rate`` (None: not known, not checked) and ``source``
+        (:class:`plant_model.remus100.limits.VehicleLimits`).
+    dt : float, optional
+        Sampling interval, s.
+
+    Returns
+    -------
+    list[Finding]
+        In vehicle order, then speed, turn radius, depth rate; empty when all fit.
+    """
+    t, speed, radius, depth_rate = path_demands(F, H, z0, T, dt)
+    out: list[Finding] = []
+    for i, lim in enumerate(limits, start=1):
+        checks = (("speed", speed, lim.max_speed, speed > (lim.max_speed or 0), 1.0),
+                  ("turn radius", radius, lim.min_turn_radius,
+                   radius < (lim.min_turn_radius or 0), -1.0),
+                  ("depth rate", depth_rate, lim.max_depth_rate,
+                   depth_rate > (lim.max_depth_rate or 0), 1.0))
+        for name, values, bound, bad, sign in checks:
+            if bound is None or not bad.any():
+                continue
+            k = int(np.argmax(sign * values))          # the worst sample
+            out.append(Finding(i, float(t[k]), name, float(values[k]), float(bound),
+                               getattr(lim, "source", ""), float(bad.mean())))
+    return out
