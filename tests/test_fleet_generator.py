@@ -62,3 +62,14 @@ def test_formation_100_hears_at_most_four_nearer_neighbours():
     # every neighbour is in a row nearer the leader (row = (k - 1) // 10)
     assert all((j - 1) // 10 < (i - 1) // 10 for i, js in heard.items() for j in js)
     assert set(heard) | pinned == set(range(1, 101))
+
+
+def test_the_shipped_circle_20_remus_is_the_generated_remus_fleet():
+    """circle-20-remus is formation-20's grid (20 m apart) put on the nonlinear REMUS by
+    on_remus: the model, its sensors, the leader at 2 m/s, the [design] weight, no R."""
+    from orchestrator.scenario.generator import on_remus
+    shipped = tomllib.loads((SCENARIO_DIR / "circle-20-remus.toml").read_text())
+    made = on_remus(grid_fleet(20, spacing=20.0, T=300.0), name="circle-20-remus")
+    assert shipped == tomllib.loads(scenario_toml(made))
+    assert shipped["vehicles"]["model"] == "remus100-6dof" and "R" not in shipped["cost"]
+    assert shipped["sensors"] == {"kind": "remus"} and shipped["design"]["bandwidth"] == 0.2

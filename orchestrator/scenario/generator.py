@@ -13,7 +13,7 @@ import json
 import math
 from typing import Any
 
-__all__ = ["grid_fleet", "survey_grid_fleet", "scenario_toml"]
+__all__ = ["grid_fleet", "on_remus", "survey_grid_fleet", "scenario_toml"]
 
 #: the second-order consensus coupling of formation-4: acceleration from relative
 #: position (0.02 1/s^2) and relative velocity (0.2 1/s)
@@ -139,6 +139,30 @@ def survey_grid_fleet(N: int = 100, *, columns: int = 10, spacing: float = 10.0,
         "noise": {"convention": "intensity", "process": 1e-4, "position": 0.25, "reference": 0.0},
         "cost": {"Q": 1.0, "R": 0.01},
     }
+
+
+def on_remus(data: dict[str, Any], *, speed: float = 2.0, bandwidth: float = 0.2,
+             name: str | None = None) -> dict[str, Any]:
+    """The same fleet on the nonlinear REMUS 100 (``remus100-6dof``) with its navigation
+    sensors, deployed per vehicle with the distributed law: the leader at ``speed`` (m/s;
+    the design model linearized there), the weight chosen by ``[design] bandwidth``
+    (rad/s) instead of ``[cost] R``, the controllers clipped at the vehicle's force, and
+    the path refused if a vehicle cannot fly it (docs/design.md)."""
+    out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in data.items()}
+    out["name"] = name or f"{data['name']}-remus"
+    out["description"] = (f"{data['vehicles']['count']} nonlinear REMUS 100 AUVs with REMUS "
+                          f"navigation, the {data['leader']['path']} leader at {speed:g} m/s")
+    out["simulation"].update(deployment="per-vehicle", architecture="distributed")
+    out["leader"]["speed"] = speed
+    out["vehicles"].update(model="remus100-6dof", params={"cruise_speed": speed})
+    out["cost"] = {k: v for k, v in data["cost"].items() if k != "R"}
+    sections = list(out)
+    at = sections.index("noise")
+    items = list(out.items())
+    items.insert(at, ("sensors", {"kind": "remus"}))
+    out = dict(items)
+    out["design"] = {"bandwidth": bandwidth, "u_max": "vehicle", "path_check": "refuse"}
+    return out
 
 
 def _toml_value(v: Any) -> str:
