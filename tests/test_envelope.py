@@ -73,3 +73,29 @@ def test_the_envelope_as_a_campaign_spec_gives_the_envelopes_figures(tmp_path, c
         assert r["status"] == "ok", r["error"]
         assert r["max_error"] == pytest.approx(p["max_error"], rel=1e-12)
         assert r["actuator_saturation_fraction"] == p["actuator_saturation_fraction"]
+
+
+def test_each_point_carries_the_path_check_beside_its_figures(tmp_path):
+    """survey-4-remus (a [design] section) over 1 and 2 m/s straight in a 0.1 m/s current:
+    at 1 m/s the rudder cannot give the controller's 3-sigma lateral acceleration at the
+    slowest speed through the water (rejected, the reason named), at 2 m/s it can
+    (feasible); the summary counts how the verdicts and the runs agree, and the campaign
+    written from the same grid carries the same verdicts in its rows (a real Dask cluster)."""
+    from support.campaign import rows
+    grid = ["--scenario", "survey-4-remus", "--T", "4", "--speeds", "1,2", "--radii", "inf",
+            "--currents", "0.1"]
+    assert main(["envelope", *grid, "--out", str(tmp_path / "env")]) == 0
+    env = json.loads((tmp_path / "env" / "summary.json").read_text())["envelope"]
+    slow, fast = env["points"]
+    assert slow["path_feasible"] is False and "lateral acceleration" in slow["path_findings"]
+    assert fast["path_feasible"] is True and fast["path_findings"] is None
+    v = env["path_check"]
+    assert v["points_judged"] == 2 and v["feasible"] == 1
+    assert v["agree"] == sum(p["path_feasible"] == p["holds"] for p in env["points"])
+    spec = tmp_path / "env.toml"
+    assert main(["envelope", *grid, "--write-spec", str(spec)]) == 0
+    assert main(["campaign", str(spec), "--workers", "1", "--out", str(tmp_path / "c")]) == 0
+    table = sorted(rows(tmp_path / "c"), key=lambda r: r["point"])
+    assert [r["path_feasible"] for r in table] == [False, True]
+    assert [r["max_error"] for r in table] == pytest.approx(
+        [p["max_error"] for p in env["points"]], rel=1e-12)

@@ -9,14 +9,17 @@ import pytest
 from orchestrator.scenario import load_scenario
 
 
-@pytest.mark.parametrize("name", ["survey-4-remus", "circle-20-remus"])
-def test_the_path_passes_the_vehicle_check_and_the_weight_comes_from_the_bandwidth(name):
-    """Loading with path_check = "refuse" succeeds (no finding), the bandwidth target sets
+@pytest.mark.parametrize("name, limits", [
+    ("survey-4-remus", {"speed", "steering"}), ("circle-20-remus", set())])
+def test_the_path_check_and_the_weight_comes_from_the_bandwidth(name, limits):
+    """circle-20-remus passes the path check (path_check = "refuse" loads); the survey's
+    weave is warned about, as its file says: against a 2-sigma head current and at its
+    slowest (the check is conservative: it holds, test below). The bandwidth target sets
     R (the loop at 0.2 rad/s, to 1e-6), and the controllers clip at the vehicle's force:
     the drag of the design model at the simulated top speed (horizontal axes above 20 N)."""
     sc = load_scenario(name)
     d = sc.design
-    assert d.findings == [] and d.checked
+    assert {f.limit for f in d.findings} == limits and d.checked
     assert d.binding == "bandwidth" and d.bandwidth == pytest.approx(0.2, rel=1e-6)
     assert 0.5 < d.R < 5.0
     assert d.clip and all(u[0] > 20.0 and u[1] > 20.0 for u in d.u_max)

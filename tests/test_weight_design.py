@@ -183,6 +183,7 @@ def test_design_and_cost_r_together_are_refused():
 def test_the_path_check_refuses_naming_vehicle_time_and_limit():
     def change(d):
         d["design"] = {"path_check": "refuse", "min_turn_radius": 16.0}
+        d["current"]["sigma"] = 0.0          # the turn radius alone (no current to fly in)
     msg = _error(change)
     assert "[design] path_check = \"refuse\": vehicles 1, 2, 3, 4 at t = " in msg
     assert "target turn radius 7.41 m below the smallest turn radius 16 m" in msg   # given
@@ -214,9 +215,10 @@ def test_the_path_force_of_a_straight_leader_is_its_drag():
 
 def test_a_run_checks_the_path_over_its_own_horizon():
     """formation-4's lawnmower turns tighter than 16 m from t = 1.6 s on: a 1 s run has no
-    finding, the file's 600 s do."""
+    finding, the file's 600 s do (still water: the current's checks apart)."""
     data = copy.deepcopy(FLEET)
     data["design"] = {"min_turn_radius": 16.0}
+    data["current"]["sigma"] = 0.0
     sc = scenario_from_dict(data, "case.toml")
     assert [f.limit for f in sc.design.findings] == ["turn radius"] * 4
     assert sc.with_run(T=1.0).design.findings == []

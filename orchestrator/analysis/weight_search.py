@@ -111,6 +111,10 @@ class DesignResult:
     #: the largest force the target path itself needs, M_a a_a + D_a v_a over u_max_a (the
     #: worst vehicle and axis; R-independent, not in the budget; None: not a NED model)
     path_force_ratio: float | None = None
+    #: the path check's current (m/s, standard deviation per axis) and the lateral
+    #: acceleration the controller adds (m/s^2: its 3-sigma noise force over the mass)
+    current_sigma: float = 0.0
+    lateral_margin: float = 0.0
 
     def lines(self) -> list[str]:
         """The printout: the choice in one line, then one line per path finding."""
@@ -148,8 +152,9 @@ class DesignResult:
         """The same design with the path checked over [0, T] (a run's own horizon)."""
         from types import SimpleNamespace
         lims = [SimpleNamespace(**lim) for lim in self.limits]
-        return replace(self, findings=path_findings(F, H, z0, T, lims) if self.checked
-                       else [])
+        return replace(self, findings=path_findings(
+            F, H, z0, T, lims, current_sigma=self.current_sigma,
+            lateral_margin=self.lateral_margin) if self.checked else [])
 
 
 def _noise_gain(agent: Agent, r: float, leader: Mapping[str, np.ndarray], tracking: str,
@@ -192,8 +197,8 @@ def _key(a: Agent) -> bytes:
 
 
 def design_fleet(spec: Mapping[str, Any], options: Mapping[str, Any], *, h: float,
-                 T: float, estimator: str, tracking: str, regulator: str = "continuous"
-                 ) -> DesignResult:
+                 T: float, estimator: str, tracking: str, regulator: str = "continuous",
+                 current_sigma: float = 0.0) -> DesignResult:
     """Limits, u_max, the weight search (when ``bandwidth`` or ``force_budget`` is given)
     and the path check of a fleet spec (module docstring).
 
@@ -209,6 +214,9 @@ def design_fleet(spec: Mapping[str, Any], options: Mapping[str, Any], *, h: floa
     estimator, tracking, regulator : str
         The run's estimator (``ideal`` samples the true state; any other the steady
         Kalman filter), tracking law and regulator form.
+    current_sigma : float, optional
+        The current's standard deviation per axis (m/s) the path check counts
+        (:func:`plant_model.path_feasibility.path_findings`).
 
     Returns
     -------
@@ -228,16 +236,22 @@ def design_fleet(spec: Mapping[str, Any], options: Mapping[str, Any], *, h: floa
              for mdl, lim in zip(models, limits)] if needs_force else [])
     ld = spec["leader"]
     F, H, z0 = (np.asarray(ld[k], float) for k in ("F", "H", "z0"))
-    findings = path_findings(F, H, z0, T, limits) if options.get("path_check") != "off" else []
+    checked = options.get("path_check") != "off"
+
+    def check(margin: float) -> list:
+        return (path_findings(F, H, z0, T, limits, current_sigma=current_sigma,
+                              lateral_margin=margin) if checked else [])
+
+    findings = check(0.0)
     base = dict(R=None, binding=None, bandwidth=None, force_3sigma=None, force_ratio=None,
                 force_vehicle=None, bandwidth_target=options.get("bandwidth"),
                 force_budget=options.get("force_budget"),
                 u_max=[u.tolist() for u in umax], clip=u_opt is not None,
                 limits=[{"max_speed": lim.max_speed, "min_turn_radius": lim.min_turn_radius,
                          "max_depth_rate": lim.max_depth_rate, "source": lim.source}
-                        for lim in limits], findings=findings,
-                checked=options.get("path_check") != "off",
-                path_force_ratio=path_force_ratio(models, umax, F, H, z0, T))
+                        for lim in limits], findings=findings, checked=checked,
+                path_force_ratio=path_force_ratio(models, umax, F, H, z0, T),
+                current_sigma=current_sigma)
     if options.get("bandwidth") is None and options.get("force_budget") is None:
         return DesignResult(**base)
     agents, _, leader = agents_from_fleet_spec(spec)
@@ -265,7 +279,13 @@ def design_fleet(spec: Mapping[str, Any], options: Mapping[str, Any], *, h: floa
     choice = choose_weight(bandwidth_of, lambda r: max(s[0] for s in sigma3(r))
                            if umax else 0.0, bandwidth=options.get("bandwidth"),
                            force_budget=options.get("force_budget"))
-    worst = max(sigma3(choice.r), key=lambda s: s[0]) if umax else None
+    per_vehicle = sigma3(choice.r) if umax else []
+    worst = max(per_vehicle, key=lambda s: s[0]) if umax else None
+    # the controller's lateral 3-sigma acceleration on top of the path's (NED models)
+    margin = max((max(f3[:2]) * float(np.asarray(models[i - 1].B1, float)[3, 0])
+                  for _, i, f3 in per_vehicle if get(models[i - 1].name).layout == "ned"),
+                 default=0.0)
+    base.update(findings=check(margin), lateral_margin=margin)
     return DesignResult(**{**base, "R": choice.r, "binding": choice.binding,
                            "bandwidth": bandwidth_of(choice.r),
                            "force_3sigma": None if worst is None else worst[2].tolist(),

@@ -50,6 +50,8 @@ def envelope_params(sc: Scenario, speed: float, radius: float, current: float
                  "center": [0.0, 0.0, depth], "noise": 0.0}
     out: dict[str, Any] = {"leader": table, "current.sigma": current,
                            "vehicles.start": "formation"}
+    if sc.design is not None and (sc.raw or {}).get("design", {}).get("path_check") == "refuse":
+        out["design.path_check"] = "warn"      # a verdict per point, not a refusal
     out.update({f"simulation.{k}": getattr(sc, k) for k in RUN_KEYS})
     if sc.network is not None:
         out["network"] = dict(sc.network)
@@ -125,6 +127,7 @@ def run_envelope(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
     dict[str, Any]
         The summary (also ``out / summary.json``).
     """
+    from ..campaign.tasks import path_verdict
     from .compare import simulate
 
     points = []
@@ -142,18 +145,35 @@ def run_envelope(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
                  and m["max_error"] <= tolerance, "max_error": m.get("max_error"),
                  "rms_error": max(rms) if rms else None,
                  "actuator_saturation_fraction": m.get("actuator_saturation_fraction"),
-                 "folder": str(folder)}
+                 **path_verdict(variant), "folder": str(folder)}
         points.append(point)
         log(f"{i:3d}/{len(grid)} speed {speed:g} m/s, radius "
             f"{'straight' if point['radius'] is None else format(radius, 'g') + ' m'}, "
             f"current {current:g} m/s: max error {point['max_error']:.3g} m -> "
-            f"{'holds' if point['holds'] else 'does not hold'}")
+            f"{'holds' if point['holds'] else 'does not hold'}"
+            + ("" if point["path_feasible"] is None else
+               "; path check: " + ("feasible" if point["path_feasible"] else
+                                   point["path_findings"].split(" (beyond")[0])))
         if s.get("interrupted"):
             break
+    judged = [p for p in points if p["path_feasible"] is not None]
+    verdicts = None if not judged else {
+        "points_judged": len(judged),
+        "agree": sum(p["path_feasible"] == p["holds"] for p in judged),
+        "feasible": sum(bool(p["path_feasible"]) for p in judged),
+        "feasible_and_hold": sum(bool(p["path_feasible"]) and p["holds"] for p in judged),
+        "rejected_and_fail": sum((not p["path_feasible"]) and not p["holds"]
+                                 for p in judged)}
+    if verdicts:
+        log(f"path check beside the runs: {verdicts['agree']} of {len(judged)} points agree; "
+            f"{verdicts['feasible_and_hold']} of {verdicts['feasible']} feasible points hold, "
+            f"{verdicts['rejected_and_fail']} of {len(judged) - verdicts['feasible']} "
+            "rejected points do not")
     summary = {"scenario": sc.name, "T": sc.T, "h": sc.h, "seed": sc.seed,
                "estimator": sc.estimator, "architecture": sc.architecture,
                "models": sorted({v.get("model", "remus100") for v in sc.fleet["vehicles"]}),
-               "envelope": {"tolerance_m": tolerance, "points": points},
+               "envelope": {"tolerance_m": tolerance, "points": points,
+                            "path_check": verdicts},
                "interrupted": len(points) < len(grid)}
     write_text_atomically(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     return summary

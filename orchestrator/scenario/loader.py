@@ -255,8 +255,10 @@ def _design(fleet: Any, spec: dict[str, Any], where: str) -> Any:
     options = fleet.design.model_dump()
     sim = fleet.simulation
     try:
+        sigma = 0.0 if fleet.current is None else float(fleet.current.sigma)
         result = design_fleet(spec, options, h=sim.h, T=sim.T, estimator=sim.estimator,
-                              tracking=sim.tracking, regulator=fleet.distributed.regulator)
+                              tracking=sim.tracking, regulator=fleet.distributed.regulator,
+                              current_sigma=sigma)
     except ModelError as exc:
         text = str(exc)
         text = text if text.startswith("[design]") else f"[design] {text}"
