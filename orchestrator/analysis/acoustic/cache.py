@@ -15,8 +15,8 @@ The key (:func:`loop_digest`) is a SHA-256 of:
   message cycle (beyond, the patterns repeat), with the period and start-up step;
 - the links' loss probabilities, the cost weight Qz, the noise intensity W, c0, which
   coordinates are deterministic (the leader), h;
-- the source of the modules that compute the predictions (a change of algorithm is a new
-  key);
+- the source of the modules that compute the predictions and the numpy and scipy versions
+  (a change of algorithm or of the libraries' rounding is a new key);
 
 plus, per entry, the function's own arguments (the loss, the window, Z0, ...). Entries are
 small JSON files ``<kind>-<key>.json`` written by one rename (two processes writing the same
@@ -92,7 +92,9 @@ def _feed(h: Any, value: Any) -> None:
 
 
 def _code_digest() -> str:
+    import scipy
     h = hashlib.sha256()
+    h.update(f"numpy {np.__version__} scipy {scipy.__version__}".encode())
     here = Path(__file__).parent
     for name in _SOURCES:
         h.update(name.encode())
