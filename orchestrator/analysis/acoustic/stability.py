@@ -35,7 +35,7 @@ from .cache import cached
 from .loop import NetworkedLoop
 from .prediction import Segment, _Compiler, _product
 
-__all__ = ["ARPACK_NCV", "ARPACK_TOL", "SEARCH_TOL", "VERDICT_MARGIN", "CycleMap",
+__all__ = ["ARPACK_NCV", "ARPACK_TOL", "SEARCH_MAXITER", "SEARCH_TOL", "VERDICT_MARGIN", "CycleMap",
            "critical_loss", "frozen_radius", "ms_spectral_radius", "ms_stable"]
 
 #: relative tolerance of the Arnoldi estimate of rho (scipy eigs ``tol``: the Ritz residual
@@ -44,6 +44,9 @@ ARPACK_TOL = 1e-12
 #: the same in the critical-loss search, where only rho < 1 or not matters (on formation-4
 #: its estimates differ from those to ARPACK_TOL by at most 6e-11)
 SEARCH_TOL = 1e-9
+#: Arnoldi restarts the search allows at one loss before the certificate decides there
+#: (a cluster of eigenvalues near the top converges slowly: formation-4 distributed at 0.9)
+SEARCH_MAXITER = 40
 #: Krylov vectors per restart (more cost ARPACK more than the matrix-vector products save)
 ARPACK_NCV = 20
 #: the critical-loss search takes the verdict of the estimate when |rho - 1| exceeds this,
@@ -67,8 +70,8 @@ class CycleMap:
         """L(X) for a symmetric n x n X."""
         return self.comp.apply(self.plan, X, noise=False)[0]
 
-    def radius(self, v0: np.ndarray | None = None, tol: float = ARPACK_TOL
-               ) -> tuple[float, np.ndarray | None]:
+    def radius(self, v0: np.ndarray | None = None, tol: float = ARPACK_TOL,
+               maxiter: int = 500, fallback: bool = True) -> tuple[float, np.ndarray | None]:
         """(rho, its eigenvector) by Arnoldi iteration on L over the symmetric matrices,
         n (n + 1) / 2 coordinates (the upper triangle; L keeps X symmetric and its Perron
         eigenvector is symmetric), "largest real part" (which converges where "largest
@@ -82,6 +85,10 @@ class CycleMap:
             Starting vector, the upper triangle (a nearby loss's eigenvector: a warm start).
         tol : float, optional
             Relative tolerance (scipy eigs ``tol``).
+        maxiter : int, optional
+            Arnoldi restarts allowed.
+        fallback : bool, optional
+            Without convergence, the trace's growth rate (else nan).
 
         Returns
         -------
@@ -106,9 +113,11 @@ class CycleMap:
         start = np.eye(n)[iu] if v0 is None else v0
         try:
             vals, vecs = eigs(op, k=1, which="LR", v0=start, tol=tol, ncv=ARPACK_NCV,
-                              maxiter=500)
+                              maxiter=maxiter)
             return float(vals[0].real), np.real(vecs[:, 0]).copy()
         except ArpackNoConvergence:
+            if not fallback:
+                return math.nan, None
             X, rates = np.eye(n), []
             for _ in range(400):
                 X = self(X)
@@ -200,7 +209,7 @@ def frozen_radius(net: NetworkedLoop) -> float:
 
 class _Search:
     """Verdicts at losses p for the critical-loss search: the Arnoldi estimate of rho,
-    warm-started from the last eigenvector, and the certificate where rho is within
+    warm-started from the last eigenvector (mixed with I), and the certificate where rho is within
     VERDICT_MARGIN of 1 (or the estimate did not converge)."""
 
     def __init__(self, net: NetworkedLoop, max_cycles: int):
@@ -213,7 +222,8 @@ class _Search:
 
     def __call__(self, p: float) -> bool | None:
         cmap = CycleMap(self.base.at_loss(p))
-        rho, v = cmap.radius(self.v0, SEARCH_TOL)
+        rho, v = cmap.radius(None if self.v0 is None else self._start(cmap.n), SEARCH_TOL,
+                             maxiter=SEARCH_MAXITER, fallback=False)
         self.radius[p] = rho
         if v is not None:
             self.v0 = v
@@ -222,9 +232,21 @@ class _Search:
         self.certified.add(p)
         return cmap.certify(self.max_cycles)
 
+    def _start(self, n: int) -> np.ndarray:
+        """The last eigenvector plus I, scaled to equal norms. The eigenvector alone spans
+        an (almost) invariant subspace: Arnoldi would return its eigenvalue and miss a mode
+        that grows with the loss. I has a component along the dominant mode of every
+        positive map (<W, I> = tr W > 0 for its positive semidefinite left eigenvector W)."""
+        assert self.v0 is not None
+        eye = np.eye(n)[np.triu_indices(n)]
+        v = self.v0 * (1.0 if np.dot(self.v0, eye) >= 0.0 else -1.0)
+        return v / np.linalg.norm(v) + eye / np.linalg.norm(eye)
+
     def at(self, p: float) -> str:
-        """'rho 0.998 at 0.7' (and 'certified' where the certificate decided)."""
-        return (f"{self.radius[p]:.6g} at {p:.4g}"
+        """'0.998 at 0.7' (and 'certified' where the certificate decided; 'not estimated'
+        where Arnoldi did not converge)."""
+        r = self.radius[p]
+        return ((f"{r:.6g} at {p:.4g}" if math.isfinite(r) else f"not estimated at {p:.4g}")
                 + (" (certified)" if p in self.certified else ""))
 
 
@@ -272,7 +294,7 @@ def critical_loss(net: NetworkedLoop, tol: float = 0.01,
                 "full) ...")
         return _critical_loss(net, tol, grid, max_cycles)
 
-    out = cached("critical-loss", net, (tol, tuple(grid), max_cycles, SEARCH_TOL,
+    out = cached("critical-loss", net, (tol, tuple(grid), max_cycles, SEARCH_TOL, SEARCH_MAXITER,
                                         VERDICT_MARGIN), compute, encode=list,
                  decode=lambda v: (v[0], v[1]))
     return out
@@ -283,7 +305,8 @@ def _critical_loss(net: NetworkedLoop, tol: float, grid: tuple[float, ...],
     frozen = (f"with every message lost the second-moment radius is {frozen_radius(net):.6g} "
               "per cycle")
     how = (f"second-moment radius per cycle by Arnoldi iteration (relative tolerance "
-           f"{SEARCH_TOL:g}; the certificate where within {VERDICT_MARGIN:g} of 1)")
+           f"{SEARCH_TOL:g}; the certificate where within {VERDICT_MARGIN:g} of 1 or not "
+           "converged)")
     verdict = _Search(net, max_cycles)
     at0 = verdict(0.0)
     if at0 is not True:
@@ -301,10 +324,14 @@ def _critical_loss(net: NetworkedLoop, tol: float, grid: tuple[float, ...],
             break
         lo = p
     else:
-        top = max(verdict.radius.values())
+        est = [r for p, r in verdict.radius.items() if p not in verdict.certified]
+        cert = sorted(verdict.certified)
         return None, (f"none up to {grid[-1]:g}: mean-square stable at 0 and at every loss "
-                      f"{grid[0]:g}, {grid[1]:g}, ..., {grid[-1]:g} (second-moment radius at "
-                      f"most {top:.6g} per cycle); {how}; {frozen}")
+                      f"{grid[0]:g}, {grid[1]:g}, ..., {grid[-1]:g} ("
+                      + (f"second-moment radius at most {max(est):.6g} per cycle" if est else "")
+                      + ("; " if est and cert else "")
+                      + ("certified at " + ", ".join(f"{p:g}" for p in cert) if cert else "")
+                      + f"); {how}; {frozen}")
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
         v = verdict(mid)
