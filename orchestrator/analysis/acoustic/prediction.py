@@ -109,6 +109,10 @@ class LossTerm:
     cols: np.ndarray
     V: np.ndarray              #: D_l[rows][:, cols]
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_ix", (np.ix_(self.cols, self.cols),
+                                         np.ix_(self.rows, self.rows)))
+
     @classmethod
     def of(cls, c: float, D: sp.csr_matrix) -> LossTerm:
         D = D.tocsr()
@@ -120,8 +124,8 @@ class LossTerm:
     def add_to(self, Y: np.ndarray, X: np.ndarray) -> None:
         """Y += p (1 - p) D_l X D_l' (in place)."""
         if self.rows.size:
-            blk = self.V @ X[np.ix_(self.cols, self.cols)] @ self.V.T
-            Y[np.ix_(self.rows, self.rows)] += self.c * blk
+            ixc, ixr = self._ix                    # type: ignore[attr-defined]
+            Y[ixr] += self.c * (self.V @ X[ixc] @ self.V.T)
 
 
 @dataclass(frozen=True, eq=False)
@@ -226,21 +230,24 @@ class _Compiler:
             k += m
         return out
 
-    def apply(self, plan: Sequence[Segment | Event], X: np.ndarray, noise: bool = True
-              ) -> tuple[np.ndarray, float]:
-        """X2 after the plan, and the plan's expected cost summed over its steps."""
-        cost = 0.0
+    def apply(self, plan: Sequence[Segment | Event], X: np.ndarray, noise: bool = True,
+              cost: bool = True) -> tuple[np.ndarray, float]:
+        """X2 after the plan, and the plan's expected cost summed over its steps (0 without
+        ``cost``)."""
+        total = 0.0
         for s in plan:
             if isinstance(s, Segment):
-                cost += float(np.sum(s.S * X)) + (s.c if noise else 0.0)
+                if cost:
+                    total += float(np.sum(s.S * X)) + (s.c if noise else 0.0)
                 X = _sandwich(s.G, X) + (s.W if noise else 0.0)
             else:
-                cost += float(np.sum(self.Qz * X)) + (self.c0 if noise else 0.0)
+                if cost:
+                    total += float(np.sum(self.Qz * X)) + (self.c0 if noise else 0.0)
                 Y = _sandwich(s.A, X) + (s.noise if noise else 0.0)
                 for term in s.terms:
                     term.add_to(Y, X)
                 X = Y
-        return X, cost
+        return X, total
 
     def cycle(self) -> list[Segment | Event]:
         """The compiled message cycle after start-up (transitions b..b + period - 1, b the

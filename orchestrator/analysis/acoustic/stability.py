@@ -68,7 +68,7 @@ class CycleMap:
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         """L(X) for a symmetric n x n X."""
-        return self.comp.apply(self.plan, X, noise=False)[0]
+        return self.comp.apply(self.plan, X, noise=False, cost=False)[0]
 
     def radius(self, v0: np.ndarray | None = None, tol: float = ARPACK_TOL,
                maxiter: int = 500, fallback: bool = True) -> tuple[float, np.ndarray | None]:
