@@ -209,8 +209,8 @@ def frozen_radius(net: NetworkedLoop) -> float:
 
 class _Search:
     """Verdicts at losses p for the critical-loss search: the Arnoldi estimate of rho,
-    warm-started from the last eigenvector (mixed with I), and the certificate where rho is within
-    VERDICT_MARGIN of 1 (or the estimate did not converge)."""
+    warm-started from the last eigenvector plus I, and the certificate where rho is within
+    VERDICT_MARGIN of 1 or the estimate did not converge in SEARCH_MAXITER restarts."""
 
     def __init__(self, net: NetworkedLoop, max_cycles: int):
         self.base = _Compiler(net, loss=0.0, error_only=True)
@@ -259,10 +259,11 @@ def critical_loss(net: NetworkedLoop, tol: float = 0.01,
     bisection between the last stable and the first unstable grid point down to a bracket
     of width ``tol``.
 
-    Each verdict is rho(p) < 1 from the Arnoldi estimate (:class:`CycleMap`, warm-started
-    from the previous point's eigenvector) where |rho - 1| > VERDICT_MARGIN, so that the
-    estimate's error cannot change it; closer to 1, the certificate of :func:`ms_stable`
-    (undecided within ``max_cycles``: the search stops there, as it says). Mean-square
+    Each verdict is rho(p) < 1 from the Arnoldi estimate (:class:`CycleMap`, started from
+    the previous point's eigenvector plus I) where |rho - 1| > VERDICT_MARGIN, so that the
+    estimate's error cannot change it; closer to 1, or without convergence, the
+    certificate of :func:`ms_stable` (undecided within ``max_cycles``: the search stops
+    there, as it says). Mean-square
     stability need not be monotone in p (with propagating receivers errors can circulate
     at intermediate losses while the loop with every message lost is only marginal), so no
     shortcut through the frozen loop is taken; its second-moment radius is reported.
