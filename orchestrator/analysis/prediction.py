@@ -52,7 +52,7 @@ class Prediction:
     rms_e: list[float] | None
     rms_u: list[float] | None
     cost_rate: float | None
-    spectral_radius: float
+    spectral_radius: float | None  #: None: not predicted (--predict none)
     settling_time: float          #: 5 time constants of the slowest closed-loop mode (s)
     reason: str | None = None     #: why there is no stationary prediction
     #: with a window: RMS over the window of the noise-free error (the steady-state error

@@ -190,8 +190,41 @@ def cmd_bench_campaign(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_predictions(args: argparse.Namespace) -> int:
+    from ..benchmarks.predictions import benchmark_predictions
+    sc = scenario_of(args)
+    if sc.network is None or sc.deployment != "per-vehicle":
+        raise UsageError("bench --predictions times the predictions over acoustic links: give "
+                         "a per-vehicle fleet with links, e.g. --scenario formation-4 "
+                         "--deployment per-vehicle --latency 1 --period 2 --loss 0.2")
+    archs = [args.architecture] if args.architecture else ["centralized", "distributed"]
+    r = benchmark_predictions(sc, archs, mode=args.estimator or "kalman",
+                              tracking=args.tracking or "regulator")
+    if args.json:
+        print(json.dumps(r, indent=2))
+        return 0
+    print(f"{sc.name} over links (T = {sc.T} s, h = {sc.h} s); load average "
+          f"{r['loadavg'][0]:.2f} on {r['cpus']} CPUs (after: {r['loadavg_after'][0]:.2f})")
+    print(f"{'architecture':>12s} {'states':>6s} {'error':>6s} {'links':>5s} {'cycle':>6s} "
+          f"{'L ms':>6s} {'stationary s':>12s} {'critical s':>10s} {'cached s':>8s}   "
+          "radius, window cost, critical loss")
+    for x in r["rows"]:
+        crit = "none" if x["critical_loss"] is None else f"{x['critical_loss']:.4g}"
+        print(f"{x['architecture']:>12s} {x['states']:6d} {x['error_states']:6d} "
+              f"{x['links']:5d} {x['cycle_steps']:6d} {x['cycle_map_ms']:6.2f} "
+              f"{x['stationary_s']:12.2f} {x['critical_loss_s']:10.2f} {x['cached_s']:8.3f}   "
+              f"{x['second_moment_radius']:.10g}, {x['cost_rate_window']:.10g}, {crit}")
+    print("('L ms': one application of the second-moment cycle map; 'stationary s': the "
+          "radius and the window's expected cost, as a run computes them; 'critical s': the "
+          "critical-loss search (--predict full); 'cached s': both again for a second run, "
+          "from the prediction cache)")
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from ..benchmarks.paper import benchmark
+    if getattr(args, "predictions", False):
+        return cmd_bench_predictions(args)
     if getattr(args, "deployment", None) == "per-vehicle":
         if not args.fleet:
             raise UsageError("bench --deployment per-vehicle times fleets of several sizes: "
@@ -260,6 +293,10 @@ def add_bench(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--remus", action="store_true",
                     help="the nonlinear REMUS 100: derivative and step in numpy and compiled, "
                          "vehicle FMU doStep against the linear one, compile time")
+    sp.add_argument("--predictions", action="store_true",
+                    help="the predictions over acoustic links (per-vehicle fleet with "
+                         "--latency/--period/--loss): the second moment and the critical-loss "
+                         "search, cold and from the cache, per architecture")
     sp.add_argument("--json", action="store_true", help="print the figures as JSON")
     add_fmu_options(sp)
     sp.set_defaults(func=cmd_bench)

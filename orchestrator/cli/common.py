@@ -71,10 +71,12 @@ def add_master_option(sp: argparse.ArgumentParser) -> None:
 
 def add_predict_option(sp: argparse.ArgumentParser) -> None:
     """--predict: what the summary predicts besides the simulation."""
-    sp.add_argument("--predict", choices=("stationary", "full"), default="stationary",
-                    help="stationary: each method's stationary and window predictions "
-                         "(seconds); full: also the acoustic links' critical loss (a search "
-                         "that takes minutes for a centralized loop) (default: stationary)")
+    sp.add_argument("--predict", choices=("none", "stationary", "full"), default="stationary",
+                    help="none: no prediction (the summary's predicted figures null, with a "
+                         "note); stationary: each method's stationary and window predictions "
+                         "(about a second for formation-4 over links); full: also the "
+                         "acoustic links' critical loss (a search over losses, seconds for "
+                         "formation-4, cached) (default: stationary)")
 
 
 def add_force_option(sp: argparse.ArgumentParser) -> None:

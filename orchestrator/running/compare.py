@@ -127,6 +127,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
     bar = _bar(sc, len(methods) * len(seeds), progress)
     if bar is not None:
         log = bar.write
+    setup.log = log
     formation = stats_context(sc)
     skipped: list[ModelError] = []
     bounds: dict[int, float | None] = {}

@@ -11,6 +11,7 @@ predictions (:func:`network_predictions`) share one description. Age of informat
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,14 +29,18 @@ from ..analysis.acoustic.message_form import (
     distributed_message_form,
     without_leader_links,
 )
-from ..analysis.acoustic.prediction import critical_loss, ms_spectral_radius, predict_window
+from ..analysis.acoustic.prediction import predict_window
+from ..analysis.acoustic.stability import critical_loss, ms_spectral_radius
 from ..analysis.per_vehicle import distributed_initial_state, distributed_loop_of, distributed_noise
 from ..analysis.prediction import Prediction
 from ..analysis.summary import stats_window
 from ..cosim.per_vehicle import fleet_slots
 from ..cosim.per_vehicle_network import fleet_links, receiver_slots
+from .setup import NO_PREDICTION
 
-__all__ = ["NetworkSetup", "age_summary", "modem_settings", "network_predictions",
+Log = Callable[[str], None]
+
+__all__ = ["SLOW_STATES", "NetworkSetup", "age_summary", "modem_settings", "network_predictions",
            "network_reference", "network_setup", "network_summary", "schedule_settings",
            "too_many_states"]
 
@@ -145,14 +150,23 @@ def _positions(sc: Any, loop: Any, form: MessageForm, net: NetworkedLoop,
     return out
 
 
-def network_predictions(sc: Any, setup: NetworkSetup
+#: a networked loop of more states than this says what it computes before its second
+#: moment (the sparse cycle of formation-4, 361 states, takes well under a second)
+SLOW_STATES = 600
+
+
+def network_predictions(sc: Any, setup: NetworkSetup, log: Log | None = None
                         ) -> tuple[Prediction, Prediction, Prediction | None, int]:
     """(verdict, window prediction, same, k0) in the shape the workflow takes.
 
     The window prediction is exact: E[J] over k0 <= k < K from the known start. k0 leaves
-    five time constants of the slowest mean-square mode, tau = -2 cycle / ln(rho).
+    five time constants of the slowest mean-square mode, tau = -2 cycle / ln(rho), rho the
+    second-moment radius per cycle (E|e|^2 ~ rho^(t / cycle), |e| ~ rho^(t / (2 cycle))).
     """
     net = setup.net
+    if log is not None and net.n > SLOW_STATES:
+        log(f"predicting the second moment over the links' message cycle (P = {net.period} "
+            f"steps, {net.n} states): its radius and the expected cost over the window ...")
     rho = ms_spectral_radius(net)
     cycle = net.period * net.h
     tau = -2.0 * cycle / math.log(rho) if 0.0 < rho < 1.0 else math.inf
@@ -161,8 +175,8 @@ def network_predictions(sc: Any, setup: NetworkSetup
     verdict = Prediction(rms_e=None, rms_u=None, cost_rate=None, spectral_radius=rho,
                          settling_time=settling,
                          reason=None if rho < 1.0 else
-                         f"not mean-square stable over the links: radius {rho:.6g} per "
-                         f"{cycle:g} s message cycle")
+                         f"not mean-square stable over the links: second-moment radius "
+                         f"{rho:.6g} per {cycle:g} s message cycle")
     if rho >= 1.0:
         return verdict, verdict, None, k0
     if net.modem is not None:
@@ -192,9 +206,11 @@ def too_many_states(n: int, path: str | None, steps: int) -> str:
 
 
 def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True,
-                    search: bool = True) -> dict[str, Any]:
+                    search: bool = True, predict: str = "full", log: Log | None = None
+                    ) -> dict[str, Any]:
     """The summary's ``network`` entry of a method: the fleet-wide latency, period and loss,
-    the receiver, the links, the message cycle and the critical loss probability."""
+    the receiver, the links, the message cycle and the critical loss probability (with
+    ``predict`` "none", null and a note; ``log`` told before the search starts)."""
     table = dict(sc.network)
     out: dict[str, Any] = {
         "latency": float(table.get("latency", 0.0)),
@@ -208,13 +224,15 @@ def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True,
     if "range" in table:
         out["range"] = float(table["range"])
     if setup.net.schedule is not None:
-        out["schedule"] = schedule_summary(setup, radius=critical)
-    if critical and not search:
+        out["schedule"] = schedule_summary(setup, radius=critical and predict != "none")
+    if predict == "none":
+        out["critical_loss"], out["critical_loss_note"] = None, NO_PREDICTION
+    elif critical and not search:
         out["critical_loss"], out["critical_loss_note"] = None, (
-            "not computed: the search certifies mean-square stability on a grid of losses "
-            "and bisects (minutes for a centralized loop); --predict full computes it")
+            "not computed: the search evaluates the second-moment radius on a grid of losses "
+            "and bisects (seconds for formation-4); --predict full computes it")
     elif critical and setup.net.modem is None:
-        out["critical_loss"], out["critical_loss_note"] = critical_loss(setup.net)
+        out["critical_loss"], out["critical_loss_note"] = critical_loss(setup.net, log=log)
     elif critical:
         out["critical_loss"], out["critical_loss_note"] = None, (
             "not computed with a modem range (the links depend on the vehicles' positions)")

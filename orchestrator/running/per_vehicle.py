@@ -239,10 +239,14 @@ class PerVehicleSetup(RunSetup):
             setup = self.network(architecture, mode, tracking)
             path = prediction_path(setup.net, sc.steps)
             if path == "dense":
-                return Predictions.of(network_predictions(sc, setup))
+                return Predictions.of(network_predictions(sc, setup, self.log))
             # many links: the second moment in blocks (held values apart), or none when
             # even that is too long; the perfect links' window and margin
             pred0, _, _, k0 = self._perfect(architecture, mode, tracking)
+            if path == "blocks" and self.log is not None:
+                self.log(f"predicting the expected cost over the window with the second "
+                         f"moment in blocks ({setup.net.n} states, {len(setup.net.R)} links; "
+                         f"the message cycle is {setup.net.period} steps) ...")
             cost = (predict_window_blocks(setup.net, setup.Z0, k0, sc.steps,
                                           float("nan")).cost_rate if path == "blocks" else None)
             pred = Prediction(rms_e=None, rms_u=None, cost_rate=cost,
@@ -326,5 +330,6 @@ class PerVehicleSetup(RunSetup):
         setup = self.network(method.architecture, method.estimator, method.tracking)
         return {"network": network_summary(self.sc, setup,
                                            critical=prediction_path(setup.net, self.sc.steps)
-                                           == "dense", search=self.predict == "full"),
+                                           == "dense", search=self.predict == "full",
+                                           predict=self.predict, log=self.log),
                 "age_of_information": age_summary(runs, k0, setup)}

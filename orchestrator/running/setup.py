@@ -15,8 +15,9 @@ engine, ``envelope``, the benchmarks and the cross-check all run through it.
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -28,12 +29,15 @@ from ..outputs import file_stem
 from ..scenario import Scenario, ScenarioError
 from ..scenario.loader import check_deployment
 
-__all__ = ["PREDICT_LEVELS", "Method", "Predictions", "RunSetup", "check_setup", "method_list",
-           "run_statistics", "stats_context"]
+__all__ = ["NO_PREDICTION", "PREDICT_LEVELS", "Method", "Predictions", "RunSetup", "check_setup",
+           "method_list", "run_statistics", "stats_context"]
 
-#: how much a run predicts: the stationary and window predictions of every method
-#: (seconds), or also the searches that take minutes (the critical loss of links)
-PREDICT_LEVELS = ("stationary", "full")
+#: how much a run predicts: nothing (every predicted figure null, with a note), the
+#: stationary and window predictions of every method (seconds), or also the searches (the
+#: critical loss of links: seconds for formation-4)
+PREDICT_LEVELS = ("none", "stationary", "full")
+#: the note of every prediction with ``--predict none``
+NO_PREDICTION = "no prediction: --predict none asked for none"
 #: predictions computed in this process, by what they depend on (RunSetup.predictions)
 _PREDICTIONS: dict[tuple, Predictions] = {}
 
@@ -129,7 +133,11 @@ class RunSetup:
         self.fmu_dir = Path(fmu_dir)
         self.methods = tuple(methods) or (Method.of(sc),)
         self.coupling = coupling
+        if predict not in PREDICT_LEVELS:
+            raise ValueError(f"predict {predict!r} is not one of {', '.join(PREDICT_LEVELS)}")
         self.predict = predict
+        #: told in one line before a step that may take more than about 2 s (None: quiet)
+        self.log: Callable[[str], None] | None = None
         self._native: dict[Method, Any] = {}
         self._predictions: dict[Method, Predictions] = {}
 
@@ -168,6 +176,12 @@ class RunSetup:
         ModelError
             If the estimator or the design does not exist or the loop is unstable (named).
         """
+        if method not in self._predictions and self.predict == "none":
+            from ..analysis.summary import stats_window
+            none = Prediction(rms_e=None, rms_u=None, cost_rate=None, spectral_radius=None,
+                              settling_time=math.inf, reason=NO_PREDICTION)
+            self._predictions[method] = Predictions(none, none, none,
+                                                    stats_window(self.sc.T, self.sc.h, math.inf))
         if method not in self._predictions:
             from ..scenario.fingerprint import scenario_digest
             # what they depend on: the scenario but its seed and FMU kind, the method, the
@@ -258,6 +272,7 @@ class RunSetup:
         predictions and network analyses stay in this process)."""
         state = dict(self.__dict__)
         state["_predictions"] = {}
+        state["log"] = None
         return state
 
 

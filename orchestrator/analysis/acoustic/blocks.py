@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from .cache import cached
 from .loop import NetworkedLoop
 from .prediction import NetworkPrediction, _Compiler, _pieces, doubled
 
@@ -206,8 +207,16 @@ def predict_window_blocks(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int,
     Returns
     -------
     NetworkPrediction
-        The expected cost rate over the window.
+        The expected cost rate over the window (kept in :mod:`.cache`).
     """
+    cost = cached("window-blocks", net, (np.asarray(Z0, float), int(k0), int(K)),
+                  lambda: _window_cost_blocks(net, Z0, k0, K))
+    return NetworkPrediction(cost_rate=cost, spectral_radius=spectral_radius,
+                             cycle_s=net.period * net.h)
+
+
+def _window_cost_blocks(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int) -> float:
+    """E[J] / (K - k0) with X2 in blocks."""
     comp = _BlockCompiler(net)
     nc = comp.nc
     X: Blocks = (np.outer(Z0[:nc], Z0[:nc]), np.outer(Z0[:nc], Z0[nc:]),
@@ -224,5 +233,4 @@ def predict_window_blocks(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int,
         for _ in range(times):
             X, c = comp.apply_blocks(plan, X)
             cost += c if counted else 0.0
-    return NetworkPrediction(cost_rate=cost / max(K - k0, 1), spectral_radius=spectral_radius,
-                             cycle_s=P * net.h)
+    return cost / max(K - k0, 1)

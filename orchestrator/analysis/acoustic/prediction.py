@@ -16,27 +16,51 @@ cycle.
 
 - :func:`predict_window`: the expected cost rate over samples k0 <= k < K from the known
   start, the statistic a run computes (leader motion and transient included);
-- :func:`ms_spectral_radius`: the spectral radius of the cycle map of X2 on the error
-  coordinates (the loop without the leader's state, which need not be bounded); below 1 iff
-  the loop is mean-square stable;
-- :func:`critical_loss`: the loss probability, the same on every link, at which that radius
-  reaches 1, or None when it stays below 1 up to loss -> 1.
+- the mean-square verdicts (the second-moment radius, the critical loss) are in
+  :mod:`.stability`, on the same compiled cycle.
+
+Between arrivals each vehicle runs on its own (a run's G is a few per cent dense for a fleet),
+so G is kept sparse when it is (:data:`SPARSE_DENSITY`), and a link's loss term
+D_l X2 D_l' touches only the rows of its receiver's held value: it is applied on those
+rows and the few columns D_l reads (the same sums, in another order).
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigs
 
+from .cache import cached
 from .loop import NetworkedLoop
 
-__all__ = ["NetworkPrediction", "Segment", "critical_loss", "frozen_radius", "ms_spectral_radius",
-           "ms_stable", "predict_window", "prediction_work"]
+__all__ = ["NetworkPrediction", "SPARSE_DENSITY", "Segment", "predict_window", "prediction_work"]
+
+#: a run's G (and an arrival step's A) is kept as a sparse matrix up to this fraction of
+#: non-zero entries, dense above
+SPARSE_DENSITY = 0.1
+
+Matrix = np.ndarray | sp.csr_matrix
+
+
+def _compact(G: Matrix) -> Matrix:
+    """G sparse (CSR) when at most SPARSE_DENSITY of its entries are non-zero, else dense."""
+    n = G.shape[0] * G.shape[1]
+    if sp.issparse(G):
+        return G.tocsr() if G.nnz <= SPARSE_DENSITY * n else G.toarray()
+    nnz = np.count_nonzero(G)
+    return sp.csr_matrix(G) if nnz <= SPARSE_DENSITY * n else G
+
+
+def _product(A: Matrix, B: Matrix) -> Matrix:
+    """A B for sparse or dense factors, compacted."""
+    if sp.issparse(A) and sp.issparse(B):
+        return _compact(A @ B)
+    if sp.issparse(A) or sp.issparse(B):
+        return _compact(np.asarray(A @ B))
+    return _compact(A @ B)
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,10 +74,10 @@ class Segment:
     length: int
 
     def then(self, b: Segment) -> Segment:
-        """This run followed by ``b``."""
-        GW = b.G @ self.W
-        return Segment(G=b.G @ self.G, W=GW @ b.G.T + b.W,
-                       S=self.S + self.G.T @ b.S @ self.G,
+        """This run followed by ``b`` (G sparse or dense, W and S dense)."""
+        Gt = self.G.T.tocsr() if sp.issparse(self.G) else self.G.T
+        return Segment(G=_product(b.G, self.G), W=_sandwich(b.G, self.W) + b.W,
+                       S=self.S + _sandwich(Gt, b.S),
                        c=self.c + b.c + float(np.sum(b.S * self.W)), length=self.length + b.length)
 
     def power(self, m: int) -> Segment:
@@ -75,18 +99,50 @@ def doubled(seg: Any, m: int) -> Any:
 
 
 @dataclass(frozen=True, eq=False)
+class LossTerm:
+    """One link's p(1 - p) D_l X2 D_l' on the few rows and columns D_l has: D_l = V on
+    (rows, cols), zero elsewhere."""
+
+    c: float                   #: p (1 - p)
+    D: sp.csr_matrix           #: D_l on the coordinates kept
+    rows: np.ndarray
+    cols: np.ndarray
+    V: np.ndarray              #: D_l[rows][:, cols]
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_ix", (np.ix_(self.cols, self.cols),
+                                         np.ix_(self.rows, self.rows)))
+
+    @classmethod
+    def of(cls, c: float, D: sp.csr_matrix) -> LossTerm:
+        D = D.tocsr()
+        D.eliminate_zeros()
+        rows = np.unique(D.nonzero()[0])
+        cols = np.unique(D.indices)
+        return cls(c=c, D=D, rows=rows, cols=cols, V=D[rows][:, cols].toarray())
+
+    def add_to(self, Y: np.ndarray, X: np.ndarray) -> None:
+        """Y += p (1 - p) D_l X D_l' (in place)."""
+        if self.rows.size:
+            ixc, ixr = self._ix                    # type: ignore[attr-defined]
+            Y[ixr] += self.c * (self.V @ X[ixc] @ self.V.T)
+
+
+@dataclass(frozen=True, eq=False)
 class Event:
     """A step with arrivals: X2 -> Abar X2 Abar' + sum_l p(1 - p) D_l X2 D_l' + noise."""
 
-    A: sp.csr_matrix
-    terms: tuple[tuple[float, sp.csr_matrix], ...]
+    A: Matrix
+    terms: tuple[LossTerm, ...]
     noise: np.ndarray          #: Gbar W Gbar' + sum_l p(1 - p) D_zeta W D_zeta'
 
 
-def _sandwich(A: Any, X: np.ndarray) -> np.ndarray:
-    """A X A' for a sparse or dense A."""
-    AX = A @ X
-    return np.asarray((A @ AX.T).T if sp.issparse(A) else AX @ A.T)
+def _sandwich(A: Matrix, X: np.ndarray) -> np.ndarray:
+    """A X A' (C-contiguous) for a sparse or dense A and a dense X."""
+    if not sp.issparse(A):
+        return A @ X @ A.T
+    AX = np.asarray(A @ np.ascontiguousarray(X))
+    return np.ascontiguousarray(np.asarray(A @ np.ascontiguousarray(AX.T)).T)
 
 
 class _Compiler:
@@ -107,6 +163,15 @@ class _Compiler:
         self.Qz = net.Qz[np.ix_(k, k)]
         self.c0 = 0.0 if error_only else net.c0
 
+    def at_loss(self, loss: float) -> _Compiler:
+        """The same loop with every link's loss set to ``loss``: the runs without arrivals
+        (which do not depend on it) are taken from this compiler, not compiled again."""
+        out = _Compiler.__new__(_Compiler)
+        out.__dict__.update(self.__dict__)
+        out.loss = loss
+        out._cache = {k: v for k, v in self._cache.items() if isinstance(v, Segment)}
+        return out
+
     def _restrict(self, M: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:
         n = self.net.n
         MZ, Mz = M[:, :n], M[:, n:]
@@ -121,14 +186,14 @@ class _Compiler:
             A, Gam = self._restrict(A0)
             Gd = Gam.toarray()
             out: Segment | Event = Segment(
-                G=A.toarray(), W=Gd @ self.W @ Gd.T, S=self.Qz.copy(), c=self.c0, length=1)
+                G=_compact(A), W=Gd @ self.W @ Gd.T, S=self.Qz.copy(), c=self.c0, length=1)
         else:
             Abar, terms, noise_terms = A0, [], []
             for key, Dl in D.items():
                 p = self.net.loss[key] if self.loss is None else self.loss
                 Abar = Abar + (1.0 - p) * Dl
                 DA, DG = self._restrict(Dl)
-                terms.append((p * (1.0 - p), DA))
+                terms.append(LossTerm.of(p * (1.0 - p), DA))
                 if DG.nnz:
                     noise_terms.append((p * (1.0 - p), DG))
             A, Gam = self._restrict(Abar)
@@ -137,7 +202,7 @@ class _Compiler:
             for c, DG in noise_terms:
                 Gl = DG.toarray()
                 noise += c * (Gl @ self.W @ Gl.T)
-            out = Event(A=A, terms=tuple(terms), noise=noise)
+            out = Event(A=_compact(A), terms=tuple(terms), noise=noise)
         self._cache[pattern] = out
         return out
 
@@ -165,21 +230,24 @@ class _Compiler:
             k += m
         return out
 
-    def apply(self, plan: Sequence[Segment | Event], X: np.ndarray, noise: bool = True
-              ) -> tuple[np.ndarray, float]:
-        """X2 after the plan, and the plan's expected cost summed over its steps."""
-        cost = 0.0
+    def apply(self, plan: Sequence[Segment | Event], X: np.ndarray, noise: bool = True,
+              cost: bool = True) -> tuple[np.ndarray, float]:
+        """X2 after the plan, and the plan's expected cost summed over its steps (0 without
+        ``cost``)."""
+        total = 0.0
         for s in plan:
             if isinstance(s, Segment):
-                cost += float(np.sum(s.S * X)) + (s.c if noise else 0.0)
-                X = s.G @ X @ s.G.T + (s.W if noise else 0.0)
+                if cost:
+                    total += float(np.sum(s.S * X)) + (s.c if noise else 0.0)
+                X = _sandwich(s.G, X) + (s.W if noise else 0.0)
             else:
-                cost += float(np.sum(self.Qz * X)) + (self.c0 if noise else 0.0)
+                if cost:
+                    total += float(np.sum(self.Qz * X)) + (self.c0 if noise else 0.0)
                 Y = _sandwich(s.A, X) + (s.noise if noise else 0.0)
-                for c, DA in s.terms:
-                    Y = Y + c * _sandwich(DA, X)
+                for term in s.terms:
+                    term.add_to(Y, X)
                 X = Y
-        return X, cost
+        return X, total
 
     def cycle(self) -> list[Segment | Event]:
         """The compiled message cycle after start-up (transitions b..b + period - 1, b the
@@ -216,13 +284,24 @@ def predict_window(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int,
     k0, K : int
         The window.
     spectral_radius : float or None, optional
-        The verdict if already computed (:func:`ms_spectral_radius`).
+        The verdict if already computed (:func:`.stability.ms_spectral_radius`).
 
     Returns
     -------
     NetworkPrediction
-        The expected cost rate and the verdict.
+        The expected cost rate and the verdict (the cost kept in :mod:`.cache`).
     """
+    cost = cached("window", net, (np.asarray(Z0, float), int(k0), int(K)),
+                  lambda: _window_cost(net, Z0, k0, K))
+    if spectral_radius is None:
+        from .stability import ms_spectral_radius
+        spectral_radius = ms_spectral_radius(net)
+    return NetworkPrediction(cost_rate=cost, spectral_radius=spectral_radius,
+                             cycle_s=net.period * net.h)
+
+
+def _window_cost(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int) -> float:
+    """E[J] / (K - k0): X2 propagated from Z0 Z0' through the compiled plans."""
     comp = _Compiler(net)
     X = np.outer(Z0, Z0)
     b, P = comp.first_cycle(), net.period
@@ -235,10 +314,7 @@ def predict_window(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int,
         for _ in range(times):
             X, c = comp.apply(plan, X)
             cost += c if counted else 0.0
-    return NetworkPrediction(cost_rate=cost / max(K - k0, 1),
-                             spectral_radius=(ms_spectral_radius(net) if spectral_radius
-                                              is None else spectral_radius),
-                             cycle_s=P * net.h)
+    return cost / max(K - k0, 1)
 
 
 def prediction_work(net: NetworkedLoop, K: int, blocks: bool = False) -> float:
@@ -263,163 +339,3 @@ def _pieces(ka: int, kb: int, b: int, P: int, counted: bool) -> list[tuple[int, 
     whole = first + ((kb - first) // P) * P
     return [p for p in ((ka, first, counted), (first, whole, counted), (whole, kb, counted))
             if p[0] < p[1]]
-
-
-def ms_spectral_radius(net: NetworkedLoop, loss: float | None = None) -> float:
-    """Spectral radius of the cycle map of X2 on the error coordinates (no noise).
-
-    The map is positive (it keeps X2 positive semidefinite), so its dominant eigenvalue is
-    real and has the largest real part: Arnoldi iteration (scipy's eigs, "largest real
-    part", which converges where "largest magnitude" stalls on the many eigenvalues of
-    nearly equal modulus) on vec(X2); if it does not converge, the growth rate of
-    tr(L^t(I)) over the last of 400 cycles.
-
-    Parameters
-    ----------
-    net : NetworkedLoop
-        The loop.
-    loss : float or None, optional
-        The same loss probability on every link instead of the links' own.
-
-    Returns
-    -------
-    float
-        The radius per message cycle (below 1: mean-square stable).
-    """
-    cache = net.__dict__.setdefault("_ms_radius", {})    # the summary asks again
-    if loss not in cache:
-        cache[loss] = _ms_radius(net, loss)
-    return cache[loss]
-
-
-def _ms_radius(net: NetworkedLoop, loss: float | None) -> float:
-    comp = _Compiler(net, loss=loss, error_only=True)
-    cyc = comp.cycle()
-    n = comp.keep.size
-
-    def apply(X: np.ndarray) -> np.ndarray:
-        return comp.apply(cyc, 0.5 * (X + X.T), noise=False)[0]
-
-    op = LinearOperator((n * n, n * n), matvec=lambda v: apply(v.reshape(n, n)).reshape(-1),
-                        dtype=float)
-    try:
-        vals = eigs(op, k=1, which="LR", v0=np.eye(n).reshape(-1), tol=1e-8,
-                    ncv=min(60, n * n - 2), maxiter=100, return_eigenvectors=False)
-        return float(np.max(vals.real))
-    except ArpackNoConvergence:
-        X, rates = np.eye(n), []
-        for _ in range(400):
-            X = apply(X)
-            t = float(np.trace(X))
-            rates.append(t)
-            X /= t
-        return float(np.exp(np.mean(np.log(rates[-50:]))))
-
-
-def ms_stable(net: NetworkedLoop, loss: float | None = None, max_cycles: int = 4000
-              ) -> bool | None:
-    """Mean-square stability decided by a certificate, not an eigenvalue estimate.
-
-    Y_t = L^t(I) (L the cycle map on the error coordinates): if lambda_max(Y_T) < 1, then
-    X = sum_(t<T) L^t(I) > 0 has L(X) - X = Y_T - I < 0, a Lyapunov certificate (stable);
-    if L(Y_T) >= Y_T, then L^k(Y_T) >= Y_T for every k by positivity: the second moment
-    never decays (not stable).
-
-    Parameters
-    ----------
-    net : NetworkedLoop
-        The loop.
-    loss : float or None, optional
-        The same loss probability on every link.
-    max_cycles : int, optional
-        How many message cycles to try.
-
-    Returns
-    -------
-    bool or None
-        True (stable), False (not), None (undecided within ``max_cycles``: radius close to 1).
-    """
-    comp = _Compiler(net, loss=loss, error_only=True)
-    cyc = comp.cycle()
-    Y, log_scale = np.eye(comp.keep.size), 0.0        # L^t(I) = exp(log_scale) Y
-    for c in range(max_cycles):
-        nxt = comp.apply(cyc, Y, noise=False)[0]
-        nxt = 0.5 * (nxt + nxt.T)
-        # L(Y) >= Y: the sequence never decays (a certificate of instability); checked
-        # only while the trace grows, which it must then
-        if np.trace(nxt) >= np.trace(Y) and (
-                np.linalg.eigvalsh(nxt - Y)[0] >= -1e-12 * np.trace(Y)):
-            return False
-        t = float(np.trace(nxt))
-        Y, log_scale = nxt / t, log_scale + math.log(t)
-        # lambda_max <= trace: the trace decides at once; the eigenvalues every 5 cycles
-        scale = math.exp(min(log_scale, 700.0))
-        if scale < 1.0 or (c % 5 == 4 and np.linalg.eigvalsh(Y)[-1] * scale < 1.0):
-            return True
-    return None
-
-
-def frozen_radius(net: NetworkedLoop) -> float:
-    """Spectral radius per cycle of the loop with every message lost (deterministic): each
-    vehicle on frozen (held or propagated) neighbour data, on the error coordinates."""
-    comp = _Compiler(net, loss=1.0, error_only=True)
-    G = np.eye(comp.keep.size)
-    for s in comp.cycle():
-        G = (s.G if isinstance(s, Segment) else s.A) @ G
-    return float(np.max(np.abs(np.linalg.eigvals(G))))
-
-
-def critical_loss(net: NetworkedLoop, tol: float = 0.01,
-                  grid: tuple[float, ...] = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
-                  ) -> tuple[float | None, str]:
-    """The smallest loss probability p, the same on every link, at which the loop stops
-    being mean-square stable: certified (:func:`ms_stable`) at 0 and on a grid of p, then
-    bisected between the last stable and the first unstable grid point.
-
-    Mean-square stability need not be monotone in p (with propagating receivers errors can
-    circulate at intermediate losses while the loop with every message lost is only
-    marginal), so no shortcut through the frozen loop is taken; its radius is reported.
-
-    Parameters
-    ----------
-    net : NetworkedLoop
-        The loop.
-    tol : float, optional
-        Width of the final bracket.
-    grid : tuple[float, ...], optional
-        The losses certified before bisecting.
-
-    Returns
-    -------
-    tuple[float | None, str]
-        (p, how it was decided); p None when the loop is stable on the whole grid, or not
-        stable even without loss, or a point stays undecided (the note says which).
-    """
-    rf = frozen_radius(net)
-    frozen = f"with every message lost the radius is {rf:.6g} per cycle"
-    at0 = ms_stable(net, 0.0)
-    if at0 is not True:
-        return None, ("not mean-square stable without loss" if at0 is False else
-                      "undecided without loss (radius close to 1)") + f"; {frozen}"
-    lo = 0.0
-    for p in grid:
-        verdict = ms_stable(net, p)
-        if verdict is None:
-            return None, (f"certified stable up to {lo:g}, undecided at {p:g} (radius close "
-                          f"to 1); {frozen}")
-        if not verdict:
-            hi = p
-            break
-        lo = p
-    else:
-        return None, (f"none up to {grid[-1]:g}: certified mean-square stable at 0 and at "
-                      f"every loss {grid[0]:g}, {grid[1]:g}, ..., {grid[-1]:g}; {frozen}")
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        verdict = ms_stable(net, mid)
-        if verdict is None:
-            return mid, (f"radius 1 within the certificates' reach near {mid:.4g} "
-                         f"(stable at {lo:.4g}, not at {hi:.4g}, certified); {frozen}")
-        lo, hi = (mid, hi) if verdict else (lo, mid)
-    return 0.5 * (lo + hi), (f"bisection: stable at {lo:.4g}, not at {hi:.4g} (both "
-                             f"certified); {frozen}")
