@@ -1,4 +1,4 @@
-"""Distributed cooperative output regulation of a fleet, per vehicle (issue 13, `distributed`).
+"""Distributed cooperative output regulation of a fleet, per vehicle.
 
 After Su and Huang (IEEE TAC 57(4), 2012, "Cooperative output regulation of linear
 multi-agent systems"): every vehicle i = 1..N knows only its own model, its own estimate and

@@ -4,7 +4,7 @@ rows of it) and the actuator limit every controller applies to its force.
 A static law's outputs are computed from the inputs on demand (``compute_outputs``); a
 step has nothing to advance, and its native (C) form is a static gain.
 
-**The actuator limit** (issue 26, item 4). Every controller FMU has a parameter
+**The actuator limit**. Every controller FMU has a parameter
 ``u_max`` (N, one per force axis, FMI names ``u_max[1]`` ...) and outputs
 
     u = sat(u_law) = min(max(u_law, -u_max), u_max)      (per axis)

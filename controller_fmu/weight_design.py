@@ -1,4 +1,4 @@
-"""Choosing the control weight from the vehicle: bandwidth and force budget (issue 26, item 3).
+"""Choosing the control weight from the vehicle: bandwidth and force budget.
 
 The LQ law's only free scale is the input weight relative to the output weight; with
 R = r I (1/N^2) and Q given (1/m^2) this module finds r from what the vehicle can do.

@@ -1,4 +1,4 @@
-"""The controllers' actuator limit u_max (issue 26, item 4), through real fmpy.
+"""The controllers' actuator limit u_max, through real fmpy.
 
 - the distributed controller FMU with u_max set equals the plain law clipped,
   sat(u) = min(max(u, -u_max), u_max), to 1e-12 (the law and its observer stepped in numpy);

@@ -1,4 +1,4 @@
-"""[design]: the weight search, the vehicle's limits and the path check (issue 26, item 3).
+"""[design]: the weight search, the vehicle's limits and the path check.
 
 The mathematics (controller_fmu.weight_design) against independent references: python-control's
 lqr and bandwidth, the project's stacked prediction of the distributed loop (another assembly of

@@ -1,4 +1,4 @@
-"""What the nonlinear REMUS 100 can do, found by simulating it (issue 26, item 3).
+"""What the nonlinear REMUS 100 can do, found by simulating it.
 
 Three steady manoeuvres of :func:`plant_model.remus100.dynamics.step` (the model as it
 is, whatever its data: nothing here is a number of the vehicle), each from straight and
