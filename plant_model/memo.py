@@ -27,16 +27,31 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-__all__ = ["content_key", "DesignCache", "cache_enabled", "cache_stats", "clear_caches"]
+__all__ = ["content_key", "feed_hash", "DesignCache", "cache_enabled", "cache_stats",
+           "clear_caches"]
 
 T_ = TypeVar("T_")
 
 _CACHES: dict[str, DesignCache] = {}
 
 
-def _feed(h: Any, value: Any) -> None:
-    """Feed a canonical encoding of ``value`` to the hash ``h``."""
-    if isinstance(value, np.ndarray):
+def feed_hash(h: Any, value: Any) -> None:
+    """Feed a canonical encoding of ``value`` to the hash ``h`` (hashlib): arrays by dtype,
+    shape and bytes; scipy sparse matrices by shape and canonical CSR arrays; scalars by
+    type and repr; lists, tuples, dicts (sorted keys) and frozensets (sorted) recursively.
+
+    Raises
+    ------
+    TypeError
+        For any other type (a key must not depend on an object's identity).
+    """
+    if hasattr(value, "tocsr") and not isinstance(value, np.ndarray):    # scipy sparse
+        M = value.tocsr()
+        M.sort_indices()
+        h.update(f"s{M.shape}".encode())
+        for a in (M.indptr, M.indices, M.data):
+            h.update(np.ascontiguousarray(a).tobytes())
+    elif isinstance(value, np.ndarray):
         arr = np.ascontiguousarray(value)
         h.update(f"a{arr.dtype.str}{arr.shape}".encode())
         h.update(arr.tobytes())
@@ -45,14 +60,16 @@ def _feed(h: Any, value: Any) -> None:
     elif isinstance(value, (list, tuple)):
         h.update(f"l{len(value)}[".encode())
         for v in value:
-            _feed(h, v)
+            feed_hash(h, v)
         h.update(b"]")
     elif isinstance(value, dict):
         h.update(f"d{len(value)}{{".encode())
         for k in sorted(value, key=str):
-            _feed(h, str(k))
-            _feed(h, value[k])
+            feed_hash(h, str(k))
+            feed_hash(h, value[k])
         h.update(b"}")
+    elif isinstance(value, frozenset):
+        feed_hash(h, sorted(str(v) for v in value))
     else:
         raise TypeError(f"cannot key a design cache on a {type(value).__name__}")
 
@@ -72,7 +89,7 @@ def content_key(*parts: Any) -> str:
         64 hex digits.
     """
     h = hashlib.sha256()
-    _feed(h, parts)
+    feed_hash(h, parts)
     return h.hexdigest()
 
 

@@ -36,7 +36,8 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
-import scipy.sparse as sp
+
+from plant_model.memo import feed_hash
 
 from .loop import NetworkedLoop
 
@@ -62,35 +63,6 @@ def prediction_cache_dir() -> Path | None:
     return base / "predictions"
 
 
-def _feed(h: Any, value: Any) -> None:
-    """A canonical encoding of ``value`` into the hash ``h``."""
-    if sp.issparse(value):
-        M = value.tocsr()
-        M.sort_indices()
-        h.update(f"s{M.shape}".encode())
-        for a in (M.indptr, M.indices, M.data):
-            h.update(np.ascontiguousarray(a).tobytes())
-    elif isinstance(value, np.ndarray):
-        a = np.ascontiguousarray(value)
-        h.update(f"a{a.dtype.str}{a.shape}".encode())
-        h.update(a.tobytes())
-    elif isinstance(value, (list, tuple)):
-        h.update(f"l{len(value)}[".encode())
-        for v in value:
-            _feed(h, v)
-        h.update(b"]")
-    elif isinstance(value, dict):
-        h.update(f"d{len(value)}{{".encode())
-        for k in sorted(value, key=str):
-            _feed(h, str(k))
-            _feed(h, value[k])
-        h.update(b"}")
-    elif isinstance(value, frozenset):
-        _feed(h, sorted(str(v) for v in value))
-    else:
-        h.update(f"{type(value).__name__}:{value!r};".encode())
-
-
 def _code_digest() -> str:
     import scipy
     h = hashlib.sha256()
@@ -108,18 +80,18 @@ def loop_digest(net: NetworkedLoop) -> str:
     if "_digest" in net.__dict__:
         return net.__dict__["_digest"]
     h = hashlib.sha256()
-    _feed(h, _code_digest())
+    feed_hash(h, _code_digest())
     seq, seen = [], {}
     for k in range(net.startup + net.period):
         pat = net.pattern(k)
         if pat not in seen:
             seen[pat] = len(seen)
             A0, D = net.matrices(pat)
-            _feed(h, [A0, [(str(key), Dl) for key, Dl in D.items()]])
+            feed_hash(h, [A0, [(str(key), Dl) for key, Dl in D.items()]])
         seq.append(seen[pat])
-    _feed(h, [np.asarray(seq), net.period, net.startup, net.n, float(net.h), float(net.c0)])
-    _feed(h, {str(k): float(v) for k, v in net.loss.items()})
-    _feed(h, [net.Qz, np.asarray(net.form.W, float), net.deterministic])
+    feed_hash(h, [np.asarray(seq), net.period, net.startup, net.n, float(net.h), float(net.c0)])
+    feed_hash(h, {str(k): float(v) for k, v in net.loss.items()})
+    feed_hash(h, [net.Qz, np.asarray(net.form.W, float), net.deterministic])
     net.__dict__["_digest"] = out = h.hexdigest()
     return out
 
@@ -150,7 +122,7 @@ def cached(kind: str, net: NetworkedLoop, args: Any, compute: Callable[[], T_],
     if folder is None:
         return compute()
     h = hashlib.sha256()
-    _feed(h, [kind, loop_digest(net), args])
+    feed_hash(h, [kind, loop_digest(net), args])
     path = folder / f"{kind}-{h.hexdigest()[:40]}.json"
     try:
         return decode(json.loads(path.read_text())["value"])
