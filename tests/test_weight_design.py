@@ -223,3 +223,37 @@ def test_a_run_checks_the_path_over_its_own_horizon():
     assert [f.limit for f in sc.design.findings] == ["turn radius"] * 4
     assert sc.with_run(T=1.0).design.findings == []
     assert len(sc.with_run(T=1.0).with_run(T=30.0).design.findings) == 4
+
+
+def test_the_vehicle_s_band_is_where_it_follows_its_design_model():
+    """bandwidth = "vehicle" on remus100-6dof at 2 m/s: the chosen target is the edge of
+    the band where every axis's response to the force command stays within 20 deg and
+    25 % of the design model (just inside: within it; 5 % above: out of it, on some axis),
+    and the search meets it; on a linear vehicle it is refused, naming the key."""
+    from orchestrator.analysis.remus_response import (
+        VALID_GAIN,
+        VALID_PHASE,
+        force_frequency_response,
+    )
+    from orchestrator.analysis.weight_search import vehicle_band
+    sc = load_scenario("survey-4-remus")
+    mdl = fleet_vehicles(sc.fleet)[0]
+    band = vehicle_band([mdl])
+    M = 1.0 / np.diag(np.asarray(mdl.B1, float)[3:6, :3])
+    D = -np.diag(np.asarray(mdl.A, float)[3:6, 3:6]) * M
+
+    def worst(w):
+        rs = [force_frequency_response(a, [w], U0=2.0, h=0.05, vehicle=Remus100(),
+                                       design=(M, D))[0] for a in (0, 1, 2)]
+        return (max(abs(r["phase_difference"]) for r in rs),
+                max(max(r["gain_ratio"], 1 / r["gain_ratio"]) for r in rs))
+
+    inside, outside = worst(band * 0.99), worst(band * 1.05)
+    assert inside[0] <= VALID_PHASE and inside[1] <= VALID_GAIN
+    assert outside[0] > VALID_PHASE or outside[1] > VALID_GAIN
+    assert 0.1 < band < 0.5 and math.isfinite(band)
+    data = copy.deepcopy(FLEET)
+    data["cost"].pop("R")
+    data["design"] = {"bandwidth": "vehicle"}
+    with pytest.raises(ScenarioError, match='bandwidth = "vehicle" needs nonlinear vehicles'):
+        scenario_from_dict(data, "case.toml")

@@ -22,14 +22,18 @@ from plant_model.remus100.dynamics import STATE_SIZE, Remus100
 from plant_model.remus100.rigid_body import rotation_ned_body
 from plant_model.vehicles import remus100
 
-__all__ = ["FIT_OMEGAS", "fit_first_order", "force_frequency_response"]
+__all__ = ["FIT_OMEGAS", "VALID_GAIN", "VALID_PHASE", "fit_first_order",
+           "force_frequency_response", "valid_band"]
 
 #: the frequencies the first-order fit uses, rad/s: periods from 21 s to 5 minutes
 FIT_OMEGAS = tuple(float(w) for w in np.geomspace(0.02, 0.3, 8))
 
 
 def force_frequency_response(axis: int, omegas: list[float], *, U0: float = 1.5,
-                             amplitude: float = 2.0, h: float = 0.1) -> list[dict[str, Any]]:
+                             amplitude: float = 2.0, h: float = 0.1,
+                             vehicle: Remus100 | None = None,
+                             design: tuple[np.ndarray, np.ndarray] | None = None
+                             ) -> list[dict[str, Any]]:
     """Gain (m/s per N) and phase (rad) of the velocity over ground per NED force, of the
     nonlinear vehicle and of the linear model, at each frequency (rad/s).
 
@@ -45,15 +49,22 @@ def force_frequency_response(axis: int, omegas: list[float], *, U0: float = 1.5,
         Force amplitude, N.
     h : float, optional
         Step, s (one RK4 sub-step).
+    vehicle : Remus100, optional
+        The vehicle's data (default: the published REMUS 100).
+    design : (M, D), optional
+        The linear design model per NED axis (kg, kg/s; default ``remus100`` at U0).
 
     Returns
     -------
     list[dict[str, Any]]
         Per frequency: omega, gain and phase of both, their ratio and difference.
     """
-    lin = remus100(cruise_speed=U0)
-    M, D = np.array(lin.parameters["total_mass"]), np.array(lin.parameters["damping"])
-    vehicle = Remus100()
+    if design is None:
+        lin = remus100(cruise_speed=U0)
+        M, D = np.array(lin.parameters["total_mass"]), np.array(lin.parameters["damping"])
+    else:
+        M, D = (np.asarray(a, float) for a in design)
+    vehicle = vehicle or Remus100()
     p, g = kernel.pack(vehicle), kernel.pack_gains(AutopilotGains())
     current = np.zeros(3)
     out = []
@@ -107,3 +118,49 @@ def fit_first_order(axes: list[int], omegas: tuple[float, ...] = FIT_OMEGAS, *,
         (D, M), *_ = np.linalg.lstsq(rows, rhs, rcond=None)
         weight = 1.0 / np.abs(D + 1j * om_a * M)
     return float(M), float(D)
+
+
+#: the design model is valid where the vehicle's velocity per force stays within this
+#: phase (rad) and this gain ratio (1/x to x) of it, on every axis
+VALID_PHASE = math.radians(20.0)
+VALID_GAIN = 1.25
+
+
+def valid_band(vehicle: Remus100, M: np.ndarray, D: np.ndarray, U0: float, *,
+               lo: float = 0.02, hi: float = 2.0, rel_tol: float = 0.02) -> float:
+    """The highest frequency (rad/s) up to which the nonlinear vehicle behind the force
+    interface responds like its linear design model (M, D per NED axis) on every axis:
+    |phase difference| <= :data:`VALID_PHASE` and the gain ratio within
+    [1 / VALID_GAIN, VALID_GAIN] (:func:`force_frequency_response` at trim speed U0).
+    Eight frequencies from ``lo`` to ``hi`` (geometric) find the first that fails, then
+    bisection on log w narrows the edge to ``rel_tol``.
+
+    Raises
+    ------
+    ValueError
+        If the model is not valid even at ``lo``.
+    """
+    def ok(w: float) -> bool:
+        for axis in (0, 1, 2):
+            (r,) = force_frequency_response(axis, [w], U0=U0, h=0.05, vehicle=vehicle,
+                                            design=(M, D))
+            if abs(r["phase_difference"]) > VALID_PHASE or not (
+                    1.0 / VALID_GAIN <= r["gain_ratio"] <= VALID_GAIN):
+                return False
+        return True
+
+    grid = np.geomspace(lo, hi, 8)
+    if not ok(float(grid[0])):
+        raise ValueError(f"the linear design model is not valid even at {lo:g} rad/s")
+    good, bad = float(grid[0]), None
+    for w in grid[1:]:
+        if not ok(float(w)):
+            bad = float(w)
+            break
+        good = float(w)
+    if bad is None:
+        return good
+    while bad / good > 1.0 + rel_tol:
+        mid = math.sqrt(good * bad)
+        good, bad = (mid, bad) if ok(mid) else (good, mid)
+    return good

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -40,7 +41,7 @@ from plant_model.vehicles import REMUS100_MAX_SPEED, VehicleModel
 
 from .distributed import Agent, agents_from_fleet_spec, sample_agent
 
-__all__ = ["DesignResult", "design_fleet", "force_limits", "vehicle_limits"]
+__all__ = ["DesignResult", "design_fleet", "force_limits", "vehicle_band", "vehicle_limits"]
 
 
 def vehicle_limits(model: VehicleModel, options: Mapping[str, Any]) -> VehicleLimits:
@@ -62,6 +63,39 @@ def vehicle_limits(model: VehicleModel, options: Mapping[str, Any]) -> VehicleLi
         lim = replace(lim, **over, source=(lim.source + "; " if lim.source else "")
                       + "[design] " + ", ".join(over))
     return lim
+
+
+def vehicle_band(models: Sequence[VehicleModel]) -> float:
+    """``[design] bandwidth = "vehicle"``: the smallest over the fleet's vehicles of the
+    band where each responds like its linear design model (rad/s;
+    :func:`orchestrator.analysis.remus_response.valid_band` at the design's cruise speed).
+
+    Raises
+    ------
+    ModelError
+        If a vehicle is not nonlinear (a linear model is its own design model: no band).
+    """
+    bands = []
+    for mdl in models:
+        if mdl.name != "remus100-6dof":
+            raise ModelError(f"[design] bandwidth = \"vehicle\" needs nonlinear vehicles "
+                             f"(remus100-6dof); a {mdl.name!r} vehicle is its own design model: "
+                             "give the bandwidth in rad/s")
+        M = 1.0 / np.diag(np.asarray(mdl.B1, float)[3:6, :3])
+        D = -np.diag(np.asarray(mdl.A, float)[3:6, 3:6]) * M
+        data = tuple(sorted((k, tuple(v) if isinstance(v, list) else v)
+                            for k, v in mdl.parameters["nonlinear"].items()))
+        bands.append(_band(data,
+                           tuple(M), tuple(D), float(mdl.parameters["cruise_speed"])))
+    return min(bands)
+
+
+@lru_cache(maxsize=32)
+def _band(data: tuple, M: tuple, D: tuple, U0: float) -> float:
+    from plant_model.remus100.models import remus_from_parameters
+
+    from .remus_response import valid_band
+    return valid_band(remus_from_parameters(dict(data)), np.array(M), np.array(D), U0)
 
 
 def force_limits(model: VehicleModel, lim: VehicleLimits, u_max: Any = None) -> np.ndarray:
@@ -115,6 +149,8 @@ class DesignResult:
     #: acceleration the controller adds (m/s^2: its 3-sigma noise force over the mass)
     current_sigma: float = 0.0
     lateral_margin: float = 0.0
+    #: the bandwidth target is the band where the vehicle follows its design model
+    bandwidth_from_vehicle: bool = False
 
     def lines(self) -> list[str]:
         """The printout: the choice in one line, then one line per path finding."""
@@ -131,7 +167,9 @@ class DesignResult:
             out.append(f"design: R = {self.R:.4g} ({why}): {force}bandwidth "
                        f"{self.bandwidth:.3g} rad/s"
                        + ("" if self.bandwidth_target is None
-                          else f" (target {self.bandwidth_target:g} rad/s)")
+                          else f" (target {self.bandwidth_target:.3g} rad/s"
+                          + (": the band where the vehicle follows its design model within "
+                             "20 deg and 25 %)" if self.bandwidth_from_vehicle else ")"))
                        + ("" if self.path_force_ratio is None else
                           f"; the path itself needs up to {self.path_force_ratio:.2g} of "
                           "u_max"))
@@ -143,6 +181,7 @@ class DesignResult:
         return {"R": self.R, "binding": self.binding, "bandwidth": self.bandwidth,
                 "force_3sigma": self.force_3sigma, "force_ratio": self.force_ratio,
                 "force_vehicle": self.force_vehicle, "bandwidth_target": self.bandwidth_target,
+                "bandwidth_from_vehicle": self.bandwidth_from_vehicle,
                 "force_budget": self.force_budget, "u_max": self.u_max, "clip": self.clip,
                 "limits": self.limits, "path_findings": finding_lines(self.findings),
                 "path_force_ratio": self.path_force_ratio,
@@ -229,6 +268,9 @@ def design_fleet(spec: Mapping[str, Any], options: Mapping[str, Any], *, h: floa
         A target that cannot be met, a relation that is not monotone, u_max not derivable.
     """
     models = fleet_vehicles(spec)
+    from_vehicle = options.get("bandwidth") == "vehicle"
+    if from_vehicle:
+        options = {**options, "bandwidth": vehicle_band(models)}
     limits = [vehicle_limits(mdl, options) for mdl in models]
     u_opt = options.get("u_max")
     needs_force = options.get("force_budget") is not None or u_opt is not None
@@ -251,7 +293,7 @@ def design_fleet(spec: Mapping[str, Any], options: Mapping[str, Any], *, h: floa
                          "max_depth_rate": lim.max_depth_rate, "source": lim.source}
                         for lim in limits], findings=findings, checked=checked,
                 path_force_ratio=path_force_ratio(models, umax, F, H, z0, T),
-                current_sigma=current_sigma)
+                current_sigma=current_sigma, bandwidth_from_vehicle=from_vehicle)
     if options.get("bandwidth") is None and options.get("force_budget") is None:
         return DesignResult(**base)
     agents, _, leader = agents_from_fleet_spec(spec)

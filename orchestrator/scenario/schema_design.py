@@ -6,7 +6,7 @@ errors too.
 """
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from annotated_types import Gt, Le
@@ -25,15 +25,16 @@ PositiveFinite = Annotated[float, Gt(0.0), AllowInfNan(False)]
 
 class DesignSection(Section):
     """[design]: the cost weight from the vehicle, its actuator limit and the path check
-    (orchestrator.analysis.weight_search). ``bandwidth`` (rad/s) and/or ``force_budget``
+    (orchestrator.analysis.weight_search). ``bandwidth`` (rad/s, or "vehicle": the band
+    where the nonlinear vehicle responds like its design model) and/or ``force_budget``
     (the predicted 3-sigma force as a fraction of the vehicle's maximum force, 0 < b <= 1)
     choose R = r I; ``u_max`` the controllers' force limit (N: a number, one per axis, or
     "vehicle": derived from the vehicle; absent: no limit); ``path_check`` "warn",
     "refuse" or "off"; ``max_speed`` (m/s), ``min_turn_radius`` (m), ``max_depth_rate``
     (m/s) override or give the vehicle's limits."""
 
-    bandwidth: Annotated[PositiveFinite | None,
-                         expect("must be a positive number of rad/s")] = None
+    bandwidth: Annotated[PositiveFinite | Literal["vehicle"] | None,
+                         expect("must be a positive number of rad/s or \"vehicle\"")] = None
     force_budget: Annotated[float | None, Gt(0.0), Le(1.0), AllowInfNan(False),
                             expect("must be a fraction of the maximum force in (0, 1]")] = None
     u_max: Any = None
