@@ -175,8 +175,9 @@ def test_native_fmus_validate_and_ship_their_sources(f4_native, tmp_path):
             names = set(z.namelist())
             root = etree.fromstring(z.read("modelDescription.xml"))
             assert [f.get("name") for f in root.iterfind("CoSimulation/SourceFiles/File")] == [
-                "linear_fmu.c", "numpy_random.c"]
-            assert {"sources/linear_fmu.c", "sources/numpy_random.c", "sources/numpy_random.h",
+                "fmu_core.c", "linear_fmu.c", "numpy_random.c"]
+            assert {"sources/fmu_core.c", "sources/fmu_core.h", "sources/linear_fmu.c",
+                    "sources/linear_model.h", "sources/numpy_random.c", "sources/numpy_random.h",
                     "sources/native_model.h", "sources/fmi2Functions.h",
                     f"binaries/linux64/{path.stem}.so"} <= names
             lib = tmp_path / f"{path.stem}.so"
