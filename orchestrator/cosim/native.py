@@ -10,15 +10,17 @@ writes the form as an FMI 2.0 co-simulation FMU:
   feedthrough), the form's matrices as parameters (structured names, start values from the
   design), ``h``, and ``seed`` (and ``stream``, a vehicle's key) for a noisy plant;
   ``needsExecutionTool="false"``;
-- ``sources/``: ``linear_fmu.c`` and ``numpy_random.c``/``.h`` (fmu_common/native/: numpy's
-  SeedSequence, PCG64 and ziggurat normals, so a native plant draws the pythonfmu plant's
-  noise), the generated ``native_model.h`` and the FMI 2.0 headers, the .c files listed in
-  the modelDescription;
+- ``sources/``: ``fmu_core.c``/``.h`` (the FMI plumbing shared by every native FMU),
+  ``linear_fmu.c``/``linear_model.h`` (the linear system on it) and
+  ``numpy_random.c``/``.h`` (fmu_common/native/: numpy's SeedSequence, PCG64 and ziggurat
+  normals, so a native plant draws the pythonfmu plant's noise), the generated
+  ``native_model.h`` and the FMI 2.0 headers, the .c files listed in the modelDescription;
 - ``binaries/linux64/<model>.so``: built at export with the system C compiler
   (:data:`CFLAGS`; libc and libm only).
 
 A native FMU does not re-solve the Riccati equations: a design change means exporting
-again, or setting the gain and filter parameters.
+again, or setting the gain and filter parameters. The guidance interface (not linear) has
+a C model of its own per FMU: :mod:`orchestrator.cosim.native_guidance`.
 """
 from __future__ import annotations
 
