@@ -258,3 +258,39 @@ def test_a_bad_parameter_fails_initialization_with_an_error_naming_it(
     assert _refused(inst, "doStep", 0.0, 0.05) == 3                # not in step mode
     assert any("outside the stepping phase" in m for _, m in inst.messages)
     inst.close()
+
+
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
+def test_the_c_host_runs_guidance_into_autopilot_cleanly_under_valgrind(fmus, tmp_path):
+    """tests/c_host/c_host.c (no Python in the process, an empty environment) runs the two
+    native FMUs, the guidance's set-points wired into the autopilot, under valgrind
+    (memcheck, full leak check): no invalid access, no definitely lost block; the guidance
+    slows from its start velocity with no force (v' = -D v / M) and the autopilot follows."""
+    from orchestrator.benchmarks.native import c_host_binary, write_c_host_system
+    from orchestrator.cosim.build import FMU_KINDS, interface_of
+    from orchestrator.cosim.system import Component, Connection, SystemDescription
+    configs = guidance_configs(load_scenario("docs/examples/straight-leader.toml"))
+    system = SystemDescription(
+        "guidance-autopilot",
+        tuple(Component(k, k, tuple(interface_of(FMU_KINDS[k], configs[k])))
+              for k in ("guidance", "autopilot")),
+        tuple(Connection("guidance", n, "autopilot", n) for n in SETPOINTS), 0.05, 10.0)
+    exe = c_host_binary(tmp_path)
+    sysfile = write_c_host_system(system, {k: fmus[k][1] for k in fmus}, tmp_path / "u",
+                                  record=[("guidance", "speed"), ("autopilot", "rpm")])
+    cmd = ["valgrind", "--leak-check=full", "--errors-for-leak-kinds=definite",
+           "--error-exitcode=9", "-q", str(exe), str(sysfile), "200", "0.05",
+           str(tmp_path / "v.csv")]
+    r = subprocess.run(cmd, capture_output=True, text=True, env={}, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "Invalid" not in r.stderr and "definitely lost" not in r.stderr
+    rows = np.loadtxt(tmp_path / "v.csv", delimiter=",", skiprows=1)
+    assert rows.shape[0] == 200 and np.all(np.isfinite(rows))
+    vr = {k: {v.name: v.valueReference for v in read_model_description(
+        str(fmus[k][1])).modelVariables} for k in fmus}
+    header = (tmp_path / "v.csv").read_text().splitlines()[0].split(",")
+    assert header == ["time", f"guidance.{vr['guidance']['speed']}",
+                      f"autopilot.{vr['autopilot']['rpm']}"]
+    speed, rpm = rows[:, 1], rows[:, 2]
+    assert speed[0] == pytest.approx(math.hypot(1.9, 0.05)) and np.all(np.diff(speed) < 0)
+    assert np.ptp(rpm) > 100.0
