@@ -295,7 +295,7 @@ def test_libcosim_and_fmpy_run_the_native_export(tmp_path):
     assert {p.name for p in paths.values() if p.suffix == ".fmu"} == {
         "AuvLeaderNative.fmu", "AuvVehicleNative.fmu", "AuvVehicleEstimatorNative.fmu",
         "AuvCentralControllerNative.fmu",
-        "AuvGuidance.fmu", "AuvAutopilot.fmu"}       # beside the system (docs/guidance.md)
+        "AuvGuidanceNative.fmu", "AuvAutopilotNative.fmu"}  # beside it (docs/guidance.md)
     system = scenario_system(sc)
     ns = native_system(system, build(sc, tmp_path / "py"), tmp_path / "n2")
     steps = 300
