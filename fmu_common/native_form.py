@@ -13,7 +13,8 @@ A :class:`NativeForm` holds those matrices under the names the native FMU gives 
 parameters (a :class:`Role` each: ``Ks``, ``Ce``, ``Ad``, ...), with the slave's own input
 and output arrays, so the native FMU has the same interface as the pythonfmu one. Each
 slave builds its form from the mathematics it set up (``native_form()``); the C source and
-its build are fmu_common/native/linear_fmu.c and orchestrator.cosim.native.
+its build are fmu_common/native/linear_fmu.c (on the shared FMI plumbing fmu_core.c) and
+orchestrator.cosim.native.
 """
 from __future__ import annotations
 

@@ -175,8 +175,9 @@ def test_native_fmus_validate_and_ship_their_sources(f4_native, tmp_path):
             names = set(z.namelist())
             root = etree.fromstring(z.read("modelDescription.xml"))
             assert [f.get("name") for f in root.iterfind("CoSimulation/SourceFiles/File")] == [
-                "linear_fmu.c", "numpy_random.c"]
-            assert {"sources/linear_fmu.c", "sources/numpy_random.c", "sources/numpy_random.h",
+                "fmu_core.c", "linear_fmu.c", "numpy_random.c"]
+            assert {"sources/fmu_core.c", "sources/fmu_core.h", "sources/linear_fmu.c",
+                    "sources/linear_model.h", "sources/numpy_random.c", "sources/numpy_random.h",
                     "sources/native_model.h", "sources/fmi2Functions.h",
                     f"binaries/linux64/{path.stem}.so"} <= names
             lib = tmp_path / f"{path.stem}.so"
@@ -294,7 +295,7 @@ def test_libcosim_and_fmpy_run_the_native_export(tmp_path):
     assert {p.name for p in paths.values() if p.suffix == ".fmu"} == {
         "AuvLeaderNative.fmu", "AuvVehicleNative.fmu", "AuvVehicleEstimatorNative.fmu",
         "AuvCentralControllerNative.fmu",
-        "AuvGuidance.fmu", "AuvAutopilot.fmu"}       # beside the system (docs/guidance.md)
+        "AuvGuidanceNative.fmu", "AuvAutopilotNative.fmu"}  # beside it (docs/guidance.md)
     system = scenario_system(sc)
     ns = native_system(system, build(sc, tmp_path / "py"), tmp_path / "n2")
     steps = 300

@@ -10,15 +10,16 @@ its own values as a parameter set in the OSP and SSP files. The wiring is the py
 system's: the native FMUs have the same inputs and outputs. What is not linear stays
 pythonfmu and needs Python: an acoustic network, the nonlinear vehicle (remus100-6dof),
 and the vehicle and estimator FMUs with navigation sensors (their schedule, dropouts and
-time-varying filter), and the guidance interface (AuvGuidance, AuvAutopilot, shipped beside
-the system for REMUS 100 scenarios, docs/guidance.md).
+time-varying filter). For REMUS 100 scenarios the guidance interface ships beside the
+system as native FMUs too (``AuvGuidanceNative``, ``AuvAutopilotNative``: a C model each
+with the pythonfmu FMU's interface, :mod:`orchestrator.cosim.native_guidance`,
+docs/guidance.md).
 """
 from __future__ import annotations
 
 import tempfile
 from pathlib import Path
 
-from ..cosim.build import GUIDANCE_KINDS
 from ..cosim.native import NATIVE_KINDS, NativeSystem, native_system
 from ..outputs import file_stem
 from ..scenario import Scenario
@@ -51,8 +52,6 @@ def export_native(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
         py = build(sc, Path(tmp))
         ns = native_system(system, py, out)
         kept = {k: p for k, p in ns.fmus.items() if k not in NATIVE_KINDS}
-        # the guidance interface (not linear): its pythonfmu FMUs beside the system
-        kept.update({k: py[k] for k in GUIDANCE_KINDS if k in py})
         for k, p in kept.items():                  # the network's pythonfmu FMUs, if any
             target = out / Path(p).name
             target.write_bytes(Path(p).read_bytes())

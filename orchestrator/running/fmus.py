@@ -74,7 +74,8 @@ valid flags), which the estimator reads in place of `y`.
 Native FMUs, no Python needed (`auv-cosim export native`, docs/native.md): once designed,
 every FMU but `AuvNetwork`, `AuvRemus6dof` and the guidance interface (`AuvGuidance`,
 `AuvAutopilot`, below) is a linear system, y = C q + D u + c + G xi and
-q+ = A q + B u + Bo y + b + F xi. The export compiles it from one C99 file
+q+ = A q + B u + Bo y + b + F xi. The export compiles it from C99 (the shared FMI
+plumbing `fmu_core.c` and the linear system `linear_fmu.c`)
 (`AuvControllerNative`, `AuvEstimatorNative`, `AuvPlantNative`, and per vehicle
 `AuvLeaderNative`, `AuvVehicleNative`, `AuvVehicleEstimatorNative`,
 `AuvVehicleControllerNative`, `AuvCentralControllerNative`), with the same inputs, outputs
@@ -101,12 +102,14 @@ takes, speed through the water, course and depth with their rates, through the d
 model's reference velocity v_ref' = (u - D v_ref)/M per NED axis; `AuvAutopilot` turns
 those set-points and the vehicle's measured velocity through the water (body axes),
 attitude, body rates and depth into rpm, rudder and stern-plane commands, clipped to the
-limits `n_max` and `delta_max`, with anti-windup. Both need Python 3.11+ and numpy. `auv-cosim
-build` and `export osp|ssp` ship them for scenarios of REMUS 100 vehicles, vehicle 1's
-design model and start as their start values; they stand beside the system (no wiring): a
-host connects them. Any communication step. A NaN input is refused at the next fmi2DoStep
-(fmi2Discard, message logged); a non-positive `M[i]` or `D[i]` fails initialization naming
-it. The tables below carry the defaults: the design model of `remus100-6dof`.
+limits `n_max` and `delta_max`, with anti-windup. Both need Python 3.11+ and numpy.
+`auv-cosim build` and `export osp|ssp` ship them for scenarios of REMUS 100 vehicles,
+vehicle 1's design model and start as their start values; `export native` ships them as
+native (C) FMUs with the same variables, `AuvGuidanceNative` and `AuvAutopilotNative`, which
+need no Python. They stand beside the system (no wiring): a host connects them. Any
+communication step. A NaN input is refused at the next fmi2DoStep (fmi2Discard, message
+logged); a non-positive `M[i]` or `D[i]` fails initialization naming it. The tables below
+carry the defaults: the design model of `remus100-6dof`.
 
 """
 
