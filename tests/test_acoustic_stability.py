@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from scipy.linalg import block_diag
 
+from orchestrator.analysis.acoustic.cycle import _Compiler
 from orchestrator.analysis.acoustic.loop import NetworkedLoop
 from orchestrator.analysis.acoustic.message_form import Link, MessageForm, Sender
-from orchestrator.analysis.acoustic.prediction import _Compiler
 from orchestrator.analysis.acoustic.stability import (
     ARPACK_NCV,
     CycleMap,

@@ -196,3 +196,30 @@ def test_a_plain_run_does_not_import_dask(tmp_path):
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=120)
     assert res.stdout.strip() == "False", res.stderr
+
+
+def test_workers_started_after_a_pythonfmu_fmu_ran_here_import_the_project(tmp_path):
+    """A pythonfmu FMU instantiated in this process leaves its resources folder (with the
+    FMU's copy of the project's packages) in front of sys.path: pythonfmu never takes it
+    out. Local Dask workers started afterwards must not inherit it (the spawn start method
+    hands them the parent's sys.path: they imported the FMU's copy and failed every run,
+    "Cannot find shared library ... AuvPlant.so"). Every run is ok; sys.path is left as it
+    was (Dask appends its scratch folder)."""
+    from fmpy import extract
+
+    from orchestrator.cosim.build import build_fmus
+    from orchestrator.cosim.instance import FmuInstance
+    from orchestrator.running.fmus import scenario_config
+    from orchestrator.scenario import load_scenario
+    sc = load_scenario("paper")
+    fmu = build_fmus(scenario_config(sc), tmp_path / "fmus")["plant"]
+    folder = tmp_path / "unzipped"
+    inst = FmuInstance("probe", fmu, extract(str(fmu), unzipdir=str(folder)), "probe")
+    assert str(folder / "resources") in sys.path
+    before = list(sys.path)
+    spec = _spec(tmp_path, 'name = "after-fmu"\nbase = "paper"\nseeds = "0-1"\n'
+                 '[[points]]\n"simulation.T" = 2.0\n')
+    assert main(["campaign", str(spec), "--workers", "2", "--out", str(tmp_path / "c")]) == 0
+    assert [r["status"] for r in _rows(tmp_path / "c")] == ["ok", "ok"]
+    assert sys.path[:len(before)] == before
+    del inst

@@ -11,13 +11,14 @@ from scipy.linalg import solve_discrete_lyapunov
 from controller_fmu.regulator import tracking_law
 from controller_fmu.vehicle_law import centralized_rows
 from estimator_fmu.estimators import make_estimator
+from orchestrator.analysis.acoustic.cycle import _Compiler
 from orchestrator.analysis.acoustic.loop import NetworkedLoop
 from orchestrator.analysis.acoustic.message_form import (
     centralized_message_form,
     distributed_message_form,
     perfect_links,
 )
-from orchestrator.analysis.acoustic.prediction import _Compiler, predict_window
+from orchestrator.analysis.acoustic.prediction import predict_window
 from orchestrator.analysis.acoustic.stability import (
     critical_loss,
     frozen_radius,

@@ -41,7 +41,8 @@ from plant_model.vehicles import REMUS100_MAX_SPEED, VehicleModel
 
 from .distributed import Agent, agents_from_fleet_spec, sample_agent
 
-__all__ = ["DesignResult", "design_fleet", "force_limits", "vehicle_band", "vehicle_limits"]
+__all__ = ["DesignResult", "design_fleet", "force_limits", "path_verdict", "vehicle_band",
+           "vehicle_limits"]
 
 
 def vehicle_limits(model: VehicleModel, options: Mapping[str, Any]) -> VehicleLimits:
@@ -194,6 +195,16 @@ class DesignResult:
         return replace(self, findings=path_findings(
             F, H, z0, T, lims, current_sigma=self.current_sigma,
             lateral_margin=self.lateral_margin) if self.checked else [])
+
+
+def path_verdict(design: DesignResult | None) -> dict[str, Any]:
+    """``path_feasible`` (the [design] path check found nothing; None without [design] or
+    with ``path_check = "off"``) and ``path_findings`` (its lines, "; "-joined): the
+    feasibility verdict beside a run's figures (envelope points, campaign rows)."""
+    if design is None or not design.checked:
+        return {"path_feasible": None, "path_findings": None}
+    return {"path_feasible": not design.findings,
+            "path_findings": "; ".join(finding_lines(design.findings)) or None}
 
 
 def _noise_gain(agent: Agent, r: float, leader: Mapping[str, np.ndarray], tracking: str,

@@ -68,7 +68,7 @@ def benchmark_predictions(sc: Any, architectures: Sequence[str] = ("centralized"
 
 def _row(sc: Any, arch: str, mode: str, tracking: str) -> dict[str, Any]:
     """One architecture's figures (the cache switched by the environment)."""
-    from ..analysis.acoustic.prediction import _Compiler
+    from ..analysis.acoustic.cycle import _Compiler
     from ..analysis.acoustic.stability import CycleMap, critical_loss
     from ..running.network import network_predictions, network_setup
 

@@ -73,10 +73,12 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
         finally:
             client.close(timeout=5)
         return
+    from ..cosim.instance import fmu_free_sys_path
     n = workers or _cores()
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=logging.ERROR,
-                           env=dict(BLAS_ENV), host="127.0.0.1")
+    with fmu_free_sys_path():         # the workers import the project, not an FMU's copy
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.ERROR,
+                               env=dict(BLAS_ENV), host="127.0.0.1")
     client = Client(cluster)
     try:
         yield client

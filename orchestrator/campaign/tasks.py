@@ -23,6 +23,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..analysis.weight_search import path_verdict
 from ..scenario import Scenario
 from .results import TRACKING_FIGURES
 
@@ -189,18 +190,6 @@ def _tracking_figures(stats: dict[str, Any]) -> dict[str, Any]:
     return {k: seg.get(k) for k in TRACKING_FIGURES}
 
 
-def path_verdict(sc: Any) -> dict[str, Any]:
-    """``path_feasible`` (the [design] path check found nothing; None without [design] or
-    with ``path_check = "off"``) and ``path_findings`` (its lines, "; "-joined) of a
-    scenario: the feasibility verdict beside a point's figures."""
-    from plant_model.path_feasibility import finding_lines
-    d = getattr(sc, "design", None)
-    if d is None or not d.checked:
-        return {"path_feasible": None, "path_findings": None}
-    return {"path_feasible": not d.findings,
-            "path_findings": "; ".join(finding_lines(d.findings)) or None}
-
-
 def run_task(task: Task) -> list[dict[str, Any]]:
     """Run every seed of ``task`` (on a worker); never raises for a failing run.
 
@@ -273,7 +262,7 @@ def _fmu_rows(task: Task, ver: str) -> list[dict[str, Any]]:
         expected = {"rms_e": pred.window.rms_e, "rms_u": pred.window.rms_u,
                     "cost_rate": pred.window.cost_rate, "note": pred.window.reason}
         formation = stats_context(sc)
-        verdict = path_verdict(sc) if formation is not None else {}
+        verdict = path_verdict(sc.design) if formation is not None else {}
         for seed, key in zip(task.seeds, task.keys):
             row = _base_row(task, seed, key, "fmu")
             row.update(verdict)

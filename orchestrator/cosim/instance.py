@@ -10,6 +10,7 @@ import ctypes
 import os
 import re
 import shutil
+import sys
 import tempfile
 import weakref
 from collections.abc import Callable, Iterator
@@ -83,6 +84,31 @@ def safe_temporary_folder(prefix: str) -> Path:
     raise CosimError("no temporary folder whose path pythonfmu 0.7 can read (only letters, "
                      f"digits, '_.~/-' and spaces): tried {', '.join(map(str, candidates))}; "
                      "set TMPDIR to such a folder")
+
+
+def _fmu_resources(entry: str) -> bool:
+    """``entry`` of sys.path is an FMU's resources folder (pythonfmu puts the folder of
+    every FMU it instantiates in front of sys.path and never takes it out) or is gone."""
+    p = Path(entry) if entry else None
+    if p is None:
+        return False
+    if not p.exists():
+        return True
+    return p.name == "resources" and (p.parent / "modelDescription.xml").exists()
+
+
+@contextmanager
+def fmu_free_sys_path() -> Iterator[None]:
+    """Within the block, sys.path without the FMUs' resources folders (and vanished
+    entries): a process started here (a Dask worker, a seed worker: the spawn start
+    method hands the child the parent's sys.path) imports the project's own packages, not
+    the copies an FMU ships, from folders that may be deleted under it."""
+    saved = list(sys.path)
+    sys.path[:] = [e for e in saved if not _fmu_resources(e)]
+    try:
+        yield
+    finally:
+        sys.path[:] = saved + [e for e in sys.path if e not in saved]
 
 
 @contextmanager

@@ -25,15 +25,11 @@ a C model of its own per FMU: :mod:`orchestrator.cosim.native_guidance`.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import importlib
 import json
-import os
-import shutil
-import subprocess
 import tempfile
 import zipfile
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -44,8 +40,15 @@ from fmu_common.interface import ArraySpec, element_names
 from fmu_common.native_form import NativeForm
 from plant_model.linalg_checks import ModelError
 
-from ..atomic import temporary_sibling
-from .build import FMU_KINDS, GUIDANCE_KINDS, ROOT, patch_model_description
+from .build import FMU_KINDS, GUIDANCE_KINDS, patch_model_description
+from .native_build import (
+    CFLAGS,
+    NATIVE_DIR,
+    NativeBuildError,
+    compile_fmu,
+    compiler,
+    native_model,
+)
 from .system import SystemDescription
 
 __all__ = ["CFLAGS", "LINEAR_KINDS", "NATIVE_KINDS", "NativeBuildError", "NativeSystem",
@@ -61,46 +64,12 @@ LINEAR_KINDS = tuple(k for k in FMU_KINDS
 #: (AuvGuidance, AuvAutopilot: a C model each, orchestrator.cosim.native_guidance); the
 #: network and the nonlinear vehicle stay pythonfmu
 NATIVE_KINDS = LINEAR_KINDS + GUIDANCE_KINDS
-NATIVE_DIR = ROOT / "fmu_common" / "native"
 #: the C sources compiled into every linear native FMU (the shared FMI plumbing, the linear
 #: system, numpy's generator)
 C_SOURCES = (NATIVE_DIR / "fmu_core.c", NATIVE_DIR / "linear_fmu.c",
              NATIVE_DIR / "numpy_random.c")
 C_HEADERS = (NATIVE_DIR / "fmu_core.h", NATIVE_DIR / "linear_model.h",
              NATIVE_DIR / "numpy_random.h")
-#: how the shared library is built (IEEE arithmetic kept: no -ffast-math)
-CFLAGS = ("-shared", "-fPIC", "-O2", "-std=c99", "-Wall", "-Wextra")
-FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
-
-
-class NativeBuildError(RuntimeError):
-    """A native FMU cannot be built (no compiler, the compiler failed)."""
-
-
-def native_model(kind: str) -> str:
-    """The model identifier of a kind's native FMU: ``AuvController`` -> ``AuvControllerNative``."""
-    return f"{FMU_KINDS[kind].model}Native"
-
-
-def compiler() -> str:
-    """The C compiler: ``$CC`` or ``cc``.
-
-    Raises
-    ------
-    NativeBuildError
-        If there is none on PATH (one line saying what to install).
-    """
-    cc = os.environ.get("CC", "cc")
-    path = shutil.which(cc)
-    if path is None:
-        raise NativeBuildError(f"no C compiler: {cc!r} is not on PATH (install gcc, or set CC)")
-    return path
-
-
-def _fmi_include() -> Path:
-    import fmpy
-    return Path(fmpy.__file__).parent / "c-code"
-
 
 # ------------------------------------------------------------------ the form of a component
 def _scalar_arrays(specs: list[ArraySpec], values: Mapping[str, Any]) -> dict[str, Any]:
@@ -325,66 +294,6 @@ def build_native_fmu(form: NativeForm, model: str, out_dir: Path | str, T: float
     return compile_fmu(model, C_SOURCES, C_HEADERS, lambda guid: _header(form, guid),
                        lambda guid: _model_description(form, model, guid, T,
                                                        form.h if h is None else h), out_dir)
-
-
-def compile_fmu(model: str, sources: tuple[Path, ...], headers: tuple[Path, ...],
-                header: Callable[[str], str], description: Callable[[str], bytes],
-                out_dir: Path | str) -> Path:
-    """Compile ``sources`` with the generated ``native_model.h`` and zip ``<model>.fmu``.
-
-    Parameters
-    ----------
-    model : str
-        Model identifier (the library's name).
-    sources, headers : tuple[Path, ...]
-        The C files compiled and shipped in sources/ (beside the FMI headers).
-    header, description : Callable[[str], ...]
-        native_model.h and modelDescription.xml for a GUID (the GUID is a digest of the
-        sources and of the header without it).
-    out_dir : Path or str
-        Destination folder (created if missing); the .fmu is written atomically.
-
-    Returns
-    -------
-    Path
-        The .fmu.
-
-    Raises
-    ------
-    NativeBuildError
-        No compiler, or the compiler failed (its first error line).
-    """
-    cc = compiler()
-    digest = hashlib.sha256()
-    for f in (*sources, *headers):
-        digest.update(f.read_bytes())
-    digest.update(header("").encode())
-    guid = "{" + digest.hexdigest()[:32] + "}"
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix="auv_native_") as tmp:
-        src = Path(tmp) / "sources"
-        src.mkdir()
-        for f in (*sources, *headers):
-            shutil.copy2(f, src / f.name)
-        (src / "native_model.h").write_text(header(guid))
-        for name in FMI_HEADERS:
-            shutil.copy2(_fmi_include() / name, src / name)
-        lib = Path(tmp) / f"{model}.so"
-        cmd = [cc, *CFLAGS, f"-I{src}", "-o", str(lib), *(str(src / f.name) for f in sources),
-               "-lm"]
-        r = subprocess.run(cmd, capture_output=True, text=True)
-        if r.returncode != 0:
-            first = next((ln for ln in r.stderr.splitlines() if "error" in ln), r.stderr.strip())
-            raise NativeBuildError(f"building {model}: {first}")
-        fmu = out / f"{model}.fmu"
-        with temporary_sibling(fmu) as part, zipfile.ZipFile(part, "w",
-                                                              zipfile.ZIP_DEFLATED) as z:
-            z.writestr("modelDescription.xml", description(guid))
-            for f in sorted(src.iterdir()):
-                z.write(f, f"sources/{f.name}")
-            z.write(lib, f"binaries/linux64/{model}.so")
-    return fmu
 
 
 @dataclasses.dataclass(frozen=True)

@@ -27,7 +27,7 @@ from pathlib import Path
 from lxml import etree
 
 from .build import GUIDANCE_KINDS
-from .native import NATIVE_DIR, NativeBuildError, compile_fmu, native_model
+from .native_build import NATIVE_DIR, NativeBuildError, compile_fmu, native_model
 
 __all__ = ["GUIDANCE_C", "native_guidance_fmu"]
 

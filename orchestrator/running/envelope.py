@@ -127,7 +127,7 @@ def run_envelope(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
     dict[str, Any]
         The summary (also ``out / summary.json``).
     """
-    from ..campaign.tasks import path_verdict
+    from ..analysis.weight_search import path_verdict
     from .compare import simulate
 
     points = []
@@ -145,7 +145,7 @@ def run_envelope(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
                  and m["max_error"] <= tolerance, "max_error": m.get("max_error"),
                  "rms_error": max(rms) if rms else None,
                  "actuator_saturation_fraction": m.get("actuator_saturation_fraction"),
-                 **path_verdict(variant), "folder": str(folder)}
+                 **path_verdict(variant.design), "folder": str(folder)}
         points.append(point)
         log(f"{i:3d}/{len(grid)} speed {speed:g} m/s, radius "
             f"{'straight' if point['radius'] is None else format(radius, 'g') + ' m'}, "

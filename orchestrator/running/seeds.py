@@ -75,8 +75,11 @@ class SeedPool:
                                         mp_context=multiprocessing.get_context("spawn"))
 
     def submit(self, *args: Any) -> Future:
-        """``seed_stats(*args)`` on a worker."""
-        return self.pool.submit(seed_stats, *args)
+        """``seed_stats(*args)`` on a worker (started here, with the project's own sys.path:
+        :func:`orchestrator.cosim.instance.fmu_free_sys_path`)."""
+        from ..cosim.instance import fmu_free_sys_path
+        with fmu_free_sys_path():
+            return self.pool.submit(seed_stats, *args)
 
     def close(self) -> None:
         """Cancel what has not started, wait for what runs."""

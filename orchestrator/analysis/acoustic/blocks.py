@@ -23,8 +23,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from .cache import cached
+from .cycle import _Compiler, doubled
 from .loop import NetworkedLoop
-from .prediction import NetworkPrediction, _Compiler, _pieces, doubled
+from .prediction import NetworkPrediction, _pieces
 
 __all__ = ["predict_window_blocks"]
 

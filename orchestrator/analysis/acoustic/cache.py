@@ -46,7 +46,7 @@ __all__ = ["cached", "loop_digest", "prediction_cache_dir"]
 T_ = TypeVar("T_")
 
 #: the modules whose code the cached values come from
-_SOURCES = ("prediction.py", "blocks.py", "stability.py", "cache.py", "loop.py")
+_SOURCES = ("prediction.py", "blocks.py", "stability.py", "cycle.py", "cache.py", "loop.py")
 _OFF = ("0", "off", "false", "no")
 
 

@@ -32,8 +32,8 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigs
 
 from .cache import cached
+from .cycle import Segment, _Compiler, _product
 from .loop import NetworkedLoop
-from .prediction import Segment, _Compiler, _product
 
 __all__ = ["ARPACK_NCV", "ARPACK_TOL", "SEARCH_MAXITER", "SEARCH_TOL", "VERDICT_MARGIN", "CycleMap",
            "critical_loss", "frozen_radius", "ms_spectral_radius", "ms_stable"]
