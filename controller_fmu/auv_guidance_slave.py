@@ -24,7 +24,7 @@ from controller_fmu.guidance import (
 from fmu_common.interface import ArraySpec
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.slave_base import ArraySlave as Fmi2Slave
+from fmu_common.slave_base import VectorStateSlave as Fmi2Slave
 
 RATES = ("speed_rate", "course_rate", "depth_rate")
 
@@ -123,24 +123,3 @@ class AuvGuidance(Fmi2Slave):
         s[3] += depth_increment(s[2], u[2], self.M[2], self.D[2], step)
         s[:3] = reference_step(s[:3], u, self.M, self.D, step)
         s[4] = self._course(s[:3], s[4])
-
-    def evolving(self) -> np.ndarray:
-        """[v_ref, depth, held course] (checked to stay finite)."""
-        return self.s
-
-    def model_state(self) -> dict[str, np.ndarray]:
-        """``s`` = [v_ref (m/s, 3), depth set-point (m), held course (rad)] (a copy)."""
-        return {"s": self.s.copy()}
-
-    def restore_model_state(self, state: Any) -> None:
-        """Restore :meth:`model_state`.
-
-        Raises
-        ------
-        ValueError
-            If ``s`` is not a finite real array of 5.
-        """
-        s = state["s"]
-        if not (isinstance(s, np.ndarray) and s.shape == (5,) and np.all(np.isfinite(s))):
-            raise ValueError("the guidance state must be a finite real array of 5")
-        self.s = s.astype(float).copy()

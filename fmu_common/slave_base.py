@@ -475,3 +475,36 @@ class DelegatedStateSlave(ArraySlave):
         this instance).
         """
         getattr(self, self.math_name).set_state(state)
+
+
+class VectorStateSlave(ArraySlave):
+    """A slave whose whole evolving state is one float vector, its attribute
+    ``state_name``: checked to stay finite after every step, saved as a copy, restored
+    after checking its shape and finiteness (a ValueError naming the slave otherwise)."""
+
+    #: the attribute holding the state vector
+    state_name: str = "s"
+
+    def evolving(self) -> np.ndarray:
+        """The state vector (checked to stay finite after every step)."""
+        return getattr(self, self.state_name)
+
+    def model_state(self) -> dict[str, np.ndarray]:
+        """{state_name: a copy of the state vector}."""
+        return {self.state_name: getattr(self, self.state_name).copy()}
+
+    def restore_model_state(self, state: Any) -> None:
+        """Restore :meth:`model_state`.
+
+        Raises
+        ------
+        ValueError
+            If the saved vector is not a finite real array of this slave's size.
+        """
+        now = getattr(self, self.state_name)
+        s = state[self.state_name]
+        if not (isinstance(s, np.ndarray) and s.shape == now.shape
+                and np.all(np.isfinite(s))):
+            raise ValueError(f"the {type(self).__name__} state {self.state_name!r} must be a "
+                             f"finite real array of {now.size}")
+        setattr(self, self.state_name, s.astype(float).copy())

@@ -30,6 +30,7 @@
 
 #define NATIVE_MODEL_TABLES
 #include "fmu_core.h"
+#include "named_reals.h"      /* start values and names from the tables */
 
 #if !defined(VR_n_max) || !defined(VR_velocity) || !defined(VR_measured_depth) || \
     !defined(VR_rpm) || !defined(VR_saturated) || !defined(VR_gamma_max)
@@ -37,17 +38,6 @@
 #endif
 
 #define PI_ 3.141592653589793
-
-void model_start_values(Data *d) {
-    for (int i = 0; i < VR_OUT0; i++) d->r[i] = REAL_START[i];
-}
-
-void model_real_name(fmi2ValueReference vr, char *out, size_t n) {
-    if (vr < NREAL) snprintf(out, n, "%s", REAL_NAMES[vr]);
-    else snprintf(out, n, "value reference %u", vr);
-}
-
-const char *model_int_name(fmi2ValueReference vr) { (void)vr; return "(no Integer)"; }
 
 int model_check(Instance *in) {
     static const int positive[] = {VR_n_max, VR_delta_max, VR_U_max, VR_gamma_max};

@@ -29,22 +29,12 @@
 
 #define NATIVE_MODEL_TABLES
 #include "fmu_core.h"
+#include "named_reals.h"      /* start values and names from the tables */
 
 #if !defined(VR_M) || !defined(VR_D) || !defined(VR_v_ref0) || !defined(VR_u) || \
     !defined(VR_v_ref) || !defined(VR_speed_rate)
 #error "native_model.h is not AuvGuidance's"
 #endif
-
-void model_start_values(Data *d) {
-    for (int i = 0; i < VR_OUT0; i++) d->r[i] = REAL_START[i];
-}
-
-void model_real_name(fmi2ValueReference vr, char *out, size_t n) {
-    if (vr < NREAL) snprintf(out, n, "%s", REAL_NAMES[vr]);
-    else snprintf(out, n, "value reference %u", vr);
-}
-
-const char *model_int_name(fmi2ValueReference vr) { (void)vr; return "(no Integer)"; }
 
 int model_check(Instance *in) {
     const double *r = in->d.r;

@@ -135,6 +135,7 @@ def native_guidance_fmu(kind: str, fmu: Path | str, out_dir: Path | str) -> Path
     variables = _variables(root, model)
     c_file, c_header = GUIDANCE_C[kind]
     return compile_fmu(model, (NATIVE_DIR / "fmu_core.c", NATIVE_DIR / c_file),
-                       (NATIVE_DIR / "fmu_core.h", NATIVE_DIR / c_header),
+                       (NATIVE_DIR / "fmu_core.h", NATIVE_DIR / "named_reals.h",
+                        NATIVE_DIR / c_header),
                        lambda guid: _header(kind, variables, guid),
                        lambda guid: _model_description(root, kind, model, guid), out_dir)

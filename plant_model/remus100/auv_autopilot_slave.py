@@ -18,7 +18,7 @@ import numpy as np
 from fmu_common.interface import ArraySpec
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
-from fmu_common.slave_base import ArraySlave as Fmi2Slave
+from fmu_common.slave_base import VectorStateSlave as Fmi2Slave
 from plant_model.remus100.autopilot import AutopilotGains
 from plant_model.remus100.setpoint_autopilot import DepthLoop, limit_command, setpoint_command
 
@@ -50,6 +50,8 @@ DEPTH_NAMES = tuple(f.name for f in fields(DepthLoop))
 
 class AuvAutopilot(Fmi2Slave):
     """Set-points and measurements -> rpm, rudder, stern planes (anti-windup)."""
+
+    state_name = "integrals"   #: [int (U_d - U) dt (m), int (gamma_d - gamma) dt (rad s)]
 
     description = ("Speed, course and depth autopilot of a torpedo AUV: set-points and the "
                    "measured velocity through water, attitude, rates and depth in; rpm, "
@@ -123,24 +125,3 @@ class AuvAutopilot(Fmi2Slave):
         """integrals += errors * step (each 0 while its actuator is saturated its way)."""
         _, err = self._command()
         self.integrals = self.integrals + err * step
-
-    def evolving(self) -> np.ndarray:
-        """The two integrals (checked to stay finite)."""
-        return self.integrals
-
-    def model_state(self) -> dict[str, np.ndarray]:
-        """``integrals`` = [int (U_d - U) dt (m), int (gamma_d - gamma) dt (rad s)]."""
-        return {"integrals": self.integrals.copy()}
-
-    def restore_model_state(self, state: Any) -> None:
-        """Restore :meth:`model_state`.
-
-        Raises
-        ------
-        ValueError
-            If ``integrals`` is not a finite real array of 2.
-        """
-        s = state["integrals"]
-        if not (isinstance(s, np.ndarray) and s.shape == (2,) and np.all(np.isfinite(s))):
-            raise ValueError("the autopilot state must be a finite real array of 2")
-        self.integrals = s.astype(float).copy()
