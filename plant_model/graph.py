@@ -30,12 +30,14 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import networkx as nx
 import numpy as np
 
 from .linalg_checks import ModelError, as_matrix
+
+if TYPE_CHECKING:
+    import networkx as nx
 
 __all__ = ["CommunicationGraph", "communication_graph", "stacked_coupling"]
 
@@ -131,6 +133,8 @@ def _parse(N: Any, edges: Any, pinning: Any) -> tuple[int, tuple[tuple[int, int,
             "graph: no vehicle hears the leader; give at least one pinning weight a_i0 > 0"
         )
 
+    import networkx as nx  # imported where used: a single vehicle needs no graph
+
     g = nx.DiGraph()
     g.add_nodes_from(range(N + 1))
     g.add_edges_from(out_edges)
@@ -175,6 +179,8 @@ class CommunicationGraph:
         nx.DiGraph
             A new digraph.
         """
+        import networkx as nx
+
         g = nx.DiGraph()
         g.add_node(0, role="leader")
         g.add_nodes_from(range(1, self.N + 1), role="vehicle")
@@ -191,6 +197,8 @@ class CommunicationGraph:
             Adj, N x N (the leader is not included).
         """
         # nx.to_numpy_array gives M[u, v] = weight of u -> v, i.e. M[j-1, i-1] = a_ij.
+        import networkx as nx
+
         sub = self.digraph().subgraph(range(1, self.N + 1))
         M = nx.to_numpy_array(sub, nodelist=range(1, self.N + 1), weight="weight")
         return M.T
@@ -207,6 +215,8 @@ class CommunicationGraph:
         np.ndarray
             L, N x N; every row sums to zero.
         """
+        import networkx as nx
+
         sub = self.digraph().subgraph(range(1, self.N + 1))
         L = nx.laplacian_matrix(sub.reverse(copy=True), nodelist=range(1, self.N + 1),
                                 weight="weight")

@@ -76,10 +76,18 @@ def make_scalar():
 
 
 @pytest.fixture(scope="session", autouse=True)
-def fmu_cache(tmp_path_factory):
-    """Built FMUs are cached per test session (AUV_COSIM_CACHE), not in the user's cache."""
+def fmu_cache(tmp_path_factory, request):
+    """Built FMUs are cached per test run (AUV_COSIM_CACHE), not in the user's cache. The
+    pytest-xdist workers of one run share one cache (beside their own temporary folders):
+    a build is written under a temporary name and renamed, so two workers building the
+    same FMU leave one whole file, and each FMU is built once per run, not once per
+    worker."""
     import os
-    path = tmp_path_factory.mktemp("fmu_cache")
+    if getattr(request.config, "workerinput", None) is None:      # not an xdist worker
+        path = tmp_path_factory.mktemp("fmu_cache")
+    else:
+        path = tmp_path_factory.getbasetemp().parent / "fmu_cache"
+        path.mkdir(exist_ok=True)
     old = os.environ.get("AUV_COSIM_CACHE")
     os.environ["AUV_COSIM_CACHE"] = str(path)
     yield path

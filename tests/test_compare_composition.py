@@ -70,6 +70,7 @@ def test_formation_100_per_vehicle_native_equals_pythonfmu(tmp_path, capsys):
         out = tmp_path / fmus
         assert main(["run", "--scenario", "formation-100", "--deployment", "per-vehicle",
                      "--architecture", "distributed", "--T", "0.3", "--quiet", "--fmus", fmus,
+                     "--predict", "none",
                      "--out", str(out)]) == 0
         s = json.loads((out / "summary.json").read_text())
         runs[fmus] = (s, read_rrd_scalars(out / "formation-100.rrd"))

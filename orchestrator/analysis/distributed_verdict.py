@@ -49,11 +49,45 @@ class StabilityVerdict:
     blocks: tuple[tuple[complex, float], ...]  #: (lambda of L + G, spectral radius of its block)
     observer_mu_min: float          #: continuous-time bound, mu > this (1/s)
     cohesion_bound: str             #: continuous-time statement on c
+    stacked_eigenvalue: complex = 0j  #: the stacked error part's eigenvalue of largest |.|
 
     @property
     def stable(self) -> bool:
         """Spectral radius < 1."""
         return self.spectral_radius < 1.0
+
+
+@lru_cache(maxsize=4)
+def _verdict(loop: DistributedLoop) -> StabilityVerdict:
+    """The verdict of :func:`stability_verdict`, computed once per loop (a loop is
+    immutable): the stacked error part's eigenvalues are the costly part (a dense
+    eigenproblem of a few thousand states for formation-100), and every prediction of a
+    run asks for them."""
+    R = ~loop.deterministic
+    ev = np.linalg.eigvals(loop.Phi[np.ix_(R, R)])
+    k = int(np.argmax(np.abs(ev)))
+    rho = float(np.abs(ev[k]))
+    lams = consensus_eigenvalues(loop.LG)
+    identical = _identical(loop)
+    blocks: list[tuple[complex, float]] = []
+    if identical:
+        sa, law = loop.sampled[0], loop.laws[0]
+        for lam in lams:
+            part = _assemble([sa], [law], np.array([[lam]], dtype=complex), np.zeros(1),
+                             loop.observer, np.zeros((sa.M.shape[0], loop.observer.Phi.shape[0])),
+                             [np.zeros(sa.M.shape[0])], loop.cohesion, loop.estimator == "kalman")
+            Rb = ~part["deterministic"]
+            blocks.append((complex(lam), float(np.max(np.abs(
+                np.linalg.eigvals(part["Phi"][np.ix_(Rb, Rb)]))))))
+    if identical:       # exact: the stacked eigenvalues are ill-conditioned when L + G
+        rho = max(b for _, b in blocks)     # is defective (a Jordan chain of length k)
+    return StabilityVerdict(
+        spectral_radius=rho, stacked_spectral_radius=float(np.abs(ev[k])),
+        identical=identical, blocks=tuple(blocks),
+        observer_mu_min=min_observer_gain(loop.observer.F, loop.LG),
+        cohesion_bound=("continuous time: stable for every c >= 0 (blocks A - (1 + c lambda) "
+                        "B Kx, Re(1 + c lambda) >= 1/2: LQ gain margin)"),
+        stacked_eigenvalue=complex(ev[k]) if ev.size else 0j)
 
 
 def stability_verdict(loop: DistributedLoop, *, check: bool = False) -> StabilityVerdict:
@@ -77,41 +111,20 @@ def stability_verdict(loop: DistributedLoop, *, check: bool = False) -> Stabilit
         With ``check``, naming the eigenvalue of L + G whose block fails (identical
         vehicles) or the unstable eigenvalue of the stacked loop, with mu, c and h.
     """
-    R = ~loop.deterministic
-    ev = np.linalg.eigvals(loop.Phi[np.ix_(R, R)])
-    k = int(np.argmax(np.abs(ev)))
-    rho = float(np.abs(ev[k]))
-    lams = consensus_eigenvalues(loop.LG)
-    identical = _identical(loop)
-    blocks: list[tuple[complex, float]] = []
-    if identical:
-        sa, law = loop.sampled[0], loop.laws[0]
-        for lam in lams:
-            part = _assemble([sa], [law], np.array([[lam]], dtype=complex), np.zeros(1),
-                             loop.observer, np.zeros((sa.M.shape[0], loop.observer.Phi.shape[0])),
-                             [np.zeros(sa.M.shape[0])], loop.cohesion, loop.estimator == "kalman")
-            Rb = ~part["deterministic"]
-            blocks.append((complex(lam), float(np.max(np.abs(
-                np.linalg.eigvals(part["Phi"][np.ix_(Rb, Rb)]))))))
-    if identical:       # exact: the stacked eigenvalues are ill-conditioned when L + G
-        rho = max(b for _, b in blocks)     # is defective (a Jordan chain of length k)
-    verdict = StabilityVerdict(
-        spectral_radius=rho, stacked_spectral_radius=float(np.abs(ev[k])),
-        identical=identical, blocks=tuple(blocks),
-        observer_mu_min=min_observer_gain(loop.observer.F, loop.LG),
-        cohesion_bound=("continuous time: stable for every c >= 0 (blocks A - (1 + c lambda) "
-                        "B Kx, Re(1 + c lambda) >= 1/2: LQ gain margin)"))
+    verdict = _verdict(loop)
+    rho = verdict.spectral_radius
     if check and rho >= 1.0:
         gains = (f"observer gain mu = {loop.observer.mu:g} 1/s, coupling gain c = "
                  f"{loop.cohesion:g}, h = {loop.h:g} s")
-        if identical:
-            lam, rb = max(blocks, key=lambda b: b[1])
+        if verdict.identical:
+            lam, rb = max(verdict.blocks, key=lambda b: b[1])
             raise ModelError(
                 f"the sampled distributed loop is unstable ({gains}): at eigenvalue "
                 f"{_fmt(lam)} of L + G the vehicle block has spectral radius {rb:.6g} >= 1 "
                 f"(continuous-time bound: mu > {verdict.observer_mu_min:.6g} 1/s, any c >= 0)")
         raise ModelError(
-            f"the sampled distributed loop is unstable ({gains}): eigenvalue {_fmt(ev[k])} "
+            f"the sampled distributed loop is unstable ({gains}): eigenvalue "
+            f"{_fmt(verdict.stacked_eigenvalue)} "
             f"of the stacked loop (|.| = {rho:.6g} >= 1); the vehicles differ, so it is not "
             "attributed to one eigenvalue of L + G")
     return verdict
@@ -195,7 +208,7 @@ def predict_cost(loop: DistributedLoop, window: tuple[int, int] | None = None,
     ModelError
         If the error part is not stable.
     """
-    stability_verdict(loop, check=True)
+    verdict = stability_verdict(loop, check=True)
     R = ~loop.deterministic
     PhiR = loop.Phi[np.ix_(R, R)]
     Sigma = np.zeros_like(loop.Phi)
@@ -219,7 +232,7 @@ def predict_cost(loop: DistributedLoop, window: tuple[int, int] | None = None,
             uu += np.outer(u, u)
             X = Phi @ X
         See, Suu = See + ee / max(K - k0, 1), Suu + uu / max(K - k0, 1)
-    rho = float(np.max(np.abs(np.linalg.eigvals(PhiR)))) if PhiR.size else 0.0
+    rho = verdict.stacked_spectral_radius if PhiR.size else 0.0
     tau = -loop.h / np.log(rho) if rho > 0 else loop.h
     cost = float(np.trace(loop.Qc @ See) + np.trace(loop.Rc @ Suu))
     return DistributedPrediction(rms_e=np.sqrt(np.clip(np.diag(See), 0, None)).tolist(),

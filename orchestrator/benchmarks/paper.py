@@ -315,8 +315,10 @@ def benchmark_tools(sc: Scenario, steps: int = 5000, repeats: int = 3) -> dict[s
 
 def benchmark_startup(sc: Scenario, repeats: int = 3) -> dict[str, Any]:
     """Wall time of ``auv-cosim run --quiet`` as a subprocess (interpreter start to exit)
-    with a warm and with an empty FMU cache, against the in-process loop of the monolithic
-    reference (:mod:`orchestrator.analysis.reference`), rounds alternating; medians.
+    with a warm and with an empty FMU cache, and with native FMUs (``--fmus native``: the
+    compiled master; warm cache) when a C compiler is there, against the in-process loop
+    of the monolithic reference (:mod:`orchestrator.analysis.reference`), rounds
+    alternating; medians.
 
     Parameters
     ----------
@@ -328,9 +330,12 @@ def benchmark_startup(sc: Scenario, repeats: int = 3) -> dict[str, Any]:
     Returns
     -------
     dict
-        ``run_warm_s``, ``run_cold_s``, ``reference_loop_s``, ``ratio_run_to_reference_loop``,
-        ``import_cli_s``, ``python_s``, the rounds, the load and the CPU count.
+        ``run_warm_s``, ``run_cold_s``, ``run_native_s`` (None without a compiler),
+        ``reference_loop_s``, ``ratio_run_to_reference_loop``,
+        ``ratio_native_run_to_reference_loop``, ``import_cli_s``, ``python_s``, the rounds,
+        the load and the CPU count.
     """
+    import shutil
     import statistics
     import subprocess
     import sys
@@ -340,16 +345,24 @@ def benchmark_startup(sc: Scenario, repeats: int = 3) -> dict[str, Any]:
         subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
         return time.perf_counter() - t
 
+    native = shutil.which(os.environ.get("CC", "cc")) is not None
     rounds: dict[str, list[float]] = {"run_warm_s": [], "run_cold_s": [], "reference_loop_s": [],
                                       "import_cli_s": [], "python_s": []}
+    if native:
+        rounds["run_native_s"] = []
     py = sys.executable
     with tempfile.TemporaryDirectory(prefix="auv_bench_start_") as tmp:
         spec = sc.name if sc.source.startswith("built-in scenario") else sc.source
         run = [py, "-m", "orchestrator", "run", "--quiet", "--scenario", spec,
-               "--T", repr(sc.T), "--h", repr(sc.h), "--out", str(Path(tmp) / "out")]
+               "--T", repr(sc.T), "--h", repr(sc.h), "--out", str(Path(tmp) / "out"),
+               "--force"]
         wall(run)                                       # fills the user's FMU cache
+        if native:
+            wall([*run, "--fmus", "native"])
         for i in range(max(1, repeats)):
             rounds["run_warm_s"].append(wall(run))
+            if native:
+                rounds["run_native_s"].append(wall([*run, "--fmus", "native"]))
             cold = dict(os.environ, AUV_COSIM_CACHE=str(Path(tmp) / f"cache{i}"))
             rounds["run_cold_s"].append(wall(run, cold))
             timing: dict[str, float] = {}
@@ -359,7 +372,11 @@ def benchmark_startup(sc: Scenario, repeats: int = 3) -> dict[str, Any]:
             rounds["import_cli_s"].append(wall([py, "-c", "import orchestrator.cli"]))
             rounds["python_s"].append(wall([py, "-c", "pass"]))
     med = {k: statistics.median(v) for k, v in rounds.items()}
+    med.setdefault("run_native_s", None)
     return {"scenario": sc.name, "mode": sc.estimator, "steps": sc.steps, "h": sc.h,
             "repeats": repeats, **med,
             "ratio_run_to_reference_loop": med["run_warm_s"] / med["reference_loop_s"],
+            "ratio_native_run_to_reference_loop": (
+                None if med["run_native_s"] is None
+                else med["run_native_s"] / med["reference_loop_s"]),
             "rounds": rounds, "loadavg": list(os.getloadavg()), "cpus": os.cpu_count()}

@@ -14,8 +14,8 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
-from ..atomic import temporary_sibling
-from .build import FMU_KINDS, ROOT
+from ..atomic import copy_atomically, temporary_sibling
+from .build import FMU_KINDS, ROOT, fmu_cache_dir
 
 __all__ = ["CFLAGS", "FMI_HEADERS", "NATIVE_DIR", "NativeBuildError", "compile_fmu", "compiler",
            "native_model"]
@@ -55,10 +55,20 @@ def _fmi_include() -> Path:
     return Path(fmpy.__file__).parent / "c-code"
 
 
+def _cached_library(model: str, guid: str, cc: str) -> Path:
+    """Where the compiled library of ``model`` with this GUID (a digest of its sources and
+    its generated header, start values included) and this compiler is kept: the FMU
+    cache's ``native/`` folder (:func:`orchestrator.cosim.build.fmu_cache_dir`), so a
+    second run of the same design links nothing."""
+    key = hashlib.sha256("\n".join((guid, cc, *CFLAGS)).encode()).hexdigest()[:24]
+    return fmu_cache_dir() / "native" / f"{model}-{key}.so"
+
+
 def compile_fmu(model: str, sources: tuple[Path, ...], headers: tuple[Path, ...],
                 header: Callable[[str], str], description: Callable[[str], bytes],
                 out_dir: Path | str) -> Path:
-    """Compile ``sources`` with the generated ``native_model.h`` and zip ``<model>.fmu``.
+    """Compile ``sources`` with the generated ``native_model.h`` and zip ``<model>.fmu``
+    (the library taken from the FMU cache when this design was compiled before).
 
     Parameters
     ----------
@@ -99,12 +109,22 @@ def compile_fmu(model: str, sources: tuple[Path, ...], headers: tuple[Path, ...]
         for name in FMI_HEADERS:
             shutil.copy2(_fmi_include() / name, src / name)
         lib = Path(tmp) / f"{model}.so"
-        cmd = [cc, *CFLAGS, f"-I{src}", "-o", str(lib), *(str(src / f.name) for f in sources),
-               "-lm"]
-        r = subprocess.run(cmd, capture_output=True, text=True)
-        if r.returncode != 0:
-            first = next((ln for ln in r.stderr.splitlines() if "error" in ln), r.stderr.strip())
-            raise NativeBuildError(f"building {model}: {first}")
+        cached = _cached_library(model, guid, cc)
+        if cached.is_file():
+            shutil.copyfile(cached, lib)
+        else:
+            cmd = [cc, *CFLAGS, f"-I{src}", "-o", str(lib),
+                   *(str(src / f.name) for f in sources), "-lm"]
+            r = subprocess.run(cmd, capture_output=True, text=True)
+            if r.returncode != 0:
+                first = next((ln for ln in r.stderr.splitlines() if "error" in ln),
+                             r.stderr.strip())
+                raise NativeBuildError(f"building {model}: {first}")
+            try:
+                cached.parent.mkdir(parents=True, exist_ok=True)
+                copy_atomically(lib, cached)
+            except OSError:                 # a read-only cache: compile every time
+                pass
         fmu = out / f"{model}.fmu"
         with temporary_sibling(fmu) as part, zipfile.ZipFile(part, "w",
                                                               zipfile.ZIP_DEFLATED) as z:
