@@ -61,8 +61,8 @@ def solve_regulator_equations(A: np.ndarray, B1: np.ndarray, C: np.ndarray, S: n
     """(Pi, Gamma) with Pi S = A Pi + B1 Gamma + Pv and C Pi = Hv.
 
     Column by column in the complex Schur basis of S (S = U T U^H, T upper triangular):
-    for the k-th Schur vector, [[A - T_kk I, B1], [C, 0]] [pi_k; gamma_k] =
-    [sum_{j<k} pi_j T_jk - (Pv U)_k; (Hv U)_k]; one LU factorisation per distinct
+    for the k-th Schur vector, ``[[A - T_kk I, B1], [C, 0]] [pi_k; gamma_k] =
+    [sum_{j<k} pi_j T_jk - (Pv U)_k; (Hv U)_k]``; one LU factorisation per distinct
     eigenvalue.
 
     Parameters

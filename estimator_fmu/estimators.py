@@ -313,8 +313,16 @@ def make_vehicle_estimator(system: LinearSystem, model: DiscreteModel, mode: str
     where : str, optional
         Names the vehicle in error messages.
 
-    Returns and raises as :func:`make_estimator` (ModelError if the mode is unknown, the
-    Kalman filter does not exist or C lacks full column rank for ``classical``).
+    Returns
+    -------
+    LinearEstimator
+        As :func:`make_estimator`.
+
+    Raises
+    ------
+    ModelError
+        If the mode is unknown, the Kalman filter does not exist or C lacks full column
+        rank for ``classical``.
     """
     n, r, s, ns = system.n, system.r, system.p, model.ns
     nm = s + ns

@@ -231,6 +231,6 @@ def test_pythonfmu_ignores_the_guid_and_the_fmu_type(paper_fmus, tmp_path):
     callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
     callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
     comp = s2.fmi2Instantiate(b"as_me", 0, b"x", resources, ctypes.byref(callbacks), 0, 0)
-    assert comp                   # made anyway: a limitation stated in the README
+    assert comp                   # made anyway: a limitation stated in docs/known-problems.md
     s2.component = comp
     s2.freeInstance()

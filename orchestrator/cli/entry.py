@@ -24,8 +24,8 @@ def console() -> None:
     """The ``auv-cosim`` command: :func:`main`, then leave without tearing the interpreter
     down. Every file is closed and every temporary folder removed by then; what remains is
     freeing numpy, scipy and the FMU libraries module by module (about 0.2 s), and
-    pythonfmu 0.7's library-unload hook, which touches freed memory (see the README, "A
-    non-Python host")."""
+    pythonfmu 0.7's library-unload hook, which touches freed memory (see
+    docs/known-problems.md)."""
     code = main()
     sys.stdout.flush()
     sys.stderr.flush()

@@ -47,7 +47,7 @@ _PYTHONFMU_SAFE_PATH = re.compile(r"[A-Za-z0-9_.~/ -]+")
 def pythonfmu_can_load_from(folder: Path | str) -> bool:
     """True if a pythonfmu 0.7 FMU unzipped in ``folder`` can be instantiated: the folder's
     absolute path survives pythonfmu's URI decoding (letters, digits, ``_ . ~ / -`` and
-    spaces only; README, "Known problems")."""
+    spaces only; docs/known-problems.md)."""
     return _PYTHONFMU_SAFE_PATH.fullmatch(str(Path(folder).resolve())) is not None
 
 
@@ -138,8 +138,8 @@ def pythonfmu_safe_tempdir() -> Iterator[Path]:
 
 
 def _check_pythonfmu_resources(label: str, md: Any, unzip_dir: str) -> None:
-    """Never hand pythonfmu 0.7 a resource folder it would crash on (README, "Known
-    problems"): a path it cannot decode, or a folder without the slave module."""
+    """Never hand pythonfmu 0.7 a resource folder it would crash on (docs/known-problems.md):
+    a path it cannot decode, or a folder without the slave module."""
     if "pythonfmu" not in (md.generationTool or "").lower():
         return
     resources = Path(unzip_dir, "resources")

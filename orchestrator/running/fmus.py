@@ -28,7 +28,7 @@ exitInitializationMode.
 
 Importing them needs a Python interpreter in the host process: pythonfmu's binary embeds
 the host's Python (fmpy and libcosimpy run the FMU in their own interpreter; a non-Python
-host must load libpython, see the README), so each FMU declares
+host must load libpython, see docs/other-tools.md), so each FMU declares
 `needsExecutionTool="true"`. What each FMU's code imports from that Python:
 
 | FMU | needs |
