@@ -300,3 +300,15 @@ def _toml(data: dict) -> str:
     tables = [f"[{k}]\n" + "\n".join(f"{kk} = {value(vv)}" for kk, vv in v.items())
               for k, v in data.items() if isinstance(v, dict)]
     return "\n".join(top) + "\n\n" + "\n\n".join(tables) + "\n"
+
+
+def test_the_saturation_note_names_few_vehicles_and_counts_many():
+    """Up to six vehicles are named with their share; a fleet's note counts them, gives
+    the range and the worst vehicle, and stays one line."""
+    from orchestrator.cli.common import saturation_line
+    assert saturation_line("kalman", [0.0, 0.05, 0.1]) is None
+    few = saturation_line("kalman", [0.5, 0.05, 0.2])
+    assert "vehicle 1 50%, vehicle 3 20%" in few and "vehicle 2" not in few
+    many = saturation_line("kalman", [0.3] * 99 + [0.95])
+    assert "100 of 100 vehicles, 30% to 95% (the most: vehicle 100)" in many
+    assert "\n" not in many and len(many) < 250

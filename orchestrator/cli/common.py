@@ -119,6 +119,8 @@ def viewer_command() -> str:
 
 #: the share of the statistics window above which a design is said to live saturated
 SATURATION_NOTE = 0.10
+#: up to this many saturated vehicles are named one by one; more are counted
+SATURATION_LISTED = 6
 
 
 def saturation_line(method: str, per_vehicle: list[float] | None) -> str | None:
@@ -127,10 +129,16 @@ def saturation_line(method: str, per_vehicle: list[float] | None) -> str | None:
     over = [(i, f) for i, f in enumerate(per_vehicle or [], start=1) if f > SATURATION_NOTE]
     if not over:
         return None
+    if len(over) <= SATURATION_LISTED:
+        which = ", ".join(f"vehicle {i} {f:.0%}" for i, f in over)
+    else:                               # a fleet: how many, the range, the worst one
+        worst = max(over, key=lambda x: x[1])
+        which = (f"{len(over)} of {len(per_vehicle or [])} vehicles, "
+                 f"{min(f for _, f in over):.0%} to {worst[1]:.0%} "
+                 f"(the most: vehicle {worst[0]})")
     return (f"note: {method}: saturated more than {SATURATION_NOTE:.0%} of the statistics "
-            "window: " + ", ".join(f"vehicle {i} {f:.0%}" for i, f in over)
-            + " (the design asks more force than the vehicle gives: [design] force_budget "
-            "or bandwidth)")
+            f"window: {which} (the design asks more force than the vehicle gives: [design] "
+            "force_budget or bandwidth)")
 
 
 def print_summary(summary: dict, out: Path) -> int:
