@@ -154,7 +154,6 @@ def cmd_bench_startup(args: argparse.Namespace) -> int:
     r = benchmark_startup(sc)
     if _printed_as_json(args, r, f", median of {r['repeats']} rounds"):
         return 0
-    print(f"load average {r['loadavg'][0]:.2f} on {r['cpus']} CPUs; {r['steps']} steps")
     print(f"  auv-cosim run (subprocess, warm FMU cache)  {r['run_warm_s']:6.2f} s   "
           f"{r['ratio_run_to_reference_loop']:.2f}x the reference loop")
     if r["run_native_s"] is not None:
