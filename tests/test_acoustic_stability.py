@@ -123,6 +123,7 @@ def _dense_search(net: NetworkedLoop, tol: float) -> tuple[float, float, float]:
     return 0.5 * (lo + hi), lo, hi
 
 
+@pytest.mark.slow
 def test_the_spiral_leaders_critical_loss_equals_the_certificate_search(no_cache):
     """tests/data/spiral-leader-network.toml: at small losses a mode the links do not touch
     dominates (0.875 per cycle); the loss-driven one overtakes it near 0.7. Arnoldi
@@ -194,6 +195,7 @@ def _run(out, *extra, env=None):
     return r.stdout, json.loads((out / "summary.json").read_text())
 
 
+@pytest.mark.slow
 def test_predict_none_writes_nulls_and_a_note(tmp_path):
     stdout, summary = _run(tmp_path / "none", "--loss", "0.2", "--predict", "none",
                            env={"AUV_COSIM_PREDICTION_CACHE": "0"})
@@ -207,6 +209,7 @@ def test_predict_none_writes_nulls_and_a_note(tmp_path):
     assert "predicted" not in stdout.split("cost rate")[1].split("\n")[0]
 
 
+@pytest.mark.slow
 def test_a_second_run_takes_the_predictions_from_the_cache(tmp_path):
     """Three real runs with one cache folder: the second finds every prediction of the
     first (the same figures, no search announced); with another loss, a new search."""

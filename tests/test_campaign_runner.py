@@ -183,6 +183,7 @@ def test_a_second_campaign_into_the_same_folder_is_refused(tmp_path):
     assert not (out / "results.parquet").exists()
 
 
+@pytest.mark.slow
 def test_a_plain_run_does_not_import_dask(tmp_path):
     code = ("import sys; from orchestrator.cli import main; "
             f"rc = main(['run', '--T', '0.5', '--quiet', '--out', {str(tmp_path)!r}]); "
@@ -198,6 +199,7 @@ def test_a_plain_run_does_not_import_dask(tmp_path):
     assert res.stdout.strip() == "False", res.stderr
 
 
+@pytest.mark.slow
 def test_workers_started_after_a_pythonfmu_fmu_ran_here_import_the_project(tmp_path):
     """A pythonfmu FMU instantiated in this process leaves its resources folder (with the
     FMU's copy of the project's packages) in front of sys.path: pythonfmu never takes it

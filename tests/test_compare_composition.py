@@ -84,6 +84,7 @@ def test_formation_100_per_vehicle_native_equals_pythonfmu(tmp_path, capsys):
     assert mn["cost_rate"]["mean"] == pytest.approx(mp["cost_rate"]["mean"], rel=1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler (cc) for native FMUs")
 def test_compare_native_equals_pythonfmu_on_every_seed_and_method(tmp_path, capsys):
     """compare --fmus native: each method's own native FMUs, every seed's noise (not only

@@ -370,6 +370,7 @@ def simulate_per_vehicle(agents, laws, graph, path, h, mu, c, steps):
     return errs, s, eta, v
 
 
+@pytest.mark.slow
 def test_formation4_outputs_converge_to_leader_plus_offset():
     spec = formation4_spec()
     agents, graph, leader = agents_from_fleet_spec(spec)

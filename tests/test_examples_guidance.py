@@ -65,6 +65,7 @@ def exported_native(tmp_path_factory) -> Path:
     return out
 
 
+@pytest.mark.slow
 def test_the_native_export_ships_them_as_native_fmus_beside_its_system(exported_native):
     import zipfile
     for model in ("AuvGuidanceNative", "AuvAutopilotNative", "AuvVehicleControllerNative"):
@@ -109,6 +110,7 @@ def _hold(folder: Path, host: str) -> dict:
     return figures
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("host", HOSTS)
 def test_the_host_holds_the_straight_leader_within_3_m(exported, host):
     """200 s behind a leader at 2 m/s, launched 7.3 m off its place: after 100 s the
@@ -116,6 +118,7 @@ def test_the_host_holds_the_straight_leader_within_3_m(exported, host):
     _hold(exported, host)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("host", HOSTS)
 def test_the_host_runs_unchanged_on_the_native_fmus(exported, exported_native, host,
                                                     tmp_path):

@@ -226,6 +226,7 @@ def _last(formation, seconds):
     return round((formation.T - seconds) / formation.h)
 
 
+@pytest.mark.slow
 def test_formation4_regulator_reaches_every_formation_target(formation, noiseless_runs):
     out = noiseless_runs["regulator"]
     info = fleet_info(formation.fleet, formation.system)

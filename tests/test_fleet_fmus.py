@@ -55,6 +55,7 @@ def test_parameters_are_per_vehicle_graph_and_leader_quantities(fmus):
     assert "vehicle[1].current.sigma" in plant and "vehicle[1].current.sigma" not in ctrl
 
 
+@pytest.mark.slow
 def test_parameter_count_grows_linearly_with_the_fleet(tmp_path):
     counts = {}
     for N in (2, 6, 10):

@@ -30,6 +30,7 @@ def _seed_cost(args: tuple[str, int, int]) -> float:
                        k0)["cost_rate"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tracking", ["lq", "regulator"])
 def test_formation_4_cost_rate_agrees_with_the_lyapunov_prediction(tracking):
     """8 seeds of the full 600 s run; the prediction is the stationary Lyapunov part plus
@@ -51,6 +52,7 @@ def test_formation_4_cost_rate_agrees_with_the_lyapunov_prediction(tracking):
     assert 0.02 * pred.cost_rate < stochastic < 0.2 * pred.cost_rate
 
 
+@pytest.mark.slow
 def test_compare_writes_the_3d_view_and_per_vehicle_series(tmp_path, capsys):
     out = tmp_path / "f4"
     assert main(["compare", "--scenario", "formation-4", "--T", "60", "--seeds", "0",

@@ -145,6 +145,7 @@ def test_a_bad_limit_is_an_error_status_naming_it(built, value, fragment):
     assert fragment in str(exc.value)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("deployment", ["per-vehicle", "stacked"])
 def test_the_native_controllers_clip_as_the_pythonfmu_ones(tmp_path, deployment):
     """fmus = "native" with [design] u_max: the compiled controllers (role sat of
@@ -206,6 +207,7 @@ def _one_vehicle_loop(sc, parts, anti_windup: bool, umax: list[float], T_run: fl
     return np.linalg.norm(Z @ H.T + d - X[:, :3], axis=1), W
 
 
+@pytest.mark.slow
 def test_anti_windup_matters_after_a_saturating_transient(tmp_path):
     """Straight leader at 1.5 m/s; vehicle 1 starts 58 m off. Both reach 1 m at the same
     time (the same clipped force until then); afterwards the anti-windup loop stays within
@@ -261,6 +263,7 @@ def test_the_stacked_controller_clips_at_the_design_limit(tmp_path):
     assert np.mean(u == limit) > 0.05
 
 
+@pytest.mark.slow
 def test_a_run_with_a_force_limit_reports_and_says_so(tmp_path, capsys):
     """`auv-cosim run` (per-vehicle, distributed) with [design] u_max and a bandwidth
     target: summary.json holds the chosen R and the limits; the printout has the design

@@ -36,6 +36,7 @@ def golden():
         return {k: z[k] for k in z.files}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scenario", list(META["horizons"]))
 def test_master_reproduces_golden_traces(scenario, golden, built_scenario):
     # the goldens were recorded before the protocol form existed: fleets in the in-plant form

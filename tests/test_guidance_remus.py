@@ -10,6 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from orchestrator.interop.osp import export_osp
 from orchestrator.scenario import load_scenario
 
@@ -72,6 +74,7 @@ def _scenario_text(R: float) -> str:
     return text
 
 
+@pytest.mark.slow
 def test_the_slow_design_holds_the_remus_through_the_guidance_fmus(tmp_path):
     assert max_error_after_100s(tmp_path, 1.0) <= 3.0
 

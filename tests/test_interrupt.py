@@ -16,6 +16,7 @@ import pytest
 from orchestrator.recording import read_rrd_scalars
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_a_signal_keeps_what_was_simulated(tmp_path, sig, status):
     out = tmp_path / "run"
@@ -63,6 +64,7 @@ def test_an_uninterrupted_run_says_so(tmp_path):
     assert os.path.exists(summary["rrd"]["path"])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig, status", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
 def test_a_signal_while_the_rrd_is_written(tmp_path, sig, status):
     """The signal arrives while the .rrd is being written (its temporary file exists): the
@@ -93,6 +95,7 @@ def test_a_signal_while_the_rrd_is_written(tmp_path, sig, status):
     assert not [p for p in out.iterdir() if p.name.endswith(".part")]
 
 
+@pytest.mark.slow
 def test_a_signal_keeps_what_a_per_vehicle_run_simulated(tmp_path):
     """The same for 13 FMUs of the per-vehicle deployment: one line, the traces up to the
     stop in the .rrd (read back), the summary marked."""

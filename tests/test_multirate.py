@@ -35,6 +35,7 @@ def _loop(view, model, sensors, steps, seed=5, current_max=1.0):
     return np.array(errs), np.array(covs), kf
 
 
+@pytest.mark.slow
 def test_with_every_sensor_every_step_the_gain_is_the_riccati_one(vehicle):
     view, model = vehicle
     s = NavigationSensors(fix_period=0.01, dvl_period=0.01, depth_period=0.01,

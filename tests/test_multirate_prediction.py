@@ -41,6 +41,7 @@ def _rel(a, b):
     return float(np.abs(a - b).max() / max(np.abs(b).max(), 1e-300))
 
 
+@pytest.mark.slow
 def test_the_fmus_are_the_periodic_loop(tmp_path):
     """No dropouts: the estimator FMUs start on the periodic filter, so the co-simulation
     equals the periodic loop driven by the same draws, to 1e-9."""

@@ -39,6 +39,7 @@ def _assert_equal_traces(ref, got, rel=1e-12):
         assert np.abs(ref[key] - got[key]).max() <= rel * scale, key
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("estimator", ["kalman", "classical", "ideal"])
 @pytest.mark.parametrize("tracking", ["lq", "regulator"])
 def test_native_controller_and_estimator_equal_the_pythonfmu_loop(tmp_path, estimator,
@@ -58,6 +59,7 @@ def test_native_controller_and_estimator_equal_the_pythonfmu_loop(tmp_path, esti
 @pytest.mark.parametrize("architecture, estimator, tracking", [
     ("distributed", "kalman", "regulator"), ("distributed", "ideal", "lq"),
     ("centralized", "ideal", "lq")])
+@pytest.mark.slow
 def test_per_vehicle_native_controllers_and_estimators_equal_the_pythonfmu_loop(
         tmp_path, architecture, estimator, tracking):
     """formation-4 per vehicle: one native FMU per kind, each vehicle's own values as
@@ -76,6 +78,7 @@ def test_per_vehicle_native_controllers_and_estimators_equal_the_pythonfmu_loop(
     assert all(c.parameters for c in ctrl[1:])                # the others' own values
 
 
+@pytest.mark.slow
 def test_what_is_not_linear_stays_pythonfmu_and_the_rest_runs_native(tmp_path):
     """The nonlinear vehicle (and, with navigation sensors, the multi-rate estimator) have
     no native form: native_system keeps their pythonfmu FMUs; the native leader and
@@ -154,6 +157,7 @@ def test_the_all_native_loop_gives_the_predicted_cost(tmp_path):
     assert abs(costs.mean() - pred) < 4 * se, (costs.mean(), se, pred)
 
 
+@pytest.mark.slow
 def test_native_fmus_validate_and_ship_their_sources(f4_native, tmp_path):
     """fmpy validates the native FMUs clean (the vehicle controller's 900 variables take
     fmpy's full validation 9 s: its XML is checked against the FMI schema instead);
@@ -281,6 +285,7 @@ def test_native_fmus_load_from_awkward_resource_paths(f4_native, tmp_path, folde
     inst.close()
 
 
+@pytest.mark.slow
 def test_libcosim_and_fmpy_run_the_native_export(tmp_path):
     """`auv-cosim export native`: libcosim runs the OSP system bit-identically to our
     Jacobi master on the same native FMUs; fmpy's simulate_ssp runs the SSP archive."""
@@ -335,6 +340,7 @@ def _ecos_csv(path):
     return {h: data[:, j] for j, h in enumerate(head)}
 
 
+@pytest.mark.slow
 def test_ecos_runs_the_native_ssp_with_no_python(tmp_path):
     """The ecos engine (C++) runs the native SSP archive in a process with no Python and no
     PYTHON* variables or LD_PRELOAD: the plant's outputs equal our Jacobi master's on the
@@ -371,6 +377,7 @@ def _c_host_run(exe, sysfile, steps, h, out, valgrind=False):
     return subprocess.run(cmd, capture_output=True, text=True, env={}, timeout=600)
 
 
+@pytest.mark.slow
 def test_the_c_host_runs_the_all_native_system_like_our_master(tmp_path):
     """tests/c_host/c_host.c (libc, libdl; no Python, an empty environment) runs formation-4
     per vehicle, every FMU native, unzipped under a folder with a space, a percent sign and
@@ -404,6 +411,7 @@ def test_the_c_host_runs_the_all_native_system_like_our_master(tmp_path):
     assert "parameter A_eta[1,1] = nan is not finite" in r.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
 def test_the_native_fmus_load_run_and_unload_cleanly_under_valgrind(tmp_path):
     """The C host runs the paper's all-native loop under valgrind (memcheck, full leak

@@ -82,6 +82,7 @@ def fleet_links(tmp_path_factory):
     return _fleet(tmp_path_factory, links=True)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
 def test_the_compiled_master_equals_the_python_master_on_a_per_vehicle_fleet(fleet, coupling):
     """formation-4, per-vehicle, distributed, every FMU native (13 FMUs)."""
@@ -92,6 +93,7 @@ def test_the_compiled_master_equals_the_python_master_on_a_per_vehicle_fleet(fle
     _assert_identical(ref, got)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
 def test_with_acoustic_links_auto_runs_python_and_native_equals_it(fleet_links, coupling):
     """formation-4 with links (latency 1 s, period 2 s, loss 0.2): the network FMUs are
@@ -167,6 +169,7 @@ def _drain(fd: int) -> bytes:
 @pytest.mark.parametrize("options, T", [(["--fmus", "native"], 30000.0),
                                         (["--master", "native"], 3000.0)],
                          ids=["native-fmus", "pythonfmu-fmus"])
+@pytest.mark.slow
 def test_a_sigint_stops_the_compiled_master_and_keeps_what_it_simulated(tmp_path, options, T):
     """A real `auv-cosim run` in the compiled master (3,000,000 steps of native FMUs, or
     300,000 of the pythonfmu FMUs, which take the GIL in each call), standard error on a
@@ -205,6 +208,7 @@ def test_a_sigint_stops_the_compiled_master_and_keeps_what_it_simulated(tmp_path
     assert np.array_equal(k, np.arange(steps)) and np.all(np.isfinite(e1))
 
 
+@pytest.mark.slow
 def test_compare_over_seeds_gives_the_same_statistics_in_both_masters(tmp_path):
     """`compare --fmus native` over 3 seeds, once per master: every seed's cost rate is the
     same float and summary.json's ``master`` names the master that ran."""

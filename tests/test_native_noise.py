@@ -126,6 +126,7 @@ def _assert_native_equals_pythonfmu(sc, tmp_path, kinds=None, seed=None):
     return ref, ns
 
 
+@pytest.mark.slow
 def test_the_all_native_paper_loop_equals_the_pythonfmu_loop(tmp_path):
     """The paper's loop, every FMU native (the plant too), equals the all-pythonfmu loop to
     1e-12 of each signal's scale; with the plant's seed set by the host (7) as well."""
@@ -137,6 +138,7 @@ def test_the_all_native_paper_loop_equals_the_pythonfmu_loop(tmp_path):
     assert not np.array_equal(other["y"], ref["y"])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("architecture, seed", [("distributed", None), ("centralized", 5)])
 def test_the_all_native_per_vehicle_loop_equals_the_pythonfmu_loop(tmp_path, architecture,
                                                                      seed):
@@ -150,6 +152,7 @@ def test_the_all_native_per_vehicle_loop_equals_the_pythonfmu_loop(tmp_path, arc
     assert ns.forms["leader"].stream == 0
 
 
+@pytest.mark.slow
 def test_the_native_stacked_fleet_plant_draws_its_five_streams(tmp_path):
     """formation-4 stacked: the native plant's five streams with the pythonfmu estimator
     and controller equal the all-pythonfmu loop to 1e-12."""

@@ -31,6 +31,7 @@ def _scenario(architecture, receiver="propagate", schedule=None, **run):
 @pytest.mark.parametrize("architecture, receiver, schedule", [
     ("distributed", "propagate", None), ("distributed", "hold", None),
     ("centralized", "propagate", None), ("distributed", "propagate", HALVES)])
+@pytest.mark.slow
 def test_the_network_fmus_reproduce_the_monolithic_loop(tmp_path, architecture, receiver,
                                                         schedule):
     """1 + 4 N FMUs (leader; vehicle, estimator, controller, network per AUV) equal the
@@ -59,6 +60,7 @@ def test_the_network_fmus_reproduce_the_monolithic_loop(tmp_path, architecture, 
     assert sum(c.fmu == "network" for c in system.components) == 4
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("architecture", ["distributed", "centralized"])
 def test_libcosim_runs_the_networked_export_like_our_jacobi_master(tmp_path, architecture):
     pytest.importorskip("libcosimpy")
@@ -81,6 +83,7 @@ def test_libcosim_runs_the_networked_export_like_our_jacobi_master(tmp_path, arc
     assert lc["traces"]["network_4.link[1].delivered"][-1, 0] >= 1
 
 
+@pytest.mark.slow
 def test_the_summary_reports_the_network_and_the_age_of_information(tmp_path):
     out = tmp_path / "run"
     r = subprocess.run([sys.executable, "-m", "orchestrator", "run", "--scenario",
@@ -133,6 +136,7 @@ down = [[1, 2], [2, 4]]
 """
 
 
+@pytest.mark.slow
 def test_a_scenario_file_with_a_schedule_reports_joint_connectivity_and_the_verdict(tmp_path):
     """formation-4's file with a switching [network] appended, through the CLI: the summary
     says that neither graph reaches every vehicle, their union does, and gives the
@@ -200,6 +204,7 @@ def test_the_cli_refuses_a_bad_loss_in_one_line(tmp_path):
     assert not (tmp_path / "x").exists()
 
 
+@pytest.mark.slow
 def test_an_ssp_archive_with_the_network_runs_in_fmpy(tmp_path):
     """fmpy's simulate_ssp runs the per-vehicle system with its 4 network FMUs, each with
     its own parameter set: every link's deliveries and losses (its own loss stream, not
@@ -227,6 +232,7 @@ def test_an_ssp_archive_with_the_network_runs_in_fmpy(tmp_path):
     assert lost > 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("architecture", ["distributed", "centralized"])
 def test_a_modem_range_loses_what_is_sent_out_of_range(tmp_path, architecture):
     """[network] range = 14.5 m on formation-4 (10 m offsets: neighbours 14.1 m apart in
@@ -257,6 +263,7 @@ def test_a_modem_range_loses_what_is_sent_out_of_range(tmp_path, architecture):
     assert pred.cost_rate is None and "modem range" in pred.reason
 
 
+@pytest.mark.slow
 def test_a_long_latency_at_a_message_every_step_is_not_predicted_and_does_not_crash(tmp_path):
     """latency 5 s with a message every step h = 0.01: 500 messages in flight per link,
     32233 states. The run works; the prediction is refused by its estimated work, said in

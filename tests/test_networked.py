@@ -203,6 +203,7 @@ def test_a_jointly_connected_schedule_predicted_and_simulated(f4):
     assert held[1] > 2.0 * held[0]
 
 
+@pytest.mark.slow
 def test_joint_connectivity_is_not_sufficient():
     """The spiral leader (growth 0.05 1/s) heard for 2 s in every 20 s over links losing
     half the messages: every vehicle hears the leader's information in the union of the

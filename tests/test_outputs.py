@@ -73,6 +73,7 @@ def _cli(*args: str) -> subprocess.Popen:
     ("run", "--T", "1", "--quiet"), ("compare", "--T", "1", "--seeds", "0", "--quiet"),
     ("build", "--no-crosscheck"),
 ])
+@pytest.mark.slow
 def test_two_real_writers_into_one_folder(tmp_path, second):
     """A long `run` holds the folder; a second command into it is refused in one line with
     exit status 2, and the first one finishes with its own files intact."""

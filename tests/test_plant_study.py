@@ -5,12 +5,15 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from orchestrator.cli import main
 from support.cli import assert_one_line_error
 
 BUILTIN = Path(__file__).parent.parent / "orchestrator/scenario/builtin/formation-4.toml"
 
 
+@pytest.mark.slow
 def test_compare_plants_reports_errors_by_segment_and_saturation(tmp_path, capsys):
     out = tmp_path / "plants"
     assert main(["compare", "--scenario", "formation-4", "--deployment", "per-vehicle",

@@ -27,6 +27,7 @@ def test_at_low_frequency_the_nonlinear_vehicle_responds_like_the_linear_model(a
     assert high["phase_difference"] < -math.radians(20)
 
 
+@pytest.mark.slow
 def test_the_fitted_model_is_the_least_squares_fit_and_fits_better():
     """remus100-fitted's numbers are re-derived here (within 0.5 %), and its response is
     closer to the nonlinear vehicle's than remus100's over the fitted band, on every axis

@@ -3,9 +3,12 @@ from __future__ import annotations
 
 import os
 
+import pytest
+
 from orchestrator.running import seeds, simulate
 
 
+@pytest.mark.slow
 def test_seeds_on_worker_processes_give_the_serial_summary(paper, tmp_path, monkeypatch):
     sc = paper.with_run(T=2.0)
     monkeypatch.setattr(seeds, "MIN_PARALLEL_STEPS", 0)
@@ -39,6 +42,7 @@ def test_not_worth_it_runs_serially():
         assert pool is None
 
 
+@pytest.mark.slow
 def test_per_vehicle_seeds_on_worker_processes_give_the_serial_summary(tmp_path, monkeypatch):
     """The per-vehicle deployment over acoustic links goes through the same seed workers
     (the system of each seed made here, run there) and gives the serial figures."""

@@ -32,6 +32,7 @@ def _scenario(tmp_path, model="remus100-6dof", extra=SENSORS, per_vehicle=True):
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["remus100", "remus100-6dof"])
 def test_the_estimator_fmu_is_the_multirate_filter_on_the_vehicle_reports(tmp_path, model):
     sc = load_scenario(_scenario(tmp_path, model)).with_run(T=8.0)
@@ -83,6 +84,7 @@ def test_sensors_are_refused_where_they_cannot_be(tmp_path, capsys):
                              NavigationSensors())
 
 
+@pytest.mark.slow
 def test_a_run_with_sensors_says_there_is_no_prediction(tmp_path):
     out = tmp_path / "run"
     assert main(["run", "--scenario", str(_scenario(tmp_path, "remus100")), "--T", "20",

@@ -122,6 +122,7 @@ def test_choose_weight_refuses_what_it_cannot_do():
         choose_weight(lambda r: 1.0, lambda r: 1.0 / (1.0 + r), force_budget=1e-9)
 
 
+@pytest.mark.slow
 def test_remus_limits_follow_the_vehicle_data():
     """Simulated, not written down: the default REMUS tops out near its published 2.5 m/s
     and turns the 34.3 m diameter of docs/remus100-6dof.md (15 deg fins); fins of 30 deg

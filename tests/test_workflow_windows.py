@@ -15,6 +15,7 @@ def _summary(out):
     return json.loads((out / "summary.json").read_text())
 
 
+@pytest.mark.slow
 def test_short_runs_match_the_window_prediction_not_the_stationary_one(tmp_path, capsys):
     """40 seeds of 5 s (window [2.5, 5) s, inside the 33 s transient): the mean cost rate
     agrees with the transient-inclusive prediction within 3 standard errors and is far
@@ -33,6 +34,7 @@ def test_short_runs_match_the_window_prediction_not_the_stationary_one(tmp_path,
     assert c["predicted_window"] < c["predicted"]
 
 
+@pytest.mark.slow
 def test_a_long_run_is_stationary(tmp_path, capsys):
     out = tmp_path / "long"
     assert main(["run", "--T", "120", "--quiet", "--out", str(out)]) == 0
@@ -43,6 +45,7 @@ def test_a_long_run_is_stationary(tmp_path, capsys):
     assert "note:" not in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_compare_skips_an_impossible_mode_and_runs_the_others(tmp_path, capsys):
     out = tmp_path / "fleet"
     assert main(["compare", "--scenario", "formation-4", "--what", "estimators", "--T", "4",
