@@ -140,7 +140,9 @@ def guidance_configs(sc: Scenario) -> dict[str, dict[str, Any]]:
     """The configurations of ``AuvGuidance`` and ``AuvAutopilot`` for a scenario whose
     vehicles are REMUS 100s (family ``remus100``, NED layout), else none: vehicle 1's
     design model (M, D per NED axis), its start (depth, velocity through the water
-    x0[3:6] - w0, its course) and autopilot gains as start values (docs/guidance.md).
+    x0[3:6] - w0, its course) and autopilot gains as start values (docs/guidance.md;
+    :func:`orchestrator.cosim.guided.stack_configs`, which configures every vehicle's
+    guidance FMUs of a ``remus100-6dof-guided`` fleet).
 
     Parameters
     ----------
@@ -151,27 +153,18 @@ def guidance_configs(sc: Scenario) -> dict[str, dict[str, Any]]:
     dict[str, dict[str, Any]]
         {} or {'guidance': config, 'autopilot': config} (keys of FMU_KINDS).
     """
-    import math
-
     from plant_model.fleet import fleet_vehicles
     from plant_model.per_vehicle import vehicle_views
     from plant_model.vehicle_models import find
+
+    from ..cosim.guided import stack_configs
     if sc.fleet is None:
         return {}
     models = fleet_vehicles(sc.fleet)
     entries = [find(m.name) for m in models]
     if any(e is None or e.family != "remus100" or e.layout != "ned" for e in entries):
         return {}
-    par = models[0].parameters
-    view = vehicle_views(sc.fleet)[0]
-    v0 = np.asarray(view.x0, float)[3:6] - np.asarray(view.w0, float)[:3]
-    base = {"dims": {}, "h": float(sc.h), "T": float(sc.T), "seed": int(sc.seed)}
-    guidance = {"M": [float(v) for v in par["total_mass"]],
-                "D": [float(v) for v in par["damping"]], "v_ref0": v0.tolist(),
-                "depth0": float(view.x0[2]),
-                "course0": float(math.atan2(v0[1], v0[0]))}
-    return {"guidance": dict(base, guidance=guidance),
-            "autopilot": dict(base, autopilot=dict(par.get("autopilot", {})))}
+    return stack_configs(models[0], vehicle_views(sc.fleet)[0], sc.h, sc.T, sc.seed)
 
 
 def fmu_readme(sc: Scenario) -> str:
