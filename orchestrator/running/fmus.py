@@ -38,6 +38,7 @@ host must load libpython, see the README), so each FMU declares
 | `AuvController` | Python 3.11+, numpy, scipy (Riccati, Sylvester); networkx for fleet FMUs |
 | `AuvNetwork` (per-vehicle fleets over acoustic links, docs/network.md) | Python 3.11+, numpy |
 | `AuvRemus6dof` (nonlinear REMUS 100) | Python 3.11+, numpy, scipy; numba if present |
+| `AuvRemus6dofActuated` (the same, commands in) | Python 3.11+, numpy, scipy; numba if present |
 
 pythonfmu itself and this project's modules travel inside each FMU (`resources/`).
 All three support fmi2Get/SetFMUstate and fmi2Serialize/DeSerializeFMUstate.
@@ -69,7 +70,10 @@ instead: `AuvLeader`, `AuvVehicle`, `AuvVehicleEstimator` and `AuvVehicleControl
 `remus100-6dof` is an `AuvRemus6dof` in place of `AuvVehicle`: the same input `u` and
 outputs `y`, `x`, `w`, plus `attitude`, `rpm`, `rudder`, `stern` and `saturated`; with
 `[sensors] kind = "remus"` both vehicle FMUs also output `nav` (acoustic fix, DVL, depth,
-valid flags), which the estimator reads in place of `y`.
+valid flags), which the estimator reads in place of `y`. A vehicle of model
+`remus100-6dof-guided` is three FMUs: `AuvGuidance` -> `AuvAutopilot` ->
+`AuvRemus6dofActuated` (inputs `rpm_command`, `rudder_command`, `stern_command`; the
+outputs of `AuvRemus6dof` plus `velocity`, `rates`, `depth`; docs/guidance.md).
 
 Native FMUs, no Python needed (`auv-cosim export native`, docs/native.md): once designed,
 every FMU but `AuvNetwork`, `AuvRemus6dof` and the guidance interface (`AuvGuidance`,
