@@ -209,3 +209,23 @@ def test_fmu_state_round_trips(actuated):
     inst.slave.freeFMUstate(state)
     inst.slave.setFMUstate(inst.slave.deSerializeFMUstate(blob))
     assert np.array_equal(_get(inst, OUT), before)
+
+
+def test_the_osp_and_ssp_exports_carry_the_three_fmus_and_their_wiring(tmp_path):
+    import zipfile
+    path = _scenario(tmp_path)
+    for what in ("osp", "ssp"):
+        assert main(["export", what, "--scenario", str(path), "--deployment", "per-vehicle",
+                     "--architecture", "distributed", "--out", str(tmp_path / what)]) == 0
+    osp = (tmp_path / "osp" / "OspSystemStructure.xml").read_text()
+    for name in ("AuvGuidance.fmu", "AuvAutopilot.fmu", "AuvRemus6dofActuated.fmu"):
+        assert (tmp_path / "osp" / name).exists() and name in osp
+    (ssp,) = (tmp_path / "ssp").glob("*.ssp")
+    with zipfile.ZipFile(ssp) as z:
+        ssd = z.read("SystemStructure.ssd").decode()
+        assert {"resources/AuvGuidance.fmu", "resources/AuvAutopilot.fmu",
+                "resources/AuvRemus6dofActuated.fmu"} <= set(z.namelist())
+    for text in (osp, ssd):
+        for i in range(1, 5):
+            assert f"guidance_{i}" in text and f"autopilot_{i}" in text
+        assert "rpm_command" in text and "measured_depth" in text and "course_rate" in text
