@@ -6,8 +6,14 @@ from a parameter table (:func:`make_vehicle` dispatches through it), which param
 accepts and which it makes explicit in a resolved fleet spec, its state layout, whether it is
 nonlinear (its own vehicle FMU, per-vehicle deployment only) and which per-vehicle FMU kind
 (:data:`orchestrator.cosim.build.FMU_KINDS`) runs it, whether it has a native (linear) form,
-and its family and linear design counterpart (``compare --what plants`` runs the linear and
-the nonlinear models of one family, :func:`plants_of`).
+its family and linear design counterpart (``compare --what plants`` runs the linear and
+the nonlinear models of one family, :func:`plants_of`), and the FMU kinds that stand between
+the formation controller and its vehicle FMU (``stack``: none, the vehicle takes the force;
+``("guidance", "autopilot")`` for ``remus100-6dof-guided``, whose vehicle FMU takes
+actuator commands from an ``AuvAutopilot`` fed by an ``AuvGuidance``, docs/guidance.md).
+A model that flies another model's vehicle through another stack names it
+(``variant_of``): it shares that model's parameters and limits, and ``plants_of`` leaves
+it out.
 
 A new model is one module (its constructor from parameters) and one entry of
 :data:`REGISTRY`. Code outside a model's own module asks the registry (:func:`get`,
@@ -16,7 +22,7 @@ A new model is one module (its constructor from parameters) and one entry of
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -37,7 +43,7 @@ from .vehicles import (
 )
 
 __all__ = ["LAYOUTS", "REGISTRY", "VEHICLE_MODELS", "ModelEntry", "family_of", "find", "get",
-           "listed_params", "make_vehicle", "plants_of"]
+           "listed_params", "make_vehicle", "plants_of", "vehicle_of"]
 
 #: state layouts: ``ned`` x = [n, e, d, v_n, v_e, v_d] (m, m/s), NED forces in (N), NED
 #: positions out (the leader's position and velocity are a vehicle's target, navigation
@@ -63,12 +69,20 @@ class ModelEntry:
     native: bool = True                             #: has a native (linear) FMU form
     #: a nonlinear model's linear design counterpart (the model its family compares it with)
     design: str | None = None
+    #: the per-vehicle FMU kinds between the controller's force and the vehicle FMU, in
+    #: signal order (keys of orchestrator.cosim.build.FMU_KINDS); () the vehicle takes u
+    stack: tuple[str, ...] = ()
+    #: the model whose vehicle (and parameters) this one flies through its own stack
+    variant_of: str | None = None
 
     def __post_init__(self) -> None:
         if self.layout not in LAYOUTS:
             raise ValueError(f"{self.name}: layout {self.layout!r} is not one of {LAYOUTS}")
         if self.nonlinear and self.design is None:
             raise ValueError(f"{self.name}: a nonlinear model needs its linear design model")
+        if self.stack and not self.nonlinear:
+            raise ValueError(f"{self.name}: a stack between controller and vehicle needs a "
+                             "nonlinear vehicle FMU")
 
 
 def listed_params(keys: tuple[str, ...]) -> Callable[[VehicleModel], dict[str, Any]]:
@@ -79,6 +93,14 @@ def listed_params(keys: tuple[str, ...]) -> Callable[[VehicleModel], dict[str, A
                     else getattr(model, k).tolist())
                 for k in keys}
     return explicit
+
+
+def _guided(build: Callable[[Mapping[str, Any]], VehicleModel]
+            ) -> Callable[[Mapping[str, Any]], VehicleModel]:
+    """``build``, its model named ``remus100-6dof-guided``."""
+    def guided(params: Mapping[str, Any]) -> VehicleModel:
+        return replace(build(params), name="remus100-6dof-guided")
+    return guided
 
 
 REGISTRY: dict[str, ModelEntry] = {e.name: e for e in (
@@ -98,6 +120,14 @@ REGISTRY: dict[str, ModelEntry] = {e.name: e for e in (
     ModelEntry("generic", "any linear model A, B1, B2, C (plant_model.vehicles.generic)",
                generic_from_params, GENERIC_PARAMS, listed_params(GENERIC_PARAMS),
                family="generic", layout="outputs"),
+    ModelEntry("remus100-6dof-guided", "remus100-6dof's vehicle and parameters flown through "
+               "the guidance FMUs: force -> AuvGuidance -> AuvAutopilot -> the vehicle's "
+               "actuators, per-vehicle deployment only (docs/guidance.md)",
+               _guided(remus100_6dof_design), REMUS100_6DOF_PARAMS,
+               remus100_6dof_explicit_params, family="remus100", layout="ned",
+               nonlinear=True, fmu_kind="remus6dof_actuated", native=False,
+               design="remus100", stack=("guidance", "autopilot"),
+               variant_of="remus100-6dof"),
 )}
 
 #: the model names, in the registry's order
@@ -130,12 +160,20 @@ def family_of(name: Any) -> str | None:
     return None if entry is None else entry.family
 
 
+def vehicle_of(name: Any) -> str | None:
+    """The model whose vehicle model ``name`` flies: its ``variant_of``, else itself (None
+    for an unknown name); e.g. "remus100-6dof" for "remus100-6dof-guided"."""
+    entry = find(name)
+    return None if entry is None else entry.variant_of or entry.name
+
+
 def plants_of(family: str) -> tuple[str, ...]:
     """The models ``compare --what plants`` runs for ``family``: each nonlinear model of the
-    family after its linear design model, e.g. ("remus100", "remus100-6dof")."""
+    family (not a variant of another) after its linear design model, e.g. ("remus100",
+    "remus100-6dof")."""
     out: list[str] = []
     for e in REGISTRY.values():
-        if e.family == family and e.nonlinear:
+        if e.family == family and e.nonlinear and e.variant_of is None:
             out += [n for n in (e.design, e.name) if n not in out]
     return tuple(out)
 
@@ -151,8 +189,8 @@ def make_vehicle(model: str, params: Mapping[str, Any], where: str) -> VehicleMo
         The model's parameters (:attr:`ModelEntry.params`): the keyword arguments of
         :func:`plant_model.vehicles.remus100` (all optional) or of
         :func:`plant_model.vehicles.generic` (all required), those of
-        :func:`plant_model.remus100.models.remus100_6dof_design`, none for
-        ``remus100-fitted``.
+        :func:`plant_model.remus100.models.remus100_6dof_design` (also for
+        ``remus100-6dof-guided``), none for ``remus100-fitted``.
     where : str
         Prefix of every error message (e.g. "vehicle 3").
 

@@ -1,6 +1,6 @@
 """The composition matrix: formation-4 at a short horizon, every combination of deployment
 {stacked, per-vehicle centralized, per-vehicle distributed} x links {none, latency + loss} x
-vehicle {remus100, remus100-6dof} x FMUs {python, native}, through `auv-cosim run`. Each cell
+vehicle {remus100, remus100-6dof, remus100-6dof-guided} x FMUs {python, native}, through `auv-cosim run`. Each cell
 either runs (finite figures, a .rrd that reads back with the expected entities, native equal
 to python where both run) or is refused before anything is written, in one line naming the
 combination and why. docs/composition.md holds the table this test checks."""
@@ -22,11 +22,14 @@ DEPLOYMENTS = {"stacked": ["--deployment", "stacked"],
                "centralized": ["--deployment", "per-vehicle", "--architecture", "centralized"],
                "distributed": ["--deployment", "per-vehicle", "--architecture", "distributed"]}
 LINKS = {"none": [], "links": ["--latency", "0.5", "--period", "1.0", "--loss", "0.2"]}
-VEHICLES = ("remus100", "remus100-6dof")
+VEHICLES = ("remus100", "remus100-6dof", "remus100-6dof-guided")
 FMUS = ("python", "native")
 #: cells refused, with what the one line must say
 REFUSED = {("stacked", "links"): "[network] needs [simulation] deployment = \"per-vehicle\"",
-           ("stacked", "remus100-6dof"): "needs [simulation] deployment = \"per-vehicle\""}
+           ("stacked", "remus100-6dof"): "needs [simulation] deployment = \"per-vehicle\"",
+           ("stacked", "remus100-6dof-guided"): "needs [simulation] deployment = \"per-vehicle\""}
+#: the FMU kinds that stay pythonfmu with --fmus native
+PYTHON_ONLY = ("network", "remus6dof", "remus6dof_actuated")
 T = "2.0"
 
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler (cc) for the "
@@ -91,17 +94,22 @@ def test_every_cell_runs_or_is_refused_in_one_line(scenarios, runs, tmp_path, ca
     kinds = {k: e["kind"] for k, e in summary["fmus"].items()}
     if fmus == "python":
         assert set(kinds.values()) == {"python"}
-    else:       # native where a component is linear; the network and 6-DOF vehicle stay
-        assert "native" in kinds.values()
-        assert all(v == "python" for k, v in kinds.items() if k in ("network", "remus6dof"))
+    else:       # native where a component is linear or a guidance FMU; the network and the
+        assert "native" in kinds.values()             # 6-DOF vehicles stay pythonfmu
+        assert all(v == "python" for k, v in kinds.items() if k in PYTHON_ONLY)
+        if vehicle == "remus100-6dof-guided":
+            assert kinds["guidance"] == kinds["autopilot"] == "native"
     scalars = read_rrd_scalars(out / f"{summary['scenario']}.rrd")
     for i in range(1, 5):
         assert any(e.startswith(f"vehicles/{i}/error/") for e in scalars), i
     if links == "links":
         assert "network" in m and m["network"]["loss"] == 0.2
         assert any("link" in e for e in scalars)
-    if vehicle == "remus100-6dof":
+    if vehicle != "remus100":
         assert any("/propeller/" in e for e in scalars)
+    if vehicle == "remus100-6dof-guided":       # guidance -> autopilot -> actuated vehicle
+        assert {"guidance", "autopilot", "remus6dof_actuated"} <= set(kinds)
+        assert all(f"vehicles/{i}/setpoint/kalman" in scalars for i in range(1, 5))
     runs[(dep, links, vehicle, fmus)] = (out, scalars, m)
     if fmus == "native" and (dep, links, vehicle, "python") in runs:
         _, ref, mref = runs[(dep, links, vehicle, "python")]

@@ -36,7 +36,7 @@ from plant_model.fleet import fleet_vehicles
 from plant_model.linalg_checks import ModelError
 from plant_model.path_feasibility import Finding, finding_lines, path_findings
 from plant_model.remus100.limits import VehicleLimits
-from plant_model.vehicle_models import get
+from plant_model.vehicle_models import get, vehicle_of
 from plant_model.vehicles import REMUS100_MAX_SPEED, VehicleModel
 
 from .distributed import Agent, agents_from_fleet_spec, sample_agent
@@ -49,7 +49,7 @@ def vehicle_limits(model: VehicleModel, options: Mapping[str, Any]) -> VehicleLi
     """The limits of one vehicle (module docstring, item 1); [design] max_speed,
     min_turn_radius, max_depth_rate override what the model gives."""
     given = {k: options.get(k) for k in ("max_speed", "min_turn_radius", "max_depth_rate")}
-    if model.name == "remus100-6dof":
+    if vehicle_of(model.name) == "remus100-6dof":       # and the variants that fly it
         from plant_model.remus100.limits import remus_limits
         from plant_model.remus100.models import remus_from_parameters
         lim = remus_limits(remus_from_parameters(dict(model.parameters["nonlinear"])))
@@ -78,7 +78,7 @@ def vehicle_band(models: Sequence[VehicleModel]) -> float:
     """
     bands = []
     for mdl in models:
-        if mdl.name != "remus100-6dof":
+        if vehicle_of(mdl.name) != "remus100-6dof":
             raise ModelError(f"[design] bandwidth = \"vehicle\" needs nonlinear vehicles "
                              f"(remus100-6dof); a {mdl.name!r} vehicle is its own design model: "
                              "give the bandwidth in rad/s")

@@ -65,6 +65,12 @@ FMU_KINDS: dict[str, FmuKind] = {
                        ("plant_model", "fmu_common"), "auv_vehicle_config.json", False),
     "remus6dof": FmuKind("AuvRemus6dof", "plant_model.remus100.auv_remus6dof_slave",
                          ("plant_model", "fmu_common"), "auv_remus6dof_config.json", False),
+    # the same vehicle driven by actuator commands (remus100-6dof-guided: AuvGuidance ->
+    # AuvAutopilot -> it; orchestrator.cosim.guided)
+    "remus6dof_actuated": FmuKind("AuvRemus6dofActuated",
+                                  "plant_model.remus100.auv_remus6dof_actuated_slave",
+                                  ("plant_model", "fmu_common"),
+                                  "auv_remus6dof_actuated_config.json", False),
     "leader": FmuKind("AuvLeader", "plant_model.auv_leader_slave",
                       ("plant_model", "fmu_common"), "auv_leader_config.json", False),
     "vehicle_estimator": FmuKind("AuvVehicleEstimator", "estimator_fmu.auv_vehicle_estimator_slave",
@@ -81,8 +87,8 @@ FMU_KINDS: dict[str, FmuKind] = {
     # one vehicle's acoustic inbox (plant_model.acoustic: links, inbox)
     "network": FmuKind("AuvNetwork", "plant_model.acoustic.auv_network_slave",
                        ("plant_model", "fmu_common"), "auv_network_config.json", False),
-    # the guidance interface for a host's own vehicle (docs/guidance.md): standalone
-    # components, not wired into the scenario's system
+    # the guidance interface (docs/guidance.md): beside the system for a host's own
+    # vehicle, and in it for remus100-6dof-guided vehicles
     "guidance": FmuKind("AuvGuidance", "controller_fmu.auv_guidance_slave",
                         ("controller_fmu", "plant_model", "fmu_common"),
                         "auv_guidance_config.json", True),
@@ -90,7 +96,8 @@ FMU_KINDS: dict[str, FmuKind] = {
                          ("plant_model", "fmu_common"), "auv_autopilot_config.json", True),
 }
 
-#: the FMUs built beside a scenario's system for a host's own vehicle stack
+#: the guidance interface: built beside a scenario's system for a host's own vehicle stack,
+#: and per vehicle in it for a model whose ``stack`` names them
 GUIDANCE_KINDS = ("guidance", "autopilot")
 
 #: the FMUs of the stacked deployment (one plant, one estimator, one controller)

@@ -39,6 +39,7 @@ from lxml import etree
 from fmu_common.interface import ArraySpec, element_names
 from fmu_common.native_form import NativeForm
 from plant_model.linalg_checks import ModelError
+from plant_model.vehicle_models import REGISTRY
 
 from .build import FMU_KINDS, GUIDANCE_KINDS, patch_model_description
 from .native_build import (
@@ -51,15 +52,19 @@ from .native_build import (
 )
 from .system import SystemDescription
 
-__all__ = ["CFLAGS", "LINEAR_KINDS", "NATIVE_KINDS", "NativeBuildError", "NativeSystem",
+__all__ = ["CFLAGS", "LINEAR_KINDS", "NATIVE_KINDS", "NONLINEAR_VEHICLE_KINDS", "NativeBuildError",
+           "NativeSystem",
            "build_native_fmu", "compile_fmu", "compiler", "form_of", "native_model",
            "native_parameters", "native_specs", "native_system"]
 
+#: the vehicle FMU kinds of the nonlinear models (the registry's)
+NONLINEAR_VEHICLE_KINDS = tuple(dict.fromkeys(e.fmu_kind for e in REGISTRY.values()
+                                              if e.nonlinear))
 #: the kinds whose FMUs are linear once designed, compiled from their linear form (the
 #: network, the nonlinear vehicle and the guidance interface are not; with navigation
 #: sensors the vehicle and estimator FMUs are not either)
 LINEAR_KINDS = tuple(k for k in FMU_KINDS
-                     if k not in ("network", "remus6dof", *GUIDANCE_KINDS))
+                     if k not in ("network", *NONLINEAR_VEHICLE_KINDS, *GUIDANCE_KINDS))
 #: the kinds that have a native (C) FMU: the linear ones, and the guidance interface
 #: (AuvGuidance, AuvAutopilot: a C model each, orchestrator.cosim.native_guidance); the
 #: network and the nonlinear vehicle stay pythonfmu
@@ -303,6 +308,8 @@ class NativeSystem:
     system: SystemDescription            #: the same wiring, native interfaces and parameters
     fmus: dict[str, Path]                #: FMU key -> .fmu (native, or pythonfmu: network)
     forms: dict[str, NativeForm]         #: component -> its linear form
+    #: the FMU keys whose FMU is native (the linear forms' and the guidance interface's)
+    native_keys: frozenset[str] = frozenset()
 
 
 def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: Path | str,
@@ -332,7 +339,8 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
         If two components of one kind have forms of different shapes (named).
     """
     forms: dict[str, NativeForm] = {}
-    for kind in dict.fromkeys(c.fmu for c in system.components if c.fmu in kinds):
+    for kind in dict.fromkeys(c.fmu for c in system.components
+                              if c.fmu in kinds and c.fmu in LINEAR_KINDS):
         try:
             forms.update({c.name: form_of(c.fmu, Path(fmus[c.fmu]), c.parameters)
                           for c in system.components if c.fmu == kind})
@@ -352,7 +360,9 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
         raise NativeBuildError("; ".join(problems))
     built = {k: build_native_fmu(f, native_model(k), out_dir, system.T, system.h)
              for k, f in base.items()}
-    # the guidance interface beside the system (REMUS 100 scenarios): its C models
+    # the guidance interface beside the system (REMUS 100 scenarios) or in it (vehicles
+    # flown through it): its C models, the same variables, so components keep their
+    # interface and parameters
     from .native_guidance import native_guidance_fmu
     built.update({k: native_guidance_fmu(k, fmus[k], out_dir) for k in GUIDANCE_KINDS
                   if k in fmus and k in kinds})
@@ -366,7 +376,7 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
     paths = {k: Path(v) for k, v in fmus.items()}
     paths.update(built)
     return NativeSystem(system=dataclasses.replace(system, components=comps, connections=conns),
-                        fmus=paths, forms=forms)
+                        fmus=paths, forms=forms, native_keys=frozenset(built))
 
 
 def _shape(f: NativeForm) -> tuple[Any, ...]:

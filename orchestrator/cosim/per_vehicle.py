@@ -19,6 +19,10 @@ Every input is connected, as SSP and OSP hosts expect: an unused neighbour slot 
 and the leader input of a vehicle that is not pinned (a0 = 0) are fed from the vehicle's
 own controller (its eta and eps), which they do not weigh.
 
+A vehicle whose model names a ``stack`` in the registry (``remus100-6dof-guided``) has its
+force go through those FMUs, ``guidance_i`` and ``autopilot_i``, to a vehicle FMU that
+takes actuator commands (:mod:`orchestrator.cosim.guided`); its estimator still takes u.
+
 :func:`stacked_traces` puts the per-vehicle traces back into the stacked layout (y, x, w,
 z, e, u, xhat, what of the fleet; e_i = H_l z_l + d_i - C_i x_i from the truth), so the
 statistics, formation figures and recording of the stacked deployment apply unchanged.
@@ -42,9 +46,10 @@ from plant_model.acoustic.links import link_sender
 from plant_model.fleet import fleet_graph, fleet_vehicles
 from plant_model.per_vehicle import leader_system, vehicle_views
 from plant_model.system import LinearSystem
-from plant_model.vehicle_models import get
+from plant_model.vehicle_models import REGISTRY, get
 
 from .build import FMU_KINDS, interface_of
+from .guided import setpoint_traces, stack_configs, stack_connections
 from .per_vehicle_network import network_connections
 from .system import Component, Connection, SystemDescription, component_parameters
 
@@ -139,9 +144,11 @@ def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tra
     Returns
     -------
     list[dict[str, dict[str, Any]]]
-        Index 0 the leader's {'leader': config}, then per vehicle {'vehicle', 'vehicle_estimator',
-        'vehicle_controller' | 'central_controller', and 'network' over acoustic links}
-        -> config.
+        Index 0 the leader's {'leader': config}, then per vehicle {'vehicle' (or the
+        model's FMU kind), 'vehicle_estimator', 'vehicle_controller' |
+        'central_controller', the kinds of the model's ``stack`` ('guidance', 'autopilot':
+        :func:`orchestrator.cosim.guided.stack_configs`), and 'network' over acoustic
+        links} -> config.
     """
     if architecture not in ARCHITECTURES:
         raise ValueError(f"architecture {architecture!r} is not one of "
@@ -168,12 +175,16 @@ def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tra
         cfg = dict(base, system=_mapping(view, leader))
         if sc.sensors is not None:              # acoustic fixes, DVL, depth at their rates
             cfg["sensors"] = dict(sc.sensors)
+        entry = get(models[i].name)
         one = {"vehicle": dict(cfg, vehicle=i + 1), "vehicle_estimator": cfg}
-        if get(models[i].name).fmu_kind == "remus6dof":     # the nonlinear vehicle FMU
+        if entry.nonlinear:                  # a nonlinear REMUS 100 vehicle FMU
             par = models[i].parameters
-            one = {"remus6dof": dict(cfg, vehicle=i + 1, remus=par["nonlinear"],
-                                     autopilot=par["autopilot"], substep=par["substep"]),
+            one = {entry.fmu_kind: dict(cfg, vehicle=i + 1, remus=par["nonlinear"],
+                                        autopilot=par["autopilot"], substep=par["substep"]),
                    "vehicle_estimator": cfg}
+        if entry.stack:                      # the FMUs between its controller and vehicle
+            stack = stack_configs(models[i], view, sc.h, sc.T, seed)
+            one.update({k: stack[k] for k in entry.stack})
         ctrl = cfg if limit is None else dict(cfg, u_max=list(limit[i]))
         if rows is not None:
             K, u0 = rows[i]
@@ -202,7 +213,13 @@ def build_configs(configs: list[dict[str, dict[str, Any]]]) -> dict[str, dict[st
 
 def vehicle_kind(config: Mapping[str, Any]) -> str:
     """The FMU kind of one vehicle's plant in :func:`per_vehicle_configs`' entry."""
-    return "remus6dof" if "remus6dof" in config else "vehicle"
+    return next(k for k in config if k in VEHICLE_KINDS)
+
+
+def stack_kinds(config: Mapping[str, Any]) -> tuple[str, ...]:
+    """The FMU kinds between one vehicle's controller and its plant (its model's ``stack``)
+    in :func:`per_vehicle_configs`' entry, in signal order."""
+    return tuple(k for k in config if k in STACK_KINDS)
 
 
 def _component(name: str, key: str, config: dict[str, Any]) -> Component:
@@ -226,7 +243,8 @@ def per_vehicle_system(sc: Any, configs: list[dict[str, dict[str, Any]]],
     Returns
     -------
     SystemDescription
-        1 + 3 N components and their connections.
+        1 + 3 N components (and per vehicle its model's stack, its network) and their
+        connections.
     """
     N = len(configs) - 1
     planned = sc.distributed.leader == "planned"
@@ -244,7 +262,13 @@ def per_vehicle_system(sc: Any, configs: list[dict[str, dict[str, Any]]],
         measured = "nav" if "sensors" in configs[i][vk] else "y"
         conns += [Connection(v, measured, e, measured),
                   *(Connection(v, s, e, s, (e, "mode", "ideal")) for s in ("x", "w")),
-                  Connection(c, "u", v, "u"), Connection(c, "u", e, "u")]
+                  Connection(c, "u", e, "u")]
+        stack = stack_kinds(configs[i])
+        if stack:                           # force -> guidance -> autopilot -> actuators
+            comps += [_component(f"{k}_{i}", k, configs[i][k]) for k in stack]
+            conns += stack_connections(i, stack)
+        else:
+            conns.append(Connection(c, "u", v, "u"))
         if networked:
             comps.append(_component(f"network_{i}", "network", configs[i]["network"]))
             conns += _networked(i, architecture, configs[i]["network"], slots,
@@ -327,8 +351,10 @@ def link_traces(system: SystemDescription, traces: Mapping[str, np.ndarray]
     return out
 
 
-#: the FMU kinds of a vehicle's plant
-VEHICLE_KINDS = ("vehicle", "remus6dof")
+#: the FMU kinds of a vehicle's plant (every model's in the registry)
+VEHICLE_KINDS = tuple(dict.fromkeys(e.fmu_kind for e in REGISTRY.values()))
+#: the FMU kinds that stand between a vehicle's controller and its plant
+STACK_KINDS = tuple(dict.fromkeys(k for e in REGISTRY.values() for k in e.stack))
 
 #: the nonlinear vehicle's extra outputs: attitude (3 per vehicle, rad), rpm, rudder and
 #: stern-plane angles (rad), saturated (0/1)
@@ -356,7 +382,10 @@ def stacked_traces(sc: Any, system: SystemDescription,
     dict[str, np.ndarray]
         y, x, w, z (with the constant c = 1 column when the stacked z has one), e, u, xhat,
         what; eta (N l, the observers) for the distributed architecture; and when every
-        vehicle is the nonlinear one (AuvRemus6dof) its :data:`NONLINEAR_OUTPUTS`.
+        vehicle is a nonlinear one (AuvRemus6dof, AuvRemus6dofActuated) its
+        :data:`NONLINEAR_OUTPUTS`; when every vehicle is flown through the guidance FMUs,
+        ``setpoint`` (per vehicle its guidance's speed, course, depth;
+        :func:`orchestrator.cosim.guided.setpoint_traces`).
     """
     names = system.trace_names()
     N = sum(1 for c in system.components if c.fmu in VEHICLE_KINDS)
@@ -379,4 +408,5 @@ def stacked_traces(sc: Any, system: SystemDescription,
     if all((f"vehicle_{i}", "saturated") in names for i in range(1, N + 1)):
         for extra in NONLINEAR_OUTPUTS:                            # nonlinear vehicles
             out[extra] = cat("vehicle", extra)
+    out.update(setpoint_traces(system, traces, N))     # vehicles flown through guidance
     return out

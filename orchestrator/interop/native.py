@@ -20,7 +20,7 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
-from ..cosim.native import NATIVE_KINDS, NativeSystem, native_system
+from ..cosim.native import NativeSystem, native_system
 from ..outputs import file_stem
 from ..scenario import Scenario
 
@@ -51,7 +51,7 @@ def export_native(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
     with tempfile.TemporaryDirectory(prefix="auv_native_py_") as tmp:
         py = build(sc, Path(tmp))
         ns = native_system(system, py, out)
-        kept = {k: p for k, p in ns.fmus.items() if k not in NATIVE_KINDS}
+        kept = {k: p for k, p in ns.fmus.items() if k not in ns.native_keys}
         for k, p in kept.items():                  # the network's pythonfmu FMUs, if any
             target = out / Path(p).name
             target.write_bytes(Path(p).read_bytes())

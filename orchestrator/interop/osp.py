@@ -302,7 +302,10 @@ def export_osp(sc: Scenario, out_dir: Path | str,
         paths[key] = Path(fmus[key])
         paths[f"{key}_osp"] = p
         written.append(p)
+    in_system = {c.fmu for c in system.components}
     for key, specs in _standalone_interfaces(sc, fmus).items():   # not in the system
+        if key in in_system:        # a vehicle flown through them: written above
+            continue
         xml, _ = _osp_model_description(specs, {})
         p = out / f"{Path(fmus[key]).stem}_OspModelDescription.xml"
         write_bytes_atomically(p, xml)

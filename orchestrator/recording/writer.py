@@ -86,6 +86,13 @@ def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, n
             signals += _send_block(rec, f"vehicles/{i}/fins/{method}", fins[:, i - 1],
                                    [f"{method} rudder (rad)", f"{method} stern planes (rad)"],
                                    shades(2), indexes)
+    if "setpoint" in traces:             # flown through the guidance FMUs: its set-points
+        sp = traces["setpoint"][::stride]
+        for i in range(1, fleet.n + 1):
+            signals += _send_block(rec, f"vehicles/{i}/setpoint/{method}",
+                                   sp[:, 3 * (i - 1):3 * i],
+                                   [f"{method} speed (m/s)", f"{method} course (rad)",
+                                    f"{method} depth (m)"], shades(3), indexes)
     leader = rec_traces["z"] @ fleet.leader_output.T  # (rows, 3)
     signals += _send_block(rec, f"leader/{method}", leader,
                            [f"{method} leader {c}" for c in _POSITION_NAMES], shades(3), indexes)
@@ -129,8 +136,9 @@ def _sample_steps(steps: int, every: int, last: int) -> np.ndarray:
     return ks
 
 
-#: optional fleet traces of the nonlinear vehicle (orchestrator.cosim.per_vehicle)
-_ACTUATOR_KEYS = ("attitude", "rpm", "rudder", "stern")
+#: optional fleet traces of the nonlinear vehicle (orchestrator.cosim.per_vehicle) and of
+#: its guidance FMU (setpoint: per vehicle speed, course, depth)
+_ACTUATOR_KEYS = ("attitude", "rpm", "rudder", "stern", "setpoint")
 
 #: the hull drawn in the 3D view: the REMUS 100's 1.6 m x 0.19 m spheroid, 3 times enlarged
 #: to be seen at formation scale (m, body axes x forward, y starboard, z down)

@@ -38,6 +38,7 @@ host must load libpython, see docs/other-tools.md), so each FMU declares
 | `AuvController` | Python 3.11+, numpy, scipy (Riccati, Sylvester); networkx for fleet FMUs |
 | `AuvNetwork` (per-vehicle fleets over acoustic links, docs/network.md) | Python 3.11+, numpy |
 | `AuvRemus6dof` (nonlinear REMUS 100) | Python 3.11+, numpy, scipy; numba if present |
+| `AuvRemus6dofActuated` (the same, commands in) | Python 3.11+, numpy, scipy; numba if present |
 
 pythonfmu itself and this project's modules travel inside each FMU (`resources/`).
 All three support fmi2Get/SetFMUstate and fmi2Serialize/DeSerializeFMUstate.
@@ -69,7 +70,10 @@ instead: `AuvLeader`, `AuvVehicle`, `AuvVehicleEstimator` and `AuvVehicleControl
 `remus100-6dof` is an `AuvRemus6dof` in place of `AuvVehicle`: the same input `u` and
 outputs `y`, `x`, `w`, plus `attitude`, `rpm`, `rudder`, `stern` and `saturated`; with
 `[sensors] kind = "remus"` both vehicle FMUs also output `nav` (acoustic fix, DVL, depth,
-valid flags), which the estimator reads in place of `y`.
+valid flags), which the estimator reads in place of `y`. A vehicle of model
+`remus100-6dof-guided` is three FMUs: `AuvGuidance` -> `AuvAutopilot` ->
+`AuvRemus6dofActuated` (inputs `rpm_command`, `rudder_command`, `stern_command`; the
+outputs of `AuvRemus6dof` plus `velocity`, `rates`, `depth`; docs/guidance.md).
 
 Native FMUs, no Python needed (`auv-cosim export native`, docs/native.md): once designed,
 every FMU but `AuvNetwork`, `AuvRemus6dof` and the guidance interface (`AuvGuidance`,
@@ -140,7 +144,9 @@ def guidance_configs(sc: Scenario) -> dict[str, dict[str, Any]]:
     """The configurations of ``AuvGuidance`` and ``AuvAutopilot`` for a scenario whose
     vehicles are REMUS 100s (family ``remus100``, NED layout), else none: vehicle 1's
     design model (M, D per NED axis), its start (depth, velocity through the water
-    x0[3:6] - w0, its course) and autopilot gains as start values (docs/guidance.md).
+    x0[3:6] - w0, its course) and autopilot gains as start values (docs/guidance.md;
+    :func:`orchestrator.cosim.guided.stack_configs`, which configures every vehicle's
+    guidance FMUs of a ``remus100-6dof-guided`` fleet).
 
     Parameters
     ----------
@@ -151,27 +157,18 @@ def guidance_configs(sc: Scenario) -> dict[str, dict[str, Any]]:
     dict[str, dict[str, Any]]
         {} or {'guidance': config, 'autopilot': config} (keys of FMU_KINDS).
     """
-    import math
-
     from plant_model.fleet import fleet_vehicles
     from plant_model.per_vehicle import vehicle_views
     from plant_model.vehicle_models import find
+
+    from ..cosim.guided import stack_configs
     if sc.fleet is None:
         return {}
     models = fleet_vehicles(sc.fleet)
     entries = [find(m.name) for m in models]
     if any(e is None or e.family != "remus100" or e.layout != "ned" for e in entries):
         return {}
-    par = models[0].parameters
-    view = vehicle_views(sc.fleet)[0]
-    v0 = np.asarray(view.x0, float)[3:6] - np.asarray(view.w0, float)[:3]
-    base = {"dims": {}, "h": float(sc.h), "T": float(sc.T), "seed": int(sc.seed)}
-    guidance = {"M": [float(v) for v in par["total_mass"]],
-                "D": [float(v) for v in par["damping"]], "v_ref0": v0.tolist(),
-                "depth0": float(view.x0[2]),
-                "course0": float(math.atan2(v0[1], v0[0]))}
-    return {"guidance": dict(base, guidance=guidance),
-            "autopilot": dict(base, autopilot=dict(par.get("autopilot", {})))}
+    return stack_configs(models[0], vehicle_views(sc.fleet)[0], sc.h, sc.T, sc.seed)
 
 
 def fmu_readme(sc: Scenario) -> str:

@@ -231,8 +231,7 @@ class RunSetup:
         """Per FMU key of ``method``: its path, size and which kind ran ("python" for a
         pythonfmu slave, "native" for a compiled one)."""
         ns = self._native_system(method) if self.sc.fmus == "native" else None
-        native = set() if ns is None else {c.fmu for c in ns.system.components
-                                           if c.name in ns.forms}
+        native = set() if ns is None else ns.native_keys
         return {k: {"path": str(p), "bytes": Path(p).stat().st_size,
                     "kind": "native" if k in native else "python"}
                 for k, p in self.fmus(method).items()}

@@ -180,7 +180,8 @@ def check_deployment(sc: Scenario, network: bool = True) -> None:
     are known, so that --deployment per-vehicle can select it)."""
     if sc.deployment != "per-vehicle":
         if network and sc.nonlinear_vehicles:
-            raise ScenarioError(f"{sc.source}: vehicle model remus100-6dof needs [simulation] "
+            model = sc.fleet["vehicles"][sc.nonlinear_vehicles[0] - 1].get("model")
+            raise ScenarioError(f"{sc.source}: vehicle model {model} needs [simulation] "
                                 "deployment = \"per-vehicle\" (a nonlinear vehicle is its own "
                                 f"FMU, not a block of the stacked linear plant), not "
                                 f"{sc.deployment!r}")

@@ -8,7 +8,9 @@ derived from it (``remus100-fitted``).
 - :mod:`.plant`: one vehicle sampled at h;
 - :mod:`.models`: ``remus100-6dof`` and ``remus100-fitted`` as scenario models (the
   entries of :mod:`plant_model.vehicle_models` point here);
-- ``auv_remus6dof_slave.py``: the FMU ``AuvRemus6dof``.
+- ``auv_remus6dof_slave.py``: the FMU ``AuvRemus6dof``; ``auv_remus6dof_actuated_slave.py``:
+  ``AuvRemus6dofActuated`` (actuator commands in, model ``remus100-6dof-guided``); the code
+  they share in ``remus6dof_slave_base.py``.
 
 Nothing is imported here, so that importing one module does not load numba.
 """

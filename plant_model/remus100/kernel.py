@@ -26,7 +26,7 @@ import numpy as np
 from .dynamics import Remus100, _d
 
 __all__ = ["pack", "pack_gains", "derivative", "rk4", "autopilot", "force_commanded_step",
-           "JIT"]
+           "plant_step", "actuated_step", "plant_outputs", "actuated_outputs", "JIT"]
 
 try:                                              # pragma: no cover - depends on the machine
     if os.environ.get("AUV_COSIM_NO_JIT", "") == "1":
@@ -340,19 +340,20 @@ def force_commanded_step(p: np.ndarray, g: np.ndarray, x: np.ndarray, v_ref: np.
 
 
 @_jit
-def plant_step(p: np.ndarray, g: np.ndarray, s: np.ndarray, u: np.ndarray, v: np.ndarray,
-               Aw: np.ndarray, M: np.ndarray, D: np.ndarray, h: float, substeps: int,
-               cmd: np.ndarray, limits: np.ndarray) -> float:
-    """One step of :class:`plant_model.remus100.plant.Remus6dofPlant` on its evolving
-    vector s = [x (15), v_ref, integrals (2), w] in place: :func:`force_commanded_step` in
-    the current w held, then the process noise v (9: position, velocity over ground,
-    current) and w <- Aw w + v_w. Returns 1.0 when some command was at or beyond its limit."""
-    x, v_ref, integ, w = s[0:15], s[15:18], s[18:20], s[20:23]
-    force_commanded_step(p, g, x, v_ref, integ, u, w, M, D, h, substeps, cmd)
+def _saturation(cmd: np.ndarray, limits: np.ndarray) -> float:
+    """1.0 when some command [delta_r, delta_s, n] is at or beyond its limit, else 0.0."""
     sat = 0.0
     for i in range(3):
         if abs(cmd[i]) >= limits[i]:
             sat = 1.0
+    return sat
+
+
+@_jit
+def _disturb(x: np.ndarray, w: np.ndarray, v: np.ndarray, Aw: np.ndarray) -> None:
+    """The process noise and the current's step after the dynamics, in place: position
+    p += v[0:3] (m), body velocity nu[:3] += R(Theta)' v[3:6] (the NED velocity over ground
+    moved by v[3:6], m/s), current w <- Aw w + v[6:9] (m/s)."""
     for i in range(3):
         x[i] += v[i]
     R00, R01, R02, R10, R11, R12, R20, R21, R22 = _rotation(x[3], x[4], x[5])
@@ -363,7 +364,55 @@ def plant_step(p: np.ndarray, g: np.ndarray, s: np.ndarray, u: np.ndarray, v: np
     w0, w1, w2 = w[0], w[1], w[2]
     for i in range(3):
         w[i] = Aw[i, 0] * w0 + Aw[i, 1] * w1 + Aw[i, 2] * w2 + v[6 + i]
+
+
+@_jit
+def plant_step(p: np.ndarray, g: np.ndarray, s: np.ndarray, u: np.ndarray, v: np.ndarray,
+               Aw: np.ndarray, M: np.ndarray, D: np.ndarray, h: float, substeps: int,
+               cmd: np.ndarray, limits: np.ndarray) -> float:
+    """One step of :class:`plant_model.remus100.plant.Remus6dofPlant` on its evolving
+    vector s = [x (15), v_ref, integrals (2), w] in place: :func:`force_commanded_step` in
+    the current w held, then the process noise v (9: position, velocity over ground,
+    current) and w <- Aw w + v_w (:func:`_disturb`). Returns 1.0 when some command was at
+    or beyond its limit."""
+    x, v_ref, integ, w = s[0:15], s[15:18], s[18:20], s[20:23]
+    force_commanded_step(p, g, x, v_ref, integ, u, w, M, D, h, substeps, cmd)
+    sat = _saturation(cmd, limits)
+    _disturb(x, w, v, Aw)
     return sat
+
+
+@_jit
+def actuated_step(p: np.ndarray, s: np.ndarray, command: np.ndarray, v: np.ndarray,
+                  Aw: np.ndarray, h: float, substeps: int, cmd: np.ndarray,
+                  limits: np.ndarray) -> float:
+    """One step of :class:`plant_model.remus100.plant.ActuatedRemus6dofPlant` on the
+    evolving vector s (layout of :func:`plant_step`; v_ref and the integrals unused) in
+    place: the actuator command = [n (rpm), delta_r (rad), delta_s (rad)] held over h (s)
+    (cmd <- [delta_r, delta_s, n], the kernel's order), ``substeps`` RK4 steps of h /
+    substeps in the current w held, then the same process noise and current step as
+    :func:`plant_step` (:func:`_disturb`). Returns 1.0 when some command was at or beyond
+    its limit."""
+    x, w = s[0:15], s[20:23]
+    cmd[0], cmd[1], cmd[2] = command[1], command[2], command[0]
+    sat = _saturation(cmd, limits)
+    rk4(p, x, cmd, w, h / substeps, substeps)
+    _disturb(x, w, v, Aw)
+    return sat
+
+
+@_jit
+def actuated_outputs(s: np.ndarray, o: np.ndarray) -> None:
+    """o[19:26] = [velocity through the water in body axes nu[:3] - R(Theta)' w (m/s),
+    body rates p, q, r (rad/s), depth (m)] of the evolving vector s (:func:`plant_step`):
+    what an autopilot measures (a DVL's water track, a gyro, a pressure sensor)."""
+    R00, R01, R02, R10, R11, R12, R20, R21, R22 = _rotation(s[3], s[4], s[5])
+    c0, c1, c2 = s[20], s[21], s[22]
+    o[19] = s[6] - (R00 * c0 + R10 * c1 + R20 * c2)
+    o[20] = s[7] - (R01 * c0 + R11 * c1 + R21 * c2)
+    o[21] = s[8] - (R02 * c0 + R12 * c1 + R22 * c2)
+    o[22], o[23], o[24] = s[9], s[10], s[11]
+    o[25] = s[2]
 
 
 @_jit

@@ -42,7 +42,8 @@ from .dynamics import STATE_SIZE, Remus100
 from .models import GAIN_FIELDS, REMUS_FIELDS, remus_from_parameters
 from .rigid_body import rotation_ned_body
 
-__all__ = ["REMUS_FIELDS", "GAIN_FIELDS", "Remus6dofPlant", "default_substep",
+__all__ = ["REMUS_FIELDS", "GAIN_FIELDS", "ActuatedRemus6dofPlant", "Remus6dofPlant",
+           "default_substep",
            "initial_state", "linear_mass_damping", "remus_from_parameters", "substep_count"]
 
 #: the longest default RK4 sub-step, s (docs/remus100-6dof.md: converged at 0.05 s)
@@ -144,8 +145,12 @@ class Remus6dofPlant:
         self._nav = (None if self.sensors is None else
                      SensorStream(self.sensors, self.model.h, self.seed,
                                   int(self.model.noise_keys[0])))
-        kernel.plant_outputs(self.s, self._row[9:12], self._saturated, self.output)
+        self._outputs()
         self._measure()
+
+    def _outputs(self) -> None:
+        """The outputs of sample k but the navigation sensors' (from the state)."""
+        kernel.plant_outputs(self.s, self._row[9:12], self._saturated, self.output)
 
     def _measure(self) -> None:
         """The navigation sensors' outputs of sample k (drawn once per sample)."""
@@ -155,20 +160,24 @@ class Remus6dofPlant:
 
     def _refresh(self) -> None:
         """The outputs of sample k from the state (at a reset or a restored state)."""
-        kernel.plant_outputs(self.s, self._row[9:12], self._saturated, self.output)
+        self._outputs()
         if self._nav is not None:
             self.output[self.OUTPUT_SIZE:] = self._nav.out
 
     def step(self, u: np.ndarray) -> None:
         """Advance one step with the force u (N, NED) held (module docstring; the
         arithmetic in :func:`plant_model.remus100.kernel.plant_step`)."""
-        self._saturated = kernel.plant_step(
-            self._p, self._g, self.s, np.asarray(u, dtype=float), self._row[:9], self._Aw,
-            self._M, self._D, self.model.h, self.substeps, self._cmd, self._limits)
+        self._saturated = self._advance(np.asarray(u, dtype=float))
         self.k += 1
         self._row = self._noise.next_row()
-        kernel.plant_outputs(self.s, self._row[9:12], self._saturated, self.output)
+        self._outputs()
         self._measure()
+
+    def _advance(self, u: np.ndarray) -> float:
+        """The state over one step with the input u held; 1.0 if a command saturated."""
+        return kernel.plant_step(self._p, self._g, self.s, u, self._row[:9], self._Aw,
+                                 self._M, self._D, self.model.h, self.substeps, self._cmd,
+                                 self._limits)
 
     @property
     def command(self) -> np.ndarray:
@@ -208,3 +217,37 @@ class Remus6dofPlant:
         self.k, self.s, self._row, self._cmd = int(state["k"]), s, row, cmd
         self._saturated = float(state["saturated"])
         self._refresh()
+
+
+class ActuatedRemus6dofPlant(Remus6dofPlant):
+    """The same vehicle, current, noise and sensors as :class:`Remus6dofPlant`, driven by
+    actuator commands in place of a force (model ``remus100-6dof-guided``: the autopilot
+    is an FMU of its own, docs/guidance.md).
+
+    :meth:`step` takes the command [n (rpm), delta_r (rad), delta_s (rad)], held over h;
+    ``substeps`` RK4 steps move the 6-DOF state (the actuators follow the command with
+    their lags and limits), then the process noise and the current step exactly as in
+    :class:`Remus6dofPlant` (:func:`plant_model.remus100.kernel.actuated_step`).
+    ``saturated`` is 1 when a command was at or beyond its limit (delta_max, n_max).
+    ``output`` appends to the parent's 19 outputs what an autopilot measures:
+    velocity through the water in body axes nu[:3] - R(Theta)' w (3, m/s), the body
+    rates p, q, r (3, rad/s) and the depth (m); then the navigation sensors, if any.
+    The evolving vector keeps the parent's layout; its v_ref and integrals stay at their
+    start values (unused). ``gains`` only set the start (the propeller at the feedforward
+    rpm n_max U / U_max, the heading defined above U_min).
+    """
+
+    OUTPUT_SIZE = Remus6dofPlant.OUTPUT_SIZE + 7
+
+    def _outputs(self) -> None:
+        super()._outputs()
+        kernel.actuated_outputs(self.s, self.output)
+
+    def _advance(self, command: np.ndarray) -> float:
+        return kernel.actuated_step(self._p, self.s, command, self._row[:9], self._Aw,
+                                    self.model.h, self.substeps, self._cmd, self._limits)
+
+    def step(self, command: np.ndarray) -> None:
+        """Advance one step with the actuator command [n (rpm), delta_r (rad), delta_s
+        (rad)] held (class docstring)."""
+        super().step(command)
