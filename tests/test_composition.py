@@ -73,6 +73,7 @@ CELLS = [(d, ln, v, f) for d in DEPLOYMENTS for ln in LINKS for v in VEHICLES fo
 @pytest.mark.slow
 @pytest.mark.parametrize("dep, links, vehicle, fmus", CELLS,
                          ids=["-".join(c) for c in CELLS])
+@pytest.mark.slow
 def test_every_cell_runs_or_is_refused_in_one_line(scenarios, runs, tmp_path, capsys,
                                                    dep, links, vehicle, fmus):
     if fmus == "native" and shutil.which("cc") is None:

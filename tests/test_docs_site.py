@@ -40,6 +40,7 @@ def test_readme_lists_every_docs_page():
     assert not missing, f"README's table of contents lacks {missing}"
 
 
+@pytest.mark.slow
 def test_mkdocs_build_strict(tmp_path):
     site = tmp_path / "site"
     env = dict(os.environ, NO_MKDOCS_2_WARNING="1")

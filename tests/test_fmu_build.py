@@ -119,6 +119,7 @@ def test_identical_builds_come_from_the_cache(fmu_cache, tmp_path):
         read_model_description(str(first["plant"])).guid
 
 
+@pytest.mark.slow
 def test_concurrent_builds_into_one_folder_leave_whole_fmus(tmp_path):
     """Two processes build different scenarios' FMUs into the same folder at once, with an
     empty cache each time: every FMU left there is a whole, valid FMU of one of them."""

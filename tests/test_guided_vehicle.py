@@ -63,6 +63,7 @@ def run(tmp_path_factory):
     return sc, out, summary, read_rrd_scalars(out / f"{summary['scenario']}.rrd")
 
 
+@pytest.mark.slow
 def test_each_vehicle_is_guidance_autopilot_and_actuated_vehicle(run):
     sc, _, summary, scalars = run
     assert {"guidance", "autopilot", "remus6dof_actuated"} <= set(summary["fmus"])

@@ -117,6 +117,7 @@ def test_schema_validation_catches_what_osp_refuses(exported, tmp_path):
     assert validate_osp_file(bad_md)
 
 
+@pytest.mark.slow
 def test_fleet_export_uses_osp_typed_groups(tmp_path):
     sc = load_scenario("formation-4")
     paths = export_osp(sc, tmp_path)
@@ -189,6 +190,7 @@ def libcosim():
     return lc
 
 
+@pytest.mark.slow
 def test_libcosim_runs_the_export_like_our_jacobi_master(paper, exported, libcosim):
     steps = 3000
     cfg = scenario_config(paper)
@@ -240,6 +242,7 @@ def test_libcosim_runs_a_fleet_export_like_our_jacobi_master(libcosim, tmp_path)
         assert np.array_equal(arr, jac.traces[key]), key
 
 
+@pytest.mark.slow
 def test_benchmark_libcosim_reports_both_and_checks_agreement(paper, libcosim):
     from orchestrator.benchmarks.paper import benchmark_libcosim
     r = benchmark_libcosim(paper, 300, repeats=1)
@@ -251,6 +254,7 @@ def test_benchmark_libcosim_reports_both_and_checks_agreement(paper, libcosim):
     assert r["versions"]["libcosimpy"] != "not installed"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("architecture", ["distributed", "centralized"])
 def test_libcosim_runs_a_per_vehicle_export_like_our_jacobi_master(libcosim, tmp_path,
                                                                   architecture):

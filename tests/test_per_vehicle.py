@@ -83,6 +83,7 @@ def test_the_system_is_constant_size_per_vehicle_for_the_distributed_law(f4, tmp
     assert from_leader == {"controller_1"}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode, tol", [("ideal", 1e-9), ("kalman", 1e-9)])
 def test_centralized_per_vehicle_equals_the_stacked_protocol_form(f4, tmp_path, mode, tol):
     """Ideal estimator: the same loop to rounding. Kalman: the stacked filter is block
@@ -97,6 +98,7 @@ def test_centralized_per_vehicle_equals_the_stacked_protocol_form(f4, tmp_path, 
     assert np.abs(per["u"]).max() > 1.0                   # a loop that does something
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode, cohesion", [("ideal", 0.0), ("kalman", 0.0), ("kalman", 0.5)])
 def test_distributed_fmus_equal_the_monolithic_loop(f4, tmp_path, mode, cohesion):
     settings = DistributedSettings(mu=2.0, cohesion=cohesion)
@@ -112,6 +114,7 @@ def test_distributed_fmus_equal_the_monolithic_loop(f4, tmp_path, mode, cohesion
         assert np.abs(per["eta"][-1, i * l0:(i + 1) * l0] - z).max() < 1e-3 * np.abs(z).max()
 
 
+@pytest.mark.slow
 def test_the_distributed_gains_change_the_loop(f4, tmp_path):
     a, _ = _per_vehicle(f4, "distributed", "ideal", 5, tmp_path / "a",
                         DistributedSettings(mu=2.0))
@@ -120,6 +123,7 @@ def test_the_distributed_gains_change_the_loop(f4, tmp_path):
     assert _rel(a["u"], b["u"]) > 1e-3
 
 
+@pytest.mark.slow
 def test_run_per_vehicle_writes_summary_and_recording(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(["run", "--scenario", "formation-4", "--deployment", "per-vehicle",
@@ -155,6 +159,7 @@ def test_per_vehicle_refused_where_it_cannot_be(capsys, tmp_path):
     assert not (tmp_path / "a").exists() and not (tmp_path / "c").exists()
 
 
+@pytest.mark.slow
 def test_compare_architectures_reports_the_price_and_the_bound(tmp_path, capsys):
     out = tmp_path / "cmp"
     assert main(["compare", "--scenario", "formation-4", "--deployment", "per-vehicle",
@@ -179,6 +184,7 @@ def test_compare_architectures_reports_the_price_and_the_bound(tmp_path, capsys)
         assert f"vehicles/4/error/{arch}" in series
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", ["ideal", "kalman"])
 def test_the_distributed_prediction_agrees_with_simulation_over_seeds(mode):
     """The Lyapunov prediction over the window (mean motion included) against the window
@@ -224,6 +230,7 @@ def test_a_centralized_fleet_too_large_is_refused_before_trying(tmp_path, capsys
     assert not any((tmp_path / "o").glob("*.fmu")) and not (tmp_path / "o" / "fmus").exists()
 
 
+@pytest.mark.slow
 def test_a_planned_leader_path_needs_no_leader_messages(f4, tmp_path):
     """leader = "planned": every observer starts on the path and stays on it (eta = z to
     rounding), nothing flows from the leader FMU to a controller, and the loop is the

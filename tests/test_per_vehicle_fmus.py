@@ -47,6 +47,7 @@ def _drive(inst: FmuInstance, inputs: np.ndarray, outputs: list[str], k0: int) -
     ("vehicle_2", ["y[1]", "x[4]", "w[2]"]),
     ("estimator_3", ["xhat[1]", "what[3]"]),
 ])
+@pytest.mark.slow
 def test_fmu_state_round_trip_is_bit_identical(built, component, outputs):
     inst = _instance(built, component, f"{component}_state")
     rng = np.random.default_rng(1)
@@ -84,6 +85,7 @@ def test_an_unstable_design_is_refused_in_the_controller_fmu(built):
     assert "stabilizable" in str(exc.value)
 
 
+@pytest.mark.slow
 def test_every_per_vehicle_fmu_validates_and_declares_its_structure(built, tmp_path):
     from fmpy import read_model_description
     from fmpy.validation import validate_fmu

@@ -128,6 +128,7 @@ def _check_files(folder: Path, step: Step) -> None:
     assert not missing, f"{step.commands}: the README says it wrote {missing}, which are not there"
 
 
+@pytest.mark.slow
 def test_the_fast_tour_commands_run_and_write_what_the_readme_says(tmp_path):
     folder = _workspace(tmp_path)
     fast_outputs: set[str] = set()

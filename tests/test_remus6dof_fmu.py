@@ -43,6 +43,7 @@ def loop(tmp_path_factory):
     return sc, fmus, system, traces
 
 
+@pytest.mark.slow
 def test_every_vehicle_is_the_nonlinear_fmu_with_its_extra_outputs(loop):
     sc, fmus, system, traces = loop
     kinds = [c.fmu for c in system.components if c.name.startswith("vehicle_")]

@@ -299,6 +299,7 @@ def test_string_parameters_fmpy_cannot_set_are_checked(paper_ssp, tmp_path):
 
 
 
+@pytest.mark.slow
 def test_a_per_vehicle_archive_runs_in_fmpy_with_each_vehicles_values(tmp_path):
     """formation-4 per vehicle as SSP: fmpy's simulate_ssp runs the 13 components with each
     vehicle's parameter set; the uncontrolled parts (each vehicle's current, its sensor noise)
