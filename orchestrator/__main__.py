@@ -1,4 +1,4 @@
 """``python -m orchestrator`` is the ``auv-cosim`` command."""
-from .cli import console
+from .launch import console
 
 console()

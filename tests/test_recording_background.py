@@ -44,3 +44,22 @@ def test_an_unused_writer_stops_its_child():
     proc = w.proc
     w.close()
     assert proc.poll() is not None and w.proc is None
+
+
+def test_a_prestarted_writer_is_taken_once_and_writes(tmp_path):
+    """prestart() (run and compare call it before importing the command line) starts one
+    child; the first take() gets that child, the next a new one; the prestarted child
+    writes the same series."""
+    from orchestrator.recording import background
+    background.prestart()
+    first = background._PRESTARTED
+    assert first is not None and first.proc.poll() is None
+    background.prestart()                                   # idempotent: still one child
+    assert background._PRESTARTED is first
+    with BackgroundWriter.take() as w:
+        assert w is first and background._PRESTARTED is None
+        runs = make_runs()
+        w.write(tmp_path / "pre.rrd", runs, H, recording_name="prestarted")
+    with BackgroundWriter.take() as other:
+        assert other is not first and other.proc is not None
+    assert set(read_rrd_scalars(tmp_path / "pre.rrd")) == set(expected_series(runs))

@@ -99,7 +99,7 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     out.mkdir(parents=True, exist_ok=True)
     # the .rrd writer imports Rerun in a child while we simulate; SIGINT / SIGTERM stop
     # the runs between steps and keep what was simulated
-    with BackgroundWriter() as writer, stop_on_signals() as stop, \
+    with BackgroundWriter.take() as writer, stop_on_signals() as stop, \
             seed_pool(sc.steps, len(seeds), len(methods), workers) as pool:
         return _simulate(setup, methods, seeds, out, writer, t0, progress=progress, log=log,
                          record_hz=record_hz, stop=stop, pool=pool)
