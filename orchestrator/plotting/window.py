@@ -84,7 +84,10 @@ def stats_start(summary: dict, t_end: float) -> float:
 
 def zoom_window(summary: dict, t_end: float, length: float = ZOOM_S) -> tuple[float, float]:
     """The zoomed window: ``length`` s from the start of the statistics window (the last
-    ``length`` s when less is left), within [0, t_end]."""
+    ``length`` s when less is left), within [0, T] (T: the summary's, else ``t_end``, the
+    last sample's time)."""
+    if isinstance(summary.get("T"), (int, float)):
+        t_end = max(t_end, float(summary["T"]))
     t0 = stats_start(summary, t_end)
     if np.ceil(t0) + length <= t_end:        # a whole second: round tick labels
         t0 = float(np.ceil(t0))
