@@ -158,3 +158,10 @@ def test_run_help_lists_the_builtin_files_and_the_linked_fleet_runs(capsys, tmp_
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["scenario"] == "formation-4-links" and summary["T"] == 5.0
     assert summary["deployment"] == "per-vehicle"
+
+
+def test_the_scenarios_page_lists_every_builtin():
+    from pathlib import Path
+    page = (Path(__file__).resolve().parents[1] / "docs" / "scenarios.md").read_text()
+    rows = re.findall(r"^\| `([^`]+)`", page, flags=re.M)
+    assert sorted(rows) == sorted(p.stem for p in SCENARIO_DIR.glob("*.toml"))

@@ -191,7 +191,8 @@ def _error_norm_figure(run: RunData, n: int) -> PlotFigure:
             zoom.set_ylim(0.0, lim[1])
         whole.set_ylabel(axis_label(r"$\|e_i\|$", unit))
         whole.set_title(f"method {m}: whole run", loc="left")
-        zoom.set_title(f"statistics window t in [{t0:.4g}, {t_end:.4g}] s", loc="left")
+        t1 = (run.summary.get("stats_window_s") or [None, t_end])[1] or t_end
+        zoom.set_title(f"statistics window t in [{t0:.4g}, {t1:.4g}) s", loc="left")
     for ax in axes[-1]:
         ax.set_xlabel("time t (s)")
     handles, labels = axes[0, 0].get_legend_handles_labels()
