@@ -92,7 +92,9 @@ def test_the_lines_drawn_are_the_recorded_data_in_the_recording_colours(runs):
                 for m in METHODS}
     expected |= {f"state/{i}/{m}/{kind}" for i in (1, 2) for m in METHODS
                  for kind in ("true", "estimate")}
-    assert set(drawn) == expected
+    off_scale = {e for pf in figs.values() for e in pf.clipped}    # a note, not a line
+    assert off_scale == {"state/1/classical/estimate", "state/2/classical/estimate"}
+    assert set(drawn) == expected - off_scale
     for entity, line in drawn.items():
         _, t_ns, values = scalars[entity]
         np.testing.assert_array_equal(line.get_xdata(), t_ns / 1e9)
@@ -101,16 +103,17 @@ def test_the_lines_drawn_are_the_recorded_data_in_the_recording_colours(runs):
         np.testing.assert_allclose(line.get_color(), np.array(rgba[:3]) / 255, atol=1 / 255)
 
 
-def test_state_axes_hold_the_true_state_and_clip_the_classical_spikes(runs):
+def test_state_axes_hold_the_true_state_and_note_the_classical_spikes(runs):
     folder = runs["compare"]
     scalars = read_rrd_scalars(folder / "paper.rrd")
     figs = _figures(folder)
     for i in (1, 2):
         pf = figs[f"state-{i}"]
         axes = pf.figure.axes
-        assert len(axes) == 3                       # one panel per method, same y-axis
-        lo, hi = axes[0].get_ylim()
-        assert all(ax.get_ylim() == (lo, hi) for ax in axes)
+        assert len(axes) == 6               # per method a row: the whole run and the zoom
+        whole = axes[0::2]
+        lo, hi = whole[0].get_ylim()
+        assert all(ax.get_ylim() == (lo, hi) for ax in whole)
         for m in METHODS:
             true = scalars[f"state/{i}/{m}/true"][2]
             assert lo < true.min() and true.max() < hi
@@ -119,16 +122,20 @@ def test_state_axes_hold_the_true_state_and_clip_the_classical_spikes(runs):
         assert hi - lo < 0.5 * (spikes.max() - spikes.min())   # not scaled to the spikes
         assert set(pf.clipped) == {f"state/{i}/classical/estimate"}
         assert pf.clipped[f"state/{i}/classical/estimate"] == (spikes.min(), spikes.max())
-        assert "classical estimate is clipped" in pf.figure.get_suptitle()
-        legend = [t.get_text() for t in axes[1].get_legend().get_texts()]
-        assert any(t.startswith("classical estimate") and "clipped" in t for t in legend)
-    # the error and control figures show every method's full range
+        assert "classical estimate leaves it" in pf.figure.get_suptitle()
+        # the note sits in the classical panel, with the range; nothing drawn off the axis
+        notes = [t.get_text() for t in whole[1].texts]
+        assert notes == [f"classical estimate off this scale: it spans {spikes.min():.3g} to "
+                         f"{spikes.max():.3g} (not drawn)"]
+        legend = [t.get_text() for t in axes[3].get_legend().get_texts()]
+        assert legend == ["classical true"]
+    # the error and control figures show every method's full range on the whole run
     for name in ("error-1", "control-1"):
-        ax = figs[name].figure.axes[0]
-        lo, hi = ax.get_ylim()
+        whole, zoom = figs[name].figure.axes
+        lo, hi = whole.get_ylim()
         for line in figs[name].series.values():
             assert lo <= line.get_ydata().min() and line.get_ydata().max() <= hi
-        legend = [t.get_text() for t in ax.get_legend().get_texts()]
+        legend = [t.get_text() for t in zoom.get_legend().get_texts()]
         assert legend == list(METHODS)
 
 

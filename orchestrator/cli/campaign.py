@@ -13,7 +13,8 @@ __all__ = ["add_campaign", "cmd_campaign"]
 def cmd_campaign(args: argparse.Namespace) -> int:
     from ..campaign.runner import run_campaign
     return run_campaign(args.spec, args.out, scheduler=args.scheduler, workers=args.workers,
-                        engine=args.engine, fmus=args.fmus)
+                        engine=args.engine, fmus=args.fmus,
+                        progress=False if args.quiet else None)
 
 
 def add_campaign(sub: argparse._SubParsersAction) -> None:

@@ -3,6 +3,7 @@ the options of the commands that run FMUs, and the printed summary of a run or c
 from __future__ import annotations
 
 import argparse
+import re
 import shlex
 import sys
 from pathlib import Path
@@ -14,18 +15,21 @@ from ..scenario import Scenario, builtin_scenarios, load_scenario
 from .args import _positive
 
 __all__ = ["ROOT", "add_fmu_options", "add_force_option", "add_master_option",
-           "add_predict_option",
-           "add_scenario_options", "print_summary", "scenario_of", "viewer_command"]
+           "add_predict_option", "add_quiet_option",
+           "add_scenario_options", "method_table", "print_summary", "stationarity_line",
+           "summary_notes", "scenario_of", "viewer_command"]
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def add_scenario_options(sp: argparse.ArgumentParser, *, run: bool = True) -> None:
-    """--scenario; with ``run``, also what changes the simulated system and run: the
-    deployment and architecture, the acoustic links, --T and --h."""
-    sp.add_argument("--scenario", default="paper",
+def add_scenario_options(sp: argparse.ArgumentParser, *, run: bool = True,
+                         default: str = "paper") -> None:
+    """--scenario (``default`` when not given: a scenario the command accepts); with
+    ``run``, also what changes the simulated system and run: the deployment and
+    architecture, the acoustic links, --T and --h."""
+    sp.add_argument("--scenario", default=default,
                     help=f"built-in name ({', '.join(builtin_scenarios())}) or a .toml file "
-                         "(default: paper)")
+                         f"(default: {default})")
     if run:
         sp.add_argument("--deployment", choices=DEPLOYMENTS,
                         help="fleets: one set of FMUs for the stacked fleet, or a vehicle, "
@@ -77,6 +81,13 @@ def add_predict_option(sp: argparse.ArgumentParser) -> None:
                          "(about a second for formation-4 over links); full: also the "
                          "acoustic links' critical loss (a search over losses, seconds for "
                          "formation-4, cached) (default: stationary)")
+
+
+def add_quiet_option(sp: argparse.ArgumentParser) -> None:
+    """--quiet: no per-seed, per-point or progress lines; only the result and errors."""
+    sp.add_argument("--quiet", action="store_true",
+                    help="no per-seed, per-point or progress lines: only the result and "
+                         "errors")
 
 
 def add_force_option(sp: argparse.ArgumentParser) -> None:
@@ -141,6 +152,112 @@ def saturation_line(method: str, per_vehicle: list[float] | None) -> str | None:
             "force_budget or bandwidth)")
 
 
+
+def _g(v: float | None, fmt: str) -> str | None:
+    """``v`` formatted, or None when there is no value."""
+    return None if v is None else format(v, fmt)
+
+
+def _rms_cell(m: dict) -> str:
+    """The rms e cell of a method: simulated, with the prediction after a slash where one
+    exists; a fleet's worst component (and the noise-free steady error when predicted)."""
+    sim_e = m["rms_e"]["mean"]
+    pred_e = m["rms_e"].get("predicted") or [None] * len(sim_e)
+    if len(sim_e) <= 4:
+        return ", ".join(f"{a:#.3g}" + ("" if b is None else f"/{b:#.3g}")
+                         for a, b in zip(sim_e, pred_e))
+    preds = [b for b in pred_e if b is not None]
+    steady = (m.get("steady_error") or {}).get("max_rms_e_without_noise_predicted")
+    return (f"max {max(sim_e):#.3g}" + (f"/{max(preds):#.3g}" if preds else "")
+            + ("" if steady is None else f"; steady error (noise-free RMS) {steady:#.3g}"))
+
+
+def method_table(summary: dict) -> list[str]:
+    """The table of a run or compare: per method its cost rate, the standard deviation over
+    the seeds (only with two seeds or more: one seed has none), the predicted cost rate and
+    the RMS errors (only the columns some method has a value in: never "n/a" or "None")."""
+    stats = {n: m for n, m in summary["methods"].items() if "cost_rate" in m}
+    many = len(summary.get("seeds") or []) > 1
+    predicted = any(m["cost_rate"].get("predicted") is not None for m in stats.values())
+    any_pred_e = any(b is not None for m in stats.values()
+                     for b in (m["rms_e"].get("predicted") or []))
+    head = (f"{'method':>10s} {'cost rate':>12s}" + (f" {'(std)':>9s}" if many else "")
+            + (f" {'predicted':>10s}" if predicted else "")
+            + ("   rms e (sim / pred)" if any_pred_e else "   rms e"))
+    lines = [head]
+    for name, m in summary["methods"].items():
+        if "skipped" in m:
+            lines.append(f"{name:>10s}   skipped: {m['skipped']}")
+            continue
+        if name not in stats:
+            lines.append(f"{name:>10s}   {m.get('note', 'no statistics')}")
+            continue
+        c = m["cost_rate"]
+        row = f"{name:>10s} {c['mean']:#12.4g}"
+        if many:
+            row += f" {c['std']:#9.3g}"
+        if predicted:
+            row += f" {_g(c.get('predicted'), '#.4g') or '-':>10s}"
+        lines.append(f"{row}   {_rms_cell(m)}")
+        sep = m.get("min_separation")
+        if m.get("formation_error_rms"):
+            worst = max(m["formation_error_rms"], key=m["formation_error_rms"].get)
+            lines.append(f"{'':>10s}   formation error RMS (window) worst edge {worst} "
+                         f"{m['formation_error_rms'][worst]:#.3g} m"
+                         + ("" if sep is None else
+                            f"; closest approach {sep['m']:#.3g} m (vehicles "
+                            f"{sep['vehicles'][0]} and {sep['vehicles'][1]} at t = "
+                            f"{sep['time_s']:.4g} s, seed {sep['seed']})"))
+    return lines
+
+
+_SETTLES = re.compile(r"settles in 5 tau = ([0-9.eE+-]+) s")
+_AT_LEAST = re.compile(r"run at least T = ([0-9.eE+-]+) s")
+
+
+def stationarity_line(summary: dict) -> str | None:
+    """The stationarity note in one line: the window, when the slowest mode settles, the T
+    that gives stationary figures and, where predicted, the expected cost rate over this
+    window (None when the window is stationary)."""
+    note = summary.get("stationarity_note")
+    if not note:
+        return None
+    lo, hi = summary["stats_window_s"]
+    window = ", ".join(f"{n} {m['cost_rate']['predicted_window']:#.4g}"
+                       for n, m in summary["methods"].items()
+                       if (m.get("cost_rate") or {}).get("predicted_window") is not None)
+    settles, at_least = _SETTLES.search(note), _AT_LEAST.search(note)
+    if settles is None or at_least is None:      # another wording: say it as it is
+        head = f"note: {note.split('; run at least')[0]}"
+    else:
+        head = (f"note: the window [{lo:.3g}, {hi:.3g}) s is not stationary (the slowest "
+                f"mode settles in {settles.group(1)} s; run T >= {at_least.group(1)} s)")
+    return head + (f"; expected over this window: {window}" if window else "")
+
+
+def summary_notes(summary: dict) -> list[str]:
+    """The notes under the table, one line each: saturation, why a prediction is missing,
+    the full-information bound, the stationarity of the window."""
+    lines = [line for name, m in summary["methods"].items()
+             if (line := saturation_line(name, m.get(
+                 "actuator_saturation_fraction_per_vehicle")))]
+    notes = {m.get("prediction_note") for m in summary["methods"].values()} - {None}
+    lines += [f"note: {note}" for note in sorted(notes)]
+    if summary.get("cost_rate_full_information") is not None:
+        line = (f"full-information bound (every state known, the same cost) "
+                f"{summary['cost_rate_full_information']:#.4g}")
+        if summary.get("price_of_decentralization") is not None:
+            pred = summary.get("price_of_decentralization_predicted")
+            line += (f"; price of decentralization J_distributed / J_centralized "
+                     f"{summary['price_of_decentralization']:.4f}"
+                     + ("" if pred is None else f" (predicted {pred:.4f})"))
+        lines.append(line)
+    line = stationarity_line(summary)
+    if line:
+        lines.append(line)
+    return lines
+
+
 def print_summary(summary: dict, out: Path) -> int:
     """Print the summary table and where the files are; the exit status: 0, or 130 / 143
     for a run stopped by SIGINT / SIGTERM (after one line saying what was kept)."""
@@ -161,59 +278,10 @@ def print_summary(summary: dict, out: Path) -> int:
               + "; Python for the others"))
     for line in (summary.get("design") or {}).get("printout", []):
         print(line)                          # what [design] chose, and the path check
-    print(f"{'method':>10s} {'cost rate':>12s} {'(std)':>9s} {'predicted':>10s}   "
-          "rms e (sim / pred)")
-    for name, m in summary["methods"].items():
-        if "skipped" in m:
-            print(f"{name:>10s}   skipped: {m['skipped']}")
-            continue
-        if "cost_rate" not in m:
-            print(f"{name:>10s}   {m.get('note', 'no statistics')}")
-            continue
-        c = m["cost_rate"]
-        pred = "n/a" if c["predicted"] is None else f"{c['predicted']:#.4g}"
-        sim_e, pred_e = m["rms_e"]["mean"], m["rms_e"]["predicted"]
-        if len(sim_e) <= 4:
-            rms = ", ".join(
-                f"{a:#.3g}/{'n/a' if b is None else format(b, '#.3g')}"
-                for a, b in zip(sim_e, pred_e or [None] * len(sim_e)))
-        else:       # a fleet: the worst component, and the noise-free (steady) error
-            steady = m.get("steady_error", {}).get("max_rms_e_without_noise_predicted")
-            rms = (f"max {max(sim_e):#.3g}/"
-                   f"{'n/a' if not pred_e else format(max(pred_e), '#.3g')}"
-                   + ("" if steady is None else f"; steady error (noise-free RMS) {steady:#.3g}"))
-        print(f"{name:>10s} {c['mean']:#12.4g} {c['std']:#9.3g} {pred:>10s}   {rms}")
-        sep = m.get("min_separation")
-        if m.get("formation_error_rms"):
-            worst = max(m["formation_error_rms"], key=m["formation_error_rms"].get)
-            print(f"{'':>10s}   formation error RMS (window) worst edge {worst} "
-                  f"{m['formation_error_rms'][worst]:#.3g} m"
-                  + ("" if sep is None else
-                     f"; closest approach {sep['m']:#.3g} m (vehicles {sep['vehicles'][0]} "
-                     f"and {sep['vehicles'][1]} at t = {sep['time_s']:.4g} s, seed "
-                     f"{sep['seed']})"))
-    for name, m in summary["methods"].items():
-        line = saturation_line(name, m.get("actuator_saturation_fraction_per_vehicle"))
-        if line:
-            print(line)
-    notes = {m.get("prediction_note") for m in summary["methods"].values()} - {None}
-    for note in sorted(notes):
-        print(f"note: {note}")
-    if summary.get("cost_rate_full_information") is not None:
-        line = (f"full-information bound (every state known, the same cost) "
-                f"{summary['cost_rate_full_information']:#.4g}")
-        if summary.get("price_of_decentralization") is not None:
-            pred = summary.get("price_of_decentralization_predicted")
-            line += (f"; price of decentralization J_distributed / J_centralized "
-                     f"{summary['price_of_decentralization']:.4f}"
-                     + ("" if pred is None else f" (predicted {pred:.4f})"))
+    for line in method_table(summary):
         print(line)
-    if summary.get("stationarity_note"):
-        window = ", ".join(f"{n} {m['cost_rate']['predicted_window']:#.4g}"
-                           for n, m in summary["methods"].items()
-                           if m.get("cost_rate", {}).get("predicted_window") is not None)
-        print(f"note: {summary['stationarity_note']}"
-              + (f"; expected cost rate over this window: {window}" if window else ""))
+    for line in summary_notes(summary):
+        print(line)
     rrd = summary["rrd"]["path"]
     if rrd:
         print(f"wrote {rrd} and {out / 'summary.json'}; wall time {summary['wall_s']:.1f} s")

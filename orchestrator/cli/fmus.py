@@ -122,7 +122,10 @@ def add_export(sub: argparse._SubParsersAction) -> None:
                                        "system (libcosim) or an SSP archive (fmpy, SSP tools); "
                                        "native: compiled FMUs of the design, no Python needed, "
                                        "with both system files")
-    sp.add_argument("format", choices=("osp", "ssp", "native"))
+    sp.add_argument("format", choices=("osp", "ssp", "native"),
+                    help="osp: the FMUs and an OSP system structure file (libcosim); ssp: "
+                         "an SSP archive of the FMUs (fmpy, SSP tools); native: compiled FMUs "
+                         "of the design (no Python needed) with both system files")
     add_scenario_options(sp)
     sp.add_argument("--tracking", choices=TRACKING_MODES, help="the controller's tracking law")
     sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="the estimator's mode")

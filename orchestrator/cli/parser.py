@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 
 from . import bench, campaign, fmus, plot, run
+from .common import add_quiet_option
 
 __all__ = ["build_parser"]
 
@@ -21,4 +22,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     for add in COMMANDS:
         add(sub)
+    for sp in sub.choices.values():       # every command takes --quiet, meaning the same
+        if "--quiet" not in sp._option_string_actions:
+            add_quiet_option(sp)
     return p

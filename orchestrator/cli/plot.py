@@ -16,8 +16,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
         written = plot_run(args.run_dir, args.out, formats)
     except (RunFolderError, ValueError) as exc:
         raise UsageError(str(exc)) from None
-    for path in written:
-        print(path)
+    if not args.quiet:
+        for path in written:
+            print(path)
     print(f"wrote {len(written)} files into {written[0].parent if written else args.out}")
     return 0
 

@@ -143,11 +143,15 @@ def cmd_envelope(args: argparse.Namespace) -> int:
     with output_folder(args.out or default_out(sc, "envelope"), "envelope") as out:
         claim_folder(out, run_identity(sc, "envelope"), force=args.force)
         summary = run_envelope(sc, args.speeds, args.radii, args.currents, args.tolerance,
-                               out, log=print)
+                               out, log=(lambda s: None) if args.quiet else print)
     held = sum(p["holds"] for p in summary["envelope"]["points"])
     print(f"{held} of {len(summary['envelope']['points'])} points hold within "
           f"{args.tolerance:g} m; wrote {out / 'summary.json'}")
     return 130 if summary["interrupted"] else 0
+
+
+#: envelope's default scenario: a per-vehicle fleet (the command runs nothing else)
+ENVELOPE_SCENARIO = "survey-4-remus"
 
 
 def add_run(sub: argparse._SubParsersAction) -> None:
@@ -167,11 +171,10 @@ def add_run(sub: argparse._SubParsersAction) -> None:
 
 
 def _add_run_outputs(sp: argparse.ArgumentParser, default_out: str) -> None:
-    """--out, --force, --predict and --quiet of run and compare."""
+    """--out, --force and --predict of run and compare."""
     sp.add_argument("--out", help=f"output folder (default: {default_out})")
     add_force_option(sp)
     add_predict_option(sp)
-    sp.add_argument("--quiet", action="store_true", help="no progress bar or per-run lines")
 
 
 def add_compare(sub: argparse._SubParsersAction) -> None:
@@ -204,7 +207,7 @@ def add_envelope(sub: argparse._SubParsersAction) -> None:
     """The ``envelope`` command's sub-parser."""
     sp = sub.add_parser("envelope", help="where a per-vehicle formation holds: a grid of "
                                          "leader speed, turn radius and current strength")
-    add_scenario_options(sp)
+    add_scenario_options(sp, default=ENVELOPE_SCENARIO)
     sp.add_argument("--speeds", type=parse_floats, default=[1.0, 1.5, 2.0],
                     help="leader speeds, m/s (default: 1,1.5,2)")
     sp.add_argument("--radii", type=parse_floats, default=[math.inf, 50.0, 25.0],

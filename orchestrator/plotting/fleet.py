@@ -9,12 +9,14 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from orchestrator.recording import read_rrd_points
 from orchestrator.recording.layout import _vehicle_colors
 
-from .figure import PlotFigure, axis_label, legend_outside, new_figure, rgb
+from .figure import PlotFigure, axis_label, new_figure, rgb
 from .run_folder import RunData, RunFolderError
+from .window import finite_limits, stats_start
 
 __all__ = ["fleet_figures"]
 
@@ -39,7 +41,65 @@ def _points(run: RunData, entity: str) -> tuple[np.ndarray, np.ndarray] | None:
 def _title(run: RunData, text: str) -> str:
     seed = "" if run.seed is None else f", seed {run.seed}"
     label = f"\n{run.label}" if run.label else ""
-    return f"{text} — scenario {run.scenario}{seed}{label}"
+    return f"{text}\nscenario {run.scenario}{seed}{label}"
+
+
+#: margin around the paths, a fraction of the larger extent
+_PATH_MARGIN = 0.04
+#: the paths are drawn to scale (equal aspect) when north and east extents differ by at most
+#: this factor; beyond it the panel takes a bounded shape and says it is not to scale
+_MAX_ASPECT = 3.0
+#: a tall panel is at most this many times :data:`_PANEL` high
+_TALL = 1.5
+#: the narrowest figure, inches (room for its title)
+_MIN_WIDTH = 7.5
+
+
+def path_limits(lines: list, margin: float = _PATH_MARGIN) -> tuple[tuple[float, float],
+                                                                    tuple[float, float]]:
+    """(x-limits, y-limits) framing the finite data of ``lines`` with a margin of
+    ``margin`` times the larger extent on every side.
+
+    Parameters
+    ----------
+    lines : list[Line2D]
+        The drawn paths (and markers).
+    margin : float, optional
+
+    Returns
+    -------
+    tuple[tuple[float, float], tuple[float, float]]
+    """
+    xs = np.concatenate([np.asarray(ln.get_xdata(), float).ravel() for ln in lines])
+    ys = np.concatenate([np.asarray(ln.get_ydata(), float).ravel() for ln in lines])
+    ok = np.isfinite(xs) & np.isfinite(ys)
+    if not ok.any():
+        return (-1.0, 1.0), (-1.0, 1.0)
+    x0, x1, y0, y1 = xs[ok].min(), xs[ok].max(), ys[ok].min(), ys[ok].max()
+    pad = margin * max(x1 - x0, y1 - y0, 1.0)
+    return (float(x0 - pad), float(x1 + pad)), (float(y0 - pad), float(y1 + pad))
+
+
+def _frame_on_data(fig: Figure, axes: np.ndarray, lines: list, extra: float) -> None:
+    """Every path panel framed on the data (the same limits in each): to scale when the
+    extents are within :data:`_MAX_ASPECT` of each other (the panel takes the data's
+    shape, nothing left empty), else stretched to a bounded shape, said in the panel. The
+    figure is sized to the panels, ``extra`` inches wider for the legend."""
+    (x0, x1), (y0, y1) = path_limits(lines)
+    ratio = (y1 - y0) / (x1 - x0)
+    for ax in axes:
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
+        if 1 / _MAX_ASPECT <= ratio <= _MAX_ASPECT:
+            ax.set_box_aspect(ratio)
+        else:
+            ax.set_box_aspect(min(max(ratio, 1 / _MAX_ASPECT), _MAX_ASPECT))
+            ax.text(0.01, 0.01, "not to scale (north and east stretched differently)",
+                    transform=ax.transAxes, fontsize=7, color="0.35", va="bottom")
+    box = min(max(ratio, 1 / _MAX_ASPECT), _MAX_ASPECT)     # height / width of a panel
+    panel_w = _PANEL if box <= 1 else max(_PANEL / box, _PANEL * _TALL / box)
+    panel_h = min(panel_w * box, _PANEL * _TALL)
+    fig.set_size_inches(max(len(axes) * panel_w + extra, _MIN_WIDTH), panel_h + 1.1)
 
 
 def _paths_figure(run: RunData, n: int) -> PlotFigure:
@@ -74,17 +134,11 @@ def _paths_figure(run: RunData, n: int) -> PlotFigure:
             (line,) = ax.plot(tp[:, 1], tp[:, 0], "x", color="0.25", ms=7, mew=1.5,
                               zorder=5, label="_targets")
             pf.series[f"world/{m}/targets[-1]"] = line
-        ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("east (m)")
         ax.set_ylabel("north (m)")
         ax.set_title(f"method {m}")
-    if k > 1:            # the same scale in every panel (before the equal aspect widens it)
-        lims = [ax.dataLim for ax in axes[0]]
-        corners = [(min(b.x0 for b in lims), min(b.y0 for b in lims)),
-                   (max(b.x1 for b in lims), max(b.y1 for b in lims))]
-        for ax in axes[0]:
-            ax.update_datalim(corners)
-            ax.autoscale_view()
+    _frame_on_data(fig, axes[0], list(pf.series.values()),
+                   1.8 + (1.0 if n > 10 else 0.0))
     last = axes[0, -1]
     # marker key: start (open), end (filled), formation target at the end (x)
     last.plot([], [], "o", mfc="none", mec="0.3", ls="none", label="start")
@@ -102,28 +156,48 @@ def _paths_figure(run: RunData, n: int) -> PlotFigure:
 
 
 def _error_norm_figure(run: RunData, n: int) -> PlotFigure:
+    """fleet-errors: per method a row, the whole run with the start-up transient shaded (up
+    to the start of the statistics window) and a zoom on the statistics window, its y-axis
+    scaled to the window."""
     colors = [rgb(c) for c in _vehicle_colors(n)]
     k = len(run.methods)
-    fig, axes = new_figure(9.0 + (1.0 if n > 10 else 0.0), 0.8 + 3.0 * k, k, 1, sharex=True,
-                           sharey=True)
+    fig, axes = new_figure(11.5 + (1.0 if n > 10 else 0.0), 0.9 + 3.0 * k, k, 2,
+                           sharex="col", gridspec_kw={"width_ratios": [1.4, 1.0]})
     pf = PlotFigure("fleet-errors", fig)
     names = list(run.error_names)
     units = {run.units.get(c) for c in names} if names else {None}
     unit = units.pop() if len(units) == 1 else None
-    for ax, m in zip(axes[:, 0], run.methods):
+    for (whole, zoom), m in zip(axes, run.methods):
+        drawn = []
         for i in range(n):
             entity = f"vehicles/{i + 1}/error/{m}"
             _, t, e = run.scalars[entity]
+            ts = t.astype(np.float64) / 1e9
             norm = np.linalg.norm(np.reshape(e, (len(t), -1)), axis=1)
-            (line,) = ax.plot(t.astype(np.float64) / 1e9, norm, color=colors[i],
-                              label=f"vehicle {i + 1}")
+            (line,) = whole.plot(ts, norm, color=colors[i], label=f"vehicle {i + 1}")
             pf.series[f"{entity}:norm"] = line
-        ax.set_ylabel(axis_label(r"$\|e_i\|$", unit))
-        ax.set_title(f"method {m}", loc="left")
-        ax.margins(x=0.0)
-        ax.set_ylim(bottom=0.0)
-    axes[-1, 0].set_xlabel("time t (s)")
-    legend_outside(axes[0, 0], ncol=2 if n > 10 else 1)
+            zoom.plot(ts, norm, color=colors[i])
+            drawn.append((ts, norm))
+        t_end = max(float(ts[-1]) for ts, _ in drawn if len(ts))
+        t0 = stats_start(run.summary, t_end)
+        if t0 > 0:
+            whole.axvspan(0.0, t0, color="0.85", lw=0, zorder=0,
+                          label="start-up transient\n(before the statistics window)")
+        whole.set_xlim(0.0, t_end)
+        whole.set_ylim(bottom=0.0)
+        zoom.set_xlim(t0, t_end)
+        lim = finite_limits(drawn, t0, t_end)
+        if lim is not None:
+            zoom.set_ylim(0.0, lim[1])
+        whole.set_ylabel(axis_label(r"$\|e_i\|$", unit))
+        whole.set_title(f"method {m}: whole run", loc="left")
+        t1 = (run.summary.get("stats_window_s") or [None, t_end])[1] or t_end
+        zoom.set_title(f"statistics window t in [{t0:.4g}, {t1:.4g}) s", loc="left")
+    for ax in axes[-1]:
+        ax.set_xlabel("time t (s)")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    axes[0, 1].legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                      borderaxespad=0.0, ncol=2 if n > 10 else 1, frameon=False)
     comps = ", ".join(names) if names else "all components"
     fig.suptitle(_title(run, f"Tracking-error norm of each vehicle, $\\|e_i\\|$ over {comps}"),
                  fontsize=10)

@@ -2,19 +2,26 @@
 ``control-i`` for every component i, the recorded methods overlaid in the recording's
 colours (:func:`orchestrator.recording.method_color`).
 
+Each figure has two columns: the whole run, each trace as the envelope of its noise (the
+minimum and maximum per time bin as a band, the bin mean as a line), the zoomed window
+marked; and a zoom of 20 s after the start-up transient (from the start of the statistics
+window) where every sample is drawn, so that the methods' traces can be told apart.
+
 The state figures draw each method's true state and its estimate (in the method's lighter
-colour, as in the viewer). Their y-axis is scaled to the true states (and to the estimates
-that stay near them): an estimate that leaves that range by far, such as the classical
-law's spikes, is drawn clipped by the axes, and the title and its legend entry say so.
+colour, as in the viewer), one row per method. Their y-axis is scaled to the true states
+(and to the estimates that stay near them): an estimate that leaves that range by far, such
+as the classical law's spikes, is not drawn; a note in its panel gives its range.
 """
 from __future__ import annotations
 
 import numpy as np
+from matplotlib.axes import Axes
 
 from orchestrator.recording import method_color
 
 from .figure import PlotFigure, axis_label, estimate_rgb, legend_outside, new_figure, rgb
 from .run_folder import RunData
+from .window import BINS, draw_envelope, finite_limits, zoom_window
 
 __all__ = ["PAPER_FIGURES", "paper_figures"]
 
@@ -81,75 +88,119 @@ def _limits(trues: list[np.ndarray], estimates: dict[str, np.ndarray]
     return ylim, clipped
 
 
+def _panels(run: RunData, rows: int, height: float) -> tuple[PlotFigure, np.ndarray, float,
+                                                             tuple[float, float]]:
+    """A figure of ``rows`` x 2 panels (the whole run, the zoom), its name left blank; the
+    run's end time and the zoomed window."""
+    fig, axes = new_figure(_WIDTH + 2.6, height, rows, 2, sharex="col",
+                           gridspec_kw={"width_ratios": [2.0, 1.0]})
+    t_end = max(float(_seconds(t)[-1]) for _, t, _ in run.scalars.values() if len(t))
+    return PlotFigure("", fig), axes, t_end, zoom_window(run.summary, t_end)
+
+
+def _frame(ax_whole: Axes, ax_zoom: Axes, zoom: tuple[float, float], n: int,
+           t_end: float) -> None:
+    """Titles, the zoomed window marked on the whole run, and the zoom's x-range."""
+    ax_whole.axvspan(*zoom, color="0.88", zorder=0, lw=0)
+    binned = n >= 2 * BINS
+    ax_whole.set_title("whole run" + (f": min-max per {t_end / BINS:.2g} s bin (band) and "
+                                      "bin mean (line)" if binned else ""), loc="left",
+                       fontsize=9)
+    ax_zoom.set_title(f"zoom: t in [{zoom[0]:.4g}, {zoom[1]:.4g}] s, every sample (grey on "
+                      "the left)", loc="left", fontsize=9)
+    ax_whole.set_xlim(0.0, t_end)
+    ax_zoom.set_xlim(*zoom)
+
+
 def _simple_figure(run: RunData, root: str, i: int, title: str, symbol: str) -> PlotFigure:
-    """error-i or control-i: one line per method overlaid, the full range shown (these are
-    the signals the methods are compared by: nothing is clipped)."""
+    """error-i or control-i: left, the whole run of every method as the envelope of its
+    noise (min-max band per bin, bin mean), its full range shown; right, a zoom of
+    :data:`~.window.ZOOM_S` s after the start-up transient, every sample drawn."""
     colors = method_color(run.methods)
-    fig, axes = new_figure(_WIDTH, _HEIGHT)
-    ax = axes[0, 0]
-    pf = PlotFigure(f"{root}-{i}", fig)
+    pf, axes, t_end, zoom = _panels(run, 1, _HEIGHT)
+    pf.name = f"{root}-{i}"
+    whole, zoomed = axes[0]
     spread = {m: _spread(run.scalars[f"{root}/{i}/{m}"][2]) for m in run.methods}
     back_to_front = sorted(run.methods, key=lambda m: -spread[m])
+    n = 0
     for m in run.methods:           # the widest series at the back: the others stay visible
         entity = f"{root}/{i}/{m}"
         _, t, v = run.scalars[entity]
-        (line,) = ax.plot(_seconds(t), v, color=rgb(colors[m]), label=m,
-                          zorder=2 + back_to_front.index(m) / len(back_to_front))
+        n = len(v)
+        z = 2 + back_to_front.index(m) / len(back_to_front)
+        draw_envelope(whole, _seconds(t), v, rgb(colors[m]), zorder=z)
+        (line,) = zoomed.plot(_seconds(t), v, color=rgb(colors[m]), label=m, zorder=z)
         pf.series[entity] = line
-    ax.set_xlabel("time t (s)")
-    ax.set_ylabel(axis_label(f"${symbol}_{{{i}}}$", None))
-    ax.set_title(_title(run, title.format(sym=f"${symbol}_{{{i}}}$")))
-    ax.margins(x=0.0)
-    legend_outside(ax)
+    _frame(whole, zoomed, zoom, n, t_end)
+    lim = finite_limits([(_seconds(t), v) for _, t, v in
+                         (run.scalars[f"{root}/{i}/{m}"] for m in run.methods)], *zoom)
+    if lim is not None:
+        zoomed.set_ylim(*lim)
+    for ax in (whole, zoomed):
+        ax.set_xlabel("time t (s)")
+    whole.set_ylabel(axis_label(f"${symbol}_{{{i}}}$", None))
+    pf.figure.suptitle(_title(run, title.format(sym=f"${symbol}_{{{i}}}$")), fontsize=10)
+    legend_outside(zoomed)
     return pf
 
 
 def _state_figure(run: RunData, i: int, title: str, symbol: str) -> PlotFigure:
-    """state-i: one panel per method (same axes) with its true state and its estimate; the
-    common y-axis scaled to the true states and the estimates near them.
+    """state-i: one row per method with its true state and its estimate, the whole run
+    (envelope of the noise) on the left and a zoom after the transient on the right; the
+    common y-axis scaled to the true states and the estimates near them. An estimate far
+    outside it (the classical law's spikes) is not drawn: a note in its panel gives its
+    range.
 
     The true state differs between methods (each method's controls drive it; only the
-    noise is shared), so the methods are side by side, one panel each, not overlaid."""
+    noise is shared), so the methods are one row each, not overlaid."""
     colors = method_color(run.methods)
     k = len(run.methods)
-    fig, axes = new_figure(_WIDTH, _HEIGHT if k == 1 else 1.1 + 2.3 * k, k, 1, sharex=True,
-                           sharey=True)
-    pf = PlotFigure(f"state-{i}", fig)
+    pf, axes, t_end, zoom = _panels(run, k, _HEIGHT if k == 1 else 1.1 + 2.3 * k)
+    pf.name = f"state-{i}"
     true = {m: run.scalars[f"state/{i}/{m}/true"] for m in run.methods}
     est = {m: run.scalars[f"state/{i}/{m}/estimate"] for m in run.methods}
     ylim, clipped = _limits([v for _, _, v in true.values()],
                             {m: v for m, (_, _, v) in est.items()})
+    shown = [(_seconds(t), v) for _, t, v in true.values()] + [
+        (_seconds(t), v) for m, (_, t, v) in est.items() if m not in clipped]
+    zlim = finite_limits(shown, *zoom)
     sym = f"${symbol}_{{{i}}}$"
-    for ax, m in zip(axes[:, 0], run.methods):
+    for (whole, zoomed), m in zip(axes, run.methods):
         _, t, v = true[m]
-        (line,) = ax.plot(_seconds(t), v, color=rgb(colors[m]), zorder=2, label=f"{m} true")
+        draw_envelope(whole, _seconds(t), v, rgb(colors[m]), zorder=2)
+        (line,) = zoomed.plot(_seconds(t), v, color=rgb(colors[m]), zorder=2,
+                              label=f"{m} true")
         pf.series[f"state/{i}/{m}/true"] = line
         _, t, v = est[m]
-        label, style = f"{m} estimate", {"zorder": 3}
         if m in clipped:
-            label += f"\n(clipped; it spans {clipped[m][0]:.3g} to {clipped[m][1]:.3g})"
+            lo, hi = clipped[m]
             pf.clipped[f"state/{i}/{m}/estimate"] = clipped[m]
-            style = {"zorder": 1, "alpha": 0.6, "lw": 0.6}
-        elif np.array_equal(v, true[m][2]):
-            label += "\n(= true state, drawn under it)"
-            style = {"zorder": 1}
-        (line,) = ax.plot(_seconds(t), v, color=estimate_rgb(colors[m]), label=label, **style)
-        pf.series[f"state/{i}/{m}/estimate"] = line
-        ax.set_ylim(*ylim)
-        ax.set_ylabel(axis_label(sym, None))
-        ax.margins(x=0.0)
-        legend_outside(ax)
+            whole.text(0.01, 0.97, f"{m} estimate off this scale: it spans {lo:.3g} to "
+                                   f"{hi:.3g} (not drawn)", transform=whole.transAxes,
+                       va="top", ha="left", fontsize=8, zorder=6,
+                       bbox={"boxstyle": "round,pad=0.3", "fc": "white", "ec": "0.6"})
+        else:
+            label, z = f"{m} estimate", 3
+            if np.array_equal(v, true[m][2]):
+                label, z = label + "\n(= true state, drawn under it)", 1
+            draw_envelope(whole, _seconds(t), v, estimate_rgb(colors[m]), zorder=z)
+            (line,) = zoomed.plot(_seconds(t), v, color=estimate_rgb(colors[m]), label=label,
+                                  zorder=z)
+            pf.series[f"state/{i}/{m}/estimate"] = line
+        _frame(whole, zoomed, zoom, len(v), t_end)
+        whole.set_ylim(*ylim)
+        if zlim is not None:
+            zoomed.set_ylim(*zlim)
+        whole.set_ylabel(axis_label(sym, None))
+        legend_outside(zoomed)
+    for ax in axes[-1]:
+        ax.set_xlabel("time t (s)")
     note = ""
     if clipped:
         names = ", ".join(clipped)
         note = (f"y-axis scaled to the true states: the {names} estimate"
-                f"{'s are' if len(clipped) > 1 else ' is'} clipped")
-    axes[-1, 0].set_xlabel("time t (s)")
-    title = _title(run, title.format(sym=sym), note)
-    if k == 1:
-        axes[0, 0].set_title(title)
-    else:
-        fig.suptitle(title, fontsize=10)
+                f"{'s leave' if len(clipped) > 1 else ' leaves'} it (range in the panel)")
+    pf.figure.suptitle(_title(run, title.format(sym=sym), note), fontsize=10)
     return pf
 
 

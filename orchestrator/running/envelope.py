@@ -149,7 +149,10 @@ def run_envelope(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
         points.append(point)
         log(f"{i:3d}/{len(grid)} speed {speed:g} m/s, radius "
             f"{'straight' if point['radius'] is None else format(radius, 'g') + ' m'}, "
-            f"current {current:g} m/s: max error {point['max_error']:.3g} m -> "
+            f"current {current:g} m/s: "
+            + ("no statistics (empty window)" if point["max_error"] is None else
+               f"max error {point['max_error']:.3g} m")
+            + " -> "
             f"{'holds' if point['holds'] else 'does not hold'}"
             + ("" if point["path_feasible"] is None else
                "; path check: " + ("feasible" if point["path_feasible"] else

@@ -80,12 +80,12 @@ def plant_table(summary: dict[str, Any]) -> list[str]:
     lo, hi = summary["stats_window_s"]
     lines = [f"scenario {summary['scenario']}: T = {summary['T']} s, h = {summary['h']} s, "
              f"seeds {summary['seeds']}, window t in [{lo:.3g}, {hi:.3g}) s; errors |e_i| "
-             "in m; turns: the leader turning faster than 0.02 rad/s",
+             "in m; turns: the leader turning faster than 0.02 rad/s (-: none in the window)",
              f"{'plant':>14s} {'cost rate':>10s} {'max':>7s} {'max str.':>9s} "
              f"{'max turns':>9s} {'rms str.':>9s} {'rms turns':>9s} {'saturated':>9s}"]
 
     def f(v: Any, fmt: str = "#.3g") -> str:
-        return "n/a" if v is None else format(v, fmt)
+        return "-" if v is None else format(v, fmt)      # e.g. no turn in the window
     for name, m in summary["methods"].items():
         if "cost_rate" not in m:
             lines.append(f"{name:>14s}   {m.get('note', 'no statistics')}")
