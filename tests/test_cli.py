@@ -39,6 +39,7 @@ def test_run_writes_summary_and_rrd_matching_the_reference(tmp_path, capsys):
     assert "paper.rrd" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_compare_runs_three_methods_on_the_same_noise(tmp_path):
     out = tmp_path / "cmp"
     assert main(["compare", "--T", "3", "--seeds", "0-1", "--out", str(out), "--quiet"]) == 0

@@ -11,9 +11,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow
 def test_redirected_output_has_no_carriage_returns_and_a_working_viewer_line(tmp_path):
     log, err = tmp_path / "out.log", tmp_path / "err.log"
     with open(log, "w") as out, open(err, "w") as e:

@@ -90,6 +90,7 @@ def test_compare_has_a_std_column_only_for_two_seeds(capsys, tmp_path, seeds, st
                                                                rel=1e-3)
 
 
+@pytest.mark.slow
 def test_a_fleet_over_links_prints_no_missing_prediction(capsys, tmp_path):
     out = _run(capsys, ["run", "--scenario", "formation-4-links", "--T", "5",
                         "--out", str(tmp_path)])
@@ -100,6 +101,7 @@ def test_a_fleet_over_links_prints_no_missing_prediction(capsys, tmp_path):
     assert (tmp_path / "formation-4-links.rrd").is_file()
 
 
+@pytest.mark.slow
 def test_envelope_default_scenario_is_one_it_accepts(capsys, tmp_path):
     parser = build_parser()
     args = parser.parse_args(["envelope"])

@@ -26,6 +26,7 @@ def test_a_point_is_the_fleet_behind_a_line_or_a_circle_started_in_formation():
                                              z0[2] + v["offset"][2]])
 
 
+@pytest.mark.slow
 def test_envelope_runs_the_grid_and_says_where_it_holds(tmp_path, capsys):
     out = tmp_path / "env"
     assert main(["envelope", "--scenario", "formation-4", "--deployment", "per-vehicle",
@@ -75,6 +76,7 @@ def test_the_envelope_as_a_campaign_spec_gives_the_envelopes_figures(tmp_path, c
         assert r["actuator_saturation_fraction"] == p["actuator_saturation_fraction"]
 
 
+@pytest.mark.slow
 def test_each_point_carries_the_path_check_beside_its_figures(tmp_path):
     """survey-4-remus (a [design] section) over 1 and 2 m/s straight in a 0.1 m/s current:
     at 1 m/s the rudder cannot give the controller's 3-sigma lateral acceleration at the

@@ -51,6 +51,7 @@ def _figures(folder: Path) -> dict:
         return {pf.name: pf for pf in build_figures(load_run(folder))}
 
 
+@pytest.mark.slow
 def test_compare_writes_every_figure_in_every_format(runs, capsys):
     folder = runs["compare"]
     assert main(["plot", str(folder), "--format", "png,svg,pdf"]) == 0
@@ -139,6 +140,7 @@ def test_state_axes_hold_the_true_state_and_note_the_classical_spikes(runs):
         assert legend == list(METHODS)
 
 
+@pytest.mark.slow
 def test_a_run_plots_its_one_method_in_png_and_svg_by_default(runs, capsys):
     folder = runs["run"]
     assert main(["plot", str(folder)]) == 0
@@ -153,6 +155,7 @@ def test_a_run_plots_its_one_method_in_png_and_svg_by_default(runs, capsys):
     assert {e.split("/")[2] for pf in figs.values() for e in pf.series} == {"kalman"}
 
 
+@pytest.mark.slow
 def test_two_plots_of_a_run_are_byte_identical(runs, tmp_path):
     folder = runs["compare"]
     for k in (1, 2):
@@ -164,6 +167,7 @@ def test_two_plots_of_a_run_are_byte_identical(runs, tmp_path):
             assert a == (tmp_path / "2" / f"{name}.{fmt}").read_bytes(), f"{name}.{fmt}"
 
 
+@pytest.mark.slow
 def test_a_fleet_gets_its_paths_and_error_norms(runs, tmp_path, capsys):
     folder = runs["fleet"]
     rrd = folder / "formation-4.rrd"

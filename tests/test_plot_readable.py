@@ -51,6 +51,7 @@ def test_envelope_holds_every_sample_of_its_bin():
         assert env.mean[b] == pytest.approx(np.nanmean(seg))
 
 
+@pytest.mark.slow
 def test_paper_figures_have_the_whole_run_envelope_beside_a_zoom(folders):
     folder = folders["compare"]
     summary = json.loads((folder / "summary.json").read_text())
