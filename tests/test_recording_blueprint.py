@@ -164,8 +164,8 @@ def test_fleet_blueprint_layout(fleet_written):
         offset = position - target
         assert offset[0] < 0 and offset[2] < 0          # south of and above the centre
         half = np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)) / 2
-        # far enough that the sphere round the box fits in a 45 degree field of view
-        assert np.linalg.norm(offset) >= max(half, 5.0) / np.sin(np.radians(22.5)) - 1e-6
+        # far enough that the sphere round the box fits in a 60 degree field of view
+        assert np.linalg.norm(offset) >= max(half, 5.0) / np.sin(np.radians(30.0)) - 1e-6
     for i in range(1, N_VEH + 1):
         assert props[f"vehicle {i} error (m)"]["PlotLegend:visible"] == [False]
 

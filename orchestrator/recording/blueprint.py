@@ -160,15 +160,15 @@ def _trail_time_ranges(trail_ns: int, trail_steps: int) -> rrb.VisibleTimeRanges
     ])
 
 
-#: eye distance / the bounding box's half-diagonal: 1 / sin(22.5 deg)
-_EYE_DISTANCE = 1.0 / float(np.sin(np.radians(22.5)))
+#: eye distance / the bounding box's half-diagonal: 1 / sin(30 deg)
+_EYE_DISTANCE = 1.0 / float(np.sin(np.radians(30.0)))
 
 
 def fleet_camera(points: np.ndarray) -> rrb.EyeControls3D:
     """A camera that holds every point of ``points`` (NED, m; any shape (..., 3)): an orbit
     around the centre of their bounding box, from above and a little behind (south), at
-    2.61 times the box's half-diagonal (at least 5 m): the sphere round the box fits in a
-    45 degree field of view, so every trail of the run stays in frame.
+    twice the box's half-diagonal (at least 5 m): the sphere round the box fits in a 60
+    degree field of view, so every trail of the run stays in frame.
 
     Parameters
     ----------

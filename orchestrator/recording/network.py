@@ -44,20 +44,17 @@ def links_legend(methods: list[str]) -> str:
     Parameters
     ----------
     methods : list[str]
-        The recorded methods, in order (the first full colour, then darker, lighter).
+        The recorded methods with links (shaded as the main legend says).
 
     Returns
     -------
     str
         Markdown.
     """
-    counts = ", ".join(f"{what} {c}" for what, c in zip(
+    counts = " · ".join(f"{what} {c}" for what, c in zip(
         ("delivered", "lost", "in flight"), _LINK_COLOR_NAMES))
-    shades = " · ".join(f"**{m}**: {('full colour', 'darker', 'lighter')[i % 3]}"
-                        for i, m in enumerate(methods))
-    return (f"**links** (messages, cumulative; one set of lines per link): {counts} · "
-            f"**age of information** (s): one line per sender in the sender's 3D colour, "
-            f"the leader gold · {shades}")
+    return (f"**links** (messages): {counts} · **age** (s): the sender's 3D colour, "
+            f"leader gold" + (" · methods shaded as above" if len(methods) > 1 else ""))
 
 
 def _parse(name: str) -> tuple[str, str]:
@@ -170,4 +167,4 @@ def network_view(runs: Mapping[str, Mapping[str, np.ndarray]],
         ages[i] = series_view(f"vehicle {i} age of information (s)",
                               f"/vehicles/{i}/network", None, data_range(data))
     legend = rrb.TextDocumentView(origin=f"/{LINKS_LEGEND_ENTITY}", name="links legend")
-    return rrb.Vertical(legend, count_view, row_shares=[1.0, 5.0], name="links"), ages
+    return rrb.Vertical(legend, count_view, row_shares=[1.6, 5.0], name="links"), ages

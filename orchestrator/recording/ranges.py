@@ -20,12 +20,18 @@ DIMENSIONLESS = "dimensionless"
 #: margin added to each side of the data, as a share of its span
 _MARGIN = 0.05
 _MIN_TICKS = 3
+#: more ticks than this of one step in a view: the viewer draws their labels faint
+_MAX_TICKS = 4.5
+#: the least share of the view the data must fill when the ticks go to the next power of ten
+_MIN_FILL = 0.4
 
 
 def tick_range(lo: float, hi: float, margin: float = _MARGIN) -> tuple[float, float]:
     """``[lo, hi]`` widened by ``margin`` of its span on each side, then to hold at least
     three multiples of the power of ten d = 10**floor(log10(span)) (the tick step the viewer
     labels), the extra multiples taken on the nearer side, plus a little room past them.
+    When the span holds more than 4.5 steps d (labels too close: drawn faint), 10 d is
+    used instead if the data still fill 40 % of the view.
 
     Parameters
     ----------
@@ -51,6 +57,16 @@ def tick_range(lo: float, hi: float, margin: float = _MARGIN) -> tuple[float, fl
         span = hi - lo
     lo, hi = lo - margin * span, hi + margin * span
     step = 10.0 ** math.floor(math.log10(hi - lo))
+    view = _with_ticks(lo, hi, step)
+    if (hi - lo) / step > _MAX_TICKS:      # ticks too close to be labelled brightly:
+        wide = _with_ticks(lo, hi, 10.0 * step)     # the next power of ten, if the data
+        if (hi - lo) / (wide[1] - wide[0]) >= _MIN_FILL:   # still fill enough of the view
+            view = wide
+    return view
+
+
+def _with_ticks(lo: float, hi: float, step: float) -> tuple[float, float]:
+    """[lo, hi] widened to hold three multiples of ``step`` (the nearer ones), with room."""
     first, last = math.ceil(lo / step - 1e-9), math.floor(hi / step + 1e-9)
     while last - first + 1 < _MIN_TICKS:                   # add the nearer multiple
         if lo - (first - 1) * step <= (last + 1) * step - hi:

@@ -143,6 +143,25 @@ _ACTUATOR_KEYS = ("attitude", "rpm", "rudder", "stern", "saturated")
 _HULL_HALF_SIZES = (2.4, 0.285, 0.285)
 
 
+#: distance (m) of a vehicle's number from the vehicle, to starboard of its course
+_LABEL_OFFSET = 4.0
+
+
+def _label_positions(pos: np.ndarray) -> np.ndarray:
+    """(rows, N, 3) positions of the vehicles' numbers: ``_LABEL_OFFSET`` m to starboard of
+    each vehicle's horizontal course (east when it does not move), so the number sits off
+    its own trail."""
+    if pos.shape[0] < 2:
+        vel = np.zeros_like(pos)
+    else:
+        vel = np.gradient(pos, axis=0)
+    right = np.stack([-vel[..., 1], vel[..., 0], np.zeros(vel.shape[:-1])], axis=-1)
+    norm = np.linalg.norm(right, axis=-1, keepdims=True)
+    east = np.broadcast_to(np.array([0.0, 1.0, 0.0]), right.shape)
+    unit = np.where(norm > 1e-9, right / np.maximum(norm, 1e-12), east)
+    return pos + _LABEL_OFFSET * unit
+
+
 def _send_fleet_world(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray],
                       fleet: _Fleet, h_ns: int, stride: int, scene_stride: int,
                       trail_stride: int) -> None:
@@ -161,10 +180,18 @@ def _send_fleet_world(rec: rr.RecordingStream, method: str, traces: dict[str, np
 
     rec.log(root, rr.ViewCoordinates.FRD, static=True)
     rec.log(f"{root}/vehicles", rr.Points3D.from_fields(
-        radii=[1.0], colors=colors, labels=[str(i) for i in range(1, n + 1)], show_labels=True),
+        radii=[1.0], colors=colors, labels=[str(i) for i in range(1, n + 1)], show_labels=False),
         static=True)
     rec.send_columns(f"{root}/vehicles", indexes=indexes, columns=rr.Points3D.columns(
         positions=pos.reshape(rows * n, 3).astype(np.float32)).partition(np.full(rows, n)))
+    # the numbers beside the vehicles, off their own trails and edges: to starboard
+    rec.log(f"{root}/labels", rr.Points3D.from_fields(
+        radii=[0.05], colors=[_lighter(tuple(int(v) for v in c), 0.45) for c in colors],
+        labels=[str(i) for i in range(1, n + 1)], show_labels=True),
+        static=True)
+    rec.send_columns(f"{root}/labels", indexes=indexes, columns=rr.Points3D.columns(
+        positions=_label_positions(pos).reshape(rows * n, 3).astype(np.float32)
+    ).partition(np.full(rows, n)))
 
     if "attitude" in traces:             # the nonlinear vehicle: an oriented hull
         att = traces["attitude"][ks].reshape(rows * n, 3)
