@@ -60,7 +60,7 @@ def test_default_blueprint_is_embedded(written):
     for row in figures["contents"] + exo["contents"]:
         for i, view in enumerate(row["contents"], start=1):
             assert view["class"] == "TimeSeries" and view["origin"] == f"/{row['name']}/{i}"
-            assert view["name"].startswith(f"{row['name']}-{i}")
+            assert view["name"].startswith(f"{row['name']}-{i} (dimensionless)")
     props = read_rrd_view_properties(path)
     ranges = read_rrd_visible_time_ranges(path)
     series = [v["name"] for v in _views(tree) if v["class"] == "TimeSeries"]
@@ -88,18 +88,23 @@ def test_estimate_views_fit_the_true_signal(tmp_path):
     write_rrd(path, runs, 0.01, recording_name="fit")
     props = read_rrd_view_properties(path)
     for i in (1, 2):
-        name = f"state-{i} (classical estimate: see full scale)"
+        name = f"state-{i} (dimensionless) · classical estimate: see full scale"
         lo, hi = props[name]["ScalarAxis:range"][0]
         assert (lo, hi) == pytest.approx(true_signal_range(x[:, i - 1]))
         assert lo < x[:, i - 1].min() and hi > x[:, i - 1].max()
         trues = [f"+ /state/{i}/kalman/true", f"+ /state/{i}/classical/true"]
         assert props[name]["ViewContents:query"] == trues + [f"+ /state/{i}/kalman/estimate"]
-        assert props[f"state-{i} full scale"]["ViewContents:query"] == trues + [
+        full = f"state-{i} full scale (dimensionless)"
+        assert props[full]["ViewContents:query"] == trues + [
             f"+ /state/{i}/kalman/estimate", f"+ /state/{i}/classical/estimate"]
         # the shared reference: drawn once
-        assert props["reference-1"]["ViewContents:query"][0] == "+ /reference/1/kalman/true"
-        assert "+ /reference/1/classical/true" not in props["reference-1"]["ViewContents:query"]
-        assert "ScalarAxis:range" not in props[f"state-{i} full scale"]
+        ref = props["reference-1 (dimensionless)"]["ViewContents:query"]
+        assert ref[0] == "+ /reference/1/kalman/true"
+        assert "+ /reference/1/classical/true" not in ref
+        # the full-scale view's axis covers every estimate, the classical one too
+        lo, hi = props[full]["ScalarAxis:range"][0]
+        every = np.concatenate([x[:, i - 1]] + [runs[m]["xhat"][:, i - 1] for m in runs])
+        assert lo < every.min() and hi > every.max()
 
 
 def test_without_blueprint_helper_says_so(tmp_path):
@@ -130,8 +135,8 @@ def test_fleet_blueprint_layout(fleet_written):
     # the parents of the per-method entities, so each view overlays every method
     assert right["kind"] == "Grid"
     assert [(v["class"], v["name"], v["origin"]) for v in right["contents"]] == [
-        ("TimeSeries", f"vehicle {i} {g}", f"/vehicles/{i}/{g}")
-        for i in range(1, N_VEH + 1) for g in ("error", "control")]
+        ("TimeSeries", f"vehicle {i} {g} ({unit})", f"/vehicles/{i}/{g}")
+        for i in range(1, N_VEH + 1) for g, unit in (("error", "m"), ("control", "N"))]
     entities = set(read_rrd_scalars(path))
     for i in range(1, N_VEH + 1):
         for g in ("error", "control"):
@@ -140,7 +145,7 @@ def test_fleet_blueprint_layout(fleet_written):
     # read_rrd_blueprint_views lists them too, and the per-component grid is left out
     views = read_rrd_blueprint_views(path)
     assert views["fleet kalman"] == ("3D", "/world/kalman")
-    assert views["vehicle 2 control"] == ("TimeSeries", "/vehicles/2/control")
+    assert views["vehicle 2 control (N)"] == ("TimeSeries", "/vehicles/2/control")
     assert set(views) == {v["name"] for v in _views(tree)}
     assert "error-1" not in views and len(views) == len(FLEET_METHODS) + 2 * N_VEH + 1
     # every 3D view looks at the centre of everything the run visits, from above and south
@@ -159,9 +164,10 @@ def test_fleet_blueprint_layout(fleet_written):
         offset = position - target
         assert offset[0] < 0 and offset[2] < 0          # south of and above the centre
         half = np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)) / 2
-        assert np.linalg.norm(offset) >= 1.5 * max(half, 5.0)
+        # far enough that the sphere round the box fits in a 60 degree field of view
+        assert np.linalg.norm(offset) >= max(half, 5.0) / np.sin(np.radians(30.0)) - 1e-6
     for i in range(1, N_VEH + 1):
-        assert props[f"vehicle {i} error"]["PlotLegend:visible"] == [False]
+        assert props[f"vehicle {i} error (m)"]["PlotLegend:visible"] == [False]
 
 
 def test_fleet_trail_visible_time_range(fleet_written):
@@ -177,7 +183,7 @@ def test_fleet_trail_visible_time_range(fleet_written):
              "step": (("infinite", None), ("infinite", None))}
     assert ranges == {**{(f"fleet {m}", f"/world/{m}/trails"): want for m in FLEET_METHODS},
                       **{(f"vehicle {i} {g}", None): whole for i in range(1, N_VEH + 1)
-                         for g in ("error", "control")}}
+                         for g in ("error (m)", "control (N)")}}
 
 
 def test_fleet_many_vehicles_use_tabs(tmp_path):

@@ -9,6 +9,8 @@ Paper layout (tabs):
 
 Every time-series view shows the whole run (both timelines unbounded), with its legend
 hidden: a one-line legend view on top names the colours instead, so no legend covers data.
+Every view's name carries its unit (the paper example is dimensionless) and its y-axis
+covers its data with at least three labelled ticks (:mod:`.ranges`).
 The state, disturbance and reference views of the first two tabs draw the true signals (each
 method's state, which its own control drives; the disturbance and reference once, as every
 method sees the same) with each method's estimate, and scale the y-axis to the true
@@ -18,8 +20,10 @@ samples outside that range is left out there (the view's name says so) and shown
 third tab with the others at full scale. The time panel starts paused and folded.
 
 Fleet layout: the 3D view(s) on the left, framed from above and behind the formation to hold
-every vehicle and the leader over the whole run; per-vehicle error/control views on the
-right (a grid, or tabs of grids for many vehicles), whole run, legends hidden.
+every vehicle and the leader over the whole run; below them the actuators (nonlinear
+vehicles: one view per actuator kind) and the links (acoustic links: their legend line and
+counts); per-vehicle error/control (and age of information) views on the right (a grid, or
+tabs of grids for many vehicles), whole run, legends hidden.
 """
 from __future__ import annotations
 
@@ -27,7 +31,8 @@ import numpy as np
 import rerun.blueprint as rrb
 from rerun.encodings import TimeRange
 
-from .layout import _SIM_TIME, _STEP, VIEW_GROUPS
+from .layout import _SIM_TIME, _STEP, VIEW_GROUPS, _Fleet
+from .ranges import DIMENSIONLESS, data_range, tick_range, unit_of
 
 #: entity of the one-line colour legend (a markdown TextDocument written by the writer)
 LEGEND_ENTITY = "legend"
@@ -56,7 +61,7 @@ def _series_view(name: str, origin: str, contents: list[str] | None = None,
 
 def true_signal_range(true: np.ndarray) -> tuple[float, float]:
     """The y-axis of a view comparing estimates with ``true``: its range widened by 15 % of
-    its span on each side (at least +-1e-9 around a constant).
+    its span on each side, then to hold three labelled ticks (:func:`.ranges.tick_range`).
 
     Parameters
     ----------
@@ -68,9 +73,7 @@ def true_signal_range(true: np.ndarray) -> tuple[float, float]:
     tuple[float, float]
         (low, high).
     """
-    lo, hi = float(np.min(true)), float(np.max(true))
-    pad = max(_MARGIN * (hi - lo), 1e-9 * max(1.0, abs(lo), abs(hi)))
-    return lo - pad, hi + pad
+    return tick_range(float(np.min(true)), float(np.max(true)), _MARGIN)
 
 
 def _true_and_estimates(group: str, i: int, methods: list[str],
@@ -92,12 +95,15 @@ def _true_and_estimates(group: str, i: int, methods: list[str],
         outside = np.mean((est[:, i - 1] < lo) | (est[:, i - 1] > hi))
         (shown if outside <= 0.01 else left_out).append(m)
     trues = [f"+ /{group}/{i}/{m}/true" for m in owners]
-    name = f"{group}-{i}" + (f" ({', '.join(left_out)} estimate: see full scale)"
-                             if left_out else "")
+    name = f"{group}-{i} ({DIMENSIONLESS})" + (
+        f" · {', '.join(left_out)} estimate: see full scale" if left_out else "")
     fitted = _series_view(name, f"/{group}/{i}", trues + [
         f"+ /{group}/{i}/{m}/estimate" for m in shown], (lo, hi))
-    full = _series_view(f"{group}-{i} full scale", f"/{group}/{i}", trues + [
-        f"+ /{group}/{i}/{m}/estimate" for m in shown + left_out])
+    every = [clean[m][true_key][:, i - 1] for m in owners] + [
+        clean[m][est_key][:, i - 1] for m in shown + left_out]
+    full = _series_view(f"{group}-{i} full scale ({DIMENSIONLESS})", f"/{group}/{i}",
+                        trues + [f"+ /{group}/{i}/{m}/estimate" for m in shown + left_out],
+                        data_range(every))
     return fitted, full
 
 
@@ -113,8 +119,11 @@ def _blueprint(clean: dict[str, dict[str, np.ndarray]]) -> rrb.Blueprint:
             rows[group] = [p[0] for p in pairs]
             full.append(rrb.Horizontal(*[p[1] for p in pairs], name=f"{group}, full scale"))
         else:
-            rows[group] = [_series_view(f"{group}-{i}", f"/{group}/{i}")
-                           for i in range(1, dim + 1)]
+            rows[group] = [_series_view(
+                f"{group}-{i} ({DIMENSIONLESS})", f"/{group}/{i}", None,
+                data_range([run[k][:, i - 1] for run in clean.values() for k in keys
+                            if run[k].shape[1] >= i]))
+                for i in range(1, dim + 1)]
     figures = rrb.Vertical(*[rrb.Horizontal(*rows[g], name=g)
                              for g in ("error", "state", "control")],
                            name="paper figures 2-7")
@@ -151,10 +160,15 @@ def _trail_time_ranges(trail_ns: int, trail_steps: int) -> rrb.VisibleTimeRanges
     ])
 
 
+#: eye distance / the bounding box's half-diagonal: 1 / sin(30 deg)
+_EYE_DISTANCE = 1.0 / float(np.sin(np.radians(30.0)))
+
+
 def fleet_camera(points: np.ndarray) -> rrb.EyeControls3D:
     """A camera that holds every point of ``points`` (NED, m; any shape (..., 3)): an orbit
-    around the centre of their bounding box, from behind (south) and above, at 1.7 times the
-    box's half-diagonal (at least 5 m).
+    around the centre of their bounding box, from above and a little behind (south), at
+    twice the box's half-diagonal (at least 5 m): the sphere round the box fits in a 60
+    degree field of view, so every trail of the run stays in frame.
 
     Parameters
     ----------
@@ -170,18 +184,30 @@ def fleet_camera(points: np.ndarray) -> rrb.EyeControls3D:
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     centre = (lo + hi) / 2
     radius = max(float(np.linalg.norm(hi - lo)) / 2, 5.0)
-    direction = np.array([-0.55, -0.35, -0.76])            # south, west, up (NED)
-    eye = centre + 1.7 * radius * direction / np.linalg.norm(direction)
+    direction = np.array([-0.45, -0.12, -0.88])            # south, west, mostly up (NED)
+    eye = centre + _EYE_DISTANCE * radius * direction / np.linalg.norm(direction)
     return rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, position=eye.tolist(),
                              look_target=centre.tolist(), eye_up=[0.0, 0.0, -1.0])
 
 
-def _fleet_blueprint(methods: list[str], n: int, trail_ns: int, trail_steps: int,
-                     points: np.ndarray, network: bool = False,
-                     actuators: bool = False) -> rrb.Blueprint:
-    """3D view(s) of the fleet on the left (framed by :func:`fleet_camera` on ``points``),
-    per-vehicle error/control views on the right (whole run, legends hidden: the legend view
-    on top names the colours)."""
+def _vehicle_ranges(fleet: _Fleet, runs: dict[str, dict[str, np.ndarray]], i: int
+                    ) -> tuple[tuple[float, float], tuple[float, float]]:
+    """y ranges of vehicle i's error and control views (every method)."""
+    return (data_range([r["e"][:, fleet.error_index[i - 1]] for r in runs.values()]),
+            data_range([r["u"][:, fleet.control_index[i - 1]] for r in runs.values()]))
+
+
+def _fleet_blueprint(methods: list[str], fleet: _Fleet, trail_ns: int, trail_steps: int,
+                     runs: dict[str, dict[str, np.ndarray]],
+                     links: dict[str, list[str]] | None = None) -> rrb.Blueprint:
+    """3D view(s) of the fleet on the left (framed by :func:`fleet_camera` on every vehicle
+    and leader position), under them the actuator views (nonlinear vehicles) and the links
+    (legend line and counts); per-vehicle error/control (and age of information) views on
+    the right (whole run, legends hidden: the legend view on top names the colours)."""
+    n = fleet.n
+    points = np.concatenate(
+        [np.concatenate([run["x"][:, fleet.position_index].reshape(-1, 3),
+                         run["z"] @ fleet.leader_output.T]) for run in runs.values()])
     camera = fleet_camera(points)
     views_3d = [
         rrb.Spatial3DView(
@@ -192,31 +218,50 @@ def _fleet_blueprint(methods: list[str], n: int, trail_ns: int, trail_steps: int
         )
         for m in methods
     ]
-    left: rrb.Container | rrb.View = (
+    view_3d: rrb.Container | rrb.View = (
         views_3d[0] if len(views_3d) == 1 else rrb.Tabs(*views_3d, active_tab=0, name="fleet 3D"))
+    left_parts: list[rrb.Container | rrb.View] = [view_3d]
+    shares = [3.0]
+    if any("rpm" in r for r in runs.values()):  # the nonlinear vehicle: actuators per kind
+        from .actuators import DEFAULT_DELTA_MAX, DEFAULT_N_MAX, actuator_views
+        left_parts.append(actuator_views(
+            n, runs, fleet.n_max or DEFAULT_N_MAX, fleet.delta_max or DEFAULT_DELTA_MAX,
+            _series_view))
+        shares.append(2.2)
+    ages: dict[int, rrb.TimeSeriesView] = {}
+    if links:                           # acoustic links: counts under the 3D view
+        from .network import network_view
+        links_part, age_views = network_view(runs, links, _series_view)
+        ages = {int(i): v for i, v in age_views.items() if i.isdigit()}
+        left_parts.append(links_part)
+        shares.append(1.6)
+    left = left_parts[0] if len(left_parts) == 1 else rrb.Vertical(*left_parts,
+                                                                      row_shares=shares)
+    error_unit = unit_of(fleet.error_names, fleet.error_unit)
+    control_unit = unit_of(fleet.control_names, fleet.control_unit)
 
     def vehicle_views(i: int) -> list[rrb.TimeSeriesView]:
-        views = [_series_view(f"vehicle {i} error", f"/vehicles/{i}/error"),
-                 _series_view(f"vehicle {i} control", f"/vehicles/{i}/control")]
-        if actuators:               # the nonlinear vehicle: propeller rpm and fin angles
-            views += [_series_view(f"vehicle {i} propeller", f"/vehicles/{i}/propeller"),
-                      _series_view(f"vehicle {i} fins", f"/vehicles/{i}/fins")]
+        err, ctl = _vehicle_ranges(fleet, runs, i)
+        views = [_series_view(f"vehicle {i} error ({error_unit})", f"/vehicles/{i}/error",
+                              None, err),
+                 _series_view(f"vehicle {i} control ({control_unit})",
+                              f"/vehicles/{i}/control", None, ctl)]
+        if i in ages:
+            views.append(ages[i])
         return views
 
+    columns = 3 if ages else 2
     if n <= _FLEET_GRID_MAX:
         right: rrb.Container = rrb.Grid(
-            contents=[v for i in range(1, n + 1) for v in vehicle_views(i)], grid_columns=2,
-            name="vehicles")
+            contents=[v for i in range(1, n + 1) for v in vehicle_views(i)],
+            grid_columns=columns, name="vehicles")
     else:
         tabs = []
         for a in range(1, n + 1, _FLEET_TAB_SIZE):
             b = min(a + _FLEET_TAB_SIZE - 1, n)
             tabs.append(rrb.Grid(contents=[v for i in range(a, b + 1) for v in vehicle_views(i)],
-                                 grid_columns=2, name=f"vehicles {a}-{b}"))
+                                 grid_columns=columns, name=f"vehicles {a}-{b}"))
         right = rrb.Tabs(*tabs, active_tab=0, name="vehicles")
-    if network:                         # acoustic links: their own tab beside the vehicles
-        from .network import network_view
-        right = rrb.Tabs(right, network_view(n, _series_view), active_tab=0, name="vehicles")
     legend = rrb.TextDocumentView(origin=f"/{LEGEND_ENTITY}", name="legend")
     return rrb.Blueprint(
         rrb.Vertical(legend, rrb.Horizontal(left, right, column_shares=[1.0, 1.0]),

@@ -148,6 +148,14 @@ class FleetLayout:
     disturbance_index: np.ndarray | None = None
     #: r labels of the disturbance components, e.g. ("n", "e", "d").
     disturbance_names: tuple[str, ...] | None = None
+    #: unit of the errors / controls in the view names; None: from the component names
+    #: (n, e, d: m; X_n, X_e, X_d: N), see :func:`orchestrator.recording.ranges.unit_of`.
+    error_unit: str | None = None
+    control_unit: str | None = None
+    #: the nonlinear vehicle's actuator limits drawn in its actuator views: propeller speed
+    #: (rpm) and fin angle (rad); None: the REMUS 100 defaults (1525 rpm, 15 deg).
+    n_max: float | None = None
+    delta_max: float | None = None
 
     @property
     def n_vehicles(self) -> int:
@@ -173,6 +181,10 @@ class _Fleet:
     state_names: tuple[str, ...]
     disturbance_index: np.ndarray | None  # (N, r) int64, or None: no current entities
     disturbance_names: tuple[str, ...]
+    error_unit: str | None = None
+    control_unit: str | None = None
+    n_max: float | None = None
+    delta_max: float | None = None
 
 
 def _shade(rgb: tuple[int, int, int], k: int) -> tuple[int, int, int]:

@@ -20,12 +20,41 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from .layout import axis_colors
+from .layout import _shade, _vehicle_colors
+from .ranges import data_range
 
-__all__ = ["LINK_KEYS", "network_view", "send_links"]
+__all__ = ["LINK_COLORS", "LINK_KEYS", "LINKS_LEGEND_ENTITY", "links_legend", "network_view",
+           "send_links"]
 
 #: the traces of the links (one column per link)
 LINK_KEYS = ("link_age", "link_delivered", "link_lost", "link_in_flight")
+#: delivered, lost, in flight: grey, orange, purple (apart from the components' red, green,
+#: blue)
+LINK_COLORS: tuple[tuple[int, int, int], ...] = ((150, 150, 150), (255, 140, 0),
+                                                 (170, 90, 230))
+_LINK_COLOR_NAMES = ("grey", "orange", "purple")
+_LEADER_COLOR = (255, 215, 0)
+#: entity of the links' one-line legend (markdown), shown above the links view
+LINKS_LEGEND_ENTITY = "legend_links"
+
+
+def links_legend(methods: list[str]) -> str:
+    """The one-line legend of the links and age-of-information views (markdown).
+
+    Parameters
+    ----------
+    methods : list[str]
+        The recorded methods with links (shaded as the main legend says).
+
+    Returns
+    -------
+    str
+        Markdown.
+    """
+    counts = " · ".join(f"{what} {c}" for what, c in zip(
+        ("delivered", "lost", "in flight"), _LINK_COLOR_NAMES))
+    return (f"**links** (messages): {counts} · **age** (s): the sender's 3D colour, "
+            f"leader gold" + (" · methods shaded as above" if len(methods) > 1 else ""))
 
 
 def _parse(name: str) -> tuple[str, str]:
@@ -34,8 +63,8 @@ def _parse(name: str) -> tuple[str, str]:
 
 
 def send_links(rec: rr.RecordingStream, method: str, traces: Mapping[str, np.ndarray],
-               links: Sequence[str], stride: int, indexes: list[Any], method_index: int
-               ) -> int:
+               links: Sequence[str], stride: int, indexes: list[Any], method_index: int,
+               n: int | None = None) -> int:
     """Log one run's links; returns the number of scalar lines written.
 
     Parameters
@@ -54,6 +83,9 @@ def send_links(rec: rr.RecordingStream, method: str, traces: Mapping[str, np.nda
         The time columns of the recorded steps.
     method_index : int
         The method's place (shade).
+    n : int or None, optional
+        Vehicles of the fleet (the 3D colours the age lines take); None: the highest vehicle
+        number in ``links``.
 
     Returns
     -------
@@ -62,13 +94,13 @@ def send_links(rec: rr.RecordingStream, method: str, traces: Mapping[str, np.nda
     """
     lines = 0
     counts = np.stack([np.asarray(traces[k], float)[::stride] for k in LINK_KEYS[1:]], axis=2)
-    colors = axis_colors(3, method_index)
+    colors = [_shade(c, method_index) for c in LINK_COLORS]
     for c, name in enumerate(links):
         j, i = _parse(name)
         entity = f"network/links/{j}-{i}/{method}"
         rec.log(entity, rr.SeriesLines(colors=colors, names=[
             f"{method} {j}->{i} delivered", f"{method} {j}->{i} lost",
-            f"{method} {j}->{i} in flight"]), static=True)
+            f"{method} {j}->{i} in flight"], aggregation_policy="MinMax"), static=True)
         rec.send_columns(entity, indexes=indexes, columns=rr.Scalars.columns(
             scalars=np.ascontiguousarray(counts[:, c, :])))
         lines += 3
@@ -77,10 +109,20 @@ def send_links(rec: rr.RecordingStream, method: str, traces: Mapping[str, np.nda
     for c, name in enumerate(links):
         j, i = _parse(name)
         by_receiver.setdefault(i, []).append((c, j))
+    if n is None:
+        n = max(int(v) for name in links for v in _parse(name) if v.isdigit())
+    vehicle = _vehicle_colors(n)
+
+    def sender_color(j: str) -> tuple[int, int, int]:
+        base = (_LEADER_COLOR if not j.isdigit()
+                else tuple(int(c) for c in vehicle[int(j) - 1]))
+        return _shade(base, method_index)  # type: ignore[arg-type]
+
     for i, cols in by_receiver.items():
         entity = f"vehicles/{i}/network/{method}/age"
-        rec.log(entity, rr.SeriesLines(colors=axis_colors(len(cols), method_index),
-                                       names=[f"{method} from {j}" for _, j in cols]),
+        rec.log(entity, rr.SeriesLines(colors=[sender_color(j) for _, j in cols],
+                                       names=[f"{method} from {j}" for _, j in cols],
+                                       aggregation_policy="MinMax"),
                 static=True)
         rec.send_columns(entity, indexes=indexes, columns=rr.Scalars.columns(
             scalars=np.ascontiguousarray(age[:, [c for c, _ in cols]])))
@@ -88,10 +130,41 @@ def send_links(rec: rr.RecordingStream, method: str, traces: Mapping[str, np.nda
     return lines
 
 
-def network_view(n: int, series_view: Any) -> rrb.Container:
-    """The blueprint tab of the links: every vehicle's age of information, and the links'
-    counts."""
-    ages = [series_view(f"vehicle {i} age of information (s)", f"/vehicles/{i}/network")
-            for i in range(1, n + 1)]
-    counts = series_view("links: delivered, lost, in flight", "/network/links")
-    return rrb.Grid(contents=[counts, *ages], grid_columns=2, name="network")
+def _link_columns(links: Sequence[str], receiver: str) -> list[int]:
+    return [c for c, name in enumerate(links) if _parse(name)[1] == receiver]
+
+
+def network_view(runs: Mapping[str, Mapping[str, np.ndarray]],
+                 links: Mapping[str, Sequence[str]], series_view: Any
+                 ) -> tuple[rrb.Container, dict[str, rrb.TimeSeriesView]]:
+    """The links' views: (legend line over the links' counts, one age-of-information view per
+    vehicle), every y-axis covering the data of every method.
+
+    Parameters
+    ----------
+    runs : Mapping[str, Mapping[str, np.ndarray]]
+        Method -> traces with :data:`LINK_KEYS` (methods without links are skipped).
+    links : Mapping[str, Sequence[str]]
+        Method -> the link of each column, "j -> i".
+    series_view : Callable
+        ``series_view(name, origin, contents, y_range)`` of the blueprint.
+
+    Returns
+    -------
+    tuple[rrb.Container, dict[str, rrb.TimeSeriesView]]
+        A Vertical (legend, counts view) named "links", and receiving vehicle -> its age
+        view (named ``vehicle i age of information (s)``).
+    """
+    with_links = [m for m in runs if m in links]
+    counts = [np.asarray(runs[m][k]) for m in with_links for k in LINK_KEYS[1:]]
+    count_view = series_view("links: delivered, lost, in flight (messages)", "/network/links",
+                             None, data_range(counts))
+    receivers = {_parse(name)[1] for m in with_links for name in links[m]}
+    ages = {}
+    for i in receivers:
+        data = [np.asarray(runs[m]["link_age"])[:, _link_columns(links[m], i)]
+                for m in with_links]
+        ages[i] = series_view(f"vehicle {i} age of information (s)",
+                              f"/vehicles/{i}/network", None, data_range(data))
+    legend = rrb.TextDocumentView(origin=f"/{LINKS_LEGEND_ENTITY}", name="links legend")
+    return rrb.Vertical(legend, count_view, row_shares=[1.6, 5.0], name="links"), ages

@@ -144,7 +144,20 @@ def _validate_fleet(fleet: FleetLayout, clean: dict[str, dict[str, np.ndarray]])
         pinned=np.asarray(pinned, dtype=np.int64),
         state_index=sta, state_names=state_names,
         disturbance_index=dis, disturbance_names=disturbance_names,
+        error_unit=fleet.error_unit, control_unit=fleet.control_unit,
+        n_max=_optional_positive(fleet.n_max, "fleet.n_max"),
+        delta_max=_optional_positive(fleet.delta_max, "fleet.delta_max"),
     )
+
+
+def _optional_positive(value: float | None, what: str) -> float | None:
+    """None, or ``value`` as a positive finite float (ValueError naming ``what``)."""
+    if value is None:
+        return None
+    v = float(value)
+    if not (np.isfinite(v) and v > 0):
+        raise ValueError(f"write_rrd: {what} = {value!r} must be a positive number")
+    return v
 
 
 def _validate(runs: Mapping[str, Mapping[str, np.ndarray]], h: float,

@@ -12,6 +12,7 @@ import rerun as rr
 
 from plant_model.remus100.rigid_body import quaternion_xyzw
 
+from .actuators import DEFAULT_DELTA_MAX, DEFAULT_N_MAX, send_actuators, send_limits
 from .blueprint import LEGEND_ENTITY, _blueprint, _fleet_blueprint
 from .layout import (
     _POSITION_NAMES,
@@ -29,17 +30,26 @@ from .layout import (
     color_name,
     method_color,
 )
-from .network import send_links
+from .network import LINK_KEYS, LINKS_LEGEND_ENTITY, links_legend, send_links
 from .validation import _positive_int, _positive_ns, _validate, _validate_fleet
 
 __all__ = ["write_rrd"]
+
+#: how the viewer draws the samples that share a pixel column when zoomed out: the minimum
+#: and the maximum (its default, the average, draws noise 2-4 times smaller than it is)
+_AGGREGATION = "MinMax"
+#: the ideal method's line in the paper layout: wider and translucent, so that the Kalman
+#: line (nearly the same curve) shows on top of it and it shows round the Kalman line
+_WIDE_METHODS = {"ideal": (3.0, 150)}
+_LINE_WIDTH = 1.0
 
 
 def _send_block(rec: rr.RecordingStream, entity: str, values: np.ndarray, names: list[str],
                 colors: list[tuple[int, int, int]], indexes: list[rr.TimeColumn]) -> int:
     """One multi-component series entity: static SeriesLines (one name/colour per column of
     ``values``) and one ``send_columns`` whose rows hold all k components.  Returns k."""
-    rec.log(entity, rr.SeriesLines(colors=colors, names=names), static=True)
+    rec.log(entity, rr.SeriesLines(colors=colors, names=names, aggregation_policy=_AGGREGATION),
+            static=True)
     rec.send_columns(entity, indexes=indexes,
                      columns=rr.Scalars.columns(
                          scalars=np.ascontiguousarray(values, dtype=np.float64)))
@@ -77,15 +87,9 @@ def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, n
         for i in range(1, fleet.n + 1):
             signals += _send_block(rec, f"vehicles/{i}/{template.format(m=method)}",
                                    arr[:, index[i - 1]], line_names, colors, indexes)
-    if "rpm" in traces:                  # the nonlinear vehicle: propeller and fins
-        rpm, fins = traces["rpm"][::stride], np.stack(
-            [traces["rudder"][::stride], traces["stern"][::stride]], axis=2)
-        for i in range(1, fleet.n + 1):
-            signals += _send_block(rec, f"vehicles/{i}/propeller/{method}", rpm[:, i - 1:i],
-                                   [f"{method} rpm"], shades(1), indexes)
-            signals += _send_block(rec, f"vehicles/{i}/fins/{method}", fins[:, i - 1],
-                                   [f"{method} rudder (rad)", f"{method} stern planes (rad)"],
-                                   shades(2), indexes)
+    if "rpm" in traces:                  # the nonlinear vehicle: its actuators
+        signals += send_actuators(rec, method, traces, fleet.n, stride, indexes, method_index,
+                                  _vehicle_colors(fleet.n))
     if "setpoint" in traces:             # flown through the guidance FMUs: its set-points
         sp = traces["setpoint"][::stride]
         for i in range(1, fleet.n + 1):
@@ -112,7 +116,7 @@ def _paper_legend(methods: list[str], colors: dict[str, tuple[int, int, int]]) -
             "whole run shown; scroll or drag in a plot to zoom, double-click to reset")
 
 
-def _fleet_legend(methods: list[str], fleet: _Fleet) -> str:
+def _fleet_legend(methods: list[str], fleet: _Fleet, actuators: bool = False) -> str:
     """The one-line colour legend of the fleet layout (markdown)."""
     comps = ", ".join(f"{n} {color_name(c)}" for n, c in zip(
         fleet.error_names, axis_colors(len(fleet.error_names), 0)))
@@ -120,7 +124,9 @@ def _fleet_legend(methods: list[str], fleet: _Fleet) -> str:
                         for i, m in enumerate(methods))
     return (f"components: {comps} · {shades} · 3D: one colour per vehicle (numbered), "
             "leader gold with its whole path, formation targets as small pale points, "
-            "communication edges grey, pinned links gold")
+            "communication edges grey, pinned links gold" + (
+                " · actuators: one colour per vehicle (as in 3D), limits white" if actuators
+                else ""))
 
 
 def _time_columns(k: np.ndarray, h_ns: int) -> list[rr.TimeColumn]:
@@ -138,11 +144,30 @@ def _sample_steps(steps: int, every: int, last: int) -> np.ndarray:
 
 #: optional fleet traces of the nonlinear vehicle (orchestrator.cosim.per_vehicle) and of
 #: its guidance FMU (setpoint: per vehicle speed, course, depth)
-_ACTUATOR_KEYS = ("attitude", "rpm", "rudder", "stern", "setpoint")
+_ACTUATOR_KEYS = ("attitude", "rpm", "rudder", "stern", "saturated", "setpoint")
 
 #: the hull drawn in the 3D view: the REMUS 100's 1.6 m x 0.19 m spheroid, 3 times enlarged
 #: to be seen at formation scale (m, body axes x forward, y starboard, z down)
 _HULL_HALF_SIZES = (2.4, 0.285, 0.285)
+
+
+#: distance (m) of a vehicle's number from the vehicle, to starboard of its course
+_LABEL_OFFSET = 4.0
+
+
+def _label_positions(pos: np.ndarray) -> np.ndarray:
+    """(rows, N, 3) positions of the vehicles' numbers: ``_LABEL_OFFSET`` m to starboard of
+    each vehicle's horizontal course (east when it does not move), so the number sits off
+    its own trail."""
+    if pos.shape[0] < 2:
+        vel = np.zeros_like(pos)
+    else:
+        vel = np.gradient(pos, axis=0)
+    right = np.stack([-vel[..., 1], vel[..., 0], np.zeros(vel.shape[:-1])], axis=-1)
+    norm = np.linalg.norm(right, axis=-1, keepdims=True)
+    east = np.broadcast_to(np.array([0.0, 1.0, 0.0]), right.shape)
+    unit = np.where(norm > 1e-9, right / np.maximum(norm, 1e-12), east)
+    return pos + _LABEL_OFFSET * unit
 
 
 def _send_fleet_world(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray],
@@ -163,10 +188,18 @@ def _send_fleet_world(rec: rr.RecordingStream, method: str, traces: dict[str, np
 
     rec.log(root, rr.ViewCoordinates.FRD, static=True)
     rec.log(f"{root}/vehicles", rr.Points3D.from_fields(
-        radii=[1.0], colors=colors, labels=[str(i) for i in range(1, n + 1)], show_labels=True),
+        radii=[1.0], colors=colors, labels=[str(i) for i in range(1, n + 1)], show_labels=False),
         static=True)
     rec.send_columns(f"{root}/vehicles", indexes=indexes, columns=rr.Points3D.columns(
         positions=pos.reshape(rows * n, 3).astype(np.float32)).partition(np.full(rows, n)))
+    # the numbers beside the vehicles, off their own trails and edges: to starboard
+    rec.log(f"{root}/labels", rr.Points3D.from_fields(
+        radii=[0.05], colors=[_lighter(tuple(int(v) for v in c), 0.45) for c in colors],
+        labels=[str(i) for i in range(1, n + 1)], show_labels=True),
+        static=True)
+    rec.send_columns(f"{root}/labels", indexes=indexes, columns=rr.Points3D.columns(
+        positions=_label_positions(pos).reshape(rows * n, 3).astype(np.float32)
+    ).partition(np.full(rows, n)))
 
     if "attitude" in traces:             # the nonlinear vehicle: an oriented hull
         att = traces["attitude"][ks].reshape(rows * n, 3)
@@ -320,12 +353,11 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
         trail_stride = stride * max(1, round(sample_ns / (stride * h_ns)))
         if scene_stride is None:
             scene_stride = trail_stride
-        points = np.concatenate(
-            [np.concatenate([run["x"][:, fleet_v.position_index].reshape(-1, 3),
-                             run["z"] @ fleet_v.leader_output.T]) for run in clean.values()])
-        blueprint = _fleet_blueprint(methods, fleet_v.n, trail_ns, trail_steps, points,
-                                     network=bool(links),
-                                     actuators=any("rpm" in r for r in clean.values()))
+        with_links = {m: {**clean[m], **{k: np.asarray(runs[m][k]) for k in LINK_KEYS}}
+                      if links and m in links else clean[m] for m in methods}
+        blueprint = _fleet_blueprint(methods, fleet_v, trail_ns, trail_steps, with_links,
+                                     links={m: list(v) for m, v in links.items()
+                                            if m in clean} if links else None)
 
     t0 = time.perf_counter()
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -346,11 +378,16 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
                 light = _lighter(base)
                 for key, template, suffix, is_estimate in _SERIES:
                     arr = clean[method][key]
+                    width, alpha = _WIDE_METHODS.get(method, (_LINE_WIDTH, 255))
                     if key in _SHARED_TRUTH:        # exogenous: the same for every method
-                        style = rr.SeriesLines(colors=[TRUE_COLOR], names=["true"])
+                        style = rr.SeriesLines(colors=[TRUE_COLOR], names=["true"],
+                                               widths=[_LINE_WIDTH],
+                                               aggregation_policy=_AGGREGATION)
                     else:
-                        style = rr.SeriesLines(colors=[light if is_estimate else base],
-                                               names=[f"{method}{suffix}"])
+                        style = rr.SeriesLines(
+                            colors=[(*(light if is_estimate else base), alpha)],
+                            names=[f"{method}{suffix}"], widths=[width],
+                            aggregation_policy=_AGGREGATION)
                     for i in range(1, arr.shape[1] + 1):
                         entity = template.format(i=i, m=method)
                         rec.log(entity, style, static=True)
@@ -365,7 +402,8 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
                                                    media_type=rr.MediaType.MARKDOWN), static=True)
         else:
             rec.log("world", rr.ViewCoordinates.FRD, static=True)
-            rec.log(LEGEND_ENTITY, rr.TextDocument(_fleet_legend(methods, fleet_v),
+            rec.log(LEGEND_ENTITY, rr.TextDocument(_fleet_legend(
+                methods, fleet_v, any("rpm" in clean[m] for m in methods)),
                                                    media_type=rr.MediaType.MARKDOWN), static=True)
             for index, method in enumerate(methods):
                 signals += _send_fleet_series(rec, method, clean[method], fleet_v,
@@ -374,7 +412,15 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
                                   scene_stride, trail_stride)
                 if links and method in links:
                     signals += send_links(rec, method, runs[method], links[method], stride,
-                                          indexes, index)
+                                          indexes, index, n=fleet_v.n)
+            if links:
+                rec.log(LINKS_LEGEND_ENTITY, rr.TextDocument(
+                    links_legend([m for m in methods if m in links]),
+                    media_type=rr.MediaType.MARKDOWN), static=True)
+            if any("rpm" in clean[m] for m in methods):
+                ends = np.array([0, (steps - 1) // stride * stride], dtype=np.int64)
+                send_limits(rec, _time_columns(ends, h_ns), fleet_v.n_max or DEFAULT_N_MAX,
+                            fleet_v.delta_max or DEFAULT_DELTA_MAX)
         rec.flush()
     except BaseException:
         rec.disconnect()

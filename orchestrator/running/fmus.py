@@ -218,7 +218,7 @@ def fleet_layout(sc: Scenario) -> FleetLayout | None:
     FleetLayout or None
         None for a single stacked system or a fleet whose vehicles have no NED positions.
     """
-    from plant_model.fleet import fleet_info
+    from plant_model.fleet import fleet_info, fleet_vehicles
 
     from ..recording import FleetLayout
     if sc.fleet is None:
@@ -238,7 +238,15 @@ def fleet_layout(sc: Scenario) -> FleetLayout | None:
         offsets=info.offsets, edges=info.edges, pinned=info.pinned,
         state_index=block(info.p), state_names=info.state_names,
         disturbance_index=block(info.r), disturbance_names=info.disturbance_names,
+        **_actuator_limits(fleet_vehicles(sc.fleet)[0].parameters),
     )
+
+
+def _actuator_limits(parameters: dict) -> dict[str, float]:
+    """The nonlinear vehicle's propeller (rpm) and fin (rad) limits the recording draws
+    (vehicle 1's; none for a linear model)."""
+    data = parameters.get("nonlinear") or {}
+    return {k: float(data[k]) for k in ("n_max", "delta_max") if k in data}
 
 
 def record_stride(sc: Scenario, record_hz: float | None = None) -> int:
