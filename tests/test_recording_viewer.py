@@ -119,6 +119,7 @@ def _check_series_views(path: Path, unit: re.Pattern[str]) -> dict[str, dict]:
     return series
 
 
+@pytest.mark.slow
 def test_paper_views_have_units_ranges_and_min_max(paper_rrd):
     """Every series MinMax; every view "(dimensionless)", its range over its data, 3 ticks."""
     policies = _static(paper_rrd, "SeriesLines:aggregation_policy")
@@ -153,6 +154,7 @@ def _path_to(tree: dict, name: str, trail: tuple = ()) -> tuple | None:
     return None
 
 
+@pytest.mark.slow
 def test_links_have_their_own_legend_and_colours_on_the_main_tab(links_rrd):
     """The link view sits on the main layout (no tab to find) under its own legend line,
     whose colour words match the series (grey, orange, purple: none a component colour);
@@ -202,6 +204,7 @@ def test_fleet_camera_holds_the_whole_run_and_labels_sit_off_the_trails(links_rr
     assert _static(links_rrd, "Points3D:labels")[f"world/{m}/labels"] == ["1", "2", "3", "4"]
 
 
+@pytest.mark.slow
 def test_actuators_grouped_per_kind_with_limits(remus_rrd):
     """Four actuator views (rpm, rudder, stern planes, saturated), not one per vehicle, each
     holding every vehicle; the limits are constant series n_max and +-delta_max in them."""
