@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import os
+from pathlib import Path
 
 from .errors import UsageError
 
@@ -19,7 +21,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if not args.quiet:
         for path in written:
             print(path)
-    print(f"wrote {len(written)} files into {written[0].parent if written else args.out}")
+    # a compare of plants writes one subfolder per plant: name the folder that holds them all
+    where = Path(os.path.commonpath([p.parent for p in written])) if written else args.out
+    print(f"wrote {len(written)} files into {where}")
     return 0
 
 
