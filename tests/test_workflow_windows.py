@@ -25,8 +25,11 @@ def test_short_runs_match_the_window_prediction_not_the_stationary_one(tmp_path,
                  "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     s = _summary(out)
+    c_window = s["methods"]["kalman"]["cost_rate"]["predicted_window"]
     assert s["stationary"] is False and "inside the start-up transient" in s["stationarity_note"]
-    assert "note: the statistics window is not stationary yet" in printed
+    note = [ln for ln in printed.splitlines() if "is not stationary" in ln]
+    assert len(note) == 1 and note[0].startswith("note: the window [2.5, 5) s is not stationary")
+    assert f"kalman {c_window:.4g}" in note[0]
     c = s["methods"]["kalman"]["cost_rate"]
     se = np.std(c["per_seed"], ddof=1) / np.sqrt(len(c["per_seed"]))
     assert abs(c["mean"] - c["predicted_window"]) < 3 * se, (c["mean"], c["predicted_window"], se)
