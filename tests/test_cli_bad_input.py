@@ -128,3 +128,24 @@ def test_an_internal_bug_says_so_and_where_the_traceback_is(capsys, tmp_path, mo
     assert log.startswith(str(tmp_path / "cache" / "logs"))
     text = open(log).read()
     assert "Traceback (most recent call last)" in text and "in broken" in text
+
+
+def test_an_architecture_on_a_stacked_fleet_is_refused(capsys, tmp_path):
+    """--architecture chooses between the per-vehicle laws: on a stacked run it would be
+    ignored (the stacked law ran, summary architecture null), so it is refused and
+    nothing is written."""
+    out = tmp_path / "o"
+    _one_line_error(capsys, ["run", "--scenario", "formation-4", "--architecture",
+                             "distributed", "--T", "1", "--out", str(out)],
+                    "--architecture distributed", "runs 'stacked'",
+                    "add --deployment per-vehicle")
+    assert not out.exists()
+
+
+def test_a_huge_seed_range_is_refused_before_it_is_made():
+    """0-2000000000 is refused by its size, without building a list of two billion seeds
+    (which ended in a MemoryError)."""
+    import argparse
+    with pytest.raises(argparse.ArgumentTypeError, match="2000000001 seeds is too many"):
+        parse_seeds("0-2000000000")
+    assert len(parse_seeds("0-99999")) == 100_000

@@ -11,6 +11,10 @@ from collections import Counter
 __all__ = ["parse_floats", "parse_seeds", "positive_metres"]
 
 
+#: the most seeds one compare takes
+MAX_SEEDS = 100_000
+
+
 def parse_seeds(text: str) -> list[int]:
     """'0-9' -> 0..9, '1,4,7' -> [1, 4, 7], '3' -> [3]."""
     seeds: list[int] = []
@@ -21,6 +25,10 @@ def parse_seeds(text: str) -> list[int]:
                 a, b = (int(x) for x in part.split("-", 1))
                 if b < a:
                     raise ValueError
+                if b - a + 1 > MAX_SEEDS:       # refused before the list is made
+                    raise argparse.ArgumentTypeError(
+                        f"seeds {text!r}: {b - a + 1} seeds is too many for one compare "
+                        f"(at most {MAX_SEEDS})")
                 seeds.extend(range(a, b + 1))
             else:
                 seeds.append(int(part))
@@ -30,9 +38,9 @@ def parse_seeds(text: str) -> list[int]:
     if any(s < 0 or s > 2**31 - 1 for s in seeds):
         raise argparse.ArgumentTypeError(
             f"seeds {text!r}: seeds must be from 0 to 2^31 - 1 (a 32-bit FMI Integer)")
-    if len(seeds) > 100_000:
+    if len(seeds) > MAX_SEEDS:
         raise argparse.ArgumentTypeError(f"seeds {text!r}: {len(seeds)} seeds is too many "
-                                         "for one compare (at most 100000)")
+                                         f"for one compare (at most {MAX_SEEDS})")
     repeated = sorted(s for s, c in Counter(seeds).items() if c > 1)
     if repeated:
         raise argparse.ArgumentTypeError(

@@ -13,6 +13,7 @@ from plant_model.acoustic.settings import RECEIVERS
 
 from ..scenario import Scenario, builtin_scenarios, load_scenario
 from .args import _positive
+from .errors import UsageError
 
 __all__ = ["ROOT", "add_fmu_options", "add_force_option", "add_master_option",
            "add_predict_option", "add_quiet_option",
@@ -101,7 +102,7 @@ def scenario_of(args: argparse.Namespace) -> Scenario:
     """The scenario of the command line: --scenario, with the options given over its
     values."""
     sc = load_scenario(args.scenario)
-    return sc.with_run(T=getattr(args, "T", None), h=getattr(args, "h", None),
+    sc = sc.with_run(T=getattr(args, "T", None), h=getattr(args, "h", None),
                        seed=getattr(args, "seed", None), estimator=getattr(args, "estimator", None),
                        tracking=getattr(args, "tracking", None),
                        deployment=getattr(args, "deployment", None),
@@ -109,6 +110,11 @@ def scenario_of(args: argparse.Namespace) -> Scenario:
                        fmus=getattr(args, "fmus", None),
                        network={k: v for k in ("latency", "period", "loss", "receiver")
                                 if (v := getattr(args, k, None)) is not None})
+    if getattr(args, "architecture", None) is not None and sc.deployment != "per-vehicle":
+        raise UsageError(f"--architecture {args.architecture}: the architecture is that of "
+                         f"the per-vehicle deployment; {sc.name} runs {sc.deployment!r} (one "
+                         "stacked controller): add --deployment per-vehicle")
+    return sc
 
 
 def viewer_command() -> str:
