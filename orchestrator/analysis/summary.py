@@ -18,7 +18,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["trace_stats", "method_summary", "versions", "stats_window"]
+__all__ = ["trace_stats", "method_summary", "versions", "stats_window", "stationary_horizon",
+           "stationarity_note"]
 
 
 def stats_window(T: float, h: float, settling_time: float) -> int:
@@ -43,6 +44,12 @@ def stats_window(T: float, h: float, settling_time: float) -> int:
     """
     t_from = min(T / 2.0, settling_time if math.isfinite(settling_time) else T / 2.0)
     return int(math.ceil(t_from / h - 1e-9))
+
+
+def stationary_horizon(settling_time: float) -> float:
+    """The shortest T whose window [min(T / 2, 5 tau), T) gives stationary figures:
+    max(2 * 5 tau, 5 tau + 3 tau) s for the settling time 5 tau (s)."""
+    return max(2 * settling_time, settling_time + 3 * settling_time / 5.0)
 
 
 def stationarity_note(T: float, t0: float, settling_time: float) -> str | None:
@@ -79,7 +86,7 @@ def stationarity_note(T: float, t0: float, settling_time: float) -> str | None:
     if not problems:
         return None
     return ("the statistics window is not stationary yet: " + "; ".join(problems)
-            + f"; run at least T = {max(2 * settling_time, settling_time + 3 * tau):.3g} s "
+            + f"; run at least T = {stationary_horizon(settling_time):.3g} s "
               "for stationary figures (the window starts at min(T / 2, 5 tau)), "
               "or compare with 'predicted_window' (the expected value over this window, "
               "start-up transient included)")

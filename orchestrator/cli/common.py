@@ -3,7 +3,6 @@ the options of the commands that run FMUs, and the printed summary of a run or c
 from __future__ import annotations
 
 import argparse
-import re
 import shlex
 import sys
 from pathlib import Path
@@ -217,10 +216,6 @@ def method_table(summary: dict) -> list[str]:
     return lines
 
 
-_SETTLES = re.compile(r"settles in 5 tau = ([0-9.eE+-]+) s")
-_AT_LEAST = re.compile(r"run at least T = ([0-9.eE+-]+) s")
-
-
 def stationarity_line(summary: dict) -> str | None:
     """The stationarity note in one line: the window, when the slowest mode settles, the T
     that gives stationary figures and, where predicted, the expected cost rate over this
@@ -232,12 +227,12 @@ def stationarity_line(summary: dict) -> str | None:
     window = ", ".join(f"{n} {m['cost_rate']['predicted_window']:#.4g}"
                        for n, m in summary["methods"].items()
                        if (m.get("cost_rate") or {}).get("predicted_window") is not None)
-    settles, at_least = _SETTLES.search(note), _AT_LEAST.search(note)
-    if settles is None or at_least is None:      # another wording: say it as it is
+    settles, at_least = summary.get("settling_time_s"), summary.get("stationary_T_s")
+    if settles is None or at_least is None:      # a summary without the figures
         head = f"note: {note.split('; run at least')[0]}"
     else:
         head = (f"note: the window [{lo:.3g}, {hi:.3g}) s is not stationary (the slowest "
-                f"mode settles in {settles.group(1)} s; run T >= {at_least.group(1)} s)")
+                f"mode settles in {settles:.3g} s; run T >= {at_least:.3g} s)")
     return head + (f"; expected over this window: {window}" if window else "")
 
 

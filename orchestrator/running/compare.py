@@ -15,7 +15,7 @@ from plant_model.linalg_checks import ModelError
 
 from ..analysis.formation import formation_summary
 from ..analysis.full_information import fleet_bound, fleet_comparison
-from ..analysis.summary import method_summary, stationarity_note, versions
+from ..analysis.summary import method_summary, stationarity_note, stationary_horizon, versions
 from ..analysis.tracking_segments import segment_summary
 from ..atomic import write_text_atomically
 from ..interrupt import StopFlag, stop_on_signals
@@ -132,6 +132,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
     skipped: list[ModelError] = []
     bounds: dict[int, float | None] = {}
     notes: set[str] = set()
+    settling = 0.0              # the slowest settling time of a method whose window is early
     for method in methods:
         name = method.name
         try:
@@ -150,6 +151,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
         note = stationarity_note(sc.T, k0 * sc.h, pred.stationary.settling_time)
         if note is not None:
             notes.add(note)
+            settling = max(settling, pred.stationary.settling_time)
         per_seed, link_ages = [], []
         # the seeds after the first on local worker processes (orchestrator.running.seeds)
         pooled = {s: pool.submit(setup, method, s, setup.system(method, s), k0, formation)
@@ -242,6 +244,9 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
         "stats_window_s": list(window) if window else None,
         "stationary": not notes,
         "stationarity_note": "; ".join(sorted(notes)) or None,
+        # the figures of the note: 5 tau of the slowest mode, the T for stationary figures
+        "settling_time_s": settling if notes else None,
+        "stationary_T_s": stationary_horizon(settling) if notes else None,
         "methods": results,
         "design": _design_entry(sc, design),
         "interrupted": bool(stop),
