@@ -30,7 +30,15 @@ from .fmu_state import (
     encode_state,
 )
 from .interface import ArraySpec, expand
-from .lifecycle import FAILED, INSTANTIATED, STEPPING, Fmi2StateMachine
+from .lifecycle import (
+    COMM_POINT_TOLERANCE,
+    FAILED,
+    INSTANTIATED,
+    STEP_SIZE_TOLERANCE,
+    STEPPING,
+    TIME_ROUNDING,
+    Fmi2StateMachine,
+)
 from .value_plans import PlannedAccess
 
 if TYPE_CHECKING:
@@ -392,7 +400,7 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
         if not (self._phase == STEPPING and 0.0 < step_size < math.inf
                 and current_time - current_time == 0.0
                 and (expected is None or abs(current_time - expected)
-                     <= 1e-9 * (abs(expected) + step_size + 1.0))):
+                     <= COMM_POINT_TOLERANCE * step_size + TIME_ROUNDING * abs(expected))):
             refusal = self._step_refusal(current_time, step_size)
             if refusal is not None:
                 self.log(f"{self._who()}: {refusal}", Fmi2Status.error)
@@ -404,13 +412,15 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
         if self._input_error is not None:
             msg = self._first_bad_input()
             if msg is not None:
-                self.log(f"step at t = {current_time} s refused: {msg}", Fmi2Status.error)
+                self.log(f"{self._who()}: step at t = {current_time} s refused: {msg}",
+                         Fmi2Status.error)
                 return False
             self._input_error = None
         h = self._sample_period
         if h is not None and step_size != h:
-            if abs(step_size - h) > 1e-9 * h:
-                self.log(f"communication step {step_size} s differs from this FMU's sample "
+            if abs(step_size - h) > STEP_SIZE_TOLERANCE * h:
+                self.log(f"{self._who()}: communication step {step_size} s differs from "
+                         f"this FMU's sample "
                          f"period {self.step_parameter} = {h} s; set {self.step_parameter} "
                          "to the step you use", Fmi2Status.error)
                 return False

@@ -6,7 +6,9 @@ unzips each FMU file once for all its instances.
 """
 from __future__ import annotations
 
+import collections
 import ctypes
+import itertools
 import os
 import re
 import shutil
@@ -156,10 +158,49 @@ def _check_pythonfmu_resources(label: str, md: Any, unzip_dir: str) -> None:
                          "crash the process on it")
 
 
-#: live instances by FMI instance name: fmpy's logger proxy (addLoggerProxy) keeps one
-#: callback per process, the last instance's, so a message is filed under the instance
-#: name the FMU gives with it
-_BY_NAME: weakref.WeakValueDictionary[str, FmuInstance] = weakref.WeakValueDictionary()
+#: live instances by the key each passes as its FMI ``componentEnvironment`` (below)
+_BY_KEY: weakref.WeakValueDictionary[int, FmuInstance] = weakref.WeakValueDictionary()
+_NEXT_KEY = itertools.count(1)
+#: messages that named no live instance (a freed one's late message, a foreign FMU's),
+#: the latest few, for a host to inspect
+_UNFILED: collections.deque[tuple[str, str, str]] = collections.deque(maxlen=100)
+
+
+def _file_message(env: int | None, instance: bytes | None, status: int,
+                  category: bytes | None, message: bytes | None) -> None:
+    """The one logger callback of the process (fmi2CallbackLogger, after fmpy's proxy has
+    formatted the message): filed under the instance whose key the FMU passed back as its
+    componentEnvironment.
+
+    fmpy's logger proxy (``addLoggerProxy``) keeps a single callback per process: the last
+    one given to it. Routing by componentEnvironment, which every FMU hands back unchanged
+    with each message, files each message under the instance that logged it whatever the
+    instance names (two runs in one process may use the same) and whatever instance was
+    made last; and the callback, a module constant, outlives every instance (the proxy
+    never calls a freed one)."""
+    text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
+    name = instance.decode("utf-8", "replace") if isinstance(instance, bytes) else ""
+    level = STATUS[status] if 0 <= status < len(STATUS) else str(status)
+    target = _BY_KEY.get(env) if env else None
+    if target is None:
+        _UNFILED.append((name, level, text))
+        return
+    target.messages.append((level, text))
+
+
+_LOGGER = fmi2CallbackLoggerTYPE(_file_message)
+
+
+def _install_logger(callbacks: fmi2CallbackFunctions) -> None:
+    """Point ``callbacks`` at :data:`_LOGGER` through fmpy's proxy (which formats the
+    variadic arguments ctypes cannot pass); the proxy then calls :data:`_LOGGER` for every
+    FMU of the process."""
+    callbacks.logger = _LOGGER
+    try:
+        from fmpy.logging import addLoggerProxy
+        addLoggerProxy(ctypes.byref(callbacks))
+    except (ImportError, OSError, AttributeError):  # pragma: no cover - no proxy library:
+        pass                                         # unformatted messages, still filed
 
 
 class FmuInstance:
@@ -174,20 +215,22 @@ class FmuInstance:
         self.types = {v.name: v.type for v in self.md.modelVariables}
         self.messages: list[tuple[str, str]] = []
         self.instance_name = instance_name
-        _BY_NAME[instance_name] = self
+        self._key = next(_NEXT_KEY)
+        _BY_KEY[self._key] = self
         self.slave = FMU2Slave(guid=self.md.guid, unzipDirectory=unzip_dir,
                                modelIdentifier=self.md.coSimulation.modelIdentifier,
                                instanceName=instance_name)
         self._callbacks = fmi2CallbackFunctions()
-        self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
         self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        self._callbacks.componentEnvironment = self._key
+        _install_logger(self._callbacks)
         try:
-            from fmpy.logging import addLoggerProxy
-            addLoggerProxy(ctypes.byref(self._callbacks))
-        except Exception:  # pragma: no cover - message formatting only
-            pass
-        self.slave.instantiate(callbacks=self._callbacks, loggingOn=True)
+            self.slave.instantiate(callbacks=self._callbacks, loggingOn=True)
+        except Exception as exc:        # fmpy: "Failed to instantiate model" (NULL)
+            self.slave.freeLibrary()
+            raise CosimError(f"{label} FMU: fmi2Instantiate of instance '{instance_name}' "
+                             f"returned NULL ({exc}): {self.errors()}") from None
         # the same library as a PyDLL: the hot-loop calls keep the GIL (pythonfmu's slaves
         # take it again inside every call; a native FMU just runs), which saves two thread
         # switches per call
@@ -204,13 +247,6 @@ class FmuInstance:
         self.get_real = raw("fmi2GetReal", [vp, vp, sz, vp])
         self.set_real = raw("fmi2SetReal", [vp, vp, sz, vp])
         self.do_step = raw("fmi2DoStep", [vp, ctypes.c_double, ctypes.c_double, ctypes.c_int])
-
-    def _log(self, env: int | None, instance: bytes | None, status: int,
-             category: bytes | None, message: bytes | None) -> None:
-        text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
-        name = instance.decode("utf-8", "replace") if isinstance(instance, bytes) else None
-        target = _BY_NAME.get(name, self) if name else self
-        target.messages.append((STATUS[status] if 0 <= status < 6 else str(status), text))
 
     def errors(self) -> str:
         """The messages the FMU logged with status Warning, Discard, Error or Fatal.
