@@ -29,7 +29,7 @@ from .fmu_state import (
     decode_state,
     encode_state,
 )
-from .interface import ArraySpec, expand
+from .interface import ArraySpec, element_names, expand
 from .lifecycle import (
     COMM_POINT_TOLERANCE,
     FAILED,
@@ -350,6 +350,18 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
             self.log(f"{self._who()}: {self._output_error}; the next step will be refused",
                      Fmi2Status.error)
 
+    def _first_bad_parameter(self) -> str | None:
+        """The first Real parameter element that is not finite, named with its value."""
+        for spec in self.specs:
+            if spec.causality != "parameter" or spec.type != "Real":
+                continue
+            arr = np.asarray(self.par[spec.name], float).reshape(-1)
+            bad = np.flatnonzero(~np.isfinite(arr))
+            if bad.size:
+                name = element_names(spec.name, spec.shape)[int(bad[0])]
+                return f"parameter {name} = {arr[bad[0]]} is not finite"
+        return None
+
     def exit_initialization_mode(self) -> None:
         """fmi2ExitInitializationMode: build the mathematics (:meth:`setup`) from the parameters.
 
@@ -360,6 +372,8 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
             see docs/fmu-internals.md).
         """
         self._leave_initialization()
+        if self._param_error is None:
+            self._param_error = self._first_bad_parameter()
         if self._param_error is not None:
             self._fatal(f"{self._who()}: initialization failed: {self._param_error}")
         try:

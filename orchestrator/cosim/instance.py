@@ -30,7 +30,7 @@ from fmpy.fmi2 import (
     fmi2CallbackLoggerTYPE,
 )
 
-__all__ = ["CosimError", "Extracted", "FmuInstance", "STATUS", "pythonfmu_can_load_from",
+__all__ = ["CosimError", "Extracted", "FmuInstance", "FmuLog", "STATUS", "pythonfmu_can_load_from",
            "safe_temporary_folder", "pythonfmu_safe_tempdir"]
 
 #: fmi2Status names by value
@@ -158,8 +158,8 @@ def _check_pythonfmu_resources(label: str, md: Any, unzip_dir: str) -> None:
                          "crash the process on it")
 
 
-#: live instances by the key each passes as its FMI ``componentEnvironment`` (below)
-_BY_KEY: weakref.WeakValueDictionary[int, FmuInstance] = weakref.WeakValueDictionary()
+#: live message logs by the key each FMU instance passes as its ``componentEnvironment``
+_BY_KEY: weakref.WeakValueDictionary[int, FmuLog] = weakref.WeakValueDictionary()
 _NEXT_KEY = itertools.count(1)
 #: messages that named no live instance (a freed one's late message, a foreign FMU's),
 #: the latest few, for a host to inspect
@@ -181,26 +181,51 @@ def _file_message(env: int | None, instance: bytes | None, status: int,
     text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
     name = instance.decode("utf-8", "replace") if isinstance(instance, bytes) else ""
     level = STATUS[status] if 0 <= status < len(STATUS) else str(status)
-    target = _BY_KEY.get(env) if env else None
-    if target is None:
+    log = _BY_KEY.get(env) if env else None
+    if log is None:
         _UNFILED.append((name, level, text))
         return
-    target.messages.append((level, text))
+    log.messages.append((level, text))
 
 
 _LOGGER = fmi2CallbackLoggerTYPE(_file_message)
 
 
-def _install_logger(callbacks: fmi2CallbackFunctions) -> None:
-    """Point ``callbacks`` at :data:`_LOGGER` through fmpy's proxy (which formats the
-    variadic arguments ctypes cannot pass); the proxy then calls :data:`_LOGGER` for every
-    FMU of the process."""
-    callbacks.logger = _LOGGER
-    try:
-        from fmpy.logging import addLoggerProxy
-        addLoggerProxy(ctypes.byref(callbacks))
-    except (ImportError, OSError, AttributeError):  # pragma: no cover - no proxy library:
-        pass                                         # unformatted messages, still filed
+class FmuLog:
+    """The messages of one FMU instance, and the FMI callbacks that file them here.
+
+    ``callbacks`` (an ``fmi2CallbackFunctions``, kept alive by this object) is what
+    fmi2Instantiate takes: calloc/free and the process-wide logger, with this log's key as
+    the componentEnvironment the FMU hands back with every message."""
+
+    def __init__(self) -> None:
+        self.messages: list[tuple[str, str]] = []   #: (status name, text), in order
+        self.key = next(_NEXT_KEY)
+        _BY_KEY[self.key] = self
+        cb = fmi2CallbackFunctions()
+        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        cb.componentEnvironment = self.key
+        cb.logger = _LOGGER
+        # fmpy's proxy formats the variadic arguments ctypes cannot pass, then calls
+        # _LOGGER for every FMU
+        try:
+            from fmpy.logging import addLoggerProxy
+            addLoggerProxy(ctypes.byref(cb))
+        except (ImportError, OSError, AttributeError):  # pragma: no cover - no proxy:
+            pass                                         # unformatted, still filed
+        self.callbacks = cb
+
+    def errors(self) -> str:
+        """The messages logged with status Warning, Discard, Error or Fatal.
+
+        Returns
+        -------
+        str
+            The messages joined by "; ", or a note that the FMU logged none.
+        """
+        bad = [m for s, m in self.messages if s in ("Error", "Fatal", "Discard", "Warning")]
+        return "; ".join(bad) if bad else "(the FMU logged no message)"
 
 
 class FmuInstance:
@@ -213,20 +238,14 @@ class FmuInstance:
         _check_pythonfmu_resources(label, self.md, unzip_dir)
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.types = {v.name: v.type for v in self.md.modelVariables}
-        self.messages: list[tuple[str, str]] = []
+        self.log = FmuLog()
+        self.messages = self.log.messages           #: (status name, text) the FMU logged
         self.instance_name = instance_name
-        self._key = next(_NEXT_KEY)
-        _BY_KEY[self._key] = self
         self.slave = FMU2Slave(guid=self.md.guid, unzipDirectory=unzip_dir,
                                modelIdentifier=self.md.coSimulation.modelIdentifier,
                                instanceName=instance_name)
-        self._callbacks = fmi2CallbackFunctions()
-        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        self._callbacks.componentEnvironment = self._key
-        _install_logger(self._callbacks)
         try:
-            self.slave.instantiate(callbacks=self._callbacks, loggingOn=True)
+            self.slave.instantiate(callbacks=self.log.callbacks, loggingOn=True)
         except Exception as exc:        # fmpy: "Failed to instantiate model" (NULL)
             self.slave.freeLibrary()
             raise CosimError(f"{label} FMU: fmi2Instantiate of instance '{instance_name}' "
@@ -249,15 +268,9 @@ class FmuInstance:
         self.do_step = raw("fmi2DoStep", [vp, ctypes.c_double, ctypes.c_double, ctypes.c_int])
 
     def errors(self) -> str:
-        """The messages the FMU logged with status Warning, Discard, Error or Fatal.
-
-        Returns
-        -------
-        str
-            The messages joined by "; ", or a note that the FMU logged none.
-        """
-        bad = [m for s, m in self.messages if s in ("Error", "Fatal", "Discard", "Warning")]
-        return "; ".join(bad) if bad else "(the FMU logged no message)"
+        """The messages the FMU logged with status Warning, Discard, Error or Fatal
+        (:meth:`FmuLog.errors`)."""
+        return self.log.errors()
 
     def vrs(self, names: list[str]) -> ctypes.Array:
         """A ctypes array of the value references of ``names``, for the raw FMI calls.
