@@ -376,3 +376,41 @@ def test_the_cli_names_the_vehicle_whose_state_became_non_finite(tmp_path):
     assert "returned Discard: AuvRemus6dof instance 'vehicle_1_kalman_0' (vehicle 1): " \
            "fmi2DoStep refused: outputs y[1], y[2], y[3] ... became non-finite" in lines[0]
     assert sorted(p.name for p in tmp_path.iterdir()) in (["out", "roll.toml"], ["roll.toml"])
+
+
+@needs_cc
+def test_the_c_host_prints_the_fmus_reason_and_the_status(paper, tmp_path):
+    """tests/c_host/c_host.c (no Python) on the paper's native system: a GUID that is not
+    the controller's and a NaN input step: the FMU's own message through the logger (its
+    instance in brackets), then one line naming the instance, the call, t and the status;
+    exit status 1."""
+    import subprocess
+
+    from orchestrator.benchmarks.native import c_host_binary, write_c_host_system
+    sc, _, _, ns, _ = paper
+    exe = c_host_binary(tmp_path)
+    sysfile = write_c_host_system(ns.system, ns.fmus, tmp_path / "u")
+    text = sysfile.read_text()
+    guid = next(ln.split()[3] for ln in text.splitlines() if ln.startswith("fmu controller "))
+    (tmp_path / "guid.txt").write_text(text.replace(guid, "{0000}"))
+    r = subprocess.run([str(exe), str(tmp_path / "guid.txt"), "10", repr(sc.h),
+                        str(tmp_path / "a.csv")], capture_output=True, text=True, env={},
+                       timeout=60)
+    assert r.returncode == 1
+    assert r.stderr.splitlines() == [
+        f"[controller] fmi2Instantiate of instance 'controller' refused: GUID {{0000}} does "
+        f"not match this FMU's {guid} (a modelDescription.xml of another build?)",
+        "c_host: controller fmi2Instantiate failed at t = 0"]
+    from fmpy import read_model_description
+    vr = next(v.valueReference for v in read_model_description(str(ns.fmus["plant"]))
+              .modelVariables if v.name == "Ad[1,1]")
+    (tmp_path / "grow.txt").write_text(text + f"real plant {vr} 1e300\n")
+    r = subprocess.run([str(exe), str(tmp_path / "grow.txt"), "10", repr(sc.h),
+                        str(tmp_path / "b.csv")], capture_output=True, text=True, env={},
+                       timeout=60)
+    assert r.returncode == 1
+    lines = r.stderr.splitlines()
+    assert lines[-1].startswith("c_host: plant fmi2") and lines[-1].endswith("(Error)")
+    assert lines[0].startswith("[plant] ") and (
+        "is not finite" in lines[0] or "would become" in lines[0]), lines
+    assert not (tmp_path / "b.csv").exists()
