@@ -27,8 +27,27 @@ from typing import Any, NoReturn
 from pythonfmu import Boolean, Fmi2Causality, Integer, String
 from pythonfmu.enums import Fmi2Status
 
-__all__ = ["Fmi2StateMachine", "INSTANTIATED", "INITIALIZING", "STEPPING", "TERMINATED",
-           "FAILED"]
+__all__ = ["COMM_POINT_TOLERANCE", "FAILED", "Fmi2StateMachine", "INITIALIZING",
+           "INSTANTIATED", "STEPPING", "STEP_SIZE_TOLERANCE", "TERMINATED", "TIME_ROUNDING",
+           "comm_point_tolerance"]
+
+# The time tolerances of every FMU of the project, the pythonfmu slaves here and the
+# native (C) FMUs (written into their generated fmu_tolerances.h by
+# orchestrator.cosim.native_build), so both kinds accept and refuse the same calls.
+#: a step size within this fraction of a fixed-step FMU's h is h
+STEP_SIZE_TOLERANCE = 1e-9
+#: a communication point within this fraction of the step (plus :data:`TIME_ROUNDING`) of
+#: the end of the last step is that point
+COMM_POINT_TOLERANCE = 1e-6
+#: the rounding allowed on a communication point, as a fraction of |t| (t = k h computed by
+#: the host differs from the FMU's t + h by a few units in the last place)
+TIME_ROUNDING = 1e-12
+
+
+def comm_point_tolerance(expected: float, step: float) -> float:
+    """How far (s) a communication point may be from ``expected`` (s), the end of the last
+    step, for a step of ``step`` (s): ``COMM_POINT_TOLERANCE step + TIME_ROUNDING |t|``."""
+    return COMM_POINT_TOLERANCE * step + TIME_ROUNDING * abs(expected)
 
 INSTANTIATED, INITIALIZING, STEPPING, TERMINATED, FAILED = (
     "instantiated", "initialization mode", "step mode", "terminated", "failed")
@@ -139,8 +158,8 @@ class Fmi2StateMachine:
         if not math.isfinite(current_time):
             return f"{call} refused: the communication point is not finite"
         expected = self._t_next
-        if expected is not None and abs(current_time - expected) > 1e-9 * max(
-                abs(expected), step_size, 1.0):
+        if expected is not None and abs(current_time - expected) > comm_point_tolerance(
+                expected, step_size):
             where = "backwards" if current_time < expected else "forwards"
             return (f"{call} refused: the communication point jumps {where} from "
                     f"{expected} s (the end of the last step) to {current_time} s; this FMU "

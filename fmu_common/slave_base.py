@@ -29,8 +29,16 @@ from .fmu_state import (
     decode_state,
     encode_state,
 )
-from .interface import ArraySpec, expand
-from .lifecycle import FAILED, INSTANTIATED, STEPPING, Fmi2StateMachine
+from .interface import ArraySpec, element_names, expand
+from .lifecycle import (
+    COMM_POINT_TOLERANCE,
+    FAILED,
+    INSTANTIATED,
+    STEP_SIZE_TOLERANCE,
+    STEPPING,
+    TIME_ROUNDING,
+    Fmi2StateMachine,
+)
 from .value_plans import PlannedAccess
 
 if TYPE_CHECKING:
@@ -342,6 +350,18 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
             self.log(f"{self._who()}: {self._output_error}; the next step will be refused",
                      Fmi2Status.error)
 
+    def _first_bad_parameter(self) -> str | None:
+        """The first Real parameter element that is not finite, named with its value."""
+        for spec in self.specs:
+            if spec.causality != "parameter" or spec.type != "Real":
+                continue
+            arr = np.asarray(self.par[spec.name], float).reshape(-1)
+            bad = np.flatnonzero(~np.isfinite(arr))
+            if bad.size:
+                name = element_names(spec.name, spec.shape)[int(bad[0])]
+                return f"parameter {name} = {arr[bad[0]]} is not finite"
+        return None
+
     def exit_initialization_mode(self) -> None:
         """fmi2ExitInitializationMode: build the mathematics (:meth:`setup`) from the parameters.
 
@@ -352,6 +372,8 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
             see docs/fmu-internals.md).
         """
         self._leave_initialization()
+        if self._param_error is None:
+            self._param_error = self._first_bad_parameter()
         if self._param_error is not None:
             self._fatal(f"{self._who()}: initialization failed: {self._param_error}")
         try:
@@ -392,7 +414,7 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
         if not (self._phase == STEPPING and 0.0 < step_size < math.inf
                 and current_time - current_time == 0.0
                 and (expected is None or abs(current_time - expected)
-                     <= 1e-9 * (abs(expected) + step_size + 1.0))):
+                     <= COMM_POINT_TOLERANCE * step_size + TIME_ROUNDING * abs(expected))):
             refusal = self._step_refusal(current_time, step_size)
             if refusal is not None:
                 self.log(f"{self._who()}: {refusal}", Fmi2Status.error)
@@ -404,13 +426,15 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
         if self._input_error is not None:
             msg = self._first_bad_input()
             if msg is not None:
-                self.log(f"step at t = {current_time} s refused: {msg}", Fmi2Status.error)
+                self.log(f"{self._who()}: step at t = {current_time} s refused: {msg}",
+                         Fmi2Status.error)
                 return False
             self._input_error = None
         h = self._sample_period
         if h is not None and step_size != h:
-            if abs(step_size - h) > 1e-9 * h:
-                self.log(f"communication step {step_size} s differs from this FMU's sample "
+            if abs(step_size - h) > STEP_SIZE_TOLERANCE * h:
+                self.log(f"{self._who()}: communication step {step_size} s differs from "
+                         f"this FMU's sample "
                          f"period {self.step_parameter} = {h} s; set {self.step_parameter} "
                          "to the step you use", Fmi2Status.error)
                 return False

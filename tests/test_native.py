@@ -407,7 +407,7 @@ def test_the_c_host_runs_the_all_native_system_like_our_master(tmp_path):
     (root / "bad.txt").write_text(bad)
     r = _c_host_run(exe, root / "bad.txt", 10, sc.h, tmp_path / "bad.csv")
     assert r.returncode == 1
-    assert "c_host: controller_2 fmi2ExitInitializationMode failed at t = 0" in r.stderr
+    assert "c_host: controller_2 fmi2ExitInitializationMode failed at t = 0 (Error)" in r.stderr
     assert "parameter A_eta[1,1] = nan is not finite" in r.stderr
 
 
@@ -441,3 +441,30 @@ def test_export_native_without_a_compiler_is_one_line_and_creates_nothing(tmp_pa
     assert r.stderr.strip().splitlines() == [
         f"auv-cosim export: error: no C compiler: '{tmp_path / 'no-such-cc'}' is not on PATH "
         "(install gcc, or set CC)"]
+
+
+@pytest.mark.parametrize("cc, expected", [
+    ("false", "the C compiler {path} failed (exit status 1) and printed nothing"),
+    ("script", "the C compiler {path} failed (exit status 1): cc1: fatal error: no space left"),
+])
+def test_a_failing_compiler_is_one_line_naming_it_and_what_failed(tmp_path, cc, expected):
+    """CC=false (or a compiler that fails with a message): one line naming the FMU being
+    built, the compiler, its exit status and its first error line (or that it printed
+    nothing), exit status 2; no FMU written."""
+    import os
+    import subprocess
+    import sys
+    path = shutil.which("false") if cc == "false" else str(tmp_path / "cc")
+    if cc == "script":
+        Path(path).write_text('#!/bin/sh\necho "cc1: fatal error: no space left" >&2\n'
+                              'echo "compilation terminated." >&2\nexit 1\n')
+        os.chmod(path, 0o755)
+    out = tmp_path / "x"
+    env = dict(os.environ, CC=path, AUV_COSIM_CACHE=str(tmp_path / "cache"))
+    r = subprocess.run([sys.executable, "-m", "orchestrator", "export", "native", "--scenario",
+                        "paper", "--out", str(out)], capture_output=True, text=True, env=env,
+                       timeout=300)
+    assert r.returncode == 2
+    assert r.stderr.strip().splitlines() == [
+        "auv-cosim export: error: building AuvPlantNative: " + expected.format(path=path)]
+    assert not list(out.rglob("*.fmu"))

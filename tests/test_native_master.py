@@ -112,11 +112,11 @@ def test_with_acoustic_links_auto_runs_python_and_native_equals_it(fleet_links, 
 
 @pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
 def test_an_fmu_error_mid_run_gives_the_python_masters_message(paper_native, coupling):
-    """The plant's Ad[1,1] = 10 makes its state overflow after about 300 steps; the loop's
-    force turns non-finite and the plant refuses the step (fmi2Discard, its own message
-    naming the input; with Jacobi coupling the plant's own state overflows first, an
-    fmi2Error): both masters raise the same CosimError (FMU, call, t, status, the FMU's
-    message)."""
+    """The plant's Ad[1,1] = 10 makes its state overflow after about 300 steps; the plant
+    refuses to hand out an output that is no longer finite (fmi2GetReal: fmi2Error naming
+    the output; with Jacobi coupling its own state overflows first and fmi2DoStep refuses
+    the step, an fmi2Error): both masters raise the same CosimError (FMU, call, t, status,
+    the FMU's message)."""
     sc, ns = paper_native
     comps = tuple(dataclasses.replace(c, parameters={**c.parameters, "Ad[1,1]": 10.0})
                   if c.name == "plant" else c for c in ns.system.components)
@@ -127,9 +127,11 @@ def test_an_fmu_error_mid_run_gives_the_python_masters_message(paper_native, cou
             run_system(bad, ns.fmus, sc.steps, coupling=coupling, master=master)
         messages[master] = str(err.value)
     assert messages["native"] == messages["python"]
-    assert messages["native"].startswith("plant FMU: fmi2DoStep at t = ")
-    status = "Discard" if coupling == "gauss-seidel" else "Error"
-    assert f"returned {status}" in messages["native"] and "is not finite" in messages["native"]
+    call = "fmi2GetReal" if coupling == "gauss-seidel" else "fmi2DoStep"
+    assert messages["native"].startswith(f"plant FMU: {call} at t = ")
+    assert "returned Error" in messages["native"]
+    assert ("is not finite" if coupling == "gauss-seidel" else
+            "state element 1 would become") in messages["native"]
     t = float(messages["native"].split("at t = ")[1].split(" s")[0])
     assert 1.0 < t < sc.T                                             # mid-run
 

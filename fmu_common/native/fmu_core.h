@@ -15,6 +15,11 @@
  * t = 0), includes the model's header (ModelState) and, where NATIVE_MODEL_TABLES is
  * defined (the model's own .c file), the model's tables (names, start values).
  *
+ * The generated header "fmu_tolerances.h" (orchestrator/cosim/native_build.py) holds the
+ * time tolerances the pythonfmu slaves use too (fmu_common/lifecycle.py): STEP_SIZE_TOLERANCE
+ * (a fraction of h), COMM_POINT_TOLERANCE (a fraction of the step), TIME_ROUNDING (a
+ * fraction of |t|).
+ *
  * Errors never crash the host; each gives a status and a logged message naming the
  * variable or the time (fmu_core.c).
  */
@@ -25,6 +30,7 @@
 #include <stdint.h>
 
 #include "fmi2Functions.h"
+#include "fmu_tolerances.h"   /* generated (native_build.py) from fmu_common/lifecycle.py */
 
 #define ALLOC(n) ((n) > 0 ? (n) : 1)
 

@@ -171,7 +171,6 @@ int model_check(Instance *in) {
 
 /* q(k+1) = A q + B u + Bo y + b + F xi, then the next draw */
 int model_step(Instance *in, double t, double step) {
-    (void)step;
     Data *d = &in->d;
     double next[ALLOC(NQ)];
     for (int i = 0; i < NQ; i++) next[i] = 0.0;
@@ -182,8 +181,9 @@ int model_step(Instance *in, double t, double step) {
     gemv_add(d, ROLE_F, d->m.xi, next);
     for (int i = 0; i < NQ; i++) {
         if (!isfinite(next[i])) {
-            fmu_log(in, fmi2Error, "%s: state %d is not finite after the step at t = %g s",
-                    in->name, i + 1, t);
+            fmu_log(in, fmi2Error, "%s: state element %d would become %g in the step from "
+                    "t = %g s to %g s (the step is not taken)", in->name, i + 1, next[i], t,
+                    t + step);
             return -1;
         }
     }

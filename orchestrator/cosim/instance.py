@@ -6,7 +6,9 @@ unzips each FMU file once for all its instances.
 """
 from __future__ import annotations
 
+import collections
 import ctypes
+import itertools
 import os
 import re
 import shutil
@@ -28,7 +30,7 @@ from fmpy.fmi2 import (
     fmi2CallbackLoggerTYPE,
 )
 
-__all__ = ["CosimError", "Extracted", "FmuInstance", "STATUS", "pythonfmu_can_load_from",
+__all__ = ["CosimError", "Extracted", "FmuInstance", "FmuLog", "STATUS", "pythonfmu_can_load_from",
            "safe_temporary_folder", "pythonfmu_safe_tempdir"]
 
 #: fmi2Status names by value
@@ -156,10 +158,74 @@ def _check_pythonfmu_resources(label: str, md: Any, unzip_dir: str) -> None:
                          "crash the process on it")
 
 
-#: live instances by FMI instance name: fmpy's logger proxy (addLoggerProxy) keeps one
-#: callback per process, the last instance's, so a message is filed under the instance
-#: name the FMU gives with it
-_BY_NAME: weakref.WeakValueDictionary[str, FmuInstance] = weakref.WeakValueDictionary()
+#: live message logs by the key each FMU instance passes as its ``componentEnvironment``
+_BY_KEY: weakref.WeakValueDictionary[int, FmuLog] = weakref.WeakValueDictionary()
+_NEXT_KEY = itertools.count(1)
+#: messages that named no live instance (a freed one's late message, a foreign FMU's),
+#: the latest few, for a host to inspect
+_UNFILED: collections.deque[tuple[str, str, str]] = collections.deque(maxlen=100)
+
+
+def _file_message(env: int | None, instance: bytes | None, status: int,
+                  category: bytes | None, message: bytes | None) -> None:
+    """The one logger callback of the process (fmi2CallbackLogger, after fmpy's proxy has
+    formatted the message): filed under the instance whose key the FMU passed back as its
+    componentEnvironment.
+
+    fmpy's logger proxy (``addLoggerProxy``) keeps a single callback per process: the last
+    one given to it. Routing by componentEnvironment, which every FMU hands back unchanged
+    with each message, files each message under the instance that logged it whatever the
+    instance names (two runs in one process may use the same) and whatever instance was
+    made last; and the callback, a module constant, outlives every instance (the proxy
+    never calls a freed one)."""
+    text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
+    name = instance.decode("utf-8", "replace") if isinstance(instance, bytes) else ""
+    level = STATUS[status] if 0 <= status < len(STATUS) else str(status)
+    log = _BY_KEY.get(env) if env else None
+    if log is None:
+        _UNFILED.append((name, level, text))
+        return
+    log.messages.append((level, text))
+
+
+_LOGGER = fmi2CallbackLoggerTYPE(_file_message)
+
+
+class FmuLog:
+    """The messages of one FMU instance, and the FMI callbacks that file them here.
+
+    ``callbacks`` (an ``fmi2CallbackFunctions``, kept alive by this object) is what
+    fmi2Instantiate takes: calloc/free and the process-wide logger, with this log's key as
+    the componentEnvironment the FMU hands back with every message."""
+
+    def __init__(self) -> None:
+        self.messages: list[tuple[str, str]] = []   #: (status name, text), in order
+        self.key = next(_NEXT_KEY)
+        _BY_KEY[self.key] = self
+        cb = fmi2CallbackFunctions()
+        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        cb.componentEnvironment = self.key
+        cb.logger = _LOGGER
+        # fmpy's proxy formats the variadic arguments ctypes cannot pass, then calls
+        # _LOGGER for every FMU
+        try:
+            from fmpy.logging import addLoggerProxy
+            addLoggerProxy(ctypes.byref(cb))
+        except (ImportError, OSError, AttributeError):  # pragma: no cover - no proxy:
+            pass                                         # unformatted, still filed
+        self.callbacks = cb
+
+    def errors(self) -> str:
+        """The messages logged with status Warning, Discard, Error or Fatal.
+
+        Returns
+        -------
+        str
+            The messages joined by "; ", or a note that the FMU logged none.
+        """
+        bad = [m for s, m in self.messages if s in ("Error", "Fatal", "Discard", "Warning")]
+        return "; ".join(bad) if bad else "(the FMU logged no message)"
 
 
 class FmuInstance:
@@ -172,22 +238,18 @@ class FmuInstance:
         _check_pythonfmu_resources(label, self.md, unzip_dir)
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.types = {v.name: v.type for v in self.md.modelVariables}
-        self.messages: list[tuple[str, str]] = []
+        self.log = FmuLog()
+        self.messages = self.log.messages           #: (status name, text) the FMU logged
         self.instance_name = instance_name
-        _BY_NAME[instance_name] = self
         self.slave = FMU2Slave(guid=self.md.guid, unzipDirectory=unzip_dir,
                                modelIdentifier=self.md.coSimulation.modelIdentifier,
                                instanceName=instance_name)
-        self._callbacks = fmi2CallbackFunctions()
-        self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
-        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
         try:
-            from fmpy.logging import addLoggerProxy
-            addLoggerProxy(ctypes.byref(self._callbacks))
-        except Exception:  # pragma: no cover - message formatting only
-            pass
-        self.slave.instantiate(callbacks=self._callbacks, loggingOn=True)
+            self.slave.instantiate(callbacks=self.log.callbacks, loggingOn=True)
+        except Exception as exc:        # fmpy: "Failed to instantiate model" (NULL)
+            self.slave.freeLibrary()
+            raise CosimError(f"{label} FMU: fmi2Instantiate of instance '{instance_name}' "
+                             f"returned NULL ({exc}): {self.errors()}") from None
         # the same library as a PyDLL: the hot-loop calls keep the GIL (pythonfmu's slaves
         # take it again inside every call; a native FMU just runs), which saves two thread
         # switches per call
@@ -205,23 +267,10 @@ class FmuInstance:
         self.set_real = raw("fmi2SetReal", [vp, vp, sz, vp])
         self.do_step = raw("fmi2DoStep", [vp, ctypes.c_double, ctypes.c_double, ctypes.c_int])
 
-    def _log(self, env: int | None, instance: bytes | None, status: int,
-             category: bytes | None, message: bytes | None) -> None:
-        text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
-        name = instance.decode("utf-8", "replace") if isinstance(instance, bytes) else None
-        target = _BY_NAME.get(name, self) if name else self
-        target.messages.append((STATUS[status] if 0 <= status < 6 else str(status), text))
-
     def errors(self) -> str:
-        """The messages the FMU logged with status Warning, Discard, Error or Fatal.
-
-        Returns
-        -------
-        str
-            The messages joined by "; ", or a note that the FMU logged none.
-        """
-        bad = [m for s, m in self.messages if s in ("Error", "Fatal", "Discard", "Warning")]
-        return "; ".join(bad) if bad else "(the FMU logged no message)"
+        """The messages the FMU logged with status Warning, Discard, Error or Fatal
+        (:meth:`FmuLog.errors`)."""
+        return self.log.errors()
 
     def vrs(self, names: list[str]) -> ctypes.Array:
         """A ctypes array of the value references of ``names``, for the raw FMI calls.

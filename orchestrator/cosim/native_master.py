@@ -34,7 +34,6 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import os
-import subprocess
 import tempfile
 import threading
 from collections.abc import Mapping
@@ -104,7 +103,7 @@ def load_library() -> ctypes.CDLL:
     with _LOCK:
         if _LIBRARY is not None:
             return _LIBRARY
-        from .native import CFLAGS, NativeBuildError, compiler
+        from .native_build import CFLAGS, compiler, run_compiler
         path = library_path()
         if not path.exists():
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -112,12 +111,8 @@ def load_library() -> ctypes.CDLL:
                                         dir=path.parent)
             os.close(fd)
             try:
-                r = subprocess.run([compiler(), *CFLAGS, "-o", part, str(SOURCE)],
-                                   capture_output=True, text=True)
-                if r.returncode != 0:
-                    first = next((ln for ln in r.stderr.splitlines() if "error" in ln),
-                                 r.stderr.strip())
-                    raise NativeBuildError(f"building the compiled master: {first}")
+                run_compiler([compiler(), *CFLAGS, "-o", part, str(SOURCE)],
+                             "the compiled master")
                 os.replace(part, path)
             finally:
                 if os.path.exists(part):

@@ -25,8 +25,9 @@
  * fmi2GetReal and one fmi2SetReal per FMU and step. Printed on stdout: "us_per_step X",
  * the loop alone (CSV writing is after it).
  *
- * Exit status: 0 done; 1 an FMI call failed (one line naming the instance, the function
- * and t; everything instantiated is freed); 2 a bad system file or a missing library.
+ * Exit status: 0 done; 1 an FMI call failed (one line naming the instance, the function,
+ * t and the status, after the FMU's own message from the logger; everything instantiated
+ * is freed); 2 a bad system file or a missing library.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <dlfcn.h>
@@ -218,6 +219,23 @@ static void plan(void) {
     }
 }
 
+static const char *status_name(int st) {
+    static const char *names[] = {"OK", "Warning", "Discard", "Error", "Fatal", "Pending"};
+    return st >= 0 && st < 6 ? names[st] : "unknown status";
+}
+
+/* the FMU's own message came just before, through the logger (its instance in brackets) */
+static void fail_status(const Fmu *f, const char *fn, double t, int st) {
+    fprintf(stderr, "c_host: %s %s failed at t = %.17g (%s)\n", f->name, fn, t,
+            status_name(st));
+    cleanup();
+    exit(1);
+}
+
+/* a call whose status is worse than fmi2Warning ends the run, naming it and the status */
+#define CHECK(f, call, fn, t) \
+    do { int st_ = (call); if (st_ > fmi2Warning) fail_status((f), (fn), (t), st_); } while (0)
+
 static void fail(const Fmu *f, const char *fn, double t) {
     fprintf(stderr, "c_host: %s %s failed at t = %.17g\n", f->name, fn, t);
     cleanup();
@@ -226,9 +244,9 @@ static void fail(const Fmu *f, const char *fn, double t) {
 
 static void read_all(double t) {
     for (size_t i = 0; i < nfmu; i++)
-        if (fmus[i].nget && fmus[i].get_real(fmus[i].c, fmus[i].get_vr, fmus[i].nget,
-                                             fmus[i].got) > fmi2Warning)
-            fail(&fmus[i], "fmi2GetReal", t);
+        if (fmus[i].nget)
+            CHECK(&fmus[i], fmus[i].get_real(fmus[i].c, fmus[i].get_vr, fmus[i].nget,
+                                             fmus[i].got), "fmi2GetReal", t);
 }
 
 int main(int argc, char **argv) {
@@ -248,9 +266,9 @@ int main(int argc, char **argv) {
         f->c = f->instantiate(f->name, fmi2CoSimulation, f->guid, uri, &CALLBACKS, fmi2False,
                               fmi2False);
         if (!f->c) fail(f, "fmi2Instantiate", 0.0);
-        if (f->setup(f->c, fmi2False, 0.0, 0.0, fmi2False, 0.0) > fmi2Warning)
-            fail(f, "fmi2SetupExperiment", 0.0);
-        if (f->enter_init(f->c) > fmi2Warning) fail(f, "fmi2EnterInitializationMode", 0.0);
+        CHECK(f, f->setup(f->c, fmi2False, 0.0, 0.0, fmi2False, 0.0), "fmi2SetupExperiment",
+              0.0);
+        CHECK(f, f->enter_init(f->c), "fmi2EnterInitializationMode", 0.0);
     }
     for (size_t s = 0; s < nstart; s++) {
         Fmu *f = &fmus[starts[s].fmu];
@@ -261,11 +279,10 @@ int main(int argc, char **argv) {
         } else {
             st = f->set_real(f->c, &starts[s].vr, 1, &starts[s].v);
         }
-        if (st > fmi2Warning) fail(f, "setting a start value", 0.0);
+        CHECK(f, st, "setting a start value", 0.0);
     }
     for (size_t i = 0; i < nfmu; i++)
-        if (fmus[i].exit_init(fmus[i].c) > fmi2Warning)
-            fail(&fmus[i], "fmi2ExitInitializationMode", 0.0);
+        CHECK(&fmus[i], fmus[i].exit_init(fmus[i].c), "fmi2ExitInitializationMode", 0.0);
 
     double *rows = calloc((size_t)steps * (nrec + 1), sizeof(double));
     if (!rows) { fprintf(stderr, "c_host: out of memory\n"); cleanup(); return 2; }
@@ -280,12 +297,11 @@ int main(int argc, char **argv) {
         for (size_t l = 0; l < nlink; l++)
             fmus[links[l].dst].put[links[l].dslot] = fmus[links[l].src].got[links[l].slot];
         for (size_t i = 0; i < nfmu; i++)
-            if (fmus[i].nset && fmus[i].set_real(fmus[i].c, fmus[i].set_vr, fmus[i].nset,
-                                                 fmus[i].put) > fmi2Warning)
-                fail(&fmus[i], "fmi2SetReal", t);
+            if (fmus[i].nset)
+                CHECK(&fmus[i], fmus[i].set_real(fmus[i].c, fmus[i].set_vr, fmus[i].nset,
+                                                 fmus[i].put), "fmi2SetReal", t);
         for (size_t i = 0; i < nfmu; i++)
-            if (fmus[i].do_step(fmus[i].c, t, h, fmi2True) > fmi2Warning)
-                fail(&fmus[i], "fmi2DoStep", t);
+            CHECK(&fmus[i], fmus[i].do_step(fmus[i].c, t, h, fmi2True), "fmi2DoStep", t);
         if (k + 1 < steps) read_all((double)(k + 1) * h);
     }
     clock_gettime(CLOCK_MONOTONIC, &t1);
