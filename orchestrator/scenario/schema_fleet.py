@@ -38,7 +38,7 @@ from plant_model.acoustic.settings import check_network
 from plant_model.fleet import CONSENSUS_FORMS, fleet_vehicles
 from plant_model.graph import communication_graph
 from plant_model.leader import LeaderPath, make_leader
-from plant_model.linalg_checks import ModelError, as_matrix, as_vector
+from plant_model.linalg_checks import ModelError, as_matrix, as_vector, refuse_text
 from plant_model.navigation import NavigationSensors
 from plant_model.system import NOISE_CONVENTIONS
 from plant_model.vehicle_models import get
@@ -180,6 +180,7 @@ class VehicleOverride(Section):
 def _rows(key: str, value: Any, count: int, width: int | None) -> list[list[float]]:
     """``value`` as count rows (of ``width`` finite numbers): one per vehicle."""
     want = f"{count} rows" + (f" of {width}" if width else "")
+    refuse_text(key, value)                         # ["1", 0, 0]: text is not a number
     try:
         arr = np.asarray(value, dtype=float) if not isinstance(value, str) else None
     except (TypeError, ValueError):
