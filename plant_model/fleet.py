@@ -57,7 +57,8 @@ from .vehicle_models import get, make_vehicle
 from .vehicle_targets import leader_state_map, state_offset
 from .vehicles import VehicleModel
 
-__all__ = ["CONSENSUS_FORMS", "CURRENT_SPEED", "MAX_CURRENT_SPEED", "check_current_speeds", "ConsensusProtocol", "FleetInfo", "consensus_force_gain",
+__all__ = ["CONSENSUS_FORMS", "CURRENT_SPEED", "MAX_CURRENT_SPEED", "check_current_speeds",
+           "ConsensusProtocol", "FleetInfo", "consensus_force_gain",
            "fleet_vehicles", "fleet_graph", "fleet_system", "fleet_info", "disturbance_of",
            "resolve_fleet_spec"]
 
@@ -131,7 +132,7 @@ def consensus_force_gain(B: Any, coupling: Any,
 MAX_CURRENT_SPEED = 10.0
 #: the bound of a current's speed per axis (m/s), as a :class:`~.bounds.Bound`
 CURRENT_SPEED = Bound(0.0, MAX_CURRENT_SPEED, lo_closed=True, hi_closed=True, unit="m/s",
-                      why="about the fastest tidal current on Earth")
+                      why="beyond it: faster than the fastest tidal currents on Earth")
 
 
 def check_current_speeds(name: str, w0: np.ndarray) -> np.ndarray:

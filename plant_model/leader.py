@@ -55,7 +55,7 @@ LEADER_PATHS = ("straight", "circle", "lawnmower", "explicit")
 #: underwater vehicle (a supercavitating torpedo makes about 100 m/s)
 MAX_LEADER_SPEED = 100.0
 LEADER_SPEED = Bound(0.0, MAX_LEADER_SPEED, lo_closed=True, hi_closed=True, unit="m/s",
-                     why="faster than any underwater vehicle")
+                     why="beyond it: faster than any underwater vehicle")
 #: the most a leader path may turn in one step h (rad): at least 20 steps per full turn,
 #: so that the sampled exosystem and the controllers see the turn
 MAX_TURN_PER_STEP = 2.0 * math.pi / 20

@@ -19,6 +19,8 @@ __all__ = [
     "as_number",
     "as_positive",
     "as_vector",
+    "first_non_number",
+    "not_a_number",
     "refuse_text",
     "check_symmetric_psd",
     "check_symmetric_pd",
@@ -99,23 +101,37 @@ def as_vector(name: str, value: Any, length: int | None = None) -> np.ndarray:
     return arr
 
 
-def refuse_text(name: str, value: Any, what: str = "matrix") -> None:
-    """Refuse a string or a boolean anywhere in ``value`` (numpy would read "2" as 2.0 and
-    true as 1.0): a TOML matrix holds numbers. Arrays of numbers pass without a scan."""
+def first_non_number(value: Any) -> Any | None:
+    """The first string or boolean in ``value`` (nested lists, an array), or None: numpy
+    would read "2" as 2.0 and true as 1.0. Arrays of numbers pass without a scan."""
     if isinstance(value, np.ndarray) and value.dtype.kind in "fiuc":
-        return
+        return None
     stack = [value]                                  # first entry first: reversed pushes
     while stack:
         item = stack.pop()
         if isinstance(item, (str, bytes, bool, np.bool_)):
-            kind = "a boolean" if isinstance(item, (bool, np.bool_)) else "text"
-            hint = " (write numbers without quotes)" if _quoted(item) else ""
-            raise ModelError(f"{name}: not a numeric {what}: {item!r} is {kind}, not a "
-                             f"number{hint}")
+            return item
         if isinstance(item, (list, tuple)):
             stack.extend(reversed(item))
         elif isinstance(item, np.ndarray) and item.dtype.kind not in "fiuc":
             stack.extend(reversed(item.tolist()))
+    return None
+
+
+def not_a_number(item: Any) -> str:
+    """``'2' is text, not a number (write numbers without quotes)`` for an entry of
+    :func:`first_non_number`."""
+    kind = "a boolean" if isinstance(item, (bool, np.bool_)) else "text"
+    hint = " (write numbers without quotes)" if _quoted(item) else ""
+    return f"{item!r} is {kind}, not a number{hint}"
+
+
+def refuse_text(name: str, value: Any, what: str = "matrix") -> None:
+    """Refuse a string or a boolean anywhere in ``value`` (:func:`first_non_number`): a TOML
+    matrix holds numbers."""
+    item = first_non_number(value)
+    if item is not None:
+        raise ModelError(f"{name}: not a numeric {what}: {not_a_number(item)}")
 
 
 def _quoted(value: Any) -> str:

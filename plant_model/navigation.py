@@ -26,8 +26,8 @@ import numpy as np
 
 from .linalg_checks import ModelError
 
-__all__ = ["MAX_SENSOR_CYCLE_STEPS", "NAV_SIZE", "NavigationSensors", "SensorStream", "SENSOR_STREAM_KEY",
-           "SensedVehicle", "nav_output_spec", "sensor_parameter_specs",
+__all__ = ["MAX_SENSOR_CYCLE_STEPS", "NAV_SIZE", "NavigationSensors", "SensorStream",
+           "SENSOR_STREAM_KEY", "SensedVehicle", "nav_output_spec", "sensor_parameter_specs",
            "sensors_from_parameters"]
 
 #: the output vector [fix (3), dvl (3), depth, valid (3)]

@@ -43,7 +43,13 @@ from plant_model.fleet import (
 )
 from plant_model.graph import communication_graph
 from plant_model.leader import LeaderPath, check_turn_rate, make_leader
-from plant_model.linalg_checks import ModelError, as_matrix, as_vector, refuse_text
+from plant_model.linalg_checks import (
+    ModelError,
+    as_matrix,
+    as_vector,
+    first_non_number,
+    not_a_number,
+)
 from plant_model.navigation import NavigationSensors
 from plant_model.system import NOISE_CONVENTIONS
 from plant_model.vehicle_models import get
@@ -196,7 +202,9 @@ class VehicleOverride(Section):
 def _rows(key: str, value: Any, count: int, width: int | None) -> list[list[float]]:
     """``value`` as count rows (of ``width`` finite numbers): one per vehicle."""
     want = f"{count} rows" + (f" of {width}" if width else "")
-    refuse_text(key, value)                         # ["1", 0, 0]: text is not a number
+    if (item := first_non_number(value)) is not None:      # ["1", 0, 0]: text, not numbers
+        raise ModelError(f"{key} must have one row per vehicle ({want}) of numbers; "
+                         f"{not_a_number(item)}")
     try:
         arr = np.asarray(value, dtype=float) if not isinstance(value, str) else None
     except (TypeError, ValueError):

@@ -40,8 +40,9 @@ import numpy as np
 from ..linalg_checks import ModelError
 from .base import _number, whole_steps
 
-__all__ = ["LINK_KEY_BASE", "MAX_IN_FLIGHT", "LinkTiming", "LinkChannel", "arrival_step", "check_link",
-           "in_range", "link_key", "link_sender", "propagate", "send_steps", "tdma_offsets"]
+__all__ = ["LINK_KEY_BASE", "MAX_IN_FLIGHT", "LinkTiming", "LinkChannel", "arrival_step",
+           "check_link", "in_range", "link_key", "link_sender", "propagate", "send_steps",
+           "tdma_offsets"]
 
 #: added to the seed key of a link's generator (vehicles use 1..N, the leader 0)
 LINK_KEY_BASE = 1_000_000

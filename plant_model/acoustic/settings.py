@@ -16,8 +16,8 @@ from .base import MAX_MESSAGE_CYCLE_STEPS, _number, _vehicle
 from .links import LinkTiming, check_link, tdma_offsets
 from .schedule import resolve_schedule
 
-__all__ = ["NOT_TIMING", "RECEIVERS", "check_cycle", "check_network", "modem_range", "resolve_links",
-           "timing_table"]
+__all__ = ["NOT_TIMING", "RECEIVERS", "check_cycle", "check_network", "modem_range",
+           "resolve_links", "timing_table"]
 
 #: what a receiver does with the newest message between arrivals: hold it, or carry it
 #: forward with the sender's model

@@ -32,6 +32,12 @@ GAIN_UNITS = {"U_max": "m/s", "n_max": "rpm", "U_min": "m/s", "delta_max": "rad"
 REMUS100_6DOF_PARAMS = ("cruise_speed", "design", "substep", "autopilot", "r_g", *REMUS_FIELDS)
 
 
+def _is_number(value: Any) -> bool:
+    """A real number (not a boolean, not text): NaN too, which :class:`Remus100` names."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and \
+        not isinstance(value, (bool, np.bool_))
+
+
 def remus_from_parameters(values: dict[str, Any]) -> Remus100:
     """A :class:`Remus100` from {field: value} (any of :data:`REMUS_FIELDS`, ``r_g``).
 
@@ -44,7 +50,8 @@ def remus_from_parameters(values: dict[str, Any]) -> Remus100:
     if unknown:
         raise ModelError(f"remus100-6dof: unknown parameter(s) {', '.join(unknown)}")
     # numbers as TOML numbers: "1525" is refused, not read as 1525 (the key is named)
-    kw: dict[str, Any] = {k: as_number(k, v) for k, v in values.items() if k != "r_g"}
+    kw: dict[str, Any] = {k: float(v) if _is_number(v) else as_number(k, v)
+                          for k, v in values.items() if k != "r_g"}
     if "r_g" in values:
         kw["r_g"] = tuple(float(c) for c in as_vector("r_g", values["r_g"], 3))
     return replace(Remus100(), **kw)
