@@ -176,7 +176,7 @@ def _check_sampled(sc: Scenario, network_checked: bool = False) -> None:
         if sc.sensors is not None:
             NavigationSensors.from_mapping(sc.sensors).steps(sc.h)
     except ModelError as exc:
-        raise ScenarioError(f"{sc.source}: {exc} (with h = {sc.h:g} s)") from None
+        raise ScenarioError(f"{sc.source}: {exc}") from None
 
 
 def _check_step(sc: Scenario) -> None:
