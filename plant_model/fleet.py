@@ -49,6 +49,7 @@ from typing import Any
 import numpy as np
 from scipy.linalg import block_diag
 
+from .bounds import Bound
 from .graph import CommunicationGraph, communication_graph
 from .linalg_checks import ModelError, as_matrix, as_vector
 from .system import LinearSystem
@@ -56,7 +57,8 @@ from .vehicle_models import get, make_vehicle
 from .vehicle_targets import leader_state_map, state_offset
 from .vehicles import VehicleModel
 
-__all__ = ["CONSENSUS_FORMS", "ConsensusProtocol", "FleetInfo", "consensus_force_gain",
+__all__ = ["CONSENSUS_FORMS", "CURRENT_SPEED", "MAX_CURRENT_SPEED", "check_current_speeds",
+           "ConsensusProtocol", "FleetInfo", "consensus_force_gain",
            "fleet_vehicles", "fleet_graph", "fleet_system", "fleet_info", "disturbance_of",
            "resolve_fleet_spec"]
 
@@ -122,6 +124,25 @@ def consensus_force_gain(B: Any, coupling: Any,
             f"the range of B1): its rows for {', '.join(names[k] for k in rows)} cannot be "
             "produced by any force; couple through the rows B1 reaches (e.g. accelerations)")
     return Bp @ Gam
+
+
+#: the strongest ocean current a scenario may give (m/s): a current's stationary standard
+#: deviation per axis and each axis of its start; about the fastest tidal races on Earth
+#: (Saltstraumen, some 20 knots)
+MAX_CURRENT_SPEED = 10.0
+#: the bound of a current's speed per axis (m/s), as a :class:`~.bounds.Bound`
+CURRENT_SPEED = Bound(0.0, MAX_CURRENT_SPEED, lo_closed=True, hi_closed=True, unit="m/s",
+                      why="beyond it: faster than the fastest tidal currents on Earth")
+
+
+def check_current_speeds(name: str, w0: np.ndarray) -> np.ndarray:
+    """``w0`` (m/s per axis) within +-:data:`MAX_CURRENT_SPEED`, else one line naming the
+    entry (``name[k]``), its value and the bound."""
+    for k, x in enumerate(np.asarray(w0, float).ravel(), start=1):
+        if abs(x) > MAX_CURRENT_SPEED:
+            raise ModelError(f"{name}[{k}] = {x:g} m/s is beyond +-{MAX_CURRENT_SPEED:g} m/s "
+                             f"({CURRENT_SPEED.why})")
+    return w0
 
 
 def fleet_vehicles(spec: Mapping[str, Any]) -> list[VehicleModel]:
@@ -228,7 +249,9 @@ def disturbance_of(vehicle: Mapping[str, Any], r: int,
                          "number of seconds")
     if not (np.isfinite(sigma) and sigma >= 0):
         raise ModelError(f"{where}: current sigma = {sigma} must be a non-negative speed in m/s")
-    w0 = as_vector(f"{where} current w0", c.get("w0", np.zeros(r)), r)
+    CURRENT_SPEED.check(f"{where}: current sigma", sigma)
+    w0 = check_current_speeds(f"{where} current w0",
+                              as_vector(f"{where} current w0", c.get("w0", np.zeros(r)), r))
     return -np.eye(r) / tau, (2.0 * sigma ** 2 / tau) * np.eye(r), w0
 
 

@@ -54,7 +54,7 @@ def _vehicle_index(value: Any, what: str) -> int:
 
 
 def _weight(value: Any, what: str) -> float:
-    if isinstance(value, bool):
+    if isinstance(value, (bool, str, bytes)):       # "1.0" is text, not a weight
         raise ModelError(f"{what}: weight {value!r} is not a number")
     try:
         w = float(value)

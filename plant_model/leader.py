@@ -29,10 +29,15 @@ from typing import Any
 import numpy as np
 from scipy.linalg import expm
 
-from .linalg_checks import ModelError, as_matrix, as_nonnegative, as_number, as_positive, as_vector
+from .bounds import Bound
+from .linalg_checks import ModelError, as_matrix, as_number, as_positive, as_vector
 
 __all__ = [
     "LEADER_PATHS",
+    "LEADER_SPEED",
+    "MAX_LEADER_SPEED",
+    "MAX_TURN_PER_STEP",
+    "check_turn_rate",
     "LeaderPath",
     "circle",
     "explicit",
@@ -44,6 +49,38 @@ __all__ = [
 
 #: Names accepted by :func:`make_leader`.
 LEADER_PATHS = ("straight", "circle", "lawnmower", "explicit")
+
+
+#: the fastest a leader path may go (m/s, horizontal or vertical): faster than any
+#: underwater vehicle (a supercavitating torpedo makes about 100 m/s)
+MAX_LEADER_SPEED = 100.0
+LEADER_SPEED = Bound(0.0, MAX_LEADER_SPEED, lo_closed=True, hi_closed=True, unit="m/s",
+                     why="beyond it: faster than any underwater vehicle")
+#: the most a leader path may turn in one step h (rad): at least 20 steps per full turn,
+#: so that the sampled exosystem and the controllers see the turn
+MAX_TURN_PER_STEP = 2.0 * math.pi / 20
+
+
+def check_turn_rate(path: LeaderPath, h: float) -> None:
+    """Refuse a path that turns faster than the step h samples: its fastest rotation
+    omega = max |Im eig F| (rad/s) at most :data:`MAX_TURN_PER_STEP` / h.
+
+    Raises
+    ------
+    ModelError
+        Naming the path (a circle: its radius and speed), omega, the turn per step, the
+        bound, and for a circle the smallest radius at that speed.
+    """
+    omega = float(np.max(np.abs(np.linalg.eigvals(path.F).imag))) if path.l else 0.0
+    if omega * h <= MAX_TURN_PER_STEP * (1 + 1e-12):
+        return
+    hint = (f"; at this speed the radius must be at least "
+            f"{math.hypot(*path.z0[3:5]) * omega * h / MAX_TURN_PER_STEP:.3g} m"
+            if path.kind == "circle" else
+            f"; use h <= {MAX_TURN_PER_STEP / omega:.3g} s")
+    raise ModelError(f"leader: the {path.description} turns at {omega:.4g} rad/s, "
+                     f"{omega * h:.3g} rad per step h = {h:g} s: more than the "
+                     f"{MAX_TURN_PER_STEP:.3g} rad (20 steps per turn) a step samples{hint}")
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:
@@ -179,9 +216,12 @@ def straight(speed: float, heading_deg: float = 0.0, start: Any = (0.0, 0.0, 0.0
         If an argument is not a finite number, ``speed`` is negative or ``start`` is not
         3 numbers.
     """
-    v = as_nonnegative("speed", speed, "m/s")
+    v = LEADER_SPEED.check("speed", speed)
     psi = math.radians(as_number("heading_deg", heading_deg))
     vd = as_number("climb_rate", climb_rate)
+    if abs(vd) > MAX_LEADER_SPEED:
+        raise ModelError(f"climb_rate = {vd:g} m/s is beyond +-{MAX_LEADER_SPEED:g} m/s "
+                         f"({LEADER_SPEED.why})")
     p0 = _point("start", start)
     Z, I3 = np.zeros((3, 3)), np.eye(3)
     F = np.block([[Z, I3], [Z, Z]])
@@ -227,7 +267,7 @@ def circle(radius: float, speed: float, center: Any = (0.0, 0.0, 0.0), clockwise
         If an argument is out of range or of the wrong type.
     """
     R = as_positive("radius", radius, "m")
-    v = as_nonnegative("speed", speed, "m/s")
+    v = LEADER_SPEED.check("speed", speed)
     c = _point("center", center)
     if not isinstance(clockwise, (bool, np.bool_)):
         raise ModelError(f"clockwise: expected true or false, got {clockwise!r}")
@@ -337,7 +377,7 @@ def lawnmower(leg_length: float, spacing: float, speed: float, harmonics: int = 
     """
     L = as_positive("leg_length", leg_length, "m")
     sp = as_number("spacing", spacing)
-    v = as_positive("speed", speed, "m/s")
+    v = as_positive("speed", LEADER_SPEED.check("speed", speed), "m/s")
     if isinstance(harmonics, bool) or not isinstance(harmonics, (int, np.integer)):
         raise ModelError(f"harmonics: expected a whole number >= 1, got {harmonics!r}")
     h = int(harmonics)

@@ -19,6 +19,9 @@ __all__ = [
     "as_number",
     "as_positive",
     "as_vector",
+    "first_non_number",
+    "not_a_number",
+    "refuse_text",
     "check_symmetric_psd",
     "check_symmetric_pd",
     "psd_factor",
@@ -55,6 +58,7 @@ def as_matrix(name: str, value: Any, shape: Sequence[int | None] | None = None) 
     ModelError
         If ``value`` is not numeric, not 2-D, of the wrong shape or not finite.
     """
+    refuse_text(name, value, "matrix")
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -83,6 +87,7 @@ def as_vector(name: str, value: Any, length: int | None = None) -> np.ndarray:
     length 1), ``length`` the expected length (None: any); returns a 1-D float copy; raises
     ModelError if ``value`` is not numeric, not 1-D, of the wrong length or not finite.
     """
+    refuse_text(name, value, "vector")
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -94,6 +99,48 @@ def as_vector(name: str, value: Any, length: int | None = None) -> np.ndarray:
         raise ModelError(f"{name}: wrong length {arr.shape[0]}, expected {length}")
     _check_finite(name, arr)
     return arr
+
+
+def first_non_number(value: Any) -> Any | None:
+    """The first string or boolean in ``value`` (nested lists, an array), or None: numpy
+    would read "2" as 2.0 and true as 1.0. Arrays of numbers pass without a scan."""
+    if isinstance(value, np.ndarray) and value.dtype.kind in "fiuc":
+        return None
+    stack = [value]                                  # first entry first: reversed pushes
+    while stack:
+        item = stack.pop()
+        if isinstance(item, (str, bytes, bool, np.bool_)):
+            return item
+        if isinstance(item, (list, tuple)):
+            stack.extend(reversed(item))
+        elif isinstance(item, np.ndarray) and item.dtype.kind not in "fiuc":
+            stack.extend(reversed(item.tolist()))
+    return None
+
+
+def not_a_number(item: Any) -> str:
+    """``'2' is text, not a number (write numbers without quotes)`` for an entry of
+    :func:`first_non_number`."""
+    kind = "a boolean" if isinstance(item, (bool, np.bool_)) else "text"
+    hint = " (write numbers without quotes)" if _quoted(item) else ""
+    return f"{item!r} is {kind}, not a number{hint}"
+
+
+def refuse_text(name: str, value: Any, what: str = "matrix") -> None:
+    """Refuse a string or a boolean anywhere in ``value`` (:func:`first_non_number`): a TOML
+    matrix holds numbers."""
+    item = first_non_number(value)
+    if item is not None:
+        raise ModelError(f"{name}: not a numeric {what}: {not_a_number(item)}")
+
+
+def _quoted(value: Any) -> str:
+    """A hint for a string that spells a number: TOML numbers have no quotes."""
+    try:
+        float(value)
+    except (TypeError, ValueError):
+        return ""
+    return " (text: write numbers without quotes)" if isinstance(value, (str, bytes)) else ""
 
 
 def _check_finite(name: str, arr: np.ndarray) -> None:
@@ -256,13 +303,16 @@ def as_number(name: str, value: Any) -> float:
 
 
 def as_float(name: str, value: Any) -> float:
-    """``float(value)``, finite (a boolean counts as 0 or 1: see :func:`as_number`).
+    """``float(value)``, finite (a boolean counts as 0 or 1: see :func:`as_number`); a
+    string is refused even when it spells a number (a TOML number has no quotes).
 
     Raises
     ------
     ModelError
         If ``value`` is not a number or not finite.
     """
+    if isinstance(value, (str, bytes)):         # "1525" is text, not a number: say so
+        raise ModelError(f"{name}: not a number: {value!r}" + _quoted(value))
     try:
         x = float(value)
     except (TypeError, ValueError):

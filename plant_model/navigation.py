@@ -26,14 +26,18 @@ import numpy as np
 
 from .linalg_checks import ModelError
 
-__all__ = ["NAV_SIZE", "NavigationSensors", "SensorStream", "SENSOR_STREAM_KEY",
-           "SensedVehicle", "nav_output_spec", "sensor_parameter_specs",
+__all__ = ["MAX_SENSOR_CYCLE_STEPS", "NAV_SIZE", "NavigationSensors", "SensorStream",
+           "SENSOR_STREAM_KEY", "SensedVehicle", "nav_output_spec", "sensor_parameter_specs",
            "sensors_from_parameters"]
 
 #: the output vector [fix (3), dvl (3), depth, valid (3)]
 NAV_SIZE = 10
 #: the sensors' generator key offset: [seed, SENSOR_STREAM_KEY + vehicle]
 SENSOR_STREAM_KEY = 3_000_000
+#: the longest cycle (steps h) of a schedule without dropouts, lcm of the sensors' periods:
+#: the navigation filter computes its periodic gain at every step of the cycle
+#: (estimator_fmu.multirate.periodic_filter), and the prediction a loop per step
+MAX_SENSOR_CYCLE_STEPS = 10_000
 
 
 @dataclass(frozen=True)
@@ -96,6 +100,15 @@ class NavigationSensors:
                 raise ModelError(f"[sensors] {name} = {period:g} s is not a whole number of "
                                  f"steps h = {h:g} s")
             out.append(n)
+        cycle = math.lcm(*out)
+        if self.lossless and cycle > MAX_SENSOR_CYCLE_STEPS:
+            periods = [f"{name} = {getattr(self, name):g} s" for name in
+                       ("fix_period", "dvl_period", "depth_period")]
+            raise ModelError(f"[sensors] {', '.join(periods)} report together every {cycle} "
+                             f"steps of h = {h:g} s ({cycle * h:g} s), more than the "
+                             f"{MAX_SENSOR_CYCLE_STEPS} steps the navigation filter's cycle may "
+                             "take without dropouts (a gain per step of it); choose periods "
+                             "with a shorter common multiple")
         return np.array(out, dtype=np.int64)
 
     @property

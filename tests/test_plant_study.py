@@ -75,7 +75,7 @@ def test_the_nonlinear_vehicle_is_refused_where_it_cannot_run(tmp_path, capsys):
     bad = text.replace("params = { cruise_speed = 1.5 }", "params = { n_max = -1525.0 }")
     (tmp_path / "bad.toml").write_text(bad)
     one_line(["run", "--scenario", str(tmp_path / "bad.toml"), "--deployment", "per-vehicle",
-              "--out", str(tmp_path / "c")], "n_max = -1525 must be positive")
+              "--out", str(tmp_path / "c")], "n_max = -1525 rpm must be positive")
     sub = text.replace("params = { cruise_speed = 1.5 }", "params = { substep = 0.003 }")
     (tmp_path / "sub.toml").write_text(sub)
     one_line(["run", "--scenario", str(tmp_path / "sub.toml"), "--deployment", "per-vehicle",

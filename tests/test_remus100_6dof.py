@@ -97,10 +97,10 @@ def test_a_turning_circle_at_full_rudder_closes_with_radius_u_over_r():
 
 
 @pytest.mark.parametrize("kwargs, fragment", [
-    ({"rho": -1026.0}, "rho = -1026 must be positive"),
-    ({"L": 0.0}, "L = 0 must be positive"),
-    ({"delta_max": -0.5}, "delta_max = -0.5 must be positive"),
-    ({"n_max": -1525.0}, "n_max = -1525 must be positive"),
+    ({"rho": -1026.0}, "rho = -1026 kg/m^3 must be positive"),
+    ({"L": 0.0}, "L = 0 m must be positive"),
+    ({"delta_max": -0.5}, "delta_max = -0.5 rad (-28.6 deg) must be in (0, 90) deg"),
+    ({"n_max": -1525.0}, "n_max = -1525 rpm must be positive"),
     ({"diam": 2.0}, "diam = 2 m must be below L = 1.6 m"),
     ({"T_delta": float("nan")}, "T_delta = nan is not a finite number"),
 ])

@@ -48,10 +48,10 @@ def test_the_design_model_is_the_linear_remus100_of_the_same_hull():
 
 @pytest.mark.parametrize("params, fragment", [
     ({"wingspan": 1.0}, "unknown remus100-6dof parameter(s) wingspan"),
-    ({"L": -1.6}, "L = -1.6 must be positive"),
-    ({"n_max": -1525.0}, "n_max = -1525 must be positive"),
-    ({"delta_max": -0.5}, "delta_max = -0.5 must be positive"),
-    ({"rho": 0.0}, "rho = 0 must be positive"),
+    ({"L": -1.6}, "L = -1.6 m must be positive (the hull's length)"),
+    ({"n_max": -1525.0}, "n_max = -1525 rpm must be positive"),
+    ({"delta_max": -0.5}, "delta_max = -0.5 rad (-28.6 deg) must be in (0, 90) deg"),
+    ({"rho": 0.0}, "rho = 0 kg/m^3 must be positive"),
     ({"substep": -0.01}, "substep"),
     ({"autopilot": {"K_x": 1.0}}, "unknown gain(s) ['K_x']"),
     ({"T_n": float("nan")}, "T_n = nan is not a finite number"),

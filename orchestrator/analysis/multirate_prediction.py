@@ -39,6 +39,9 @@ __all__ = ["multirate_reference", "periodic_loop", "predict_multirate_cost"]
 
 #: the largest loop the prediction builds (states); beyond it the summary says so
 MAX_STATES = 800
+#: the most memory the loop's phases may take (bytes: Phi, Gam and the rows per phase of
+#: the sensors' cycle); beyond it the summary says so
+MAX_PHASE_BYTES = 1_000_000_000
 
 
 def periodic_loop(sc: Any, base: DistributedLoop, sensors: NavigationSensors
@@ -59,6 +62,12 @@ def periodic_loop(sc: Any, base: DistributedLoop, sensors: NavigationSensors
     if nX > MAX_STATES:
         raise ModelError(f"the periodic loop has {nX} states, more than the {MAX_STATES} "
                          "this prediction builds")
+    cycle = math.lcm(*(int(n) for n in sensors.steps(sc.h)))
+    need = 16 * cycle * nX * (nX + base.Gam.shape[1])      # Phi, Gam and their row blocks
+    if need > MAX_PHASE_BYTES:
+        raise ModelError(f"the periodic loop of the sensors' {cycle}-step cycle ({nX} states "
+                         f"per phase) needs about {need / 1e9:.3g} GB, more than the "
+                         f"{MAX_PHASE_BYTES / 1e9:g} GB this prediction builds")
     agents, graph, leader = agents_from_fleet_spec(sc.fleet)
     g = np.diag(graph.pinning_matrix()).copy()
     n, r = agents[0].A.shape[0], agents[0].Kw.shape[0]

@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 from collections import Counter
 
-__all__ = ["parse_floats", "parse_seeds", "positive_metres"]
+__all__ = ["current_speeds", "leader_speeds", "parse_floats", "parse_seeds", "positive_metres"]
 
 
 #: the most seeds one compare takes
@@ -88,6 +88,31 @@ def parse_floats(text: str) -> list[float]:
         raise argparse.ArgumentTypeError(f"{text!r}: every value must be a positive number"
                                          + (f" ({bad[0]:g} is not)" if bad else ""))
     return values
+
+
+def _bounded(text: str, what: str, bound: object) -> list[float]:
+    """:func:`parse_floats`, each value within ``bound`` (a plant_model.bounds.Bound), else
+    one line naming the value, its unit and the bound."""
+    from plant_model.linalg_checks import ModelError
+    values = parse_floats(text)
+    for v in values:
+        try:
+            bound.check(what, v)                         # type: ignore[attr-defined]
+        except ModelError as exc:
+            raise argparse.ArgumentTypeError(f"{text!r}: {exc}") from None
+    return values
+
+
+def leader_speeds(text: str) -> list[float]:
+    """Leader speeds (m/s), each positive and at most plant_model.leader.MAX_LEADER_SPEED."""
+    from plant_model.leader import LEADER_SPEED
+    return _bounded(text, "speed", LEADER_SPEED)
+
+
+def current_speeds(text: str) -> list[float]:
+    """Current strengths (m/s), each positive and at most plant_model.fleet.MAX_CURRENT_SPEED."""
+    from plant_model.fleet import CURRENT_SPEED
+    return _bounded(text, "current", CURRENT_SPEED)
 
 
 def positive_metres(text: str) -> float:

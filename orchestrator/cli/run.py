@@ -12,7 +12,7 @@ from estimator_fmu.estimators import ESTIMATOR_MODES
 
 from ..outputs import claim_folder, output_folder
 from ..scenario import Scenario
-from .args import _count, parse_floats, parse_seeds, positive_metres
+from .args import _count, current_speeds, leader_speeds, parse_floats, parse_seeds, positive_metres
 from .common import (
     add_fmu_options,
     add_force_option,
@@ -145,8 +145,11 @@ def cmd_envelope(args: argparse.Namespace) -> int:
         summary = run_envelope(sc, args.speeds, args.radii, args.currents, args.tolerance,
                                out, log=(lambda s: None) if args.quiet else print)
     held = sum(p["holds"] for p in summary["envelope"]["points"])
+    failed = summary["envelope"]["failed"]
     print(f"{held} of {len(summary['envelope']['points'])} points hold within "
-          f"{args.tolerance:g} m; wrote {out / 'summary.json'}")
+          f"{args.tolerance:g} m"
+          + (f"; {failed} could not run (each one's reason in summary.json)" if failed else "")
+          + f"; wrote {out / 'summary.json'}")
     return 130 if summary["interrupted"] else 0
 
 
@@ -208,11 +211,11 @@ def add_envelope(sub: argparse._SubParsersAction) -> None:
     sp = sub.add_parser("envelope", help="where a per-vehicle formation holds: a grid of "
                                          "leader speed, turn radius and current strength")
     add_scenario_options(sp, default=ENVELOPE_SCENARIO)
-    sp.add_argument("--speeds", type=parse_floats, default=[1.0, 1.5, 2.0],
+    sp.add_argument("--speeds", type=leader_speeds, default=[1.0, 1.5, 2.0],
                     help="leader speeds, m/s (default: 1,1.5,2)")
     sp.add_argument("--radii", type=parse_floats, default=[math.inf, 50.0, 25.0],
                     help="leader turn radii, m; inf: a straight line (default: inf,50,25)")
-    sp.add_argument("--currents", type=parse_floats, default=[0.1, 0.3],
+    sp.add_argument("--currents", type=current_speeds, default=[0.1, 0.3],
                     help="ocean-current standard deviations, m/s (default: 0.1,0.3)")
     sp.add_argument("--tolerance", type=positive_metres, default=3.0,
                     help="the formation holds when the largest tracking error over the "

@@ -8,8 +8,10 @@ standard deviation set to that strength, the vehicles started in formation. The 
 
 Writes ``<out>/summary.json`` with ``envelope``: the tolerance and per point its leader
 speed (m/s), radius (m, null for a straight line), current (m/s), ``holds``,
-``max_error``, ``rms_error`` (over the window, m), ``actuator_saturation_fraction`` and
-the folder of its run (``points/<i>``, its own .rrd and summary.json).
+``max_error``, ``rms_error`` (over the window, m), ``actuator_saturation_fraction``, the
+folder of its run (``points/<i>``, its own .rrd and summary.json) and ``failed`` (null, or
+why the point could not run: that point only fails, the grid goes on); ``failed`` beside
+the points counts them.
 """
 from __future__ import annotations
 
@@ -27,7 +29,8 @@ from ..outputs import file_stem
 from ..scenario import Scenario, scenario_from_dict
 from ..scenario.variants import with_keys
 
-__all__ = ["envelope_params", "envelope_point", "envelope_spec", "run_envelope"]
+__all__ = ["POINT_ERRORS", "envelope_params", "envelope_point", "envelope_spec", "failed_point",
+           "run_envelope"]
 
 
 #: the run settings a point carries over from the scenario it varies
@@ -117,10 +120,38 @@ def _toml(value: Any) -> str:
     raise TypeError(f"no TOML for {type(value).__name__}")
 
 
+def _point_errors() -> tuple[type[BaseException], ...]:
+    """What makes one grid point fail (and only that point): a variant the loader refuses,
+    a design or an FMU that refuses it, a numerical failure of its design."""
+    from plant_model.linalg_checks import ModelError
+
+    from ..cosim.instance import CosimError
+    from ..scenario import ScenarioError
+    return (ScenarioError, ModelError, CosimError, np.linalg.LinAlgError)
+
+
+POINT_ERRORS = _point_errors()
+
+
+def failed_point(speed: float, radius: float, current: float, exc: BaseException,
+                 out: Path, folder: Path) -> dict[str, Any]:
+    """The summary entry of a grid point that failed: its grid values, ``failed`` the
+    one-line reason, no figures; ``folder`` only if the point wrote anything."""
+    reason = " ".join(str(exc).split()) or type(exc).__name__
+    return {"speed": speed, "radius": None if math.isinf(radius) else radius,
+            "current": current, "holds": False, "max_error": None, "rms_error": None,
+            "actuator_saturation_fraction": None, "path_feasible": None,
+            "path_findings": None,
+            "folder": str(folder) if (out / folder).exists() else None, "failed": reason}
+
+
 def run_envelope(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
                  currents: Sequence[float], tolerance: float, out: Path, *,
                  log: Callable[[str], None]) -> dict[str, Any]:
     """Run every grid point (module docstring) on the scenario's seed.
+
+    A point whose variant or run fails (:data:`POINT_ERRORS`) is recorded with its reason
+    (``failed``) and the grid goes on: the other points reach the summary.
 
     Returns
     -------
@@ -133,10 +164,18 @@ def run_envelope(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
     points = []
     grid = list(itertools.product(speeds, radii, currents))
     for i, (speed, radius, current) in enumerate(grid, start=1):
-        variant = envelope_point(sc, speed, radius, current)
         folder = Path("points") / str(i)
-        s = simulate(variant, [sc.estimator], [sc.seed], out / folder, progress=False,
-                     log=lambda _: None)
+        where = (f"{i:3d}/{len(grid)} speed {speed:g} m/s, radius "
+                 f"{'straight' if math.isinf(radius) else format(radius, 'g') + ' m'}, "
+                 f"current {current:g} m/s")
+        try:
+            variant = envelope_point(sc, speed, radius, current)
+            s = simulate(variant, [sc.estimator], [sc.seed], out / folder, progress=False,
+                         log=lambda _: None)
+        except POINT_ERRORS as exc:           # this point only: the grid goes on
+            points.append(failed_point(speed, radius, current, exc, out, folder))
+            log(f"{where}: failed: {points[-1]['failed']}")
+            continue
         (m,) = s["methods"].values()
         rms = [v for v in (m.get("rms_error_straight"), m.get("rms_error_turns"))
                if v is not None]
@@ -145,11 +184,9 @@ def run_envelope(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
                  and m["max_error"] <= tolerance, "max_error": m.get("max_error"),
                  "rms_error": max(rms) if rms else None,
                  "actuator_saturation_fraction": m.get("actuator_saturation_fraction"),
-                 **path_verdict(variant.design), "folder": str(folder)}
+                 **path_verdict(variant.design), "folder": str(folder), "failed": None}
         points.append(point)
-        log(f"{i:3d}/{len(grid)} speed {speed:g} m/s, radius "
-            f"{'straight' if point['radius'] is None else format(radius, 'g') + ' m'}, "
-            f"current {current:g} m/s: "
+        log(f"{where}: "
             + ("no statistics (empty window)" if point["max_error"] is None else
                f"max error {point['max_error']:.3g} m")
             + " -> "
@@ -176,6 +213,7 @@ def run_envelope(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
                "estimator": sc.estimator, "architecture": sc.architecture,
                "models": sorted({v.get("model", "remus100") for v in sc.fleet["vehicles"]}),
                "envelope": {"tolerance_m": tolerance, "points": points,
+                            "failed": sum(p["failed"] is not None for p in points),
                             "path_check": verdicts},
                "interrupted": len(points) < len(grid)}
     write_text_atomically(out / "summary.json", json.dumps(summary, indent=2) + "\n")

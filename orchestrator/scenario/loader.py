@@ -153,8 +153,30 @@ class Scenario:
             new = replace(new, design=new.design.over(new.T, *(np.asarray(ld[k], float)
                                                                for k in ("F", "H", "z0"))))
         _check_step(new)
+        if new.h != self.h:
+            _check_sampled(new, network_checked=bool(network))
         check_deployment(new)
         return new
+
+
+def _check_sampled(sc: Scenario, network_checked: bool = False) -> None:
+    """What the file's validation checked against its own h, checked again at a new h: the
+    leader's turns (plant_model.leader.check_turn_rate), the [network] periods and cycle,
+    the [sensors] periods and cycle."""
+    if sc.fleet is None:
+        return
+    from plant_model.leader import check_turn_rate, make_leader
+    from plant_model.navigation import NavigationSensors
+    ld = sc.fleet["leader"]
+    try:
+        if "params" in ld:
+            check_turn_rate(make_leader(ld["kind"], ld["params"]), sc.h)
+        if sc.network is not None and not network_checked:
+            check_network(sc.network, len(sc.fleet["vehicles"]), sc.h)
+        if sc.sensors is not None:
+            NavigationSensors.from_mapping(sc.sensors).steps(sc.h)
+    except ModelError as exc:
+        raise ScenarioError(f"{sc.source}: {exc}") from None
 
 
 def _check_step(sc: Scenario) -> None:

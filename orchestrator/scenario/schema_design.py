@@ -51,7 +51,8 @@ class DesignSection(Section):
         """u_max is "vehicle", a positive number or a list of positive numbers (N)."""
         if value == "vehicle":
             return value
-        ok = not isinstance(value, (bool, str))
+        ok = not isinstance(value, (bool, str)) and not (
+            isinstance(value, list) and any(isinstance(v, (bool, str)) for v in value))
         if ok:
             try:
                 arr = np.asarray(value, dtype=float)

@@ -35,16 +35,28 @@ from pydantic import (
 from controller_fmu.distributed import REGULATOR_FORMS
 from controller_fmu.vehicle_law import LEADER_INFORMATION
 from plant_model.acoustic.settings import check_network
-from plant_model.fleet import CONSENSUS_FORMS, fleet_vehicles
+from plant_model.fleet import (
+    CONSENSUS_FORMS,
+    CURRENT_SPEED,
+    check_current_speeds,
+    fleet_vehicles,
+)
 from plant_model.graph import communication_graph
-from plant_model.leader import LeaderPath, make_leader
-from plant_model.linalg_checks import ModelError, as_matrix, as_vector
+from plant_model.leader import LeaderPath, check_turn_rate, make_leader
+from plant_model.linalg_checks import (
+    ModelError,
+    as_matrix,
+    as_vector,
+    first_non_number,
+    not_a_number,
+)
 from plant_model.navigation import NavigationSensors
 from plant_model.system import NOISE_CONVENTIONS
 from plant_model.vehicle_models import get
 from plant_model.vehicle_targets import leader_state_map, state_offset
 from plant_model.vehicles import VehicleModel
 
+from .errors import bad_value
 from .schema import (
     CostSection,
     Matrix,
@@ -69,10 +81,20 @@ class CurrentSection(Section):
                      expect("must be a non-negative speed in m/s")] = 0.0
     w0: Matrix = None
 
+    @field_validator("sigma")
+    @classmethod
+    def below_the_strongest_current(cls, sigma: float) -> float:
+        """sigma at most :data:`plant_model.fleet.MAX_CURRENT_SPEED`."""
+        if not CURRENT_SPEED.holds(sigma):
+            raise bad_value("m/s must be {interval} ({why})",
+                            interval=CURRENT_SPEED.interval(), why=CURRENT_SPEED.why)
+        return sigma
+
     def check(self, r: int, name: str = "w0") -> None:
-        """w0 (if given) is a finite vector of length r."""
+        """w0 (if given) is a finite vector of length r, each axis within
+        +-:data:`plant_model.fleet.MAX_CURRENT_SPEED`."""
         if "w0" in self.model_fields_set:
-            as_vector(name, self.w0, r)
+            check_current_speeds(name, as_vector(name, self.w0, r))
 
 
 class FleetDisturbanceSection(Section):
@@ -180,6 +202,9 @@ class VehicleOverride(Section):
 def _rows(key: str, value: Any, count: int, width: int | None) -> list[list[float]]:
     """``value`` as count rows (of ``width`` finite numbers): one per vehicle."""
     want = f"{count} rows" + (f" of {width}" if width else "")
+    if (item := first_non_number(value)) is not None:      # ["1", 0, 0]: text, not numbers
+        raise ModelError(f"{key} must have one row per vehicle ({want}) of numbers; "
+                         f"{not_a_number(item)}")
     try:
         arr = np.asarray(value, dtype=float) if not isinstance(value, str) else None
     except (TypeError, ValueError):
@@ -349,7 +374,10 @@ class FleetScenario(ScenarioFile):
     @classmethod
     def leader_fits_the_vehicles(cls, leader: LeaderSection,
                                  info: ValidationInfo) -> LeaderSection:
-        """Every vehicle model can follow the leader's path (its H has their outputs)."""
+        """Every vehicle model can follow the leader's path (its H has their outputs); the
+        step h samples its turns (plant_model.leader.check_turn_rate)."""
+        if (sim := info.data.get("simulation")) is not None:
+            check_turn_rate(leader.leader_path, sim.h)
         if (vehicles := _valid_vehicles(info)) is not None:
             path = leader.leader_path
             for mdl in vehicles.models:

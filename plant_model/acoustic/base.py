@@ -13,7 +13,13 @@ import numpy as np
 
 from ..linalg_checks import ModelError
 
-__all__ = ["_number", "_vehicle", "whole_steps"]
+__all__ = ["MAX_MESSAGE_CYCLE_STEPS", "_number", "_vehicle", "whole_steps"]
+
+
+#: the longest message cycle (steps h) of a network: the links' periods and the schedule's
+#: period repeat together every lcm of them; the predictions and the loop's patterns
+#: unroll one cycle step by step
+MAX_MESSAGE_CYCLE_STEPS = 100_000
 
 
 def _number(name: str, value: Any) -> float:
@@ -36,9 +42,14 @@ def _vehicle(N: int, value: Any, where: str) -> int | str:
 
 
 def whole_steps(name: str, value: float, h: float) -> int:
-    """``value`` (s) as a whole number of steps h, or a one-line error naming it."""
+    """``value`` (s) as a whole number of steps h, or a one-line error naming it; a positive
+    value below one step (which would round to 0 steps: a period of 1e-12 s) is refused."""
     n = float(value) / h
+    if float(value) > 0.0 and round(n) == 0:
+        raise ModelError(f"{name} = {value:g} s is below one step h = {h:g} s (messages "
+                         "leave on the co-simulation's steps, at most one per step)")
     if abs(n - round(n)) > 1e-9 * max(1.0, abs(n)):
         raise ModelError(f"{name} = {value:g} s is not a whole number of steps h = {h:g} s "
                          "(messages leave on the co-simulation's steps)")
     return int(round(n))
+

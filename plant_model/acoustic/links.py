@@ -38,13 +38,17 @@ from typing import Any
 import numpy as np
 
 from ..linalg_checks import ModelError
-from .base import _number
+from .base import _number, whole_steps
 
-__all__ = ["LINK_KEY_BASE", "LinkTiming", "LinkChannel", "arrival_step", "check_link",
-           "in_range", "link_key", "link_sender", "propagate", "send_steps", "tdma_offsets"]
+__all__ = ["LINK_KEY_BASE", "MAX_IN_FLIGHT", "LinkTiming", "LinkChannel", "arrival_step",
+           "check_link", "in_range", "link_key", "link_sender", "propagate", "send_steps",
+           "tdma_offsets"]
 
 #: added to the seed key of a link's generator (vehicles use 1..N, the leader 0)
 LINK_KEY_BASE = 1_000_000
+#: the most messages one link may have in flight, latency / period: every one is a state of
+#: the networked loop (orchestrator.analysis.acoustic.loop) and a slot of the receiver
+MAX_IN_FLIGHT = 1000
 
 
 @dataclass(frozen=True)
@@ -63,7 +67,7 @@ class LinkTiming:
 
 
 def check_link(name: str, latency: Any, period: Any, loss: Any,
-               offset: Any = 0.0) -> LinkTiming:
+               offset: Any = 0.0, h: float | None = None) -> LinkTiming:
     """A validated :class:`LinkTiming`; every error is one line naming the link.
 
     Parameters
@@ -71,7 +75,10 @@ def check_link(name: str, latency: Any, period: Any, loss: Any,
     name : str
         The link, e.g. "link 2 -> 4" or "leader -> 1".
     latency, period, loss, offset : Any
-        Seconds (>= 0), seconds (> 0), a probability in [0, 1), seconds in [0, period).
+        Seconds (>= 0), seconds (> 0), a probability in [0, 1), seconds in [0, period);
+        at most :data:`MAX_IN_FLIGHT` periods of latency.
+    h : float, optional
+        The step (s): the period is then a whole number of steps, at least one.
 
     Returns
     -------
@@ -96,6 +103,12 @@ def check_link(name: str, latency: Any, period: Any, loss: Any,
                          "that loses every message carries nothing)")
     if not 0.0 <= off < per:
         raise ModelError(f"{name}: offset = {off:g} s is not within [0, period = {per:g} s)")
+    if h is not None:
+        whole_steps(f"{name}: period", per, h)
+    if lat / per > MAX_IN_FLIGHT:
+        raise ModelError(f"{name}: latency = {lat:g} s is {lat / per:.3g} periods of {per:g} s: "
+                         f"at most {MAX_IN_FLIGHT} messages may be in flight on a link "
+                         f"(latency at most {MAX_IN_FLIGHT * per:g} s at this period)")
     return LinkTiming(latency=lat, period=per, loss=p, offset=off)
 
 

@@ -7,16 +7,17 @@ switching schedule of :mod:`.schedule`) for a fleet of N vehicles. Pure Python, 
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
 from ..linalg_checks import ModelError
-from .base import _number, _vehicle, whole_steps
+from .base import MAX_MESSAGE_CYCLE_STEPS, _number, _vehicle
 from .links import LinkTiming, check_link, tdma_offsets
 from .schedule import resolve_schedule
 
-__all__ = ["NOT_TIMING", "RECEIVERS", "check_network", "modem_range", "resolve_links",
-           "timing_table"]
+__all__ = ["NOT_TIMING", "RECEIVERS", "check_cycle", "check_network", "modem_range",
+           "resolve_links", "timing_table"]
 
 #: what a receiver does with the newest message between arrivals: hold it, or carry it
 #: forward with the sender's model
@@ -84,7 +85,7 @@ def resolve_links(N: int, edges: Sequence[tuple[int, int, float]],
     if "range" in net:
         modem_range(net["range"])
     base = check_link("[network]", net.get("latency", 0.0), net.get("period", h),
-                      net.get("loss", 0.0))
+                      net.get("loss", 0.0), h=h)
     keys = [(int(j), int(i)) for j, i, _ in edges] + [("leader", int(i)) for i, _ in pinning]
     settings = {k: {"latency": base.latency, "period": base.period, "loss": base.loss}
                 for k in keys}
@@ -123,11 +124,8 @@ def resolve_links(N: int, edges: Sequence[tuple[int, int, float]],
                              f"{period:g} s")
         # each slot starts on a step of the co-simulation
         offsets = {v: round(o / h) * h for v, o in tdma_offsets(senders, period).items()}
-    out = {k: check_link(_link_name(*k), s["latency"], s["period"], s["loss"],
-                         offsets.get(k[0], 0.0)) for k, s in settings.items()}
-    for k, t in out.items():
-        whole_steps(f"{_link_name(*k)}: period", t.period, h)
-    return out
+    return {k: check_link(_link_name(*k), s["latency"], s["period"], s["loss"],
+                          offsets.get(k[0], 0.0), h=h) for k, s in settings.items()}
 
 
 def modem_range(value: Any) -> float:
@@ -173,7 +171,31 @@ def check_network(table: Any, N: int, h: float) -> dict[str, Any]:
     timing = timing_table(table)
     every = [(j, i, 1.0) for i in range(1, N + 1) for j in range(1, N + 1) if j != i]
     pins = [(i, 1.0) for i in range(1, N + 1)]
-    resolve_links(N, every, pins, timing, h)
-    resolve_schedule(table, [(j, i) for j, i, _ in every] + [("leader", i) for i, _ in pins],
-                     h, N)
+    links = resolve_links(N, every, pins, timing, h)
+    schedule = resolve_schedule(table, [(j, i) for j, i, _ in every] +
+                                [("leader", i) for i, _ in pins], h, N)
+    check_cycle(links, schedule.period if schedule is not None else 0, h)
     return dict(table)
+
+
+def check_cycle(links: dict[tuple[Any, int], LinkTiming], schedule_period: int,
+                h: float) -> int:
+    """The message cycle (steps): the lcm of the links' periods and the schedule's period
+    (steps, 0: none), at most :data:`~.base.MAX_MESSAGE_CYCLE_STEPS`.
+
+    Raises
+    ------
+    ModelError
+        Naming the periods (s) and the cycle they make, and the bound.
+    """
+    periods = sorted({round(t.period / h) for t in links.values()})
+    cycle = math.lcm(*periods, *([schedule_period] if schedule_period else []))
+    if cycle > MAX_MESSAGE_CYCLE_STEPS:
+        text = ", ".join(f"{p * h:g} s" for p in periods)
+        if schedule_period:
+            text += f" and schedule_period {schedule_period * h:g} s"
+        raise ModelError(f"[network]: the periods {text} repeat together every {cycle} steps "
+                         f"of h = {h:g} s ({cycle * h:g} s), more than the "
+                         f"{MAX_MESSAGE_CYCLE_STEPS} steps one message cycle may take; choose "
+                         "periods with a shorter common multiple")
+    return cycle

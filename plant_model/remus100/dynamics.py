@@ -41,6 +41,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from ..bounds import Bound, nonnegative, positive
 from ..linalg_checks import ModelError
 from ..vehicles import lamb_factors, remus100_parameters
 from .rigid_body import (
@@ -52,7 +53,7 @@ from .rigid_body import (
     rotation_ned_body,
 )
 
-__all__ = ["Remus100", "STATE_SIZE", "derivative", "hull_mass", "step"]
+__all__ = ["REMUS_BOUNDS", "Remus100", "STATE_SIZE", "derivative", "hull_mass", "step"]
 
 STATE_SIZE = 15
 G = 9.81   #: m/s^2
@@ -114,29 +115,63 @@ class Remus100:
         for f in fields(self):
             v = getattr(self, f.name)
             vals = v if isinstance(v, tuple) else (v,)
-            if not all(isinstance(x, (int, float)) and math.isfinite(x) for x in vals):
+            if not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                       and math.isfinite(x) for x in vals):
                 raise ModelError(f"remus100-6dof: {f.name} = {v!r} is not a finite number")
-        positive = ("L", "diam", "rho", "A_rudder", "A_stern", "delta_max", "T_delta",
-                    "n_max", "T_n", "D_prop", "T_surge", "T_sway", "T_yaw", "Ja_max")
         if self.published_crossflow not in (0.0, 1.0):
             raise ModelError(f"remus100-6dof: published_crossflow = "
                              f"{self.published_crossflow:g} must be 0 or 1")
-        if self.torque_scale < 0.0:
-            raise ModelError(f"remus100-6dof: torque_scale = {self.torque_scale:g} must be "
-                             "non-negative")
-        for name in positive:
-            if getattr(self, name) <= 0.0:
-                raise ModelError(f"remus100-6dof: {name} = {getattr(self, name):g} must be "
-                                 "positive")
+        for name, bound in REMUS_BOUNDS.items():
+            try:
+                bound.check(name, getattr(self, name))
+            except ModelError as exc:
+                raise ModelError(f"remus100-6dof: {exc}") from None
         if self.r_g[2] <= 0.0:
             raise ModelError(f"remus100-6dof: r_g[3] = {self.r_g[2]:g} m must be positive (the "
                              "CG below the CB keeps the hull upright)")
-        if self.r44 < 0.0:
-            raise ModelError(f"remus100-6dof: r44 = {self.r44:g} must be non-negative (the "
-                             "roll added inertia A44 = r44 I_x)")
         if self.diam >= self.L:
             raise ModelError(f"remus100-6dof: diam = {self.diam:g} m must be below L = "
                              f"{self.L:g} m (a slender hull)")
+
+
+_TIME = "a time constant"
+#: the physical bounds of the scalar fields of :class:`Remus100` (every field but
+#: ``published_crossflow``, 0 or 1, and the vectors ``r_g``, ``current``), each with its unit
+REMUS_BOUNDS: dict[str, Bound] = {
+    "L": positive("m", "the hull's length"),
+    "diam": positive("m", "the hull's diameter"),
+    "rho": positive("kg/m^3", "the water's density"),
+    "r44": nonnegative("", "the roll added inertia A44 = r44 I_x"),
+    "Cd_surge": nonnegative("", "a drag coefficient"),
+    "hull_area_ratio": Bound(0.0, 1.0, hi_closed=True, why="the lifting area over L diam"),
+    "oswald": Bound(0.0, 1.0, hi_closed=True, why="an Oswald efficiency"),
+    "Cd_crossflow": nonnegative("", "a drag coefficient"),
+    "T_surge": positive("s", _TIME),
+    "T_sway": positive("s", _TIME),
+    "T_yaw": positive("s", _TIME),
+    "zeta_roll": nonnegative("", "a relative damping: below 0 the roll grows by itself"),
+    "zeta_pitch": nonnegative("", "a relative damping: below 0 the pitch grows by itself"),
+    "A_rudder": positive("m^2", "a fin area"),
+    "CL_rudder": positive("1/rad", "a lift slope"),
+    "A_stern": positive("m^2", "a fin area"),
+    "CL_stern": positive("1/rad", "a lift slope"),
+    "delta_max": Bound(0.0, math.pi / 2, unit="rad", why="the fins' deflection limit",
+                       shown=("deg", 180.0 / math.pi)),
+    "T_delta": positive("s", _TIME),
+    "n_max": positive("rpm", "the propeller's speed limit"),
+    "T_n": positive("s", _TIME),
+    "D_prop": positive("m", "the propeller's diameter"),
+    "thrust_deduction": Bound(0.0, 1.0, lo_closed=True,
+                              why="the share of the thrust the hull's suction takes back"),
+    "wake_factor": Bound(0.0, 1.0, hi_closed=True,
+                         why="the advance speed over the vehicle's speed, 1 - wake fraction"),
+    "KT0": positive("", "the thrust coefficient at J = 0"),
+    "KQ0": positive("", "the torque coefficient at J = 0"),
+    "KT_max": nonnegative("", "the thrust coefficient at J_a,max"),
+    "KQ_max": nonnegative("", "the torque coefficient at J_a,max"),
+    "Ja_max": positive("", "an advance ratio"),
+    "torque_scale": nonnegative("", "the propeller roll moment's scale"),
+}
 
 
 def hull_mass(v: Remus100) -> tuple[np.ndarray, np.ndarray, float]:

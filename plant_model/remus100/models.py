@@ -11,10 +11,10 @@ from typing import Any
 
 import numpy as np
 
-from ..linalg_checks import ModelError, as_positive
+from ..linalg_checks import ModelError, as_number, as_positive, as_vector
 from ..vehicles import VehicleModel, _ned_axes_model, remus100, remus100_parameters
 from .autopilot import AutopilotGains
-from .dynamics import Remus100
+from .dynamics import REMUS_BOUNDS, Remus100
 
 __all__ = ["FITTED_HORIZONTAL", "FITTED_VERTICAL", "GAIN_FIELDS", "REMUS100_6DOF_PARAMS",
            "REMUS_FIELDS", "remus100_6dof_design", "remus100_6dof_explicit_params",
@@ -25,8 +25,17 @@ __all__ = ["FITTED_HORIZONTAL", "FITTED_VERTICAL", "GAIN_FIELDS", "REMUS100_6DOF
 REMUS_FIELDS = tuple(f.name for f in fields(Remus100) if f.name not in ("current", "r_g"))
 #: the autopilot gains (:class:`AutopilotGains`)
 GAIN_FIELDS = tuple(f.name for f in fields(AutopilotGains))
+#: the units of the autopilot gains that have one (for the messages)
+GAIN_UNITS = {"U_max": "m/s", "n_max": "rpm", "U_min": "m/s", "delta_max": "rad",
+              "K_u": "rpm s/m", "K_ui": "rpm/m", "K_gi": "1/s"}
 #: the parameters of a ``remus100-6dof`` vehicle (:func:`remus100_6dof_design`)
 REMUS100_6DOF_PARAMS = ("cruise_speed", "design", "substep", "autopilot", "r_g", *REMUS_FIELDS)
+
+
+def _is_number(value: Any) -> bool:
+    """A real number (not a boolean, not text): NaN too, which :class:`Remus100` names."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and \
+        not isinstance(value, (bool, np.bool_))
 
 
 def remus_from_parameters(values: dict[str, Any]) -> Remus100:
@@ -40,9 +49,11 @@ def remus_from_parameters(values: dict[str, Any]) -> Remus100:
     unknown = sorted(set(values) - set(REMUS_FIELDS) - {"r_g"})
     if unknown:
         raise ModelError(f"remus100-6dof: unknown parameter(s) {', '.join(unknown)}")
-    kw = {k: float(v) for k, v in values.items() if k != "r_g"}
+    # numbers as TOML numbers: "1525" is refused, not read as 1525 (the key is named)
+    kw: dict[str, Any] = {k: float(v) if _is_number(v) else as_number(k, v)
+                          for k, v in values.items() if k != "r_g"}
     if "r_g" in values:
-        kw["r_g"] = tuple(float(c) for c in np.asarray(values["r_g"], float).ravel())
+        kw["r_g"] = tuple(float(c) for c in as_vector("r_g", values["r_g"], 3))
     return replace(Remus100(), **kw)
 
 
@@ -119,7 +130,10 @@ def remus100_6dof_design(params: Mapping[str, Any]) -> VehicleModel:
         bad = sorted(set(gains) - set(GAIN_FIELDS)) if isinstance(gains, Mapping) else gains
         raise ModelError(f"remus100-6dof autopilot: unknown gain(s) {bad}; accepted: "
                          f"{', '.join(GAIN_FIELDS)}")
-    gains = {k: as_positive(f"autopilot.{k}", v, "") for k, v in gains.items()}
+    gains = {k: as_positive(f"autopilot.{k}", v, GAIN_UNITS.get(k, "")) for k, v in
+             gains.items()}
+    if "delta_max" in gains:                        # the fins' limit, as the vehicle's
+        REMUS_BOUNDS["delta_max"].check("autopilot.delta_max", gains["delta_max"])
     AutopilotGains(**gains)
     substep = params.get("substep")
     if substep is not None:
