@@ -3,6 +3,10 @@ series as written in process, read back from the file; a failure in the child re
 parent as one line naming it; a writer that is never used leaves no process behind."""
 from __future__ import annotations
 
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -61,5 +65,23 @@ def test_a_prestarted_writer_is_taken_once_and_writes(tmp_path):
         runs = make_runs()
         w.write(tmp_path / "pre.rrd", runs, H, recording_name="prestarted")
     with BackgroundWriter.take() as other:
-        assert other is not first and other.proc is not None
+        assert other is not first
+        # this process imported the writer (read_rrd_scalars' module did): no second child
+        assert "orchestrator.recording.writer" in sys.modules and other.proc is None
+        other.write(tmp_path / "here.rrd", runs, H, recording_name="here")
     assert set(read_rrd_scalars(tmp_path / "pre.rrd")) == set(expected_series(runs))
+    assert set(read_rrd_scalars(tmp_path / "here.rrd")) == set(expected_series(runs))
+
+
+def test_a_writer_is_a_child_while_rerun_is_not_imported(tmp_path):
+    """A fresh interpreter (as the command line is) takes a child writer; once the writer
+    module is imported, take() writes in process."""
+    code = ("import sys\n"
+            "from orchestrator.recording.background import BackgroundWriter\n"
+            "w = BackgroundWriter.take(); print(w.proc is not None, 'rerun' in sys.modules)\n"
+            "w.close()\n"
+            "import orchestrator.recording.writer\n"
+            "w = BackgroundWriter.take(); print(w.proc is not None)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=Path(__file__).parents[1]).stdout.split()
+    assert out == ["True", "False", "False"]

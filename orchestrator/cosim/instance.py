@@ -357,12 +357,30 @@ class FmuInstance:
 
 
 class Extracted:
-    """FMUs unzipped once per master, removed at the end."""
+    """The unzipped folder of each FMU file: from the FMU cache's ``unpacked/`` folder
+    (:func:`orchestrator.cosim.unpacked.unpacked_fmu`: unzipped once per content and kept),
+    or, where that folder cannot be used (a path pythonfmu cannot read, no space, no
+    permission), unzipped into a temporary folder removed by :meth:`cleanup`."""
 
     def __init__(self, fmus: dict[str, Path]) -> None:
-        self.root = safe_temporary_folder("auv_cosim_")
-        self.dirs = {k: extract(str(p), unzipdir=str(self.root / k)) for k, p in fmus.items()}
+        from .build import fmu_cache_dir
+        from .unpacked import unpacked_fmu
+
+        self.root: Path | None = None              # the temporary folder, if one is used
+        cache = fmu_cache_dir() / "unpacked"
+        self.dirs: dict[str, str] = {}
+        for k, p in fmus.items():
+            if pythonfmu_can_load_from(cache):
+                try:
+                    self.dirs[k] = str(unpacked_fmu(p, cache))
+                    continue
+                except OSError:
+                    pass
+            if self.root is None:
+                self.root = safe_temporary_folder("auv_cosim_")
+            self.dirs[k] = extract(str(p), unzipdir=str(self.root / k))
 
     def cleanup(self) -> None:
-        """Remove the unzipped FMUs."""
-        shutil.rmtree(self.root, ignore_errors=True)
+        """Remove the temporary folder, if one was used (the cached folders stay)."""
+        if self.root is not None:
+            shutil.rmtree(self.root, ignore_errors=True)

@@ -9,7 +9,9 @@ them (pickled: a private pipe between two processes of this program) and waits f
 child's one-line JSON answer, the figures ``write_rrd`` returns. If the child fails, the
 error names what it reported; when no child could be started, or the traces are too large
 to send (:data:`MAX_PIPE_BYTES`, large fleets), :meth:`BackgroundWriter.write` writes in
-this process.
+this process. So does a writer taken where the writer module, and with it Rerun, is
+already imported (a notebook, a host program, the test suite running commands in
+process): a child would only pay that import a second time.
 """
 from __future__ import annotations
 
@@ -30,9 +32,11 @@ MAX_PIPE_BYTES = 200_000_000
 class BackgroundWriter:
     """A child process ready to write one ``.rrd``; use once, then it exits."""
 
-    def __init__(self) -> None:
+    def __init__(self, child: bool = True) -> None:
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         self.proc: subprocess.Popen | None = None
+        if not child:                               # write in this process
+            return
         try:
             self.proc = subprocess.Popen(
                 [sys.executable, "-m", "orchestrator.recording.background"],
@@ -43,10 +47,13 @@ class BackgroundWriter:
 
     @classmethod
     def take(cls) -> BackgroundWriter:
-        """The writer :func:`prestart` started (once), else a new one."""
+        """The writer :func:`prestart` started (once), else a new one: one that writes in
+        this process when Rerun's writer is imported here already, else a child."""
         global _PRESTARTED
         writer, _PRESTARTED = _PRESTARTED, None
-        return writer if writer is not None else cls()
+        if writer is not None:
+            return writer
+        return cls(child=f"{__package__}.writer" not in sys.modules)
 
     def write(self, path: Path | str, runs: dict[str, dict[str, Any]], h: float,
               **kwargs: Any) -> dict[str, Any]:
