@@ -18,6 +18,7 @@ import dataclasses
 import math
 import time
 from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,7 @@ from typing import Any
 from ..analysis.prediction import Prediction
 from ..cosim.master import RunResult, run_system
 from ..cosim.system import SystemDescription
+from ..interrupt import interruptible
 from ..outputs import file_stem
 from ..scenario import Scenario, ScenarioError
 from ..scenario.loader import check_deployment
@@ -140,6 +142,9 @@ class RunSetup:
         self.log: Callable[[str], None] | None = None
         self._native: dict[Method, Any] = {}
         self._predictions: dict[Method, Predictions] = {}
+        #: whether a run of this setup reached its loop (then a stop no longer cuts a
+        #: phase short: what ran is kept, the command stops between steps)
+        self._simulated = False
 
     # what a deployment defines ---------------------------------------------------------
     def python_fmus(self, method: Method) -> dict[str, Path]:
@@ -167,6 +172,27 @@ class RunSetup:
         """The stacked tracking design of the first method that uses one, or None."""
         return None
 
+    def prepare(self, method: Method) -> None:
+        """Solve what the FMUs of ``method`` would solve in their initialization (kept in
+        this process's design cache, :mod:`plant_model.memo`), where a stop can cut it
+        short (:meth:`interruptible`); nothing by default."""
+
+    def phase(self, method: Method) -> str:
+        """What computing ``method``'s predictions is, for messages."""
+        return f"the predictions of {method.name}"
+
+    def interruptible(self, phase: str) -> AbstractContextManager[None]:
+        """:func:`orchestrator.interrupt.interruptible` until a run reached its loop (then
+        a plain block: a stop waits for the loop, which keeps what ran)."""
+        return nullcontext() if self._simulated else interruptible(phase)
+
+    def announce(self, text: str, seconds: float) -> None:
+        """Tell :attr:`log` in one line that a step of about ``seconds`` starts, when it
+        may take longer than :data:`orchestrator.running.memory.ANNOUNCE_S`."""
+        from .memory import ANNOUNCE_S
+        if self.log is not None and seconds > ANNOUNCE_S:
+            self.log(text)
+
     # the same for every deployment ---------------------------------------------------------
     def predictions(self, method: Method) -> Predictions:
         """The predictions of ``method`` (computed once).
@@ -189,7 +215,8 @@ class RunSetup:
             key = (scenario_digest(self.sc, without=("fmus",)), method.estimator,
                    method.tracking, method.architecture, self.coupling)
             if key not in _PREDICTIONS:
-                _PREDICTIONS[key] = self._predict(method)
+                with self.interruptible(self.phase(method)):
+                    _PREDICTIONS[key] = self._predict(method)
                 while len(_PREDICTIONS) > 64:
                     _PREDICTIONS.pop(next(iter(_PREDICTIONS)))
             self._predictions[method] = _PREDICTIONS[key]
@@ -257,6 +284,9 @@ class RunSetup:
         """
         t0 = time.perf_counter()
         system = system if system is not None else self.system(method, seed)
+        with self.interruptible(self.phase(method)):
+            self.prepare(method)
+        self._simulated = True
         traces, loop_s, info = run_system(system, self.fmus(method), self.sc.steps,
                                           coupling=self.coupling, progress=progress,
                                           stop=stop, master=self.master,
