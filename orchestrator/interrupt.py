@@ -13,7 +13,9 @@ calls that can take minutes) run inside :func:`interruptible`: there a signal ra
 call cannot be stopped midway), and the command ends with one line naming the signal and
 the phase (:func:`orchestrator.cli.errors.run_command`), exit status 128 + the signal.
 Only the main thread's blocks count: code in other threads (a Dask worker's tasks) and
-FMU code outside such a block never see the exception.
+FMU code outside such a block never see the exception; and only until a loop has run in
+the process (:func:`mark_simulated`): a stop after that waits for the next loop, which
+keeps and writes what was simulated (an earlier method, grid point or plant).
 """
 from __future__ import annotations
 
@@ -23,7 +25,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from types import FrameType
 
-__all__ = ["EXIT_STATUS", "Interrupted", "StopFlag", "interruptible", "stop_on_signals"]
+__all__ = ["EXIT_STATUS", "Interrupted", "StopFlag", "interruptible", "mark_simulated",
+           "stop_on_signals"]
 
 #: exit status of a command stopped by a signal (by its name): 128 + the signal number
 EXIT_STATUS = {s.name: 128 + s.value for s in (signal.SIGINT, signal.SIGTERM)}
@@ -32,6 +35,8 @@ EXIT_STATUS = {s.name: 128 + s.value for s in (signal.SIGINT, signal.SIGTERM)}
 #: open interruptible blocks of the main thread (innermost last)
 _FLAGS: list[StopFlag] = []
 _PHASES: list[str] = []
+#: whether a co-simulation loop has started in this process (mark_simulated)
+_SIMULATED: list[bool] = [False]
 
 
 class StopFlag:
@@ -68,6 +73,14 @@ class Interrupted(KeyboardInterrupt):
     def __str__(self) -> str:
         return (f"interrupted by {self.signal} during {self.phase}, before the first step: "
                 "nothing was simulated")
+
+
+def mark_simulated() -> None:
+    """Note that a co-simulation loop starts in this process: from then on a stop no
+    longer cuts a phase short (:func:`interruptible` is a plain block), so what was
+    simulated (an earlier method, grid point or plant of the same command) is kept and
+    written; the command stops between steps instead."""
+    _SIMULATED[0] = True
 
 
 def _main_thread() -> bool:
@@ -119,7 +132,8 @@ def interruptible(phase: str) -> Iterator[None]:
     """A phase of pure computation (numpy, scipy) that a stop may cut short: within the
     block, under :func:`stop_on_signals` in the main thread, SIGINT or SIGTERM raises
     :class:`Interrupted` as soon as the call in progress returns; a stop already requested
-    raises it on entry. Elsewhere (another thread, no stop_on_signals) the block is plain.
+    raises it on entry. Elsewhere (another thread, no stop_on_signals, or once a loop has
+    run in this process: :func:`mark_simulated`) the block is plain.
 
     Parameters
     ----------
@@ -131,7 +145,7 @@ def interruptible(phase: str) -> Iterator[None]:
     Interrupted
         When a stop is requested before or during the block.
     """
-    if not _main_thread() or not _FLAGS:
+    if not _main_thread() or not _FLAGS or _SIMULATED[0]:
         yield
         return
     flag = _FLAGS[-1]

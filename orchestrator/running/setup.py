@@ -18,7 +18,7 @@ import dataclasses
 import math
 import time
 from collections.abc import Callable, Sequence
-from contextlib import AbstractContextManager, nullcontext
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,7 +26,7 @@ from typing import Any
 from ..analysis.prediction import Prediction
 from ..cosim.master import RunResult, run_system
 from ..cosim.system import SystemDescription
-from ..interrupt import interruptible
+from ..interrupt import interruptible, mark_simulated
 from ..outputs import file_stem
 from ..scenario import Scenario, ScenarioError
 from ..scenario.loader import check_deployment
@@ -142,9 +142,6 @@ class RunSetup:
         self.log: Callable[[str], None] | None = None
         self._native: dict[Method, Any] = {}
         self._predictions: dict[Method, Predictions] = {}
-        #: whether a run of this setup reached its loop (then a stop no longer cuts a
-        #: phase short: what ran is kept, the command stops between steps)
-        self._simulated = False
 
     # what a deployment defines ---------------------------------------------------------
     def python_fmus(self, method: Method) -> dict[str, Path]:
@@ -182,9 +179,9 @@ class RunSetup:
         return f"the predictions of {method.name}"
 
     def interruptible(self, phase: str) -> AbstractContextManager[None]:
-        """:func:`orchestrator.interrupt.interruptible` until a run reached its loop (then
-        a plain block: a stop waits for the loop, which keeps what ran)."""
-        return nullcontext() if self._simulated else interruptible(phase)
+        """:func:`orchestrator.interrupt.interruptible`: a stop cuts ``phase`` short until
+        a loop has run in this process (then it waits for the loop, which keeps what ran)."""
+        return interruptible(phase)
 
     def announce(self, text: str, seconds: float) -> None:
         """Tell :attr:`log` in one line that a step of about ``seconds`` starts, when it
@@ -201,6 +198,9 @@ class RunSetup:
         ------
         ModelError
             If the estimator or the design does not exist or the loop is unstable (named).
+        Interrupted
+            On SIGINT / SIGTERM while computing them, before any loop ran
+            (:func:`orchestrator.interrupt.interruptible`).
         """
         if method not in self._predictions and self.predict == "none":
             from ..analysis.summary import stats_window
@@ -281,12 +281,18 @@ class RunSetup:
         Returns
         -------
         RunResult
+
+        Raises
+        ------
+        Interrupted
+            On SIGINT / SIGTERM while :meth:`prepare` solves the design, before any loop
+            ran in this process.
         """
         t0 = time.perf_counter()
         system = system if system is not None else self.system(method, seed)
         with self.interruptible(self.phase(method)):
             self.prepare(method)
-        self._simulated = True
+        mark_simulated()
         traces, loop_s, info = run_system(system, self.fmus(method), self.sc.steps,
                                           coupling=self.coupling, progress=progress,
                                           stop=stop, master=self.master,
