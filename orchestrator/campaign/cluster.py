@@ -7,7 +7,9 @@ Local: one worker process per core (``--workers N`` to choose), each single-thre
 one BLAS thread set in the worker's environment (``OPENBLAS_NUM_THREADS`` /
 ``OMP_NUM_THREADS`` / ``MKL_NUM_THREADS`` = 1) before numpy loads: the co-simulation's small
 products run fastest on one thread, and the thread count changes the last bits of a
-result (the same seed gives the same row only with the same count). No dashboard.
+result (the same seed gives the same row only with the same count). No dashboard. Each
+worker ignores SIGINT (:mod:`.worker_setup`): Ctrl-C, which reaches the workers too, stops
+the campaign through the command alone, without a worker's traceback.
 
 Remote (``--scheduler tcp://host:port``): ``Client(address)``; each worker needs this
 package and its dependencies installed (the same versions: they are in the run keys),
@@ -24,10 +26,13 @@ from typing import Any
 
 from .spec import SpecError
 
-__all__ = ["dask_client", "BLAS_ENV", "worker_count"]
+__all__ = ["dask_client", "BLAS_ENV", "WORKER_SETUP", "worker_count"]
 
 #: set in every local worker's environment
 BLAS_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+#: run first by every local worker: it ignores SIGINT (Ctrl-C stops the campaign through
+#: the command, with no worker traceback: :mod:`.worker_setup`)
+WORKER_SETUP = "orchestrator.campaign.worker_setup"
 
 
 def _cores() -> int:
@@ -78,7 +83,8 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
     with fmu_free_sys_path():         # the workers import the project, not an FMU's copy
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=logging.ERROR,
-                               env=dict(BLAS_ENV), host="127.0.0.1")
+                               env=dict(BLAS_ENV), host="127.0.0.1",
+                               preload=[WORKER_SETUP])
     client = Client(cluster)
     try:
         yield client

@@ -131,7 +131,10 @@ def resolve_point(index: int, params: dict[str, Any], base: dict[str, Any],
     Returns
     -------
     DesignPoint
-        With the scenario, or with the one-line error when it is not valid.
+        With the scenario, or with the one-line error when it is not valid, cannot run,
+        or would not fit: a fleet whose stacked model would not fit in memory is refused
+        before it is built, a stacked design estimated too long or too large before it is
+        tried (:mod:`orchestrator.running.memory`).
     """
     data = copy.deepcopy(base)
     coupling = "gauss-seidel"
@@ -146,9 +149,13 @@ def resolve_point(index: int, params: dict[str, Any], base: dict[str, Any],
     where = f"{base_where} with " + ", ".join(f"{k} = {param_text(v)}"
                                               for k, v in params.items()) if params else base_where
     try:
-        sc = scenario_from_dict(data, where)
+        from ..running.memory import check_fleet_load
         from ..running.setup import check_setup
+        from ..running.systems import check_size
+        check_fleet_load(data, where)           # before the stacked model is allocated
+        sc = scenario_from_dict(data, where)
         check_setup(sc, coupling)
+        check_size(sc)                          # a design that would not finish or fit
     except (ScenarioError, ModelError) as exc:
         resolved = canonical_json({"base": data, "coupling": coupling})
         return DesignPoint(index, params, None, coupling, str(exc), resolved, frozenset(data))

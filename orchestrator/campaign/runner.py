@@ -28,6 +28,7 @@ from ..analysis.summary import versions
 from ..atomic import write_text_atomically
 from ..interrupt import EXIT_STATUS, stop_on_signals
 from ..outputs import output_folder
+from ..running.naming import campaign_out
 from .points import DesignPoint, resolve_points, run_key
 from .results import ResultStore
 from .spec import ENGINES, SpecError, load_spec
@@ -290,7 +291,8 @@ def run_campaign(spec_path: Path | str, out: Path | str | None = None, *,
     spec_path : Path or str
         The campaign spec (:mod:`.spec`).
     out : Path or str, optional
-        Output folder (default ``out/campaign_<name>``).
+        Output folder (default ``out/campaign_<name>``, the name cleaned:
+        :func:`orchestrator.running.naming.campaign_out`).
     scheduler : str, optional
         Address of a Dask scheduler; default a local cluster.
     workers : int, optional
@@ -330,7 +332,7 @@ def run_campaign(spec_path: Path | str, out: Path | str | None = None, *,
                         "cluster's own workers run the tasks")
     engine = engine or spec.engine
     name = spec.name or Path(spec_path).stem
-    out = Path(out or f"out/campaign_{name}")
+    out = Path(out) if out else campaign_out(name)     # the name cleaned: never outside out/
     with output_folder(out, "campaign"), stop_on_signals() as stop:
         points = resolve_points(spec, base, base_where)
         ver = versions()

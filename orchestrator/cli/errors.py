@@ -14,6 +14,7 @@ from ..cosim.instance import CosimError
 from ..cosim.native import NativeBuildError
 from ..cosim.system import AlgebraicLoopError
 from ..interop.common import ExportError
+from ..interrupt import EXIT_STATUS, Interrupted
 from ..outputs import OutputFolderError
 from ..scenario import ScenarioError
 
@@ -42,6 +43,9 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"auv-cosim {args.command}: error: cannot write or read{where}: "
               f"{exc.strerror or exc}", file=sys.stderr)
         return 2
+    except Interrupted as exc:      # a stop during the design, before any step
+        print(f"auv-cosim {args.command}: {exc}", file=sys.stderr)
+        return EXIT_STATUS[exc.signal]
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

@@ -1,14 +1,24 @@
-"""Will a run's traces fit in memory? Checked before anything is built or written."""
+"""Will a run fit? Checked before anything is built or written: its traces in memory
+(:func:`check_memory`), a fleet's stacked model (:func:`check_fleet_load`) and the time
+and memory of the stacked design (:func:`check_design`, estimated from a model calibrated
+on this machine: :data:`DESIGN_COST`)."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from ..scenario import ScenarioError
 
 if TYPE_CHECKING:
     from ..scenario import Scenario
 
-__all__ = ["available_memory", "check_memory"]
+__all__ = ["ANNOUNCE_S", "DESIGN_COST", "DesignEstimate", "MAX_DESIGN_S", "MEMORY_SHARE",
+           "available_memory", "check_design", "check_fleet_load", "check_memory",
+           "design_estimate", "stacked_states"]
+
+#: the share of the memory available an estimate may take
+MEMORY_SHARE = 0.8
 
 
 def available_memory() -> int | None:
@@ -48,17 +58,182 @@ def check_memory(sc: Scenario, n_methods: int, available: int | None = None) -> 
     Raises
     ------
     ScenarioError
-        Naming T, h, the number of steps and both sizes, if the estimate exceeds 80 % of
-        the memory available.
+        Naming T, h, the number of steps and both sizes, if the estimate exceeds
+        MEMORY_SHARE of the memory available.
     """
     from .systems import scenario_system
     width = sum(spec.size for _, spec in scenario_system(sc).outputs())
     need = 8 * sc.steps * width * (n_methods + 2)
     available = available_memory() if available is None else available
-    if available is not None and need > 0.8 * available:
+    if available is not None and need > MEMORY_SHARE * available:
         raise ScenarioError(
             f"T = {sc.T:g} s with h = {sc.h:g} s is {sc.steps:.4g} steps: the traces "
             f"({width} values per step, {n_methods} method(s)) need about {need / 1e9:.3g} GB, "
             f"more than the {available / 1e9:.3g} GB of memory available; shorten T or "
             "lengthen h")
+    return need
+
+
+# --- the stacked design: one Riccati, Sylvester and Kalman design for the whole system ------
+
+#: seconds per (state^3, state^4) of each phase of the stacked set-up, n = n + r + l the
+#: states of the stacked [x; w; z]. Calibrated once on the project's 2-core machine, shared
+#: with other jobs as it usually is: grid-N fleets (orchestrator.scenario.generator, N = 20,
+#: 30, 40, 50, 60, 80: n = 186 ... 726) timed phase by phase in a fresh process each, then
+#: least squares on the relative error (every fit within -30 % / +40 % of the measured
+#: times; 320 s in all at n = 726). "design": sampling the model, the Riccati equation (13),
+#: the Sylvester equations (14)-(15) and the regulator equations, with their PBH
+#: stabilizability test (one SVD of an n x 2n matrix per marginal mode: the n^4 term);
+#: "kalman": the steady filter's PBH detectability test and discrete Riccati equation;
+#: "predictions": the Lyapunov equations of the closed loop (about 3n states) and the
+#: window's covariance.
+DESIGN_COST = {"design": (1.6e-8, 7.5e-11), "kalman": (0.0, 6.9e-10),
+               "predictions": (1.5e-7, 3.0e-10)}
+#: the phases of DESIGN_COST as messages name them
+PHASE_NAMES = {"design": "tracking design", "kalman": "Kalman filter",
+               "predictions": "predictions"}
+#: bytes per state^2 the stacked set-up holds at its peak beyond the loaded scenario (the
+#: same calibration's maximum resident set: about 90 dense n x n float64 matrices)
+DESIGN_BYTES_PER_STATE2 = 90 * 8
+#: bytes per state^2 of a loaded fleet scenario's stacked model (about 14 dense n x n
+#: float64 matrices: the same calibration's resident set after loading)
+MODEL_BYTES_PER_STATE2 = 14 * 8
+#: the longest stacked set-up a command starts, estimated, s
+MAX_DESIGN_S = 600.0
+#: a step estimated to take longer is announced in one line before it starts, s
+ANNOUNCE_S = 2.0
+
+
+@dataclass(frozen=True)
+class DesignEstimate:
+    """What the stacked set-up of a scenario is estimated to cost."""
+
+    states: int            #: n + r + l of the stacked system
+    seconds: float         #: estimated time on the calibration machine, s
+    bytes: int             #: estimated peak memory beyond the loaded scenario, bytes
+    phases: tuple[str, ...]  #: the phases of DESIGN_COST it includes
+
+    def text(self) -> str:
+        """``about 320 s and 0.38 GB (estimated)``."""
+        t = (f"{self.seconds:.2g} s" if self.seconds < 10 else f"{self.seconds:.0f} s"
+             if self.seconds < 1e4 else f"{self.seconds:.3g} s ({self.seconds / 3600:.0f} h)")
+        return f"about {t} and {self.bytes / 1e9:.2g} GB (estimated)"
+
+
+def design_estimate(states: int, kalman: bool = True, predict: bool = True) -> DesignEstimate:
+    """The time and memory of the stacked set-up of ``states`` states (DESIGN_COST).
+
+    Parameters
+    ----------
+    states : int
+        n + r + l of the stacked system.
+    kalman : bool, optional
+        Whether a method runs the steady Kalman filter (the classical and ideal estimators
+        solve no Riccati equation).
+    predict : bool, optional
+        Whether the predictions are computed (``--predict none``: not).
+
+    Returns
+    -------
+    DesignEstimate
+    """
+    phases = ("design",) + (("kalman",) if kalman else ()) + (("predictions",) if predict
+                                                                else ())
+    n = float(states)
+    seconds = sum(DESIGN_COST[p][0] * n ** 3 + DESIGN_COST[p][1] * n ** 4 for p in phases)
+    return DesignEstimate(int(states), seconds, int(DESIGN_BYTES_PER_STATE2 * n * n), phases)
+
+
+def stacked_states(sc: Scenario) -> int:
+    """n + r + l of a scenario's stacked system."""
+    return sc.system.n + sc.system.r + sc.system.l
+
+
+def check_design(sc: Scenario, estimators: Iterable[str], predict: str, *, who: str,
+                 remedy: str, available: int | None = None) -> DesignEstimate:
+    """Refuse, before it starts, a stacked set-up that would take longer than MAX_DESIGN_S
+    or more than MEMORY_SHARE of the memory available (:func:`design_estimate`).
+
+    Parameters
+    ----------
+    sc : Scenario
+    estimators : iterable of str
+        The estimator modes the methods run ('kalman' adds the filter's phase).
+    predict : str
+        The prediction level ('none' leaves the predictions out).
+    who : str
+        Starts the message, e.g. "the stacked deployment solves one design for".
+    remedy : str
+        Ends the message: what to do instead.
+    available : int, optional
+        Bytes available (default :func:`available_memory`).
+
+    Returns
+    -------
+    DesignEstimate
+
+    Raises
+    ------
+    ModelError
+        One line with the vehicles, the states, the estimate and the limit.
+    """
+    from plant_model.linalg_checks import ModelError
+    est = design_estimate(stacked_states(sc), "kalman" in set(estimators), predict != "none")
+    available = available_memory() if available is None else available
+    too_slow = est.seconds > MAX_DESIGN_S
+    too_big = available is not None and est.bytes > MEMORY_SHARE * available
+    if too_slow or too_big:
+        what = (f"all {len(sc.fleet['vehicles'])} vehicles" if sc.fleet is not None
+                else "the system")
+        limit = (f"more than the {MAX_DESIGN_S:g} s allowed" if too_slow else
+                 f"more than {MEMORY_SHARE:.0%} of the {available / 1e9:.3g} GB of memory "
+                 "available")
+        phases = ", ".join(PHASE_NAMES[p] for p in est.phases)
+        raise ModelError(f"{who} {what} ({est.states} states; {phases}): "
+                         f"{est.text()}, {limit}; {remedy}")
+    return est
+
+
+def check_fleet_load(data: Mapping[str, Any], where: str,
+                     available: int | None = None) -> int:
+    """Refuse, before it is built, a fleet scenario whose stacked model would not fit in
+    memory (MODEL_BYTES_PER_STATE2 x states^2; the sections are validated first, which
+    allocates nothing of that size).
+
+    Parameters
+    ----------
+    data : Mapping
+        A parsed scenario (as read from TOML); a single system passes unchecked.
+    where : str
+        Names the scenario in the message.
+    available : int, optional
+        Bytes available (default :func:`available_memory`).
+
+    Returns
+    -------
+    int
+        The estimated bytes (0 for a single system).
+
+    Raises
+    ------
+    ScenarioError
+        Invalid sections (as the loader says), or one line with the vehicles, the states,
+        the estimate and the memory available.
+    """
+    from ..scenario.errors import validate_scenario
+    from ..scenario.fleet import is_fleet_scenario
+    if not is_fleet_scenario(data):
+        return 0
+    from ..scenario.schema_fleet import FleetScenario
+    fleet = validate_scenario(FleetScenario, data, where)
+    models = fleet.vehicles.models
+    states = sum(m.p + m.r for m in models) + len(fleet.leader.leader_path.z0) + 1
+    need = int(MODEL_BYTES_PER_STATE2 * states * states)
+    available = available_memory() if available is None else available
+    if available is not None and need > MEMORY_SHARE * available:
+        raise ScenarioError(
+            f"{where}: the stacked model of {len(models)} vehicles ({states} states) needs "
+            f"about {need / 1e9:.3g} GB (estimated: {MODEL_BYTES_PER_STATE2 // 8} dense "
+            f"{states} x {states} matrices), more than {MEMORY_SHARE:.0%} of the "
+            f"{available / 1e9:.3g} GB of memory available; use fewer vehicles")
     return need

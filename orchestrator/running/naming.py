@@ -1,6 +1,7 @@
 """What makes a run distinct, as a default output folder name and as the identity an output
 folder records (:func:`orchestrator.outputs.claim_folder`): the scenario, the deployment
-and architecture, acoustic links, nonlinear vehicle models and the FMU kind."""
+and architecture, acoustic links, nonlinear vehicle models and the FMU kind; and a
+campaign's default folder (:func:`campaign_out`), its name cleaned the same way."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,7 +9,7 @@ from pathlib import Path
 from ..outputs import file_stem
 from ..scenario import Scenario
 
-__all__ = ["default_out", "run_identity", "run_tags"]
+__all__ = ["campaign_out", "default_out", "run_identity", "run_tags"]
 
 
 def run_tags(sc: Scenario) -> list[str]:
@@ -32,6 +33,14 @@ def default_out(sc: Scenario, *tail: str) -> Path:
     """``out/<scenario>[_<tags>]_<tail>``, e.g. ``out/paper_kalman_seed0`` or
     ``out/formation-4_per-vehicle-distributed_links_native_compare``."""
     return Path("out") / "_".join([file_stem(sc.name), *run_tags(sc), *tail])
+
+
+def campaign_out(name: str) -> Path:
+    """``out/campaign_<name>``, the name cleaned as every default folder's
+    (:func:`orchestrator.outputs.file_stem`: ``x/../../../escaped`` ->
+    ``out/campaign_x_.._.._.._escaped``, one folder): a campaign never writes outside
+    ``out/`` by default."""
+    return Path("out") / f"campaign_{file_stem(name, 'campaign')}"
 
 
 def run_identity(sc: Scenario, command: str) -> dict[str, str]:

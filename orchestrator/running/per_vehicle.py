@@ -9,6 +9,7 @@ or the Lyapunov prediction of the distributed loop (:mod:`orchestrator.analysis.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +37,7 @@ from ..cosim.per_vehicle import (
 )
 from ..cosim.per_vehicle_network import network_configs
 from ..cosim.system import SystemDescription
+from .memory import DesignEstimate, check_design, design_estimate, stacked_states
 from .network import (
     NetworkSetup,
     age_summary,
@@ -47,9 +49,9 @@ from .network import (
     too_many_states,
 )
 from .setup import Method, Predictions, RunSetup
+from .stacked import stacked_phase
 
-__all__ = ["MAX_CENTRALIZED_DESIGN_S", "PerVehicleSetup", "TRANSIENT_LIMIT",
-           "centralized_design_estimate", "check_centralized"]
+__all__ = ["DISTRIBUTED_REMEDY", "PerVehicleSetup", "TRANSIENT_LIMIT", "check_centralized"]
 
 #: largest loop state for which the window-average prediction from the start is computed
 TRANSIENT_LIMIT = 1500
@@ -71,53 +73,38 @@ def prediction_path(net: Any, steps: int) -> str | None:
     if prediction_work(net, steps, blocks=True) <= NETWORK_PREDICTION_WORK:
         return "blocks"
     return None
-#: the stacked design's time measured on the project's 2-core reference machine: 1.2 s for
-#: 366 states of [x; w; z] (40 vehicles), growing as the cube of the state size
-DESIGN_REFERENCE = (366, 1.2)
-#: the longest stacked design the centralized architecture starts, estimated, s
-MAX_CENTRALIZED_DESIGN_S = 60.0
+#: what a centralized fleet too large for one stacked design should do instead
+DISTRIBUTED_REMEDY = ("use --architecture distributed (designed per vehicle, independent "
+                      "of N)")
 
 
-def centralized_design_estimate(sc: Any) -> tuple[int, float]:
-    """(states of the stacked design, its estimated seconds) for a fleet scenario.
+def check_centralized(sc: Any, estimators: Sequence[str] = (),
+                      predict: str = "stationary") -> DesignEstimate:
+    """Refuse, before trying, a centralized fleet whose stacked design (with its filter
+    and predictions) would take too long or not fit in memory
+    (:func:`orchestrator.running.memory.check_design`).
 
     Parameters
     ----------
     sc : Scenario
         A fleet scenario.
+    estimators : sequence of str, optional
+        The estimator modes of the centralized methods (default: the scenario's).
+    predict : str, optional
+        The prediction level ('none': no predictions).
 
     Returns
     -------
-    tuple[int, float]
-        n + r + l of the stacked system and DESIGN_REFERENCE scaled by the cube.
-    """
-    n = sc.system.n + sc.system.r + sc.system.l
-    n0, t0 = DESIGN_REFERENCE
-    return n, t0 * (n / n0) ** 3
-
-
-def check_centralized(sc: Any) -> None:
-    """Refuse, before trying, a centralized fleet whose stacked design would take too long.
-
-    Parameters
-    ----------
-    sc : Scenario
-        A fleet scenario.
+    DesignEstimate
 
     Raises
     ------
     ModelError
-        One line with N, the state size and the estimate.
+        One line with N, the state size, the estimate and the limit.
     """
-    n, est = centralized_design_estimate(sc)
-    if est > MAX_CENTRALIZED_DESIGN_S:
-        N = len(sc.fleet["vehicles"])
-        raise ModelError(
-            f"the centralized architecture solves one stacked design for all {N} vehicles "
-            f"({n} states): about {est:.0f} s (estimated from {DESIGN_REFERENCE[1]:g} s at "
-            f"{DESIGN_REFERENCE[0]} states on a 2-core machine, growing as the cube), more "
-            f"than the {MAX_CENTRALIZED_DESIGN_S:g} s allowed; use --architecture distributed "
-            "(designed per vehicle, independent of N)")
+    return check_design(sc, list(estimators) or [sc.estimator], predict,
+                        who="the centralized architecture solves one stacked design for",
+                        remedy=DISTRIBUTED_REMEDY)
 
 
 def _prediction(p: Any) -> Prediction:
@@ -135,16 +122,27 @@ class PerVehicleSetup(RunSetup):
         super().__init__(sc, fmu_dir, methods, coupling=coupling, predict=predict)
         self._fmus: dict[str, dict[str, Path]] = {}
         self._network: dict[tuple[str, str, str], NetworkSetup] = {}
-        for arch in dict.fromkeys(m.architecture for m in self.methods):
-            if arch == "centralized":
-                check_centralized(sc)       # before anything is built: refused in one line
+        self._central = [m.estimator for m in self.methods if m.architecture == "centralized"]
+        if self._central:
+            self._check_centralized()       # before anything is built: refused in one line
+
+    def _check_centralized(self) -> DesignEstimate:
+        return check_centralized(self.sc, self._central or [self.sc.estimator], self.predict)
+
+    def phase(self, method: Method) -> str:
+        """The stacked design of a centralized method, else the predictions."""
+        if method.architecture != "centralized":
+            return super().phase(method)
+        return stacked_phase(self.sc, design_estimate(
+            stacked_states(self.sc), method.estimator == "kalman", self.predict != "none"))
 
     def _configs(self, architecture: str, mode: str, tracking: str,
                  seed: int) -> list[dict[str, dict[str, Any]]]:
         sc = self.sc
+        gain = None
         if architecture == "centralized":
-            check_centralized(sc)
-        gain = tracking_law(sc.system, tracking).Ks if architecture == "centralized" else None
+            with self.interruptible(stacked_phase(sc, self._check_centralized())):
+                gain = tracking_law(sc.system, tracking).Ks
         net = None
         if sc.network is not None:
             setup = self.network(architecture, mode, tracking)
@@ -291,7 +289,10 @@ class PerVehicleSetup(RunSetup):
         """:meth:`predictions` with perfect links."""
         sc = self.sc
         if architecture == "centralized":            # the stacked loop's predictions
-            check_centralized(sc)
+            self._check_centralized()
+            cost = design_estimate(stacked_states(sc), mode == "kalman", True)
+            self.announce(f"solving {stacked_phase(sc, cost)} and predicting the "
+                          f"centralized loop: {cost.text()} ...", cost.seconds)
             model = discretize(sc.system, sc.h)
             return method_predictions(sc, model, make_estimator(sc.system, model, mode),
                                       tracking_law(sc.system, tracking).Ks)

@@ -18,6 +18,7 @@ import dataclasses
 import math
 import time
 from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,7 @@ from typing import Any
 from ..analysis.prediction import Prediction
 from ..cosim.master import RunResult, run_system
 from ..cosim.system import SystemDescription
+from ..interrupt import interruptible, mark_simulated
 from ..outputs import file_stem
 from ..scenario import Scenario, ScenarioError
 from ..scenario.loader import check_deployment
@@ -167,6 +169,27 @@ class RunSetup:
         """The stacked tracking design of the first method that uses one, or None."""
         return None
 
+    def prepare(self, method: Method) -> None:
+        """Solve what the FMUs of ``method`` would solve in their initialization (kept in
+        this process's design cache, :mod:`plant_model.memo`), where a stop can cut it
+        short (:meth:`interruptible`); nothing by default."""
+
+    def phase(self, method: Method) -> str:
+        """What computing ``method``'s predictions is, for messages."""
+        return f"the predictions of {method.name}"
+
+    def interruptible(self, phase: str) -> AbstractContextManager[None]:
+        """:func:`orchestrator.interrupt.interruptible`: a stop cuts ``phase`` short until
+        a loop has run in this process (then it waits for the loop, which keeps what ran)."""
+        return interruptible(phase)
+
+    def announce(self, text: str, seconds: float) -> None:
+        """Tell :attr:`log` in one line that a step of about ``seconds`` starts, when it
+        may take longer than :data:`orchestrator.running.memory.ANNOUNCE_S`."""
+        from .memory import ANNOUNCE_S
+        if self.log is not None and seconds > ANNOUNCE_S:
+            self.log(text)
+
     # the same for every deployment ---------------------------------------------------------
     def predictions(self, method: Method) -> Predictions:
         """The predictions of ``method`` (computed once).
@@ -175,6 +198,9 @@ class RunSetup:
         ------
         ModelError
             If the estimator or the design does not exist or the loop is unstable (named).
+        Interrupted
+            On SIGINT / SIGTERM while computing them, before any loop ran
+            (:func:`orchestrator.interrupt.interruptible`).
         """
         if method not in self._predictions and self.predict == "none":
             from ..analysis.summary import stats_window
@@ -189,7 +215,8 @@ class RunSetup:
             key = (scenario_digest(self.sc, without=("fmus",)), method.estimator,
                    method.tracking, method.architecture, self.coupling)
             if key not in _PREDICTIONS:
-                _PREDICTIONS[key] = self._predict(method)
+                with self.interruptible(self.phase(method)):
+                    _PREDICTIONS[key] = self._predict(method)
                 while len(_PREDICTIONS) > 64:
                     _PREDICTIONS.pop(next(iter(_PREDICTIONS)))
             self._predictions[method] = _PREDICTIONS[key]
@@ -254,9 +281,18 @@ class RunSetup:
         Returns
         -------
         RunResult
+
+        Raises
+        ------
+        Interrupted
+            On SIGINT / SIGTERM while :meth:`prepare` solves the design, before any loop
+            ran in this process.
         """
         t0 = time.perf_counter()
         system = system if system is not None else self.system(method, seed)
+        with self.interruptible(self.phase(method)):
+            self.prepare(method)
+        mark_simulated()
         traces, loop_s, info = run_system(system, self.fmus(method), self.sc.steps,
                                           coupling=self.coupling, progress=progress,
                                           stop=stop, master=self.master,

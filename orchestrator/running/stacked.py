@@ -9,24 +9,75 @@ from typing import Any
 
 from ..cosim.system import SystemDescription
 from ..scenario import Scenario
+from .memory import DesignEstimate, check_design, design_estimate, stacked_states
 from .setup import Method, Predictions, RunSetup
 
-__all__ = ["StackedSetup"]
+__all__ = ["PER_VEHICLE_REMEDY", "StackedSetup", "check_stacked", "stacked_phase"]
+
+
+#: what a stacked fleet too large for one design should do instead
+PER_VEHICLE_REMEDY = ("use --deployment per-vehicle --architecture distributed (each vehicle "
+                      "designed on its own, independent of N)")
+
+
+def check_stacked(sc: Scenario, methods: Sequence[Method] = (),
+                  predict: str = "stationary") -> DesignEstimate:
+    """Refuse, before anything is built, a stacked scenario whose design (with the
+    methods' filters and the predictions) would take longer than
+    :data:`~orchestrator.running.memory.MAX_DESIGN_S` or not fit in memory.
+
+    Parameters
+    ----------
+    sc : Scenario
+    methods : sequence of Method, optional
+        The methods that will run (default: the scenario's own).
+    predict : str, optional
+        The prediction level ('none': no predictions).
+
+    Returns
+    -------
+    DesignEstimate
+
+    Raises
+    ------
+    ModelError
+        One line with the vehicles, the states, the estimate and the limit.
+    """
+    estimators = [m.estimator for m in methods] or [sc.estimator]
+    return check_design(sc, estimators, predict,
+                        who="the stacked deployment solves one design for",
+                        remedy=PER_VEHICLE_REMEDY if sc.fleet is not None else
+                        "a smaller system")
+
+
+def stacked_phase(sc: Scenario, est: DesignEstimate) -> str:
+    """``the stacked design (80 vehicles, 726 states)``: names the phase in messages."""
+    who = f"{len(sc.fleet['vehicles'])} vehicles, " if sc.fleet is not None else ""
+    return f"the stacked design ({who}{est.states} states)"
 
 
 class StackedSetup(RunSetup):
     """The paper's loop of three FMUs (plant, estimator, controller) for a single system or
-    a stacked fleet."""
+    a stacked fleet.
+
+    Raises
+    ------
+    ModelError
+        From the constructor, when the stacked design is estimated too long or too large
+        (:func:`check_stacked`).
+    """
 
     deployment = "stacked"
 
     def __init__(self, sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = (),
                  *, coupling: str = "gauss-seidel", predict: str = "stationary"):
         super().__init__(sc, fmu_dir, methods, coupling=coupling, predict=predict)
+        self.estimate = check_stacked(sc, self.methods, predict)   # before anything is built
         from .fmus import scenario_config
         self.config = scenario_config(sc)
         self._fmus: dict[str, Path] | None = None
         self._model: Any = None
+        self._law: Any = None
 
     def python_fmus(self, method: Method) -> dict[str, Path]:
         """The three FMUs (one build serves every method: they set their mode and law)."""
@@ -48,14 +99,36 @@ class StackedSetup(RunSetup):
             self._model = discretize(self.sc.system, self.sc.h)
         return self._model
 
+    def _estimate(self, method: Method, predict: bool) -> DesignEstimate:
+        return design_estimate(stacked_states(self.sc), method.estimator == "kalman", predict)
+
+    def phase(self, method: Method) -> str:
+        """``the stacked design (80 vehicles, 726 states)``."""
+        return stacked_phase(self.sc, self._estimate(method, self.predict != "none"))
+
+    def prepare(self, method: Method) -> None:
+        """The sampled model, the tracking law and the estimator the FMUs solve in their
+        initialization (then found in the process's design cache), announced when long."""
+        from controller_fmu.regulator import tracking_law
+        from estimator_fmu.estimators import make_estimator
+        if self._law is None:
+            est = self._estimate(method, False)
+            self.announce(f"solving {self.phase(method)}: {est.text()} ...", est.seconds)
+        self._law = tracking_law(self.sc.system, method.tracking)
+        make_estimator(self.sc.system, self.model(), method.estimator)
+
     def _predict(self, method: Method) -> Predictions:
         from controller_fmu.regulator import tracking_law
         from estimator_fmu.estimators import make_estimator
 
         from ..analysis.prediction import method_predictions
         sc = self.sc
+        cost = self._estimate(method, True)
+        self.announce(f"solving {self.phase(method)} and predicting {method.name}: "
+                      f"{cost.text()} ...", cost.seconds)
         est = make_estimator(sc.system, self.model(), method.estimator)
-        Ks = tracking_law(sc.system, method.tracking).Ks
+        self._law = law = tracking_law(sc.system, method.tracking)
+        Ks = law.Ks
         parts = Predictions.of(method_predictions(sc, self.model(), est, Ks))
         if self.coupling != "jacobi":
             return parts
@@ -66,6 +139,8 @@ class StackedSetup(RunSetup):
         return Predictions(pred, pred, None, parts.k0)
 
     def design(self) -> Any:
+        """The first method's tracking design (solved here unless a run or a prediction
+        solved it already)."""
         from controller_fmu.regulator import tracking_law
         return tracking_law(self.sc.system, self.methods[0].tracking).design
 

@@ -8,11 +8,11 @@ from pathlib import Path
 
 from ..cosim.system import SystemDescription
 from ..scenario import Scenario
-from .per_vehicle import PerVehicleSetup
+from .per_vehicle import PerVehicleSetup, check_centralized
 from .setup import Method, RunSetup, check_setup
-from .stacked import StackedSetup
+from .stacked import StackedSetup, check_stacked
 
-__all__ = ["DEPLOYMENT_SETUPS", "build", "make_setup", "scenario_system"]
+__all__ = ["DEPLOYMENT_SETUPS", "build", "check_size", "make_setup", "scenario_system"]
 
 #: the setup of each deployment ([simulation] deployment)
 DEPLOYMENT_SETUPS: dict[str, type[RunSetup]] = {"stacked": StackedSetup,
@@ -47,13 +47,42 @@ def make_setup(sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = ()
     ScenarioError
         If the combination cannot run (:func:`check_setup`).
     ModelError
-        If a centralized per-vehicle design would take too long (estimated).
+        If the stacked design (stacked deployment, centralized per-vehicle methods) is
+        estimated too long or too large (:func:`check_size`).
     """
     check_setup(sc, coupling)
     setup = DEPLOYMENT_SETUPS[sc.deployment](sc, fmu_dir, methods, coupling=coupling,
                                              predict=predict)
     setup.master = master
     return setup
+
+
+def check_size(sc: Scenario, methods: Sequence[Method] = (), predict: str = "stationary"
+               ) -> None:
+    """Refuse, before anything is built, a scenario whose stacked design (the stacked
+    deployment, or a centralized per-vehicle method) is estimated too long or too large:
+    what :func:`make_setup` checks, without making the setup (a campaign's points).
+
+    Parameters
+    ----------
+    sc : Scenario
+    methods : sequence of Method, optional
+        The methods that will run (default: the scenario's own).
+    predict : str, optional
+        The prediction level.
+
+    Raises
+    ------
+    ModelError
+        One line with the vehicles, the states, the estimate and the limit.
+    """
+    methods = tuple(methods) or (Method.of(sc),)
+    if sc.deployment == "stacked":
+        check_stacked(sc, methods, predict)
+        return
+    central = [m.estimator for m in methods if m.architecture == "centralized"]
+    if central:
+        check_centralized(sc, central, predict)
 
 
 def scenario_system(sc: Scenario) -> SystemDescription:
