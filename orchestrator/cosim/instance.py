@@ -378,7 +378,7 @@ class Extracted:
                     pass
             if self.root is None:
                 self.root = safe_temporary_folder("auv_cosim_")
-            self.dirs[k] = extract(str(p), unzipdir=str(self.root / k))
+            self.dirs[k] = str(extract(str(p), unzipdir=str(self.root / k)))
 
     def cleanup(self) -> None:
         """Remove the temporary folder, if one was used (the cached folders stay)."""
