@@ -6,7 +6,8 @@ Each plant is a full run of the scenario (per-vehicle deployment) in its own sub
 combined ``<out>/summary.json`` holds both under ``methods`` (named by the plant), each
 with the straight-leg and turn figures of :mod:`orchestrator.analysis.tracking_segments`
 (``max_error``, ``actuator_saturation_fraction``, ...), and ``plants``: per plant its folder
-and recording.
+and recording. Both plants' statistics are over one window, the later of the two plants'
+own (``stats_window_s``, each plant's ``window_start_s``), as in any compare.
 """
 from __future__ import annotations
 
@@ -51,12 +52,13 @@ def compare_plants(sc: Scenario, seeds: Sequence[int], out: Path, *, progress: b
     """
     from .compare import simulate
 
+    variants = {model: sc.with_vehicle_model(model) for model in plants}
+    k0 = _common_window(variants, out, log)
     summaries: dict[str, dict[str, Any]] = {}
-    for model in plants:
-        variant = sc.with_vehicle_model(model)
+    for model, variant in variants.items():
         log(f"plant {model}:")
         summaries[model] = simulate(variant, [sc.estimator], seeds, out / model,
-                                    progress=progress, log=log)
+                                    progress=progress, log=log, window_from_step=k0)
         if summaries[model].get("interrupted"):
             break
     first = summaries[plants[0]]
@@ -72,6 +74,22 @@ def compare_plants(sc: Scenario, seeds: Sequence[int], out: Path, *, progress: b
     combined["scenario"] = sc.name
     write_text_atomically(out / "summary.json", json.dumps(combined, indent=2) + "\n")
     return combined
+
+
+def _common_window(variants: dict[str, Scenario], out: Path,
+                   log: Callable[[str], None]) -> int:
+    """The first sample of the window both plants' statistics share: the latest of their
+    own (their predictions, computed here once and kept for the runs: the design model's
+    loop, the same for both unless the scenario says otherwise)."""
+    from .compare import common_window
+    from .setup import Method
+    from .systems import make_setup
+    preds = []
+    for model, variant in variants.items():
+        setup = make_setup(variant, out / model / "fmus", [Method.of(variant)])
+        setup.log = log
+        preds.append(setup.predictions(Method.of(variant)))
+    return common_window(preds)
 
 
 def plant_table(summary: dict[str, Any]) -> list[str]:
