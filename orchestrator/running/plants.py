@@ -70,7 +70,14 @@ def compare_plants(sc: Scenario, seeds: Sequence[int], out: Path, *, progress: b
         combined["methods"][model] = {**method, "plant": model}
         combined["plants"][model] = {"folder": model, "rrd": s.get("rrd"),
                                      "wall_s": s.get("wall_s")}
-    combined["interrupted"] = any(s.get("interrupted") for s in summaries.values())
+    # a stop ends the plant it stopped (the last one run): its signal and time
+    stopped = next((m for m, s in summaries.items() if s.get("interrupted")), None)
+    combined["interrupted"] = stopped is not None
+    combined["interrupted_by"] = None if stopped is None else summaries[stopped][
+        "interrupted_by"]
+    combined["interrupted_plant"] = stopped
+    combined["time_reached_s"] = (summaries[stopped]["time_reached_s"] if stopped
+                                  else combined["T"])
     combined["scenario"] = sc.name
     write_text_atomically(out / "summary.json", json.dumps(combined, indent=2) + "\n")
     return combined
