@@ -247,8 +247,8 @@ def prediction_window_line(summary: dict) -> str | None:
     if not starts:
         return None
     lo, hi = summary["stats_window_s"]
-    own = "; ".join(f"{', '.join(names)} from t = {t:.4g} s" for t, names in starts.items())
-    return (f"note: the statistics of every method are over [{lo:.4g}, {hi:.4g}) s; the "
+    own = "; ".join(f"{', '.join(names)} from t = {t:.6g} s" for t, names in starts.items())
+    return (f"note: the statistics of every method are over [{lo:.6g}, {hi:.6g}) s; the "
             f"window predictions over each method's own window: {own}")
 
 

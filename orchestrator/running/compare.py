@@ -194,7 +194,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
     # one window for all: the methods are compared on the same samples
     k0 = common_window(preds.values(), window_from_step)
     window = (k0 * sc.h, sc.T)
-    full_information: float | None = None
+    bound: dict[int, float | None] = {}     # the full-information bound over the window
     notes: set[str] = set()
     settling = 0.0              # the slowest settling time of a method whose window is early
     for method in methods:
@@ -259,9 +259,9 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
         #: the sampled closed loop's stability margin: largest |eigenvalue| of its error part
         entry["spectral_radius"] = pred.stationary.spectral_radius
         if per_seed and sc.fleet is not None:
-            if full_information is None:        # one for the window, not one per method
-                full_information = fleet_bound(sc, k0)
-            entry["cost_rate_full_information"] = full_information
+            if k0 not in bound:                 # one for the window, not one per method
+                bound[k0] = fleet_bound(sc, k0)
+            entry["cost_rate_full_information"] = bound[k0]
         entry["window_start_s"] = window[0]
         if pred.k0 != k0 and _window_prediction(pred):
             #: the window of its window predictions, its own (they are not recomputed)
