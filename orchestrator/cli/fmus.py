@@ -9,19 +9,30 @@ from controller_fmu.regulator import TRACKING_MODES
 from estimator_fmu.estimators import ESTIMATOR_MODES
 
 from ..outputs import file_stem, output_folder
-from .common import ROOT, add_scenario_options, scenario_of
+from .common import add_scenario_options, scenario_of
 from .errors import UsageError
 
 __all__ = ["add_build", "add_export", "add_validate", "cmd_build", "cmd_export", "cmd_validate"]
 
 
+#: the tail of ``build``'s default folder, ``out/<scenario>[_<system>]_fmus``
+BUILD_TAIL = "fmus"
+
+
 def cmd_build(args: argparse.Namespace) -> int:
-    from ..running import build, write_fmu_readme
+    """Build the scenario's FMUs into --out (default ``out/<scenario>[_<system>]_fmus``,
+    never the checkout's tracked ``fmus/``); the default folder also gets ``README.md``,
+    every variable of these FMUs (the committed ``fmus/README.md`` is the same text for
+    the paper scenario)."""
+    from ..atomic import write_text_atomically
+    from ..running import build
+    from ..running.fmus import fmu_readme
+    from ..running.naming import default_out
     sc = scenario_of(args)
-    with output_folder(args.out, "build") as out:
+    with output_folder(args.out or default_out(sc, BUILD_TAIL), "build") as out:
         paths = build(sc, out)
-        if out.resolve() == (ROOT / "fmus").resolve():
-            write_fmu_readme(sc, out / "README.md")
+        if args.out is None:
+            write_text_atomically(out / "README.md", fmu_readme(sc))
         for k, p in paths.items():
             print(f"{k:>18s}: {p} ({p.stat().st_size} bytes)")
         if sc.deployment == "per-vehicle":
@@ -106,9 +117,11 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 def add_build(sub: argparse._SubParsersAction) -> None:
     """The ``build`` command's sub-parser."""
-    sp = sub.add_parser("build", help="build the three FMUs (default into fmus/)")
+    sp = sub.add_parser("build", help="build the scenario's FMUs (default into "
+                                      f"out/<scenario>_{BUILD_TAIL})")
     add_scenario_options(sp)
-    sp.add_argument("--out", default=str(ROOT / "fmus"), help="output folder (default: fmus/)")
+    sp.add_argument("--out", help="output folder (default: out/<scenario>[_<system>]_"
+                                  f"{BUILD_TAIL}, with a README.md of every variable)")
     sp.add_argument("--tracking", choices=TRACKING_MODES,
                     help="the controller FMU's default tracking law (default: scenario's)")
     sp.add_argument("--no-crosscheck", action="store_true",

@@ -12,7 +12,7 @@ __all__ = ["add_plot", "cmd_plot"]
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    from ..plotting import RunFolderError, parse_formats, plot_run
+    from ..plotting import RunFolderError, folder_interruption, parse_formats, plot_run
     try:
         formats = parse_formats(args.format)
         written = plot_run(args.run_dir, args.out, formats)
@@ -21,6 +21,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if not args.quiet:
         for path in written:
             print(path)
+    note = folder_interruption(args.run_dir)
+    if note:                  # the figures' titles say it too
+        print(f"note: {args.run_dir}: {note} (each figure's title says so)")
     # a compare of plants writes one subfolder per plant: name the folder that holds them all
     where = Path(os.path.commonpath([p.parent for p in written])) if written else args.out
     print(f"wrote {len(written)} files into {where}")

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["RunData", "RunFolderError", "load_run"]
+__all__ = ["RunData", "RunFolderError", "folder_interruption", "interruption_note", "load_run"]
 
 #: series of the paper layout whose presence marks it (component 1 of the error)
 _PAPER_PROBE = "error/1/{m}"
@@ -75,6 +75,12 @@ class RunData:
         return str(self.summary.get("scenario", "?"))
 
     @property
+    def interruption(self) -> str | None:
+        """:func:`interruption_note` of the run: what every figure's title says of a run
+        stopped by a signal (None: the run finished)."""
+        return interruption_note(self.summary)
+
+    @property
     def seed(self) -> int | None:
         """The seed whose traces the recording holds."""
         return self.summary.get("rrd", {}).get("traces_of_seed")
@@ -94,6 +100,43 @@ class RunData:
         while any(f"{root}/{i + 1}/{m}{suffix}" in self.scalars for suffix in ("", "/true")):
             i += 1
         return i
+
+
+def interruption_note(summary: dict[str, Any]) -> str | None:
+    """One line saying that a run was stopped by a signal (summary.json's ``interrupted``,
+    ``interrupted_by``, ``time_reached_s``): when, and what its traces and statistics then
+    hold; None for a run that finished.
+
+    Parameters
+    ----------
+    summary : dict
+        A run's (or a compare of plants') summary.json.
+
+    Returns
+    -------
+    str or None
+        E.g. "interrupted run: stopped by SIGINT at t = 41.2 s of 3000 s; the traces end
+        there, the statistics are over the seeds that completed".
+    """
+    if summary.get("interrupted") is not True:
+        return None
+    sig = summary.get("interrupted_by") or "a signal"
+    reached, T = summary.get("time_reached_s"), summary.get("T")
+    when = ""
+    if isinstance(reached, (int, float)):
+        when = f" at t = {reached:.6g} s" + (f" of {T:.6g} s" if isinstance(T, (int, float))
+                                             else "")
+    plant = summary.get("interrupted_plant")
+    return (f"interrupted run: stopped by {sig}{when}"
+            + (f" (plant {plant})" if plant else "")
+            + "; the traces end there, the statistics are over the seeds that completed")
+
+
+def folder_interruption(folder: str | Path) -> str | None:
+    """:func:`interruption_note` of a folder's summary.json (None when it has none or the
+    run finished)."""
+    summary = _read_summary_file(Path(folder))
+    return interruption_note(summary) if isinstance(summary, dict) else None
 
 
 def _read_summary_file(folder: Path) -> Any:

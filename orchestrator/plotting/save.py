@@ -63,12 +63,22 @@ def parse_formats(text: str) -> tuple[str, ...]:
 
 def build_figures(run: RunData) -> list[PlotFigure]:
     """Every figure of a run: figures 2-7 for the paper layout, the fleet figures for a
-    fleet. Call it inside :func:`deterministic_style` for the package's fixed style."""
+    fleet; the title of each says when the run was interrupted (its last two lines:
+    :attr:`RunData.interruption`). Call it inside :func:`deterministic_style` for the
+    package's fixed style."""
     if run.fleet:
         from .fleet import fleet_figures
-        return fleet_figures(run)
-    from .paper import paper_figures
-    return paper_figures(run)
+        figures = fleet_figures(run)
+    else:
+        from .paper import paper_figures
+        figures = paper_figures(run)
+    note = run.interruption
+    if note:                     # two lines: the narrowest figure is 7.5 inches wide
+        note = note.replace("; ", "\n", 1)
+        for pf in figures:
+            title = pf.figure.get_suptitle()
+            pf.figure.suptitle(f"{title}\n{note}" if title else note, fontsize=10)
+    return figures
 
 
 def save_figure(pf: PlotFigure, out: Path, formats: Sequence[str]) -> list[Path]:

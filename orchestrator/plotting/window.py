@@ -2,8 +2,8 @@
 (minimum and maximum per time bin, with the bin mean) and a zoomed window after the
 start-up transient, where each sample is drawn.
 
-The statistics window of a run (``stats_window_s`` of its summary.json) starts after the
-start-up transient; the zoom starts there.
+The statistics window of a run (``stats_window_s`` of its summary.json, the one window all
+methods of a compare share) starts after the start-up transient; the zoom starts there.
 """
 from __future__ import annotations
 

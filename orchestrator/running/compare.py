@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -23,10 +23,10 @@ from ..outputs import file_stem
 from ..scenario import Scenario
 from .fmus import fleet_layout, record_stride
 from .memory import check_memory
-from .setup import Method, RunSetup, method_list, run_statistics, stats_context
+from .setup import Method, Predictions, RunSetup, method_list, run_statistics, stats_context
 from .systems import make_setup
 
-__all__ = ["NONLINEAR_NOTE", "simulate"]
+__all__ = ["NONLINEAR_NOTE", "common_window", "simulate"]
 
 #: the prediction of a fleet of nonlinear vehicles is the linear design model's
 NONLINEAR_NOTE = ("predicted on the linear design model: the vehicles are the nonlinear "
@@ -39,7 +39,8 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
              trackings: Sequence[str] | None = None,
              record_hz: float | None = None, workers: int | None = None,
              architectures: Sequence[str] | None = None,
-             predict: str = "stationary", master: str = "auto") -> dict[str, Any]:
+             predict: str = "stationary", master: str = "auto",
+             window_from_step: int = 0) -> dict[str, Any]:
     """Co-simulate each method (estimator ``modes`` x tracking laws ``trackings`` x
     ``architectures``, each default the scenario's) on each seed; write
     ``<out>/<scenario>.rrd`` and summary.json.
@@ -47,8 +48,12 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     The .rrd holds the traces of the first seed of every method (same noise for all
     methods); the summary holds statistics over all seeds, the predictions (Lyapunov
     equation of the sampled closed loop plus, for a planned leader path, its mean motion)
-    and the steady-state tracking error of each method. The .rrd is written by a child
-    process (:mod:`orchestrator.recording.background`) that imports Rerun meanwhile.
+    and the steady-state tracking error of each method. Every method's statistics are
+    over one common window [t0, T), t0 the latest of the methods' own window starts
+    (:func:`common_window`): the methods are compared on the same samples; the summary's
+    ``stats_window_s`` is that window and each method's ``window_start_s`` its t0. The
+    .rrd is written by a child process (:mod:`orchestrator.recording.background`) that
+    imports Rerun meanwhile.
 
     Parameters
     ----------
@@ -82,6 +87,9 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     master : str, optional
         auto (default), native or python (:func:`orchestrator.cosim.master.run_system`);
         the summary's ``master`` says which ran each method.
+    window_from_step : int, optional
+        The statistics window starts at this sample or later (``compare --what plants``:
+        the common window of the plants, each a run of its own).
 
     Returns
     -------
@@ -102,7 +110,8 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     with BackgroundWriter.take() as writer, stop_on_signals() as stop, \
             seed_pool(sc.steps, len(seeds), len(methods), workers) as pool:
         return _simulate(setup, methods, seeds, out, writer, t0, progress=progress, log=log,
-                         record_hz=record_hz, stop=stop, pool=pool)
+                         record_hz=record_hz, stop=stop, pool=pool,
+                         window_from_step=window_from_step)
 
 
 def _bar(sc: Scenario, runs: int, progress: bool) -> Any:
@@ -112,9 +121,60 @@ def _bar(sc: Scenario, runs: int, progress: bool) -> Any:
     return tqdm(total=runs * sc.steps, unit="step", delay=1.0, leave=False, unit_scale=True)
 
 
+def common_window(predictions: Iterable[Predictions], at_least: int = 0) -> int:
+    """First sample of the statistics window every method of a compare shares: the latest
+    of the methods' own first samples (each from its settling time,
+    :func:`orchestrator.analysis.summary.stats_window`), and ``at_least`` or later.
+
+    Parameters
+    ----------
+    predictions : iterable of Predictions
+        Those of the methods that run.
+    at_least : int, optional
+        The earliest first sample allowed.
+
+    Returns
+    -------
+    int
+        k0: the window is [k0 h, T).
+    """
+    return max([int(at_least), *(p.k0 for p in predictions)])
+
+
+def _window_prediction(pred: Predictions) -> bool:
+    """Whether ``pred`` has figures that depend on its window (the mean motion of a planned
+    path over it, the average from the known start), beside the stationary ones."""
+    return ((pred.window is not pred.stationary and pred.window.cost_rate is not None)
+            or (pred.window_from_start is not None
+                and pred.window_from_start.cost_rate is not None))
+
+
+def _predictions(setup: RunSetup, methods: list[Method], results: dict[str, Any],
+                 log: Callable[[str], None]) -> tuple[dict[str, Predictions], list[ModelError]]:
+    """Every method's predictions, before the first run (their windows give the common
+    one); a method impossible for the scenario is skipped, in ``results`` and the log
+    (raised when it is the only one)."""
+    preds: dict[str, Predictions] = {}
+    skipped: list[ModelError] = []
+    for method in methods:
+        try:
+            preds[method.name] = setup.predictions(method)
+        except ModelError as exc:       # impossible for this scenario: run the others
+            if len(methods) == 1:
+                raise
+            skipped.append(exc)
+            results[method.name] = {"skipped": str(exc), "estimator": method.estimator,
+                                    "tracking": method.tracking,
+                                    "architecture": method.architecture,
+                                    "seeds_completed": 0}
+            log(f"{method.name:>9s}: skipped: {exc}")
+    return preds, skipped
+
+
 def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out: Path,
               writer: Any, t0: float, *, progress: bool, log: Callable[[str], None],
-              record_hz: float | None, stop: StopFlag, pool: Any = None) -> dict[str, Any]:
+              record_hz: float | None, stop: StopFlag, pool: Any = None,
+              window_from_step: int = 0) -> dict[str, Any]:
     sc = setup.sc
     for m in methods:
         setup.fmus(m)                       # every FMU in place before the first step
@@ -123,32 +183,26 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
     rrd_links: dict[str, list[str]] = {}
     loop_us: list[float] = []
     masters: dict[str, str] = {}            # method -> the master that ran it here
-    window: tuple[float, float] | None = None
     bar = _bar(sc, len(methods) * len(seeds), progress)
     if bar is not None:
         log = bar.write
     setup.log = log
     formation = stats_context(sc)
-    skipped: list[ModelError] = []
-    bounds: dict[int, float | None] = {}
+    preds, skipped = _predictions(setup, methods, results, log)
+    if len(skipped) == len(methods):
+        raise ModelError(f"no method can run on this scenario: {skipped[0]}")
+    # one window for all: the methods are compared on the same samples
+    k0 = common_window(preds.values(), window_from_step)
+    window = (k0 * sc.h, sc.T)
+    bound: dict[int, float | None] = {}     # the full-information bound over the window
     notes: set[str] = set()
     settling = 0.0              # the slowest settling time of a method whose window is early
     for method in methods:
         name = method.name
-        try:
-            pred = setup.predictions(method)
-        except ModelError as exc:       # impossible for this scenario: run the others
-            if len(methods) == 1:
-                raise
-            skipped.append(exc)
-            results[name] = {"skipped": str(exc), "estimator": method.estimator,
-                             "tracking": method.tracking, "architecture": method.architecture,
-                             "seeds_completed": 0}
-            log(f"{name:>9s}: skipped: {exc}")
+        if name not in preds:
             continue
-        k0 = pred.k0
-        window = (k0 * sc.h, sc.T)
-        note = stationarity_note(sc.T, k0 * sc.h, pred.stationary.settling_time)
+        pred = preds[name]
+        note = stationarity_note(sc.T, window[0], pred.stationary.settling_time)
         if note is not None:
             notes.add(note)
             settling = max(settling, pred.stationary.settling_time)
@@ -205,16 +259,19 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
         #: the sampled closed loop's stability margin: largest |eigenvalue| of its error part
         entry["spectral_radius"] = pred.stationary.spectral_radius
         if per_seed and sc.fleet is not None:
-            if k0 not in bounds:                # one per window, not one per method
-                bounds[k0] = fleet_bound(sc, k0)
-            entry["cost_rate_full_information"] = bounds[k0]
+            if k0 not in bound:                 # one for the window, not one per method
+                bound[k0] = fleet_bound(sc, k0)
+            entry["cost_rate_full_information"] = bound[k0]
+        entry["window_start_s"] = window[0]
+        if pred.k0 != k0 and _window_prediction(pred):
+            #: the window of its window predictions, its own (they are not recomputed)
+            entry["prediction_window_start_s"] = pred.k0 * sc.h
         entry["seeds_completed"] = len(per_seed)
         if stop:
             break
     if bar is not None:
         bar.close()
-    if len(skipped) == len(methods):
-        raise ModelError(f"no method can run on this scenario: {skipped[0]}")
+    results = {m.name: results[m.name] for m in methods if m.name in results}  # their order
     rrd_path = out / f"{file_stem(sc.name)}.rrd"
     stride = record_stride(sc, record_hz)
     recorded = min((len(next(iter(tr.values()))) for tr in rrd_runs.values()), default=0)
@@ -241,7 +298,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
         "fmu_kind": sc.fmus,
         "master": masters,
         **fleet_comparison(sc, results),
-        "stats_window_s": list(window) if window else None,
+        "stats_window_s": list(window),
         "stationary": not notes,
         "stationarity_note": "; ".join(sorted(notes)) or None,
         # the figures of the note: 5 tau of the slowest mode, the T for stationary figures

@@ -19,8 +19,9 @@ __all__ = ["FMU_README_HEAD", "GUIDANCE_README_HEAD", "scenario_config", "build_
 
 FMU_README_HEAD = """# FMUs
 
-`auv-cosim build` writes the three FMI 2.0 co-simulation FMUs here (the `.fmu` files are
-not committed; build them). They are built with pythonfmu for one scenario: its
+`auv-cosim build` writes a scenario's three FMI 2.0 co-simulation FMUs, with this file
+for that scenario, into `out/<scenario>_fmus/` (or `--out`; the `.fmu` files are not
+committed: build them). They are built with pythonfmu for one scenario: its
 dimensions fix the number of variables, its values are the start values. Whatever a host
 sets in initialization mode is used: the plant discretizes, the estimator designs its
 filters and the controller solves its Riccati and Sylvester equations in

@@ -6,7 +6,8 @@ Each plant is a full run of the scenario (per-vehicle deployment) in its own sub
 combined ``<out>/summary.json`` holds both under ``methods`` (named by the plant), each
 with the straight-leg and turn figures of :mod:`orchestrator.analysis.tracking_segments`
 (``max_error``, ``actuator_saturation_fraction``, ...), and ``plants``: per plant its folder
-and recording.
+and recording. Both plants' statistics are over one window, the later of the two plants'
+own (``stats_window_s``, each plant's ``window_start_s``), as in any compare.
 """
 from __future__ import annotations
 
@@ -51,12 +52,13 @@ def compare_plants(sc: Scenario, seeds: Sequence[int], out: Path, *, progress: b
     """
     from .compare import simulate
 
+    variants = {model: sc.with_vehicle_model(model) for model in plants}
+    k0 = _common_window(variants, out, log)
     summaries: dict[str, dict[str, Any]] = {}
-    for model in plants:
-        variant = sc.with_vehicle_model(model)
+    for model, variant in variants.items():
         log(f"plant {model}:")
         summaries[model] = simulate(variant, [sc.estimator], seeds, out / model,
-                                    progress=progress, log=log)
+                                    progress=progress, log=log, window_from_step=k0)
         if summaries[model].get("interrupted"):
             break
     first = summaries[plants[0]]
@@ -68,10 +70,33 @@ def compare_plants(sc: Scenario, seeds: Sequence[int], out: Path, *, progress: b
         combined["methods"][model] = {**method, "plant": model}
         combined["plants"][model] = {"folder": model, "rrd": s.get("rrd"),
                                      "wall_s": s.get("wall_s")}
-    combined["interrupted"] = any(s.get("interrupted") for s in summaries.values())
+    # a stop ends the plant it stopped (the last one run): its signal and time
+    stopped = next((m for m, s in summaries.items() if s.get("interrupted")), None)
+    combined["interrupted"] = stopped is not None
+    combined["interrupted_by"] = None if stopped is None else summaries[stopped][
+        "interrupted_by"]
+    combined["interrupted_plant"] = stopped
+    combined["time_reached_s"] = (summaries[stopped]["time_reached_s"] if stopped
+                                  else combined["T"])
     combined["scenario"] = sc.name
     write_text_atomically(out / "summary.json", json.dumps(combined, indent=2) + "\n")
     return combined
+
+
+def _common_window(variants: dict[str, Scenario], out: Path,
+                   log: Callable[[str], None]) -> int:
+    """The first sample of the window both plants' statistics share: the latest of their
+    own (their predictions, computed here once and kept for the runs: the design model's
+    loop, the same for both unless the scenario says otherwise)."""
+    from .compare import common_window
+    from .setup import Method
+    from .systems import make_setup
+    preds = []
+    for model, variant in variants.items():
+        setup = make_setup(variant, out / model / "fmus", [Method.of(variant)])
+        setup.log = log
+        preds.append(setup.predictions(Method.of(variant)))
+    return common_window(preds)
 
 
 def plant_table(summary: dict[str, Any]) -> list[str]:
