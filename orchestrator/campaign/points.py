@@ -149,11 +149,9 @@ def resolve_point(index: int, params: dict[str, Any], base: dict[str, Any],
     where = f"{base_where} with " + ", ".join(f"{k} = {param_text(v)}"
                                               for k, v in params.items()) if params else base_where
     try:
-        from ..running.memory import check_fleet_load
         from ..running.setup import check_setup
         from ..running.systems import check_size
-        check_fleet_load(data, where)           # before the stacked model is allocated
-        sc = scenario_from_dict(data, where)
+        sc = scenario_from_dict(data, where)    # refuses a stacked model too large first
         check_setup(sc, coupling)
         check_size(sc)                          # a design that would not finish or fit
     except (ScenarioError, ModelError) as exc:

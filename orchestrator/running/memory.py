@@ -1,38 +1,23 @@
 """Will a run fit? Checked before anything is built or written: its traces in memory
-(:func:`check_memory`), a fleet's stacked model (:func:`check_fleet_load`) and the time
+(:func:`check_memory`) and the time
 and memory of the stacked design (:func:`check_design`, estimated from a model calibrated
-on this machine: :data:`DESIGN_COST`)."""
+on this machine: :data:`DESIGN_COST`). A fleet's stacked model is checked when the
+scenario is loaded (:func:`orchestrator.scenario.size.check_fleet_model`)."""
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from ..scenario import ScenarioError
+from ..scenario.size import MEMORY_SHARE, available_memory
 
 if TYPE_CHECKING:
     from ..scenario import Scenario
 
 __all__ = ["ANNOUNCE_S", "DESIGN_COST", "DesignEstimate", "MAX_DESIGN_S", "MEMORY_SHARE",
-           "available_memory", "check_design", "check_fleet_load", "check_memory",
+           "available_memory", "check_design", "check_memory",
            "design_estimate", "stacked_states"]
-
-#: the share of the memory available an estimate may take
-MEMORY_SHARE = 0.8
-
-
-def available_memory() -> int | None:
-    """Bytes of memory available to a new allocation (``MemAvailable`` of /proc/meminfo),
-    or None where the kernel does not say."""
-    try:
-        with open("/proc/meminfo", encoding="ascii") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        return None
-    return None
-
 
 def check_memory(sc: Scenario, n_methods: int, available: int | None = None) -> int:
     """Refuse a run whose traces cannot fit in memory, before anything is built.
@@ -95,9 +80,6 @@ PHASE_NAMES = {"design": "tracking design", "kalman": "Kalman filter",
 #: bytes per state^2 the stacked set-up holds at its peak beyond the loaded scenario (the
 #: same calibration's maximum resident set: about 90 dense n x n float64 matrices)
 DESIGN_BYTES_PER_STATE2 = 90 * 8
-#: bytes per state^2 of a loaded fleet scenario's stacked model (about 14 dense n x n
-#: float64 matrices: the same calibration's resident set after loading)
-MODEL_BYTES_PER_STATE2 = 14 * 8
 #: the longest stacked set-up a command starts, estimated, s
 MAX_DESIGN_S = 600.0
 #: a step estimated to take longer is announced in one line before it starts, s
@@ -192,48 +174,3 @@ def check_design(sc: Scenario, estimators: Iterable[str], predict: str, *, who: 
         raise ModelError(f"{who} {what} ({est.states} states; {phases}): "
                          f"{est.text()}, {limit}; {remedy}")
     return est
-
-
-def check_fleet_load(data: Mapping[str, Any], where: str,
-                     available: int | None = None) -> int:
-    """Refuse, before it is built, a fleet scenario whose stacked model would not fit in
-    memory (MODEL_BYTES_PER_STATE2 x states^2; the sections are validated first, which
-    allocates nothing of that size).
-
-    Parameters
-    ----------
-    data : Mapping
-        A parsed scenario (as read from TOML); a single system passes unchecked.
-    where : str
-        Names the scenario in the message.
-    available : int, optional
-        Bytes available (default :func:`available_memory`).
-
-    Returns
-    -------
-    int
-        The estimated bytes (0 for a single system).
-
-    Raises
-    ------
-    ScenarioError
-        Invalid sections (as the loader says), or one line with the vehicles, the states,
-        the estimate and the memory available.
-    """
-    from ..scenario.errors import validate_scenario
-    from ..scenario.fleet import is_fleet_scenario
-    if not is_fleet_scenario(data):
-        return 0
-    from ..scenario.schema_fleet import FleetScenario
-    fleet = validate_scenario(FleetScenario, data, where)
-    models = fleet.vehicles.models
-    states = sum(m.p + m.r for m in models) + len(fleet.leader.leader_path.z0) + 1
-    need = int(MODEL_BYTES_PER_STATE2 * states * states)
-    available = available_memory() if available is None else available
-    if available is not None and need > MEMORY_SHARE * available:
-        raise ScenarioError(
-            f"{where}: the stacked model of {len(models)} vehicles ({states} states) needs "
-            f"about {need / 1e9:.3g} GB (estimated: {MODEL_BYTES_PER_STATE2 // 8} dense "
-            f"{states} x {states} matrices), more than {MEMORY_SHARE:.0%} of the "
-            f"{available / 1e9:.3g} GB of memory available; use fewer vehicles")
-    return need

@@ -40,6 +40,7 @@ from plant_model.vehicle_models import find
 from .errors import ScenarioError, validate_scenario
 from .fleet import fleet_spec, is_fleet_scenario
 from .schema import RunSettings, ScenarioFile, SystemScenario
+from .size import check_fleet_model
 
 __all__ = ["Scenario", "ScenarioError", "load_scenario", "builtin_scenarios", "SCENARIO_DIR",
            "scenario_from_dict"]
@@ -337,6 +338,7 @@ def scenario_from_dict(data: Mapping[str, Any], where: str = "scenario") -> Scen
 
         from .schema_fleet import FleetScenario
         fleet = validate_scenario(FleetScenario, data, where)
+        check_fleet_model(fleet, where)         # before the stacked model is allocated
         spec = fleet_spec(fleet)
         design = _design(fleet, spec, where) if fleet.design is not None else None
         system = _built(where, fleet_system, spec)
