@@ -329,7 +329,9 @@ def fmu_cache_dir() -> Path:
 
     ``$AUV_COSIM_CACHE``, else ``$XDG_CACHE_HOME/auv-cosim/fmus``
     (``~/.cache/auv-cosim/fmus``). Delete it at will; entries unused for 30 days are
-    removed when a new one is written.
+    removed when a new one is written. It also holds the compiled native libraries
+    (``native/``) and the FMUs unzipped for runs (``unpacked/``,
+    :mod:`orchestrator.cosim.unpacked`).
 
     Returns
     -------
