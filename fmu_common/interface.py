@@ -8,6 +8,7 @@ ModelStructure), so the two cannot drift apart.
 """
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -83,10 +84,15 @@ def element_names(name: str, shape: tuple[int, ...]) -> list[str]:
     list[str]
         ``name[i,j,...]`` with 1-based indices, or ``[name]`` for a scalar.
     """
+    return list(_element_names(name, tuple(shape)))
+
+
+@functools.lru_cache(maxsize=4096)
+def _element_names(name: str, shape: tuple[int, ...]) -> tuple[str, ...]:
+    """:func:`element_names`, kept: a fleet asks for the same arrays' names per vehicle."""
     if not shape:
-        return [name]
-    idx = np.ndindex(*shape)
-    return [f"{name}[{','.join(str(i + 1) for i in ix)}]" for ix in idx]
+        return (name,)
+    return tuple(f"{name}[{','.join(str(i + 1) for i in ix)}]" for ix in np.ndindex(*shape))
 
 
 def expand(specs: list[ArraySpec]) -> Iterator[tuple[ArraySpec, int, str]]:

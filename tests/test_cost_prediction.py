@@ -8,11 +8,12 @@ import pytest
 
 from orchestrator.running import simulate
 from orchestrator.scenario import load_scenario
+from support.fmus import LONG_RUN_FMUS
 
 
 @pytest.mark.slow
 def test_compare_on_ten_seeds_agrees_with_prediction(tmp_path):
-    sc = load_scenario("paper")
+    sc = load_scenario("paper").with_run(fmus=LONG_RUN_FMUS)
     summary = simulate(sc, ["kalman", "classical", "ideal"], list(range(10)), tmp_path,
                        progress=False, log=lambda s: None)
     assert json.loads((tmp_path / "summary.json").read_text())["methods"].keys() == summary["methods"].keys()

@@ -18,13 +18,14 @@ import pytest
 from orchestrator.running.setup import Method
 from orchestrator.running.systems import make_setup
 from orchestrator.scenario import load_scenario
+from support.fmus import LONG_RUN_FMUS
 
 T, SEED = 120.0, 0
 
 
 def _distances(model: str, folder: Path) -> np.ndarray:
     sc = load_scenario("survey-4-remus").with_run(
-        T=T, seed=SEED, deployment="per-vehicle", architecture="distributed"
+        T=T, seed=SEED, deployment="per-vehicle", architecture="distributed", fmus=LONG_RUN_FMUS
     ).with_vehicle_model(model)
     res = make_setup(sc, folder).run(Method.of(sc), SEED)
     e = res.traces["e"]

@@ -7,6 +7,7 @@ import json
 import pytest
 
 from orchestrator.scenario import load_scenario
+from support.fmus import LONG_RUN_FMUS
 
 
 @pytest.mark.parametrize("name", ["survey-4-remus", "circle-20-remus"])
@@ -33,6 +34,6 @@ def test_the_survey_holds_on_its_straight_legs(tmp_path):
     from orchestrator.cli import main
     out = tmp_path / "s4"
     assert main(["run", "--scenario", "survey-4-remus", "--seed", "1", "--out", str(out),
-                 "--quiet"]) == 0
+                 "--quiet", "--fmus", LONG_RUN_FMUS]) == 0
     m = json.loads((out / "summary.json").read_text())["methods"]["kalman"]
     assert m["max_error_straight"] <= 3.0 and m["rms_error_straight"] <= 1.5, m

@@ -380,8 +380,9 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
     bar = None
     try:
         mds = {k: read_model_description(str(fmus[k])) for k in used}
+        variables = {k: fmu_variables(md) for k, md in mds.items()}    # once per FMU file
         problems = connection_problems(
-            {c.name: fmu_variables(mds[c.fmu]) for c in system.components},
+            {c.name: variables[c.fmu] for c in system.components},
             system.scalar_connections(),
             fmu_names={c.name: Path(fmus[c.fmu]).name for c in system.components})
         if problems:

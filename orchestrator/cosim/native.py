@@ -24,7 +24,9 @@ a C model of its own per FMU: :mod:`orchestrator.cosim.native_guidance`.
 """
 from __future__ import annotations
 
+import copy
 import dataclasses
+import functools
 import importlib
 import json
 import tempfile
@@ -120,20 +122,33 @@ def form_of(kind: str, fmu: Path, parameters: Mapping[str, Any]) -> NativeForm:
     """
     if kind not in LINEAR_KINDS:
         raise ModelError(f"the {kind} FMU has no native form (it is not linear)")
+    fmu = Path(fmu)
+    stat = fmu.stat()
+    slave = _template_slave(kind, str(fmu.resolve()), stat.st_mtime_ns, stat.st_size)
+    # every parameter array is set (start values with this component's scalars), so what
+    # an earlier component of the same FMU set is gone before setup() builds the form
+    slave.par.update(_scalar_arrays(slave.specs, parameters))
+    slave.setup()
+    form = copy.deepcopy(slave.native_form())  # its own arrays: the slave serves the next
+    if not form.description:                   # pythonfmu's instance attribute is None
+        form = dataclasses.replace(form, description=type(slave).description)
+    form.check()
+    return form
+
+
+@functools.lru_cache(maxsize=16)
+def _template_slave(kind: str, fmu: str, mtime_ns: int, size: int) -> Any:
+    """One slave of ``kind`` made from the FMU file's configuration, reused for each of its
+    components (a fleet has one FMU file per kind and a hundred components of it: making
+    the slave, its variables registered, was most of the native build's time). The file's
+    modification time and size are in the key, so a rebuilt FMU gets a new slave."""
     k = FMU_KINDS[kind]
     with zipfile.ZipFile(fmu) as z:
         config = json.loads(z.read(f"resources/{k.config_file}"))
     cls = getattr(importlib.import_module(k.module), k.model)
     with tempfile.TemporaryDirectory(prefix="auv_native_") as res:
         (Path(res) / k.config_file).write_text(json.dumps(config))
-        slave = cls(instance_name=f"native-{kind}", resources=res)
-    slave.par.update(_scalar_arrays(slave.specs, parameters))
-    slave.setup()
-    form = slave.native_form()
-    if not form.description:                   # pythonfmu's instance attribute is None
-        form = dataclasses.replace(form, description=cls.description)
-    form.check()
-    return form
+        return cls(instance_name=f"native-{kind}", resources=res)
 
 
 # ------------------------------------------------------------------ interface and files
