@@ -162,3 +162,24 @@ def fleet_written(request, tmp_path_factory):
     """The fleet layout's recording at each stride, written once per test module."""
     from support.recording import write_fleet_recording
     return write_fleet_recording(tmp_path_factory, request.param)
+
+
+@pytest.fixture(scope="session")
+def resume_reference(tmp_path_factory):
+    """The rows (timing columns dropped) of support.campaign.RESUME run uninterrupted on a
+    local cluster of 2 workers: what an interrupted and resumed campaign must equal. Once
+    per test process (the fault and resume tests share it)."""
+    import subprocess
+    import sys
+
+    from support.campaign import RESUME, rows, without_timing
+    d = tmp_path_factory.mktemp("resume_reference")
+    (d / "spec.toml").write_text(RESUME)
+    proc = subprocess.run([sys.executable, "-m", "orchestrator", "campaign", str(d / "spec.toml"),
+                           "--workers", "2", "--out", str(d / "out")], capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    table = without_timing(rows(d / "out"))
+    assert len(table) == 12 and all(r["status"] == "ok" for r in table)
+    return table
+

@@ -38,21 +38,8 @@ def _wait_for_parts(out: Path, count: int, proc: subprocess.Popen) -> int:
         time.sleep(0.05)
 
 
-@pytest.fixture(scope="module")
-def reference(tmp_path_factory):
-    """The same campaign, uninterrupted, on a local cluster of 2 workers."""
-    d = tmp_path_factory.mktemp("reference")
-    (d / "spec.toml").write_text(SPEC)
-    proc = _campaign(d / "spec.toml", "--workers", "2", "--out", d / "out")
-    _, err = proc.communicate(timeout=300)
-    assert proc.returncode == 0, err
-    table = _table(d / "out")
-    assert len(table) == RUNS and all(r["status"] == "ok" for r in table)
-    return table
-
-
 @pytest.mark.slow
-def test_a_killed_worker_loses_nothing(tmp_path, reference):
+def test_a_killed_worker_loses_nothing(tmp_path, resume_reference):
     (tmp_path / "spec.toml").write_text(SPEC)
     with dask_cluster(2) as cluster:
         proc = _campaign(tmp_path / "spec.toml", "--scheduler", cluster.address,
@@ -66,11 +53,11 @@ def test_a_killed_worker_loses_nothing(tmp_path, reference):
             proc.kill()
     assert done < RUNS, "the worker was not killed mid-way"
     assert proc.returncode == 0, err
-    assert _table(tmp_path / "out") == reference          # its task ran on the other worker
+    assert _table(tmp_path / "out") == resume_reference          # its task ran on the other worker
 
 
 @pytest.mark.slow
-def test_a_lost_scheduler_keeps_the_rows_and_a_rerun_finishes(tmp_path, reference):
+def test_a_lost_scheduler_keeps_the_rows_and_a_rerun_finishes(tmp_path, resume_reference):
     (tmp_path / "spec.toml").write_text(SPEC)
     out = tmp_path / "out"
     with dask_cluster(1) as cluster:
@@ -93,4 +80,4 @@ def test_a_lost_scheduler_keeps_the_rows_and_a_rerun_finishes(tmp_path, referenc
     stdout, err = again.communicate(timeout=300)
     assert again.returncode == 0, err
     assert f"{kept} already done, {RUNS - kept} to run" in stdout
-    assert _table(out) == reference
+    assert _table(out) == resume_reference
