@@ -82,7 +82,10 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
     n = workers or _cores()
     with fmu_free_sys_path():         # the workers import the project, not an FMU's copy
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR,
+                               # CRITICAL: a worker's heartbeat to a scheduler that an
+                               # interrupt closed first logs an ERROR with a traceback;
+                               # what fails in a task reaches its row (tasks.py) instead
+                               dashboard_address=None, silence_logs=logging.CRITICAL,
                                env=dict(BLAS_ENV), host="127.0.0.1",
                                preload=[WORKER_SETUP])
     client = Client(cluster)
