@@ -5,9 +5,8 @@
 them: the plants compared (:mod:`.plants`) and the envelope (:mod:`.envelope`)."""
 from .compare import simulate
 from .fmus import fleet_layout, record_stride, scenario_config, write_fmu_readme
-from .memory import check_memory
 from .setup import Method, Predictions, RunSetup, method_list
-from .systems import build, make_setup, scenario_system
+from .systems import build, check_memory, make_setup, scenario_system
 
 __all__ = ["Method", "Predictions", "RunSetup", "build", "check_memory", "fleet_layout",
            "make_setup", "method_list", "record_stride", "scenario_config", "scenario_system",

@@ -22,9 +22,8 @@ from ..interrupt import StopFlag, stop_on_signals
 from ..outputs import file_stem
 from ..scenario import Scenario
 from .fmus import fleet_layout, record_stride
-from .memory import check_memory
 from .setup import Method, Predictions, RunSetup, method_list, run_statistics, stats_context
-from .systems import make_setup
+from .systems import check_memory, make_setup
 
 __all__ = ["NONLINEAR_NOTE", "common_window", "simulate"]
 

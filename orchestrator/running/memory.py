@@ -1,5 +1,5 @@
 """Will a run fit? Checked before anything is built or written: its traces in memory
-(:func:`check_memory`) and the time
+(:func:`orchestrator.running.systems.check_memory`) and the time
 and memory of the stacked design (:func:`check_design`, estimated from a model calibrated
 on this machine: :data:`DESIGN_COST`). A fleet's stacked model is checked when the
 scenario is loaded (:func:`orchestrator.scenario.size.check_fleet_model`)."""
@@ -9,55 +9,14 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from ..scenario import ScenarioError
 from ..scenario.size import MEMORY_SHARE, available_memory
 
 if TYPE_CHECKING:
     from ..scenario import Scenario
 
 __all__ = ["ANNOUNCE_S", "DESIGN_COST", "DesignEstimate", "MAX_DESIGN_S", "MEMORY_SHARE",
-           "available_memory", "check_design", "check_memory",
+           "available_memory", "check_design",
            "design_estimate", "stacked_states"]
-
-def check_memory(sc: Scenario, n_methods: int, available: int | None = None) -> int:
-    """Refuse a run whose traces cannot fit in memory, before anything is built.
-
-    The traces of one run are ``steps`` rows of every output of every FMU, 8 bytes each;
-    a run holds its own, plus the first seed's traces of every method for the .rrd, plus a
-    copy in the recording child: bytes = 8 steps width (n_methods + 2).
-
-    Parameters
-    ----------
-    sc : Scenario
-        The scenario (its T, h and system).
-    n_methods : int
-        Methods simulated (estimator modes x tracking laws).
-    available : int, optional
-        Bytes available (default :func:`available_memory`).
-
-    Returns
-    -------
-    int
-        The estimated bytes.
-
-    Raises
-    ------
-    ScenarioError
-        Naming T, h, the number of steps and both sizes, if the estimate exceeds
-        MEMORY_SHARE of the memory available.
-    """
-    from .systems import scenario_system
-    width = sum(spec.size for _, spec in scenario_system(sc).outputs())
-    need = 8 * sc.steps * width * (n_methods + 2)
-    available = available_memory() if available is None else available
-    if available is not None and need > MEMORY_SHARE * available:
-        raise ScenarioError(
-            f"T = {sc.T:g} s with h = {sc.h:g} s is {sc.steps:.4g} steps: the traces "
-            f"({width} values per step, {n_methods} method(s)) need about {need / 1e9:.3g} GB, "
-            f"more than the {available / 1e9:.3g} GB of memory available; shorten T or "
-            "lengthen h")
-    return need
-
 
 # --- the stacked design: one Riccati, Sylvester and Kalman design for the whole system ------
 

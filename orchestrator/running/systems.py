@@ -7,12 +7,14 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..cosim.system import SystemDescription
-from ..scenario import Scenario
+from ..scenario import Scenario, ScenarioError
+from ..scenario.size import MEMORY_SHARE, available_memory
 from .per_vehicle import PerVehicleSetup, check_centralized
 from .setup import Method, RunSetup, check_setup
 from .stacked import StackedSetup, check_stacked
 
-__all__ = ["DEPLOYMENT_SETUPS", "build", "check_size", "make_setup", "scenario_system"]
+__all__ = ["DEPLOYMENT_SETUPS", "build", "check_memory", "check_size", "make_setup",
+           "scenario_system"]
 
 #: the setup of each deployment ([simulation] deployment)
 DEPLOYMENT_SETUPS: dict[str, type[RunSetup]] = {"stacked": StackedSetup,
@@ -129,3 +131,42 @@ def build(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
     if extra:
         paths.update(build_fmus(None, Path(out_dir), kinds=extra))
     return paths
+
+
+def check_memory(sc: Scenario, n_methods: int, available: int | None = None) -> int:
+    """Refuse a run whose traces cannot fit in memory, before anything is built.
+
+    The traces of one run are ``steps`` rows of every output of every FMU, 8 bytes each;
+    a run holds its own, plus the first seed's traces of every method for the .rrd, plus a
+    copy in the recording child: bytes = 8 steps width (n_methods + 2).
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario (its T, h and system).
+    n_methods : int
+        Methods simulated (estimator modes x tracking laws).
+    available : int, optional
+        Bytes available (default :func:`available_memory`).
+
+    Returns
+    -------
+    int
+        The estimated bytes.
+
+    Raises
+    ------
+    ScenarioError
+        Naming T, h, the number of steps and both sizes, if the estimate exceeds
+        MEMORY_SHARE of the memory available.
+    """
+    width = sum(spec.size for _, spec in scenario_system(sc).outputs())
+    need = 8 * sc.steps * width * (n_methods + 2)
+    available = available_memory() if available is None else available
+    if available is not None and need > MEMORY_SHARE * available:
+        raise ScenarioError(
+            f"T = {sc.T:g} s with h = {sc.h:g} s is {sc.steps:.4g} steps: the traces "
+            f"({width} values per step, {n_methods} method(s)) need about {need / 1e9:.3g} GB, "
+            f"more than the {available / 1e9:.3g} GB of memory available; shorten T or "
+            "lengthen h")
+    return need
