@@ -12,6 +12,8 @@ import time
 import zipfile
 from pathlib import Path
 
+import pytest
+
 from orchestrator.cosim.instance import Extracted, FmuInstance
 from orchestrator.cosim.unpacked import UNPACKED_MAX_AGE_S, unpacked_fmu
 
@@ -91,3 +93,22 @@ def test_the_master_uses_the_cache_or_a_temporary_folder_it_removes(paper_fmus, 
     inst.close()
     ex.cleanup()
     assert not ex.root.exists() and not (tmp_path / "c+c").exists()
+
+
+@pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler (cc) for native FMUs")
+def test_a_native_run_twice_copies_the_same_fmus_and_unzips_nothing_new(tmp_path):
+    """The native FMUs of one design are kept whole in the cache: a second run gets the
+    same bytes (no new unpacked folder per run)."""
+    from orchestrator.cli import main
+    from orchestrator.cosim.build import fmu_cache_dir
+    got = []
+    for k in range(2):
+        out = tmp_path / f"run{k}"
+        assert main(["run", "--T", "0.2", "--quiet", "--fmus", "native", "--out", str(out)]) == 0
+        got.append({p.name: p.read_bytes() for p in (out / "fmus" / "native").glob("*.fmu")})
+        if k == 0:
+            before = set((fmu_cache_dir() / "unpacked").iterdir())
+    assert len(got[0]) == 3 and got[0] == got[1]
+    kept = {p.read_bytes() for p in (fmu_cache_dir() / "native").glob("*Native-*.fmu")}
+    assert set(got[0].values()) <= kept                  # copied from the cache, not zipped
+    assert set((fmu_cache_dir() / "unpacked").iterdir()) == before

@@ -139,6 +139,15 @@ def compile_fmu(model: str, sources: tuple[Path, ...], headers: tuple[Path, ...]
     digest.update(header("").encode())
     guid = "{" + digest.hexdigest()[:32] + "}"
     out = Path(out_dir)
+    xml = description(guid)
+    # the whole .fmu is kept too, by its GUID and its modelDescription (start values
+    # included): a second run copies the same bytes, so the unzipped copy is found again
+    # (orchestrator.cosim.unpacked) instead of a new one per run
+    whole = _cached_library(model, guid + hashlib.sha256(xml).hexdigest(), cc).with_suffix(".fmu")
+    if whole.is_file():
+        out.mkdir(parents=True, exist_ok=True)
+        copy_atomically(whole, out / f"{model}.fmu")
+        return out / f"{model}.fmu"
     with tempfile.TemporaryDirectory(prefix="auv_native_") as tmp:
         src = Path(tmp) / "sources"
         src.mkdir()
@@ -165,8 +174,12 @@ def compile_fmu(model: str, sources: tuple[Path, ...], headers: tuple[Path, ...]
         fmu = out / f"{model}.fmu"
         with temporary_sibling(fmu) as part, zipfile.ZipFile(part, "w",
                                                               zipfile.ZIP_DEFLATED) as z:
-            z.writestr("modelDescription.xml", description(guid))
+            z.writestr("modelDescription.xml", xml)
             for f in sorted(src.iterdir()):
                 z.write(f, f"sources/{f.name}")
             z.write(lib, f"binaries/linux64/{model}.so")
+    try:
+        copy_atomically(fmu, whole)
+    except OSError:                         # a read-only cache: zip every time
+        pass
     return fmu
