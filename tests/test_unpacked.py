@@ -66,8 +66,11 @@ def test_folders_unused_for_the_age_limit_are_pruned(paper_fmus, tmp_path):
     old = unpacked_fmu(paper_fmus["controller"], root)
     past = time.time() - UNPACKED_MAX_AGE_S - 60
     os.utime(old, (past, past))
+    (root / ".trash-cut-short").mkdir()                     # a deletion cut short earlier
+    os.utime(root / ".trash-cut-short", (past, past))
     new = unpacked_fmu(paper_fmus["plant"], root)          # making a folder prunes
     assert new.exists() and not old.exists()
+    assert sorted(p.name for p in root.iterdir()) == [new.name]   # renamed, then deleted
     again = unpacked_fmu(paper_fmus["controller"], root)   # and it comes back when needed
     assert again == old and (again / "modelDescription.xml").exists()
     # using a folder touches it: it is not pruned while in use

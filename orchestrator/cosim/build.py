@@ -377,9 +377,11 @@ def build_key(kind: FmuKind, config: dict[str, Any]) -> str:
     return h.hexdigest()
 
 
-def _prune_cache(cache: Path, max_age_s: float = 30 * 86400.0) -> None:
+def prune_cache(cache: Path, max_age_s: float = 30 * 86400.0) -> None:
+    """Remove the built FMUs and the native libraries and FMUs (``native/``) of the cache
+    not used (read) for ``max_age_s``."""
     now = time.time()
-    for f in cache.glob("*.fmu"):
+    for f in [*cache.glob("*.fmu"), *cache.glob("native/*.fmu"), *cache.glob("native/*.so")]:
         try:
             if now - f.stat().st_atime > max_age_s:
                 f.unlink()
@@ -415,7 +417,7 @@ def cached_fmu(kind: FmuKind, config: dict[str, Any], cache: Path | None = None)
         os.replace(build_fmu(kind, config, work), path)
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    _prune_cache(cache)
+    prune_cache(cache)
     return path
 
 

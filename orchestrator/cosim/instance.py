@@ -222,9 +222,11 @@ class FmuLog:
         Returns
         -------
         str
-            The messages joined by "; ", or a note that the FMU logged none.
+            The messages joined by "; ", each on one line (pythonfmu's wrapper logs a
+            Python exception over several), or a note that the FMU logged none.
         """
-        bad = [m for s, m in self.messages if s in ("Error", "Fatal", "Discard", "Warning")]
+        bad = [" ".join(m.split()) for s, m in self.messages
+               if s in ("Error", "Fatal", "Discard", "Warning")]
         return "; ".join(bad) if bad else "(the FMU logged no message)"
 
 

@@ -28,8 +28,8 @@ import copy
 import dataclasses
 import functools
 import importlib
-import json
 import tempfile
+import threading
 import zipfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -122,32 +122,35 @@ def form_of(kind: str, fmu: Path, parameters: Mapping[str, Any]) -> NativeForm:
     """
     if kind not in LINEAR_KINDS:
         raise ModelError(f"the {kind} FMU has no native form (it is not linear)")
-    fmu = Path(fmu)
-    stat = fmu.stat()
-    slave = _template_slave(kind, str(fmu.resolve()), stat.st_mtime_ns, stat.st_size)
-    # every parameter array is set (start values with this component's scalars), so what
-    # an earlier component of the same FMU set is gone before setup() builds the form
-    slave.par.update(_scalar_arrays(slave.specs, parameters))
-    slave.setup()
-    form = copy.deepcopy(slave.native_form())  # its own arrays: the slave serves the next
+    with zipfile.ZipFile(fmu) as z:
+        config = z.read(f"resources/{FMU_KINDS[kind].config_file}").decode()
+    slave = _template_slave(kind, config)
+    with _TEMPLATE_LOCK:                       # one user of a template slave at a time
+        # every parameter array is set (start values with this component's scalars), so
+        # what an earlier component of the same FMU set is gone before setup() runs
+        slave.par.update(_scalar_arrays(slave.specs, parameters))
+        slave.setup()
+        form = copy.deepcopy(slave.native_form())  # its own arrays: the slave serves on
     if not form.description:                   # pythonfmu's instance attribute is None
         form = dataclasses.replace(form, description=type(slave).description)
     form.check()
     return form
 
 
+#: serializes the use of the template slaves (a Dask worker may run threads)
+_TEMPLATE_LOCK = threading.Lock()
+
+
 @functools.lru_cache(maxsize=16)
-def _template_slave(kind: str, fmu: str, mtime_ns: int, size: int) -> Any:
-    """One slave of ``kind`` made from the FMU file's configuration, reused for each of its
-    components (a fleet has one FMU file per kind and a hundred components of it: making
-    the slave, its variables registered, was most of the native build's time). The file's
-    modification time and size are in the key, so a rebuilt FMU gets a new slave."""
+def _template_slave(kind: str, config: str) -> Any:
+    """One slave of ``kind`` made from an FMU's configuration file (its text: the key),
+    reused for each component of that FMU (a fleet has one FMU file per kind and a
+    hundred components of it: making the slave, its variables registered, was most of
+    the native build's time)."""
     k = FMU_KINDS[kind]
-    with zipfile.ZipFile(fmu) as z:
-        config = json.loads(z.read(f"resources/{k.config_file}"))
     cls = getattr(importlib.import_module(k.module), k.model)
     with tempfile.TemporaryDirectory(prefix="auv_native_") as res:
-        (Path(res) / k.config_file).write_text(json.dumps(config))
+        (Path(res) / k.config_file).write_text(config)
         return cls(instance_name=f"native-{kind}", resources=res)
 
 

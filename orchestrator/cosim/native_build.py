@@ -15,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from ..atomic import copy_atomically, temporary_sibling
-from .build import FMU_KINDS, ROOT, fmu_cache_dir
+from .build import FMU_KINDS, ROOT, fmu_cache_dir, prune_cache
 
 __all__ = ["CFLAGS", "FMI_HEADERS", "NATIVE_DIR", "NativeBuildError", "compile_fmu", "compiler",
            "native_model", "run_compiler", "tolerances_header"]
@@ -180,6 +180,7 @@ def compile_fmu(model: str, sources: tuple[Path, ...], headers: tuple[Path, ...]
             z.write(lib, f"binaries/linux64/{model}.so")
     try:
         copy_atomically(fmu, whole)
+        prune_cache(fmu_cache_dir())        # what is unused for 30 days goes
     except OSError:                         # a read-only cache: zip every time
         pass
     return fmu

@@ -17,9 +17,11 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import shutil
 import tempfile
 import time
+import uuid
 from pathlib import Path
 
 __all__ = ["UNPACKED_MAX_AGE_S", "unpacked_fmu"]
@@ -38,12 +40,21 @@ def _digest(path: Path) -> str:
 
 
 def _prune(root: Path, keep: Path, max_age_s: float = UNPACKED_MAX_AGE_S) -> None:
-    """Remove unpacked folders (and abandoned private ones) unused for ``max_age_s``."""
+    """Remove unpacked folders (and abandoned private ones) unused for ``max_age_s``.
+
+    Each is first renamed to a private name (one atomic step), then deleted: no process
+    finds a half-deleted folder under its final name, and a deletion cut short leaves a
+    private folder that the next pruning removes."""
     now = time.time()
     for d in root.iterdir():
         try:
-            if d != keep and now - d.stat().st_mtime > max_age_s:
-                shutil.rmtree(d, ignore_errors=True)
+            if d == keep or now - d.stat().st_mtime <= max_age_s:
+                continue
+            if not d.name.startswith("."):
+                trash = root / f".trash-{uuid.uuid4().hex}"
+                os.rename(d, trash)
+                d = trash
+            shutil.rmtree(d, ignore_errors=True)
         except OSError:
             pass
 
@@ -73,7 +84,8 @@ def unpacked_fmu(fmu: Path | str, root: Path) -> Path:
     from fmpy import extract
 
     fmu = Path(fmu)
-    folder = root / f"{fmu.stem}-{_digest(fmu)}"
+    stem = re.sub(r"[^A-Za-z0-9_-]", "_", fmu.stem)  # a path pythonfmu 0.7 can read
+    folder = root / f"{stem}-{_digest(fmu)}"
     if (folder / "modelDescription.xml").exists():
         os.utime(folder)                          # used now: kept by the pruning
         return folder
