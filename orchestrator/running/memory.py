@@ -9,7 +9,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from ..scenario.size import MEMORY_SHARE, available_memory
+from ..scenario.size import MEMORY_SHARE, available_memory, memory_short
 
 if TYPE_CHECKING:
     from ..scenario import Scenario
@@ -120,14 +120,14 @@ def check_design(sc: Scenario, estimators: Iterable[str], predict: str, *, who: 
     """
     from plant_model.linalg_checks import ModelError
     est = design_estimate(stacked_states(sc), "kalman" in set(estimators), predict != "none")
-    available = available_memory() if available is None else available
+    short = memory_short(est.bytes, available)
     too_slow = est.seconds > MAX_DESIGN_S
-    too_big = available is not None and est.bytes > MEMORY_SHARE * available
+    too_big = short is not None
     if too_slow or too_big:
         what = (f"all {len(sc.fleet['vehicles'])} vehicles" if sc.fleet is not None
                 else "the system")
         limit = (f"more than the {MAX_DESIGN_S:g} s allowed" if too_slow else
-                 f"more than {MEMORY_SHARE:.0%} of the {available / 1e9:.3g} GB of memory "
+                 f"more than {MEMORY_SHARE:.0%} of the {short / 1e9:.3g} GB of memory "
                  "available")
         phases = ", ".join(PHASE_NAMES[p] for p in est.phases)
         raise ModelError(f"{who} {what} ({est.states} states; {phases}): "

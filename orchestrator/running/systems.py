@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..cosim.system import SystemDescription
 from ..scenario import Scenario, ScenarioError
-from ..scenario.size import MEMORY_SHARE, available_memory
+from ..scenario.size import memory_short
 from .per_vehicle import PerVehicleSetup, check_centralized
 from .setup import Method, RunSetup, check_setup
 from .stacked import StackedSetup, check_stacked
@@ -162,8 +162,8 @@ def check_memory(sc: Scenario, n_methods: int, available: int | None = None) -> 
     """
     width = sum(spec.size for _, spec in scenario_system(sc).outputs())
     need = 8 * sc.steps * width * (n_methods + 2)
-    available = available_memory() if available is None else available
-    if available is not None and need > MEMORY_SHARE * available:
+    available = memory_short(need, available)
+    if available is not None:
         raise ScenarioError(
             f"T = {sc.T:g} s with h = {sc.h:g} s is {sc.steps:.4g} steps: the traces "
             f"({width} values per step, {n_methods} method(s)) need about {need / 1e9:.3g} GB, "

@@ -10,7 +10,8 @@ from .errors import ScenarioError
 if TYPE_CHECKING:
     from .schema_fleet import FleetScenario
 
-__all__ = ["MEMORY_SHARE", "MODEL_BYTES_PER_STATE2", "available_memory", "check_fleet_model"]
+__all__ = ["MEMORY_SHARE", "MODEL_BYTES_PER_STATE2", "available_memory", "check_fleet_model",
+           "memory_short"]
 
 #: the share of the memory available an estimate may take
 MEMORY_SHARE = 0.8
@@ -31,6 +32,14 @@ def available_memory() -> int | None:
     except (OSError, ValueError, IndexError):
         return None
     return None
+
+
+def memory_short(need: float, available: int | None = None) -> int | None:
+    """The bytes available, when ``need`` (bytes) exceeds :data:`MEMORY_SHARE` of them;
+    None when it fits or the kernel does not say (``available``: default
+    :func:`available_memory`). Every size check refuses on this one rule."""
+    available = available_memory() if available is None else available
+    return available if available is not None and need > MEMORY_SHARE * available else None
 
 
 def check_fleet_model(fleet: FleetScenario, where: str, available: int | None = None) -> int:
@@ -60,8 +69,8 @@ def check_fleet_model(fleet: FleetScenario, where: str, available: int | None = 
     models = fleet.vehicles.models
     states = sum(m.p + m.r for m in models) + len(fleet.leader.leader_path.z0) + 1
     need = int(MODEL_BYTES_PER_STATE2 * states * states)
-    available = available_memory() if available is None else available
-    if available is not None and need > MEMORY_SHARE * available:
+    available = memory_short(need, available)
+    if available is not None:
         raise ScenarioError(
             f"{where}: the stacked model of {len(models)} vehicles ({states} states) needs "
             f"about {need / 1e9:.3g} GB (estimated: {MODEL_BYTES_PER_STATE2 // 8} dense "
