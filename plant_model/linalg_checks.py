@@ -24,7 +24,6 @@ __all__ = [
     "refuse_text",
     "check_symmetric_psd",
     "check_symmetric_pd",
-    "psd_factor",
     "uncontrollable_modes",
     "unobservable_modes",
 ]
@@ -202,29 +201,6 @@ def check_symmetric_pd(name: str, M: np.ndarray) -> None:
     definite).
     """
     check_symmetric_psd(name, M, definite=True)
-
-
-def psd_factor(M: np.ndarray) -> np.ndarray:
-    """A factor L with ``L L' = M`` for a symmetric positive semidefinite ``M``.
-
-    Uses the eigendecomposition, so a singular covariance (a noise that is switched
-    off in some direction) is fine, unlike the Cholesky factorisation:
-    M = V diag(w) V', L = V diag(sqrt(max(w, 0))).
-
-    Parameters
-    ----------
-    M : np.ndarray
-        Symmetric positive semidefinite matrix, k x k.
-
-    Returns
-    -------
-    np.ndarray
-        L, k x k.
-    """
-    if M.size == 0:
-        return np.zeros_like(M)
-    w, V = np.linalg.eigh(0.5 * (M + M.T))
-    return V * np.sqrt(np.clip(w, 0.0, None))
 
 
 def _pbh_rank_deficient(A: np.ndarray, X: np.ndarray, lam: complex, *, rows: bool) -> bool:

@@ -9,7 +9,8 @@ At sample k (time k h) the plant holds s[k] = [x; w; z] and the noise row drawn 
 Every random number comes from one ``numpy.random.Generator(PCG64(seed))``: per step one
 standard normal vector xi[k] of length ns + 2p, drawn in blocks of rows (a block of
 rows is the same stream as row-by-row draws), and [v[k]; n[k]; n_z[k]] = L xi[k] with
-L = blkdiag(chol-like factors of Qd and Rd). The same seed gives the same traces.
+L = blkdiag(Qd^(1/2), Rd^(1/2)), the symmetric square roots (:mod:`plant_model.noise_factor`:
+unique for the matrix, so the same seed gives the same traces on every machine).
 
 ``get_state()`` / ``set_state(state)`` (on :class:`Plant` and :class:`NoiseStream`) capture and
 restore everything that evolves, as plain Python / numpy values: the sampled state s, the
@@ -24,7 +25,7 @@ import numpy as np
 from scipy.linalg import block_diag
 
 from .discretization import DiscreteModel
-from .linalg_checks import psd_factor
+from .noise_factor import psd_sqrt
 
 __all__ = ["NoiseStream", "Plant", "plant_output_layout"]
 
@@ -45,8 +46,9 @@ def _count(value: Any, what: str) -> int:
 
 
 def _noise_factors(model: DiscreteModel) -> tuple[np.ndarray, np.ndarray]:
-    """Transposed factors (Lq', Lr') with Lq Lq' = Qd and Lr Lr' = Rd."""
-    return psd_factor(model.Qd).T.copy(), psd_factor(model.Rd).T.copy()
+    """Transposed factors (Lq', Lr') with Lq Lq' = Qd and Lr Lr' = Rd: the symmetric square
+    roots (:func:`plant_model.noise_factor.psd_sqrt`)."""
+    return psd_sqrt(model.Qd).T.copy(), psd_sqrt(model.Rd).T.copy()
 
 
 def _streams(model: DiscreteModel) -> list[tuple[int, np.ndarray, np.ndarray]] | None:
@@ -77,7 +79,7 @@ def _streams(model: DiscreteModel) -> list[tuple[int, np.ndarray, np.ndarray]] |
             key = int(model.noise_keys[k])
         else:
             key = k + 1 if k < len(blocks) - 1 else 0
-        out.append((key, idx, psd_factor(full[np.ix_(idx, idx)]).T.copy()))
+        out.append((key, idx, psd_sqrt(full[np.ix_(idx, idx)]).T.copy()))
     return out
 
 

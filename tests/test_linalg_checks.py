@@ -12,7 +12,6 @@ from plant_model.linalg_checks import (
     as_vector,
     check_symmetric_pd,
     check_symmetric_psd,
-    psd_factor,
     uncontrollable_modes,
     unobservable_modes,
 )
@@ -126,20 +125,6 @@ def test_definite_refuses_singular_and_names_smallest_eigenvalue():
 
 def test_definite_accepts_spd():
     check_symmetric_pd("R", np.array([[2.0, 1.0], [1.0, 2.0]]))
-
-
-@settings(max_examples=40, deadline=None, derandomize=True)
-@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 6), rank=st.integers(0, 6))
-def test_psd_factor_reproduces_psd_matrix(seed, n, rank):
-    rng = np.random.default_rng(seed)
-    G = rng.standard_normal((n, min(rank, n)))
-    M = G @ G.T
-    L = psd_factor(M)
-    np.testing.assert_allclose(L @ L.T, M, atol=1e-10 * (1 + np.abs(M).max()))
-
-
-def test_psd_factor_of_empty_matrix():
-    assert psd_factor(np.zeros((0, 0))).shape == (0, 0)
 
 
 # PBH tests ------------------------------------------------------------------------

@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from plant_model.noise_factor import NOISE_STREAM
+
 __all__ = ["trace_stats", "method_summary", "versions", "stats_window", "stationary_horizon",
            "stationarity_note"]
 
@@ -212,7 +214,9 @@ def versions(packages: Iterable[str] = ("auv-cosim", "numpy", "scipy", "fmpy", "
     Returns
     -------
     dict[str, str]
-        ``python`` and each package's version ("not installed" if missing).
+        ``python``, each package's version ("not installed" if missing) and
+        ``noise_stream``, the noise a seed gives (:data:`plant_model.noise_factor.NOISE_STREAM`):
+        a campaign's run keys hold these, so rows of two streams are never mixed.
     """
     out = {"python": platform.python_version()}
     for name in packages:
@@ -220,4 +224,5 @@ def versions(packages: Iterable[str] = ("auv-cosim", "numpy", "scipy", "fmpy", "
             out[name] = md.version(name)
         except md.PackageNotFoundError:
             out[name] = "not installed"
+    out["noise_stream"] = str(NOISE_STREAM)
     return out

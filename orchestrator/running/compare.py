@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from plant_model.linalg_checks import ModelError
+from plant_model.noise_factor import NOISE_STREAM
 
 from ..analysis.formation import formation_summary
 from ..analysis.full_information import fleet_bound, fleet_comparison
@@ -291,6 +292,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
         "steps": sc.steps,
         "seeds": [int(s) for s in seeds],
         "noise_convention": sc.system.noise_convention,
+        "noise_stream": NOISE_STREAM,
         "consensus": None if sc.fleet is None else sc.fleet["graph"].get("consensus",
                                                                          "in-plant"),
         "deployment": sc.deployment,

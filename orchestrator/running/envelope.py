@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from plant_model.noise_factor import NOISE_STREAM
+
 from ..atomic import write_text_atomically
 from ..outputs import file_stem
 from ..scenario import Scenario, scenario_from_dict
@@ -210,6 +212,7 @@ def run_envelope(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
             f"{verdicts['rejected_and_fail']} of {len(judged) - verdicts['feasible']} "
             "rejected points do not")
     summary = {"scenario": sc.name, "T": sc.T, "h": sc.h, "seed": sc.seed,
+               "noise_stream": NOISE_STREAM,
                "estimator": sc.estimator, "architecture": sc.architecture,
                "models": sorted({v.get("model", "remus100") for v in sc.fleet["vehicles"]}),
                "envelope": {"tolerance_m": tolerance, "points": points,

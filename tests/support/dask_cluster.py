@@ -31,8 +31,11 @@ class Cluster:
 
 
 @contextmanager
-def dask_cluster(n_workers: int = 2, timeout: float = 60.0) -> Iterator[Cluster]:
-    """Start a scheduler and ``n_workers`` single-threaded workers; wait until they joined."""
+def dask_cluster(n_workers: int = 2, timeout: float = 60.0,
+                 worker_env: list[dict[str, str]] | None = None) -> Iterator[Cluster]:
+    """Start a scheduler and ``n_workers`` single-threaded workers (worker i with the extra
+    environment ``worker_env[i]``, e.g. its own ``OPENBLAS_CORETYPE``); wait until they
+    joined."""
     port = free_port()
     address = f"tcp://127.0.0.1:{port}"
     scheduler = subprocess.Popen([BIN / "dask", "scheduler", "--host", "127.0.0.1", "--port",
@@ -40,10 +43,11 @@ def dask_cluster(n_workers: int = 2, timeout: float = 60.0) -> Iterator[Cluster]
                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     cluster = Cluster(address, scheduler)
     try:
-        for _ in range(n_workers):
+        for i in range(n_workers):
+            extra = worker_env[i] if worker_env else {}
             cluster.workers.append(subprocess.Popen(
                 [BIN / "dask", "worker", address, "--nthreads", "1", "--no-dashboard",
-                 "--host", "127.0.0.1"], env=ENV,
+                 "--host", "127.0.0.1"], env={**ENV, **extra},
                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         from dask.distributed import Client
         deadline = time.monotonic() + timeout
