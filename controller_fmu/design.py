@@ -33,7 +33,7 @@ class TrackingDesign:
     Kx: np.ndarray
     Kz: np.ndarray
     Kw: np.ndarray
-    closed_loop_poles: np.ndarray     #: eigenvalues of A - B1 Kx
+    closed_loop_poles: np.ndarray     #: eigenvalues of A - B1 Kx, sorted (real, then imaginary)
     residuals: dict[str, float]       #: relative residuals of (13), (14), (15)
 
     def gain_on_state(self) -> np.ndarray:
@@ -86,6 +86,14 @@ def _refuse_modes(bad: list, what: str, why: str) -> None:
     if bad:
         raise ModelError(f"{what}: the mode(s) {', '.join(_fmt(z) for z in bad)} of A are "
                          f"not stable and {why}")
+
+
+def _sorted_poles(poles: np.ndarray) -> np.ndarray:
+    """Poles by real part, then imaginary part, real parts equal to 1e-9 of the largest
+    |pole| counted equal: an order that rounding (another BLAS kernel) does not change, so a
+    fleet's repeated poles print the same on every machine."""
+    tol = 1e-9 * max(1.0, float(np.abs(poles).max(initial=0.0)))
+    return poles[np.lexsort((poles.imag, np.round(poles.real / tol)))]
 
 
 def lq_riccati_gain(A: np.ndarray, B1: np.ndarray, C: np.ndarray, Q: np.ndarray,
@@ -144,7 +152,7 @@ def lq_riccati_gain(A: np.ndarray, B1: np.ndarray, C: np.ndarray, Q: np.ndarray,
                          f"{exc}") from None
     P = 0.5 * (P + P.T)
     S = B1 @ Rinv @ B1.T
-    poles = np.linalg.eigvals(A - S @ P)
+    poles = _sorted_poles(np.linalg.eigvals(A - S @ P))
     margin = 1e-9 * max(1.0, float(np.max(np.abs(poles))))
     if np.max(poles.real) >= -margin:
         raise ModelError(
