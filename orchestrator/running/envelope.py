@@ -126,8 +126,9 @@ def _point_errors() -> tuple[type[BaseException], ...]:
     from plant_model.linalg_checks import ModelError
 
     from ..cosim.instance import CosimError
+    from ..cosim.native import NativeBuildError
     from ..scenario import ScenarioError
-    return (ScenarioError, ModelError, CosimError, np.linalg.LinAlgError)
+    return (ScenarioError, ModelError, CosimError, NativeBuildError, np.linalg.LinAlgError)
 
 
 POINT_ERRORS = _point_errors()
