@@ -73,6 +73,42 @@ def finding_lines(findings: Sequence[Finding]) -> list[str]:
             for fs in groups.values()]
 
 
+def path_samples(T: float, dt: float) -> int:
+    """The samples of a path every ``dt`` s over [0, T]: floor(T / dt) + 1."""
+    return int(np.floor(T / dt + 1e-9)) + 1
+
+
+def path_states(F: np.ndarray, z0: np.ndarray, T: float, dt: float) -> np.ndarray:
+    """The exosystem's states z(k dt) = expm(F k dt) z0, k = 0 .. floor(T / dt), one row
+    each: filled by doubling blocks (rows [m, 2m) = rows [0, m) times expm(F m dt)'), a
+    few dozen products for any horizon instead of one per sample.
+
+    Parameters
+    ----------
+    F, z0 : np.ndarray
+        The exosystem (l x l, 1/s) and its start (l).
+    T, dt : float
+        Horizon and sampling interval, s.
+
+    Returns
+    -------
+    np.ndarray
+        :func:`path_samples` x l.
+    """
+    F = np.asarray(F, float)
+    n = path_samples(T, dt)
+    Z = np.empty((n, F.shape[0]))
+    Z[0] = np.asarray(z0, float)
+    P = expm(F * dt)                   # expm(F filled dt)
+    filled = 1
+    while filled < n:
+        m = min(filled, n - filled)
+        Z[filled:filled + m] = Z[:m] @ P.T
+        filled += m
+        P = P @ P
+    return Z
+
+
 def path_demands(F: np.ndarray, H: np.ndarray, z0: np.ndarray, T: float, dt: float
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(t, speed, turn radius, depth rate) of the leader's path every ``dt`` s over [0, T].
@@ -91,13 +127,8 @@ def path_demands(F: np.ndarray, H: np.ndarray, z0: np.ndarray, T: float, dt: flo
         |v_d| (m/s), each of length floor(T / dt) + 1.
     """
     F, H = np.asarray(F, float), np.asarray(H, float)
-    n = int(np.floor(T / dt + 1e-9)) + 1
-    Phi = expm(F * dt)
-    Z = np.empty((n, F.shape[0]))
-    z = np.asarray(z0, float)
-    for k in range(n):
-        Z[k] = z
-        z = Phi @ z
+    Z = path_states(F, z0, T, dt)
+    n = Z.shape[0]
     V = Z @ (H @ F).T
     A = Z @ (H @ F @ F).T
     speed = np.linalg.norm(V, axis=1)

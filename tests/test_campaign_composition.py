@@ -49,7 +49,8 @@ def test_a_sweep_of_deployment_and_loss_gives_every_row_equal_to_a_plain_run(tmp
     proc.communicate(timeout=120)
     again = _campaign(spec, "--workers", "2", "--out", out)
     stdout, stderr = again.communicate(timeout=600)
-    assert again.returncode == 0, stderr
+    assert again.returncode == 3, stderr           # the 2 stacked points with links failed
+    assert "auv-cosim campaign: 2 of 4 points failed (4 of 8 runs" in stderr
     table = rows(out)
     assert len(table) == 4 * 2                      # one row per point and seed, no duplicate
     assert len({r["run_key"] for r in table}) == 8
@@ -78,7 +79,7 @@ def test_a_sweep_of_deployment_and_loss_gives_every_row_equal_to_a_plain_run(tmp
     # a third run of the same command has nothing left to do and changes nothing
     third = _campaign(spec, "--workers", "2", "--out", out)
     stdout, _ = third.communicate(timeout=300)
-    assert third.returncode == 0 and "8 already done, 0 to run" in stdout
+    assert third.returncode == 3 and "8 already done, 0 to run" in stdout
     assert without_timing(rows(out)) == without_timing(table)
 
 

@@ -51,7 +51,8 @@ def test_local_cluster_failing_point_and_numpy_engine(tmp_path, capsys):
     """2 local workers; classical with a singular C fails as rows, the rest goes on; the
     numpy engine gives the FMU engine's statistics on every shared point (1e-9)."""
     spec = _spec(tmp_path, SWEEP)
-    assert main(["campaign", str(spec), "--workers", "2", "--out", str(tmp_path / "fmu")]) == 0
+    assert main(["campaign", str(spec), "--workers", "2", "--out", str(tmp_path / "fmu")]) == 3
+    assert "auv-cosim campaign: 1 of 4 points failed (3 of 12 runs" in capsys.readouterr().err
     fmu = _rows(tmp_path / "fmu")
     assert len(fmu) == 4 * 3 and {r["engine"] for r in fmu} == {"fmu"}
     failed = [r for r in fmu if r["status"] != "ok"]
@@ -68,7 +69,7 @@ def test_local_cluster_failing_point_and_numpy_engine(tmp_path, capsys):
     assert (tmp_path / "fmu" / "cost_simulation.estimator.svg").exists()
 
     assert main(["campaign", str(spec), "--workers", "2", "--engine", "numpy",
-                 "--out", str(tmp_path / "numpy")]) == 0
+                 "--out", str(tmp_path / "numpy")]) == 3
     num = _rows(tmp_path / "numpy")
     assert {r["engine"] for r in num} == {"numpy"}
     for a, b in zip(fmu, num):
@@ -90,7 +91,7 @@ def test_local_cluster_failing_point_and_numpy_engine(tmp_path, capsys):
                 if '"numpy"' in p.read_text())
     part.unlink()
     assert main(["campaign", str(spec), "--workers", "2", "--engine", "numpy",
-                 "--out", str(tmp_path / "numpy")]) == 0
+                 "--out", str(tmp_path / "numpy")]) == 3
     assert "0 already done" not in capsys.readouterr().out
     assert _without_timing(_rows(tmp_path / "numpy")) == _without_timing(num)
 

@@ -36,7 +36,7 @@ def test_a_base_of_2000_vehicles_is_refused_before_its_model_is_built(tmp_path):
                                        (tmp_path / "stdout").read_text(),
                                        (tmp_path / "stderr").read_text())
     peak_kib = usage.ru_maxrss
-    assert done.returncode == 0, done.stderr
+    assert done.returncode == 3, done.stderr           # its one point failed
     assert "Traceback" not in done.stderr and "MemoryError" not in done.stderr
     (row,) = rows(tmp_path / "out")
     assert row["status"] == "error"
@@ -56,7 +56,8 @@ def test_a_stacked_point_whose_design_would_not_finish_is_an_error_row(tmp_path)
     spec.write_text('base = "formation-100"\nseeds = "0-1"\n[sweep]\n'
                     '"simulation.deployment" = ["stacked"]\n"simulation.T" = [0.1]\n')
     done = _campaign(spec, "--out", tmp_path / "out")
-    assert done.returncode == 0, done.stderr
+    assert done.returncode == 3, done.stderr           # every point failed
+    assert "auv-cosim campaign: 1 of 1 points failed (2 of 2 runs" in done.stderr
     table = rows(tmp_path / "out")
     assert len(table) == 2 and {r["status"] for r in table} == {"error"}
     msg = table[0]["error"]
@@ -74,7 +75,7 @@ def test_a_campaign_name_with_path_parts_stays_under_out(tmp_path):
     spec.write_text('name = "x/../../../escaped"\nbase = "paper"\nseeds = "0"\n'
                     '[sweep]\n"simulation.T" = [-1.0]\n')       # an error row: no cluster
     done = _campaign(spec, cwd=work)
-    assert done.returncode == 0, done.stderr
+    assert done.returncode == 3, done.stderr           # its one point is an error row
     assert sorted(p.name for p in work.iterdir()) == ["out", "spec.toml"]
     assert [p.name for p in (work / "out").iterdir()] == ["campaign_x_.._.._.._escaped"]
     assert (work / "out" / "campaign_x_.._.._.._escaped" / "results.parquet").exists()

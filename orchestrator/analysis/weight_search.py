@@ -24,7 +24,6 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from scipy.linalg import expm
 
 from controller_fmu.vehicle_law import vehicle_law
 from controller_fmu.weight_design import (
@@ -34,15 +33,65 @@ from controller_fmu.weight_design import (
 )
 from plant_model.fleet import fleet_vehicles
 from plant_model.linalg_checks import ModelError
-from plant_model.path_feasibility import Finding, finding_lines, path_findings
+from plant_model.path_feasibility import (
+    Finding,
+    finding_lines,
+    path_findings,
+    path_samples,
+    path_states,
+)
 from plant_model.remus100.limits import VehicleLimits
 from plant_model.vehicle_models import get, vehicle_of
 from plant_model.vehicles import REMUS100_MAX_SPEED, VehicleModel
 
 from .distributed import Agent, agents_from_fleet_spec, sample_agent
 
-__all__ = ["DesignResult", "design_fleet", "force_limits", "path_verdict", "vehicle_band",
-           "vehicle_limits"]
+__all__ = ["PATH_DT", "DesignResult", "check_path_horizon", "design_fleet", "force_limits",
+           "path_verdict", "vehicle_band", "vehicle_limits"]
+
+#: the path check's and the path force ratio's sampling interval, s
+PATH_DT = 0.1
+#: values per sample they hold besides the exosystem's states (velocity, acceleration,
+#: speeds, radii, the per-vehicle tests)
+PATH_VALUES_PER_SAMPLE = 16
+
+
+def check_path_horizon(states: int, T: float, dt: float = PATH_DT,
+                       available: int | None = None) -> int:
+    """Refuse, before it samples anything, a horizon whose path samples (every ``dt`` s
+    over [0, T]) would not fit in memory: bytes = 8 samples (states + 16), on the one
+    memory rule (:func:`orchestrator.scenario.size.memory_short`). A [design] scenario
+    with ``T = 1e9`` is refused here, at once, wherever it is loaded.
+
+    Parameters
+    ----------
+    states : int
+        The leader exosystem's states l.
+    T, dt : float
+        Horizon and sampling interval, s.
+    available : int, optional
+        Bytes available (default: the kernel's figure).
+
+    Returns
+    -------
+    int
+        The estimated bytes.
+
+    Raises
+    ------
+    ModelError
+        ``[design] path check: T = ... s: ... samples need about ... GB, more than ...``.
+    """
+    from ..scenario.size import MEMORY_SHARE, memory_short
+    n = path_samples(T, dt)
+    need = 8 * n * (states + PATH_VALUES_PER_SAMPLE)
+    short = memory_short(need, available)
+    if short is not None:
+        raise ModelError(f"[design] path check: T = {T:g} s sampled every {dt:g} s is "
+                         f"{n:.4g} samples of the leader's path: about {need / 1e9:.3g} GB, "
+                         f"more than {MEMORY_SHARE:.0%} of the {short / 1e9:.3g} GB of "
+                         "memory available; shorten T")
+    return need
 
 
 def vehicle_limits(model: VehicleModel, options: Mapping[str, Any]) -> VehicleLimits:
@@ -191,6 +240,8 @@ class DesignResult:
     def over(self, T: float, F: np.ndarray, H: np.ndarray, z0: np.ndarray) -> DesignResult:
         """The same design with the path checked over [0, T] (a run's own horizon)."""
         from types import SimpleNamespace
+        if self.checked:
+            check_path_horizon(np.asarray(F).shape[0], T)
         lims = [SimpleNamespace(**lim) for lim in self.limits]
         return replace(self, findings=path_findings(
             F, H, z0, T, lims, current_sigma=self.current_sigma,
@@ -219,19 +270,13 @@ def _noise_gain(agent: Agent, r: float, leader: Mapping[str, np.ndarray], tracki
 
 def path_force_ratio(models: Sequence[VehicleModel], umax: Sequence[np.ndarray],
                      F: np.ndarray, H: np.ndarray, z0: np.ndarray, T: float,
-                     dt: float = 0.1) -> float | None:
+                     dt: float = PATH_DT) -> float | None:
     """max over t, vehicles and axes of |M_a a_a(t) + D_a v_a(t)| / u_max_a: the force the
     target path needs in still water (v = H F z, a = H F^2 z; M_a = 1 / B_v, D_a = -A_vv M_a
     of a NED design model). None when a model is not NED or there is no u_max."""
     if not umax or any(get(m.name).layout != "ned" for m in models):
         return None
-    n = int(np.floor(T / dt + 1e-9)) + 1
-    Phi = expm(np.asarray(F, float) * dt)
-    Z = np.empty((n, F.shape[0]))
-    z = np.asarray(z0, float)
-    for k in range(n):
-        Z[k] = z
-        z = Phi @ z
+    Z = path_states(F, z0, T, dt)
     V, A = Z @ (H @ F).T, Z @ (H @ F @ F).T
     worst = 0.0
     for mdl, lim in zip(models, umax):
@@ -290,6 +335,8 @@ def design_fleet(spec: Mapping[str, Any], options: Mapping[str, Any], *, h: floa
     ld = spec["leader"]
     F, H, z0 = (np.asarray(ld[k], float) for k in ("F", "H", "z0"))
     checked = options.get("path_check") != "off"
+    if checked or umax:                            # both sample the path over [0, T]
+        check_path_horizon(F.shape[0], T)
 
     def check(margin: float) -> list:
         return (path_findings(F, H, z0, T, limits, current_sigma=current_sigma,

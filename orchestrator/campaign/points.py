@@ -11,8 +11,10 @@ Run key = SHA-256 of the canonical JSON of (the whole resolved scenario without 
 system, fleet, deployment, architecture, links, sensors, distributed-law settings, FMU kind
 and run settings; the coupling, the seed, the engine, the package versions): the same run in
 any later campaign has the same key, and two points that differ in anything they run never
-share one. A point whose combination cannot run (a [network] on the stacked deployment, ...)
-is refused before anything runs, as an error row naming why.
+share one. A point that ``auv-cosim run`` would refuse (a [network] on the stacked deployment,
+a design estimated past the limit, a T whose traces would not fit: :func:`orchestrator.
+running.systems.check_run`) is refused before anything runs, as an error row with the same
+one-line reason.
 """
 from __future__ import annotations
 
@@ -131,10 +133,11 @@ def resolve_point(index: int, params: dict[str, Any], base: dict[str, Any],
     Returns
     -------
     DesignPoint
-        With the scenario, or with the one-line error when it is not valid, cannot run,
-        or would not fit: a fleet whose stacked model would not fit in memory is refused
-        before it is built, a stacked design estimated too long or too large before it is
-        tried (:mod:`orchestrator.running.memory`).
+        With the scenario, or with the one-line error when it is not valid or fails one
+        of the checks ``auv-cosim run`` makes (:func:`orchestrator.running.systems.
+        check_run`: the combination, the stacked design's time and memory, native FMUs'
+        compiler, the traces of T / h steps in memory), in the words ``run`` prints; a
+        fleet whose stacked model would not fit in memory is refused before it is built.
     """
     data = copy.deepcopy(base)
     coupling = "gauss-seidel"
@@ -149,12 +152,11 @@ def resolve_point(index: int, params: dict[str, Any], base: dict[str, Any],
     where = f"{base_where} with " + ", ".join(f"{k} = {param_text(v)}"
                                               for k, v in params.items()) if params else base_where
     try:
-        from ..running.setup import check_setup
-        from ..running.systems import check_size
+        from ..cosim.native import NativeBuildError
+        from ..running.systems import check_run
         sc = scenario_from_dict(data, where)    # refuses a stacked model too large first
-        check_setup(sc, coupling)
-        check_size(sc)                          # a design that would not finish or fit
-    except (ScenarioError, ModelError) as exc:
+        check_run(sc, coupling=coupling)        # run's checks: a point that would not finish
+    except (ScenarioError, ModelError, NativeBuildError) as exc:
         resolved = canonical_json({"base": data, "coupling": coupling})
         return DesignPoint(index, params, None, coupling, str(exc), resolved, frozenset(data))
     resolved = canonical_json({"scenario": resolved_scenario(sc), "coupling": coupling})

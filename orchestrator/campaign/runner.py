@@ -26,6 +26,7 @@ from typing import Any
 
 from ..analysis.summary import versions
 from ..atomic import write_text_atomically
+from ..exit_status import INCOMPLETE, OK, POINTS_FAILED, points_failed_line
 from ..interrupt import EXIT_STATUS, stop_on_signals
 from ..outputs import output_folder
 from ..running.naming import campaign_out
@@ -310,8 +311,10 @@ def run_campaign(spec_path: Path | str, out: Path | str | None = None, *,
     Returns
     -------
     int
-        0 when every run has a row, 1 if runs were lost or the numpy check failed,
-        130 / 143 when stopped by SIGINT / SIGTERM.
+        (:mod:`orchestrator.exit_status`) 0 when every run of every point ran; 130 / 143
+        when stopped by SIGINT / SIGTERM; else 1 if runs were lost or the numpy check
+        failed; else 3 if some points (or all) are error rows, counted in one line on
+        stderr.
 
     Raises
     ------
@@ -393,9 +396,11 @@ def _report(out: Path, name: str, spec: Any, engine: str, store: ResultStore, ke
     check = compare_check(rows, store.table_rows("check", keys)) if checks else None
     total = sum(len(t.seeds) for t in tasks)
     missing = total - len(rows)
+    failed = _failed_points(rows)
     summary = {
         "campaign": name, "spec": spec.model_dump(), "engine": engine, "runs": total,
         "rows": len(rows), "failed": sum(r["status"] != "ok" for r in rows),
+        "failed_points": len(failed),
         "missing": missing, "interrupted_by": stop.name, "lost": result["lost"],
         "numpy_check": check, "cluster": cluster_info, "wall_s": wall_s,
         "plots": [p.name for p in plots], "versions": versions(),
@@ -421,6 +426,12 @@ def _report(out: Path, name: str, spec: Any, engine: str, store: ResultStore, ke
         log(f"numpy engine against the FMUs on {check['runs']} run(s): largest relative "
             f"difference {check['max_rel_diff']:.2e} (tolerance {CHECK_TOLERANCE:g}): "
             f"{'agree' if check['passed'] else 'DISAGREE'}")
+    if failed:
+        print(points_failed_line(
+            "campaign", len(failed), len(tasks),
+            f"{summary['failed']} of {len(rows)} runs are error rows in "
+            f"{out / 'results.parquet'}", f"point {failed[0][0]}: {failed[0][1]}"),
+            file=sys.stderr)
     if stop:
         print(f"auv-cosim campaign: interrupted by {stop.name}: {len(rows)} of {total} runs "
               f"kept in {out / 'results.parquet'}; rerun the same command to finish",
@@ -429,7 +440,16 @@ def _report(out: Path, name: str, spec: Any, engine: str, store: ResultStore, ke
     if result["lost"] or missing:
         print(f"auv-cosim campaign: {missing} run(s) not done ({'; '.join(result['lost'][:3])})"
               f"; rerun the same command to do them", file=sys.stderr)
-        return 1
+        return INCOMPLETE
     if check is not None and not check["passed"]:
-        return 1
-    return 0
+        return INCOMPLETE
+    return POINTS_FAILED if failed else OK
+
+
+def _failed_points(rows: list[dict]) -> list[tuple[int, str]]:
+    """The points with an error row, in order, each with its first row's reason."""
+    first: dict[int, str] = {}
+    for r in rows:
+        if r["status"] != "ok" and r["point"] not in first:
+            first[r["point"]] = r["error"] or "no reason given"
+    return sorted(first.items())

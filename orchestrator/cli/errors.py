@@ -13,6 +13,7 @@ from plant_model.linalg_checks import ModelError
 from ..cosim.instance import CosimError
 from ..cosim.native import NativeBuildError
 from ..cosim.system import AlgebraicLoopError
+from ..exit_status import USAGE
 from ..interop.common import ExportError
 from ..interrupt import EXIT_STATUS, Interrupted
 from ..outputs import OutputFolderError
@@ -25,7 +26,8 @@ class UsageError(RuntimeError):
     """Bad input found by a command itself (not by the scenario loader or an FMU)."""
 
 
-# what bad input raises: printed as one line, exit status 2
+# what bad input raises: printed as one line, exit status 2 (USAGE; every status:
+# orchestrator.exit_status)
 USER_ERRORS = (ScenarioError, ModelError, CosimError, ExportError, AlgebraicLoopError,
                OutputFolderError, UsageError, NativeBuildError)
 
@@ -37,12 +39,12 @@ def run_command(args: argparse.Namespace) -> int:
         return args.func(args)
     except USER_ERRORS as exc:
         print(f"auv-cosim {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return USAGE
     except OSError as exc:          # an output folder that is a file, unwritable, full, ...
         where = f" {exc.filename}" if exc.filename else ""
         print(f"auv-cosim {args.command}: error: cannot write or read{where}: "
               f"{exc.strerror or exc}", file=sys.stderr)
-        return 2
+        return USAGE
     except Interrupted as exc:      # a stop during the design, before any step
         print(f"auv-cosim {args.command}: {exc}", file=sys.stderr)
         return EXIT_STATUS[exc.signal]
@@ -54,7 +56,7 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"auv-cosim {args.command}: internal error (a bug in auv-cosim, not in your "
               f"input): {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
               f"; traceback in {log}; please report it with that file", file=sys.stderr)
-        return 2
+        return USAGE
 
 
 def _write_bug_report(args: argparse.Namespace) -> str:

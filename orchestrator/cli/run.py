@@ -27,22 +27,12 @@ from .errors import UsageError
 __all__ = ["add_compare", "add_envelope", "add_run", "cmd_compare", "cmd_envelope", "cmd_run"]
 
 
-def _check_native(sc: Scenario) -> None:
-    """Native FMUs need a C compiler: say so in one line before any folder exists."""
-    if sc.fmus == "native":
-        from ..cosim.native import NativeBuildError, compiler
-        try:
-            compiler()
-        except NativeBuildError as exc:
-            raise UsageError(f"--fmus native: {exc}") from None
-
-
 def cmd_run(args: argparse.Namespace) -> int:
-    from ..running import check_memory, simulate
+    from ..running import simulate
     from ..running.naming import default_out, run_identity
+    from ..running.systems import check_run
     sc = scenario_of(args)
-    check_memory(sc, 1)                     # before anything is created
-    _check_native(sc)
+    check_run(sc, predict=args.predict)     # every check, before anything is created
     with output_folder(args.out or default_out(sc, sc.estimator, f"seed{sc.seed}"),
                        "run") as out:
         claim_folder(out, run_identity(sc, "run"), force=args.force)
@@ -53,8 +43,9 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from ..running import check_memory, method_list, simulate
+    from ..running import method_list, simulate
     from ..running.naming import default_out, run_identity
+    from ..running.systems import check_run
     sc = scenario_of(args)
     what = args.what or ("tracking" if sc.fleet is not None else "estimators")
     if what == "plants":
@@ -77,8 +68,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     modes = picked if what == "estimators" else None
     trackings = picked if what == "tracking" else None
     architectures = picked if what == "architectures" else None
-    check_memory(sc, len(method_list(sc, modes, trackings, architectures)))
-    _check_native(sc)
+    check_run(sc, method_list(sc, modes, trackings, architectures), predict=args.predict)
     tail = "compare" if args.what is None else f"compare-{what}"
     with output_folder(args.out or default_out(sc, tail), "compare") as out:
         claim_folder(out, run_identity(sc, f"compare --what {what}"), force=args.force)
@@ -106,7 +96,8 @@ def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
         raise UsageError("--what plants compares remus100 with remus100-6dof (no --methods)"
                          + ("" if other is None else
                             f"; vehicle {other} is a {models[other - 1]!r} model"))
-    _check_native(sc)
+    from ..running.systems import check_native
+    check_native(sc)
     with output_folder(args.out or default_out(sc, "plants"), "compare") as out:
         claim_folder(out, run_identity(sc, "compare --what plants"), force=args.force)
         summary = compare_plants(sc, args.seeds, out, progress=not args.quiet,
@@ -123,7 +114,9 @@ def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
 
 
 def cmd_envelope(args: argparse.Namespace) -> int:
-    """envelope: the grid of orchestrator.running.envelope, one line per point."""
+    """envelope: the grid of orchestrator.running.envelope, one line per point; exit
+    status 0 when every point ran, 3 when some could not (counted in one line on stderr:
+    orchestrator.exit_status)."""
     from ..running.envelope import run_envelope
     from ..running.naming import default_out, run_identity
     sc = scenario_of(args)
@@ -139,7 +132,8 @@ def cmd_envelope(args: argparse.Namespace) -> int:
               f" points; run them with: auv-cosim campaign {args.write_spec} (each row's "
               f"max_error against the tolerance, {args.tolerance:g} m, says where it holds)")
         return 0
-    _check_native(sc)
+    from ..running.systems import check_native
+    check_native(sc)                          # the grid's FMUs: refused before any folder
     with output_folder(args.out or default_out(sc, "envelope"), "envelope") as out:
         claim_folder(out, run_identity(sc, "envelope"), force=args.force)
         summary = run_envelope(sc, args.speeds, args.radii, args.currents, args.tolerance,
@@ -150,7 +144,15 @@ def cmd_envelope(args: argparse.Namespace) -> int:
           f"{args.tolerance:g} m"
           + (f"; {failed} could not run (each one's reason in summary.json)" if failed else "")
           + f"; wrote {out / 'summary.json'}")
-    return 130 if summary["interrupted"] else 0
+    from ..exit_status import OK, POINTS_FAILED, points_failed_line
+    if failed:
+        first = next(p for p in summary["envelope"]["points"] if p["failed"] is not None)
+        print(points_failed_line("envelope", failed, len(summary["envelope"]["points"]),
+                                 f"each reason in {out / 'summary.json'}", first["failed"]),
+              file=sys.stderr)
+    if summary["interrupted"]:
+        return 130
+    return POINTS_FAILED if failed else OK
 
 
 #: envelope's default scenario: a per-vehicle fleet (the command runs nothing else)

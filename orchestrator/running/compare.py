@@ -24,7 +24,7 @@ from ..outputs import file_stem
 from ..scenario import Scenario
 from .fmus import fleet_layout, record_stride
 from .setup import Method, Predictions, RunSetup, method_list, run_statistics, stats_context
-from .systems import check_memory, make_setup
+from .systems import check_run, make_setup
 
 __all__ = ["NONLINEAR_NOTE", "common_window", "simulate"]
 
@@ -101,7 +101,7 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
 
     t0 = time.perf_counter()
     methods = method_list(sc, modes, trackings, architectures)
-    check_memory(sc, len(methods))
+    check_run(sc, methods, predict=predict)     # run's checks: every caller, every point
     out = Path(out_dir)
     setup = make_setup(sc, out / "fmus", methods, predict=predict, master=master)
     out.mkdir(parents=True, exist_ok=True)

@@ -11,7 +11,11 @@ speed (m/s), radius (m, null for a straight line), current (m/s), ``holds``,
 ``max_error``, ``rms_error`` (over the window, m), ``actuator_saturation_fraction``, the
 folder of its run (``points/<i>``, its own .rrd and summary.json) and ``failed`` (null, or
 why the point could not run: that point only fails, the grid goes on); ``failed`` beside
-the points counts them.
+the points counts them. Each point passes the checks ``auv-cosim run`` makes before it
+starts (:func:`orchestrator.running.compare.simulate` calls
+:func:`orchestrator.running.systems.check_run` first): a point ``run`` would refuse fails
+at once with ``run``'s line, and ``auv-cosim envelope`` exits 3 when any point failed
+(:mod:`orchestrator.exit_status`).
 """
 from __future__ import annotations
 
@@ -128,8 +132,9 @@ def _point_errors() -> tuple[type[BaseException], ...]:
     from plant_model.linalg_checks import ModelError
 
     from ..cosim.instance import CosimError
+    from ..cosim.native import NativeBuildError
     from ..scenario import ScenarioError
-    return (ScenarioError, ModelError, CosimError, np.linalg.LinAlgError)
+    return (ScenarioError, ModelError, CosimError, NativeBuildError, np.linalg.LinAlgError)
 
 
 POINT_ERRORS = _point_errors()

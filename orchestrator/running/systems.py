@@ -13,8 +13,8 @@ from .per_vehicle import PerVehicleSetup, check_centralized
 from .setup import Method, RunSetup, check_setup
 from .stacked import StackedSetup, check_stacked
 
-__all__ = ["DEPLOYMENT_SETUPS", "build", "check_memory", "check_size", "make_setup",
-           "scenario_system"]
+__all__ = ["DEPLOYMENT_SETUPS", "build", "check_memory", "check_native", "check_run",
+           "check_size", "make_setup", "scenario_system"]
 
 #: the setup of each deployment ([simulation] deployment)
 DEPLOYMENT_SETUPS: dict[str, type[RunSetup]] = {"stacked": StackedSetup,
@@ -133,7 +133,84 @@ def build(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
     return paths
 
 
-def check_memory(sc: Scenario, n_methods: int, available: int | None = None) -> int:
+def check_run(sc: Scenario, methods: Sequence[Method] = (), *,
+              coupling: str = "gauss-seidel", predict: str = "stationary",
+              available: int | None = None) -> int:
+    """Every check a run makes before it starts: the one set of rules of ``run``,
+    ``compare``, each ``envelope`` point and each ``campaign`` point.
+
+    The scenario's bounds (h > 0, T at least one whole step, the step samples the model,
+    the run settings' values) are the loader's, checked when a scenario is made
+    (:func:`orchestrator.scenario.load_scenario`, :meth:`Scenario.with_run`,
+    :func:`orchestrator.scenario.scenario_from_dict`); this function checks what only the
+    run decides, in this order, each refusal one line naming the problem:
+
+    1. the combination of deployment, links, sensors, vehicles and coupling
+       (:func:`orchestrator.running.setup.check_setup`);
+    2. the stacked design's estimated time and memory (:func:`check_size`);
+    3. native FMUs need a C compiler (:func:`check_native`);
+    4. the traces of ``steps`` = T / h steps, ``len(methods)`` methods, fit in memory
+       (:func:`check_memory`): a T that would not finish (``T = 1e9``: 1e11 steps) is
+       refused here, at once.
+
+    Parameters
+    ----------
+    sc : Scenario
+        A validated scenario.
+    methods : sequence of Method, optional
+        The methods that will run (default: the scenario's own).
+    coupling : str, optional
+        The master's coupling.
+    predict : str, optional
+        The prediction level (``--predict``).
+    available : int, optional
+        Bytes of memory available (default
+        :func:`orchestrator.scenario.size.available_memory`).
+
+    Returns
+    -------
+    int
+        The estimated bytes of the traces.
+
+    Raises
+    ------
+    ScenarioError
+        A combination that cannot run, traces that would not fit.
+    ModelError
+        A stacked design estimated too long or too large.
+    NativeBuildError
+        Native FMUs and no C compiler.
+    """
+    methods = tuple(methods) or (Method.of(sc),)
+    setup = make_setup(sc, Path("."), methods, coupling=coupling, predict=predict)  # 1, 2
+    check_native(sc)
+    width = _trace_width(setup.python_system(Method.of(sc), sc.seed))  # as scenario_system
+    return check_memory(sc, len(methods), available, width=width)
+
+
+def check_native(sc: Scenario) -> None:
+    """Native FMUs (``[simulation] fmus = "native"``, ``--fmus native``) need a C compiler.
+
+    Raises
+    ------
+    NativeBuildError
+        ``--fmus native: no C compiler: ...`` (one line saying what to install).
+    """
+    if sc.fmus == "native":
+        from ..cosim.native import NativeBuildError, compiler
+        try:
+            compiler()
+        except NativeBuildError as exc:
+            raise NativeBuildError(f"--fmus native: {exc}") from None
+
+
+def _trace_width(system: SystemDescription) -> int:
+    """Values per step of a system's traces: every output of every FMU."""
+    return sum(spec.size for _, spec in system.outputs())
+
+
+def check_memory(sc: Scenario, n_methods: int, available: int | None = None, *,
+                 width: int | None = None) -> int:
     """Refuse a run whose traces cannot fit in memory, before anything is built.
 
     The traces of one run are ``steps`` rows of every output of every FMU, 8 bytes each;
@@ -148,6 +225,9 @@ def check_memory(sc: Scenario, n_methods: int, available: int | None = None) -> 
         Methods simulated (estimator modes x tracking laws).
     available : int, optional
         Bytes available (default :func:`available_memory`).
+    width : int, optional
+        Values per step (default: those of the scenario's own system,
+        :func:`scenario_system`).
 
     Returns
     -------
@@ -160,7 +240,7 @@ def check_memory(sc: Scenario, n_methods: int, available: int | None = None) -> 
         Naming T, h, the number of steps and both sizes, if the estimate exceeds
         MEMORY_SHARE of the memory available.
     """
-    width = sum(spec.size for _, spec in scenario_system(sc).outputs())
+    width = _trace_width(scenario_system(sc)) if width is None else width
     need = 8 * sc.steps * width * (n_methods + 2)
     available = memory_short(need, available)
     if available is not None:

@@ -151,8 +151,11 @@ class Scenario:
         validate_scenario(RunSettings, {"simulation": run}, new.source)
         if new.design is not None and new.T != self.T:      # the path over the run's horizon
             ld = new.fleet["leader"]
-            new = replace(new, design=new.design.over(new.T, *(np.asarray(ld[k], float)
-                                                               for k in ("F", "H", "z0"))))
+            try:
+                new = replace(new, design=new.design.over(
+                    new.T, *(np.asarray(ld[k], float) for k in ("F", "H", "z0"))))
+            except ModelError as exc:                       # a horizon too long to sample
+                raise ScenarioError(f"{self.source}: {exc}") from None
         _check_step(new)
         if new.h != self.h:
             _check_sampled(new, network_checked=bool(network))
