@@ -13,6 +13,7 @@ import pytest
 
 from support.campaign import RESUME, rows, without_timing
 from support.dask_cluster import dask_cluster
+from support.outputs import working
 
 SPEC = RESUME
 RUNS = 12
@@ -30,7 +31,8 @@ def _table(out: Path) -> list[dict]:
 def _wait_for_parts(out: Path, count: int, proc: subprocess.Popen) -> int:
     deadline = time.monotonic() + 180
     while True:
-        n = len(list((out / "parts").glob("*.json"))) if (out / "parts").exists() else 0
+        parts = working(out) / "parts"        # the staging folder beside out, while it runs
+        n = len(list(parts.glob("*.json"))) if parts.exists() else 0
         if n >= count:
             return n
         assert proc.poll() is None, proc.communicate()

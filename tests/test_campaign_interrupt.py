@@ -14,6 +14,7 @@ import time
 import pytest
 
 from support.campaign import RESUME, rows
+from support.outputs import working
 
 
 def _campaign(*args, **kw) -> subprocess.Popen:
@@ -29,7 +30,8 @@ def test_ctrl_c_stops_a_campaign_without_a_worker_traceback_and_it_resumes(tmp_p
     proc = _campaign(spec, "--workers", "2", "--out", out, start_new_session=True)
     try:
         deadline = time.monotonic() + 180
-        while len(list((out / "parts").glob("*.json")) if (out / "parts").exists() else []) < 2:
+        parts = lambda: working(out) / "parts"                        # noqa: E731
+        while len(list(parts().glob("*.json")) if parts().exists() else []) < 2:
             assert proc.poll() is None, proc.communicate()
             assert time.monotonic() < deadline
             time.sleep(0.05)

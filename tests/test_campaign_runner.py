@@ -21,6 +21,7 @@ from support.campaign import RESUME
 from support.campaign import rows as _rows
 from support.campaign import without_timing as _without_timing
 from support.dask_cluster import dask_cluster
+from support.outputs import staging_folders, working
 
 
 def _spec(tmp_path: Path, text: str, name: str = "spec.toml") -> Path:
@@ -131,7 +132,9 @@ seeds = [3, 4]
 
 def _wait_for_parts(out: Path, count: int, proc: subprocess.Popen) -> None:
     deadline = time.monotonic() + 120
-    while len(list((out / "parts").glob("*.json"))) < count if (out / "parts").exists() else True:
+    # the campaign writes into its staging folder beside out (swapped in at the end)
+    while len(list((working(out) / "parts").glob("*.json"))) < count \
+            if (working(out) / "parts").exists() else True:
         assert proc.poll() is None, proc.communicate()
         assert time.monotonic() < deadline
         time.sleep(0.05)
@@ -151,8 +154,11 @@ def test_killed_campaign_resumes_to_the_uninterrupted_table(tmp_path, sig, resum
         stdout, stderr = proc.communicate(timeout=60)
     finally:
         proc.kill()
-    kept = len(list((out / "parts").glob("*.json")))
+    # SIGKILL: the rows are in the staging folder the client left (the next run resumes
+    # it); SIGINT: the partial campaign was swapped in (no earlier result in out)
+    kept = len(list((working(out) / "parts").glob("*.json")))
     assert 2 <= kept < 12, "the campaign was not stopped mid-way"
+    assert (working(out) == out) == (sig == signal.SIGINT)
     if sig == signal.SIGINT:
         assert proc.returncode == 130
         line = [s for s in stderr.splitlines() if "interrupted" in s]
@@ -165,6 +171,7 @@ def test_killed_campaign_resumes_to_the_uninterrupted_table(tmp_path, sig, resum
     assert f"{kept} already done, {12 - kept} to run" in stdout
     resumed = _rows(out)
     assert len(resumed) == 12 and not list(out.rglob("*.part"))
+    assert staging_folders(out) == []                   # the killed client's was resumed
     assert _without_timing(resumed) == resume_reference
 
 

@@ -77,7 +77,8 @@ def test_a_campaign_name_with_path_parts_stays_under_out(tmp_path):
     done = _campaign(spec, cwd=work)
     assert done.returncode == 3, done.stderr           # its one point is an error row
     assert sorted(p.name for p in work.iterdir()) == ["out", "spec.toml"]
-    assert [p.name for p in (work / "out").iterdir()] == ["campaign_x_.._.._.._escaped"]
+    assert sorted(p.name for p in (work / "out").iterdir()) == [
+        ".campaign_x_.._.._.._escaped.lock", "campaign_x_.._.._.._escaped"]   # its lock beside
     assert (work / "out" / "campaign_x_.._.._.._escaped" / "results.parquet").exists()
     for folder, only in ((tmp_path, "a"), (tmp_path / "a", "b"), (tmp_path / "a" / "b", "work")):
         assert [p.name for p in folder.iterdir()] == [only]      # nothing beside or above

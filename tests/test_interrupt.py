@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from orchestrator.recording import read_rrd_scalars
+from support.outputs import working
 
 
 @pytest.mark.slow
@@ -28,7 +29,7 @@ def test_a_signal_keeps_what_was_simulated(tmp_path, sig, status):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 120
-        while not (out / "fmus" / "AuvController.fmu").exists():    # the FMUs are in place
+        while not (working(out) / "fmus" / "AuvController.fmu").exists():   # FMUs in place
             assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()
             time.sleep(0.05)
         time.sleep(4.0)          # inside the loop (set-up takes about 1 s, 3 s under load)
@@ -76,8 +77,9 @@ def test_a_signal_while_the_rrd_is_written(tmp_path, sig, status):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 300
-        while not (out.is_dir() and [p for p in out.iterdir()
-                                     if p.name.endswith(".part") and ".rrd" in p.name]):
+        while not (working(out).is_dir() and [p for p in working(out).iterdir()
+                                              if p.name.endswith(".part")
+                                              and ".rrd" in p.name]):
             assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()
             time.sleep(0.002)
         proc.send_signal(sig)
@@ -106,7 +108,7 @@ def test_a_signal_keeps_what_a_per_vehicle_run_simulated(tmp_path):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 120
-        while not (out / "fmus" / "AuvVehicleController.fmu").exists():
+        while not (working(out) / "fmus" / "AuvVehicleController.fmu").exists():
             assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()
             time.sleep(0.05)
         time.sleep(10.0)         # past the prediction, inside the loop (60,000 steps: 40 s+)

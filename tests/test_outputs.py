@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from orchestrator.cli import main
-from orchestrator.outputs import LOCK_NAME, OutputFolderError, file_stem, output_folder
+from orchestrator.outputs import OutputFolderError, file_stem, lock_path, output_folder
 from orchestrator.scenario import SCENARIO_DIR
 
 
@@ -31,7 +31,8 @@ def test_file_stem_stays_in_the_folder(name, stem):
 
 def test_a_second_holder_is_refused_and_the_first_keeps_the_folder(tmp_path):
     with output_folder(tmp_path / "o", "run") as out:
-        assert f"auv-cosim run (pid {os.getpid()}" in (out / LOCK_NAME).read_text()
+        assert f"auv-cosim run (pid {os.getpid()}" in lock_path(out).read_text()
+        assert lock_path(out) == tmp_path / ".o.lock"         # beside it: o is swapped
         with pytest.raises(OutputFolderError, match="is in use by auv-cosim run"):
             with output_folder(tmp_path / "o", "compare"):
                 pass
@@ -48,7 +49,7 @@ def test_a_hostile_scenario_name_writes_only_inside_out(tmp_path, capsys):
     assert main(["run", "--scenario", str(tmp_path / "s.toml"), "--T", "1", "--quiet",
                  "--out", str(out)]) == 0
     assert (out / "_escaped.rrd").is_file()
-    assert sorted(p.name for p in (tmp_path / "deep").iterdir()) == ["out"]
+    assert sorted(p.name for p in (tmp_path / "deep").iterdir()) == [".out.lock", "out"]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["scenario"] == "../escaped"        # the label is kept as written
 
@@ -81,8 +82,8 @@ def test_two_real_writers_into_one_folder(tmp_path, second):
     first = _cli("run", "--T", "600", "--quiet", "--out", str(out))
     try:
         deadline = time.monotonic() + 120
-        while f"pid {first.pid}" not in ((out / LOCK_NAME).read_text()
-                                         if (out / LOCK_NAME).exists() else ""):
+        while f"pid {first.pid}" not in (lock_path(out).read_text()
+                                         if lock_path(out).exists() else ""):
             assert first.poll() is None and time.monotonic() < deadline, first.stderr.read()
             time.sleep(0.02)
         other = _cli(*second, "--out", str(out))
@@ -102,19 +103,28 @@ def test_two_real_writers_into_one_folder(tmp_path, second):
 
 
 def test_two_concurrent_builds_one_refused_fmus_intact(tmp_path):
+    """Two builds of two scenarios into one folder at once: one is refused in one line
+    (the folder in use, or, when they did not overlap, holding the other scenario's
+    build); the folder holds exactly one scenario's FMUs, whole."""
     out = tmp_path / "fmus"
     procs = [_cli("build", "--no-crosscheck", "--out", str(out)),
              _cli("build", "--no-crosscheck", "--scenario", "formation-4", "--out", str(out))]
     results = [(p.wait(timeout=300), p.stderr.read()) for p in procs]
-    codes = sorted(c for c, _ in results)
-    # either they did not overlap (both 0) or one was refused; never a broken folder
-    assert codes in ([0, 0], [0, 2]), results
-    for c, err in results:
-        if c == 2:
-            assert "is in use by auv-cosim build" in err and len(err.strip().splitlines()) == 1
+    assert sorted(c for c, _ in results) == [0, 2], results
+    err = next(e for c, e in results if c == 2)
+    assert len(err.strip().splitlines()) == 1, err
+    assert "is in use by auv-cosim build" in err or "holds a run of command build" in err
+    won = "paper" if results[0][0] == 0 else "formation-4"
+    expected = ({"AuvPlant.fmu", "AuvEstimator.fmu", "AuvController.fmu"} if won == "paper"
+                else {"AuvPlant.fmu", "AuvEstimator.fmu", "AuvController.fmu",
+                      "AuvAutopilot.fmu", "AuvGuidance.fmu"})
+    assert {p.name for p in out.glob("*.fmu")} <= expected
+    assert json.loads((out / ".auv-cosim-run.json").read_text())["scenario"] == won
     for fmu in out.glob("*.fmu"):
         assert zipfile.ZipFile(fmu).testzip() is None
     assert not list(out.glob("*.part")) and not list(out.glob(".*.part"))
+    assert [p.name for p in tmp_path.iterdir()] == [".fmus.lock", "fmus"] or \
+        sorted(p.name for p in tmp_path.iterdir()) == [".fmus.lock", "fmus"]
 
 
 def _as_nobody(cmd: list[str], env: dict) -> subprocess.CompletedProcess:
@@ -178,31 +188,37 @@ def test_the_lock_goes_with_a_killed_holder(tmp_path):
 
 
 def test_a_folder_holding_another_kind_of_run_is_refused_unless_forced(tmp_path):
-    """claim_folder: the same kind of run replaces its earlier outputs (figures, recording,
-    per-plant subfolders removed); another kind is refused in one line naming both; with
-    force it replaces them."""
-    from orchestrator.outputs import RUN_MARKER, claim_folder
+    """staged_output: the same kind of run replaces its earlier outputs as a whole (the
+    names it recorded: figures, recording, per-plant subfolders), the user's own files are
+    carried over; another kind is refused in one line naming both and the folder is left
+    as it was; with force it is replaced."""
+    from orchestrator.outputs import RUN_MARKER, staged_output
+    from support.outputs import tree_hashes
     out = tmp_path / "o"
-    out.mkdir()
     stacked = {"command": "run", "deployment": "stacked"}
-    claim_folder(out, stacked)
-    (out / "summary.json").write_text("{}")
-    (out / "paper.rrd").write_bytes(b"x")
-    (out / "figures").mkdir()
-    (out / "figures" / "error-1.png").write_bytes(b"x")
-    (out / "remus100").mkdir()
-    (out / "remus100" / "summary.json").write_text("{}")
+    with staged_output(out, "run", identity=stacked) as st:
+        (st.path / "summary.json").write_text("{}")
+        (st.path / "paper.rrd").write_bytes(b"x")
+        (st.path / "figures").mkdir()
+        (st.path / "figures" / "error-1.png").write_bytes(b"x")
+        (st.path / "remus100").mkdir()
+        (st.path / "remus100" / "summary.json").write_text("{}")
     (out / "notes.txt").write_text("the user's own file")
+    before = tree_hashes(out)
     per_vehicle = {"command": "run", "deployment": "per-vehicle"}
     with pytest.raises(OutputFolderError) as exc:
-        claim_folder(out, per_vehicle)
+        with staged_output(out, "run", identity=per_vehicle):
+            pass
     assert "deployment stacked" in str(exc.value) and "deployment per-vehicle" in str(exc.value)
     assert "--force" in str(exc.value) and "\n" not in str(exc.value)
-    assert (out / "paper.rrd").exists()                       # nothing touched
-    claim_folder(out, stacked)                                # the same kind: replaced
+    assert tree_hashes(out) == before                          # nothing touched
+    with staged_output(out, "run", identity=stacked) as st:   # the same kind: replaced
+        (st.path / "summary.json").write_text('{"new": 1}')
     assert not (out / "figures").exists() and not (out / "paper.rrd").exists()
-    assert not (out / "remus100").exists() and (out / "notes.txt").exists()
-    (out / "summary.json").write_text("{}")
-    claim_folder(out, per_vehicle, force=True)
-    assert not (out / "summary.json").exists()
-    assert json.loads((out / RUN_MARKER).read_text()) == per_vehicle
+    assert not (out / "remus100").exists() and (out / "notes.txt").read_text() == \
+        "the user's own file"
+    with staged_output(out, "run", identity=per_vehicle, force=True):
+        pass
+    assert not (out / "summary.json").exists() and (out / "notes.txt").exists()
+    assert json.loads((out / RUN_MARKER).read_text()) == {**per_vehicle, "outputs": []}
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".o.lock", "o"]   # no leftovers

@@ -1,12 +1,15 @@
 """The output folder of a campaign: its lock, the finished rows, the Parquet tables.
 
-- ``.auv-cosim.lock``: held by the client while it runs (``orchestrator.outputs.output_folder``,
-  the lock of every command's output folder); a second campaign (or any command) into the
-  same folder is refused. The kernel releases it when the process ends, however it ends.
+- the lock: held by the client while it runs (``.<name>.lock`` beside the folder,
+  :func:`orchestrator.outputs.output_folder`, the lock of every command's output folder);
+  a second campaign (or any command) into the same folder is refused. The kernel releases
+  it when the process ends, however it ends. The client writes into a staging folder
+  beside the destination (:func:`orchestrator.outputs.staged_output`), swapped in at the
+  end;
 - ``parts/*.json``: the rows of each finished task, written as they arrive, each file
-  atomically (:mod:`orchestrator.atomic`). This is what survives a killed client; a rerun
-  reads it and skips every run whose key is there (and removes the temporary files a killed
-  client may have left).
+  atomically (:mod:`orchestrator.atomic`). This is what survives a killed client (in its
+  staging folder); a rerun gathers them and skips every run whose key is there (and
+  removes the temporary files a killed client may have left).
 - ``results.parquet``: one row per run (role ``run``), rewritten atomically after every
   finished task, sorted by point and seed; ``check.parquet``: the FMU re-runs of the numpy
   engine's sample.
@@ -21,7 +24,7 @@ from typing import Any
 
 from ..atomic import temporary_sibling, write_text_atomically
 
-__all__ = ["ResultStore", "write_table", "PARAM_PREFIX"]
+__all__ = ["ResultStore", "write_table", "PARAM_PREFIX", "unfinished_campaign"]
 
 #: a fleet run's tracking figures in its row (orchestrator.analysis.tracking_segments, m and
 #: the saturated share): the envelope's verdict is max_error against a tolerance
@@ -38,6 +41,18 @@ def _json_safe(value: Any) -> Any:
     if isinstance(value, list):
         return [_json_safe(v) for v in value]
     return value
+
+
+def unfinished_campaign(folder: Path) -> bool:
+    """Whether ``folder`` holds a campaign that did not finish (stopped, runs lost or
+    missing, or killed before its ``campaign.json``): a rerun's result replaces it."""
+    try:
+        summary = json.loads((Path(folder) / "campaign.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return (Path(folder) / "parts").is_dir()
+    return not isinstance(summary, dict) or bool(summary.get("interrupted_by")
+                                                 or summary.get("lost")
+                                                 or summary.get("missing"))
 
 
 class ResultStore:

@@ -2,6 +2,10 @@
 every finished row, write the tables, the aggregate and the plots.
 
 The client is the only writer of the output folder and holds its lock (:mod:`.results`).
+It writes into a staging folder beside it (:func:`orchestrator.outputs.staged_output`),
+gathering the finished rows (``parts/``) of the folder, of ``<out>.interrupted`` and of
+the staging folder a killed client left; the finished campaign is swapped in whole, an
+unfinished one replaces only an unfinished one (else it goes to ``<out>.interrupted``).
 Tasks (:mod:`.tasks`) go to the cluster as they are planned; each finished task's rows are
 written at once (a part file, and results.parquet rewritten), so an interruption (Ctrl-C /
 SIGTERM: the client cancels what is left, writes the tables, exits 130 / 143; a killed
@@ -28,10 +32,11 @@ from ..analysis.summary import versions
 from ..atomic import write_text_atomically
 from ..exit_status import INCOMPLETE, OK, POINTS_FAILED, points_failed_line
 from ..interrupt import EXIT_STATUS, stop_on_signals
-from ..outputs import output_folder
+from ..outputs import Staging, staged_output
 from ..running.naming import campaign_out
+from ..swap import CAMPAIGN
 from .points import DesignPoint, resolve_points, run_key
-from .results import ResultStore
+from .results import ResultStore, unfinished_campaign
 from .spec import ENGINES, SpecError, load_spec
 from .tasks import Task, error_rows, run_task
 
@@ -336,14 +341,16 @@ def run_campaign(spec_path: Path | str, out: Path | str | None = None, *,
     engine = engine or spec.engine
     name = spec.name or Path(spec_path).stem
     out = Path(out) if out else campaign_out(name)     # the name cleaned: never outside out/
-    with output_folder(out, "campaign"), stop_on_signals() as stop:
+    with staged_output(out, "campaign", force=None, kind=CAMPAIGN,
+                       replaceable=unfinished_campaign, resume=("parts",)) as st, \
+            stop_on_signals() as stop:
         points = resolve_points(spec, base, base_where)
         ver = versions()
         tasks = plan_tasks(points, seeds, engine, ver)
         by_index = {p.index: p for p in points}
         checks = check_sample(tasks, spec.check, ver, by_index) if engine == "numpy" else []
         keys = {k for t in tasks + checks for k in t.keys}
-        store = ResultStore(out)
+        store = ResultStore(st.path)
         done_before = len(keys & store.done)
         for t in tasks:                                # points without a scenario: rows now
             if t.scenario is None and (p := t.pending(store.done)):
@@ -380,19 +387,19 @@ def run_campaign(spec_path: Path | str, out: Path | str | None = None, *,
         finally:
             bar.close()
         store.write(keys)
-        return _report(out, name, spec, engine, store, keys, tasks, checks, result, stop,
+        return _report(st, name, spec, engine, store, keys, tasks, checks, result, stop,
                        cluster_info, time.perf_counter() - t_start, log)
 
 
-def _report(out: Path, name: str, spec: Any, engine: str, store: ResultStore, keys: set[str],
+def _report(st: Staging, name: str, spec: Any, engine: str, store: ResultStore, keys: set[str],
             tasks: list[Task], checks: list[Task], result: dict[str, Any], stop: Any,
             cluster_info: dict[str, Any], wall_s: float, log: Callable[[str], None]) -> int:
     from .aggregate import write_aggregate
     from .plot import write_plots
 
     rows = store.table_rows("run", keys)
-    agg = write_aggregate(rows, out)
-    plots = write_plots(agg, out)
+    agg = write_aggregate(rows, st.path)
+    plots = write_plots(agg, st.path)
     check = compare_check(rows, store.table_rows("check", keys)) if checks else None
     total = sum(len(t.seeds) for t in tasks)
     missing = total - len(rows)
@@ -405,7 +412,10 @@ def _report(out: Path, name: str, spec: Any, engine: str, store: ResultStore, ke
         "numpy_check": check, "cluster": cluster_info, "wall_s": wall_s,
         "plots": [p.name for p in plots], "versions": versions(),
     }
-    write_text_atomically(out / "campaign.json", json.dumps(summary, indent=2))
+    write_text_atomically(st.path / "campaign.json", json.dumps(summary, indent=2))
+    # complete: replaces the earlier result; unfinished: replaces an unfinished one (or
+    # goes beside a finished one, to <out>.interrupted), and the next run resumes it
+    out = st.finish(complete=not (stop or result["lost"] or missing))
     for a in agg:
         params = ", ".join(f"{k}={v}" for k, v in json.loads(a["params"]).items()) or "base"
         if a["ok"] and a.get("cost_rate_mean") is None:
@@ -434,12 +444,13 @@ def _report(out: Path, name: str, spec: Any, engine: str, store: ResultStore, ke
             file=sys.stderr)
     if stop:
         print(f"auv-cosim campaign: interrupted by {stop.name}: {len(rows)} of {total} runs "
-              f"kept in {out / 'results.parquet'}; rerun the same command to finish",
-              file=sys.stderr)
+              f"kept in {out / 'results.parquet'}; rerun the same command to finish"
+              + (f"; {st.note}" if st.note else ""), file=sys.stderr)
         return EXIT_STATUS[stop.name]
     if result["lost"] or missing:
         print(f"auv-cosim campaign: {missing} run(s) not done ({'; '.join(result['lost'][:3])})"
-              f"; rerun the same command to do them", file=sys.stderr)
+              f"; rerun the same command to do them" + (f"; {st.note}" if st.note else ""),
+              file=sys.stderr)
         return INCOMPLETE
     if check is not None and not check["passed"]:
         return INCOMPLETE

@@ -275,9 +275,10 @@ def summary_notes(summary: dict) -> list[str]:
     return lines
 
 
-def print_summary(summary: dict, out: Path) -> int:
+def print_summary(summary: dict, out: Path, note: str = "") -> int:
     """Print the summary table and where the files are; the exit status: 0, or 130 / 143
-    for a run stopped by SIGINT / SIGTERM (after one line saying what was kept)."""
+    for a run stopped by SIGINT / SIGTERM (after one line saying what was kept, ending
+    with ``note``: an earlier result kept beside it)."""
     print(f"scenario {summary['scenario']}: T = {summary['T']} s, h = {summary['h']} s, "
           f"{summary['steps']} steps, seeds {summary['seeds']}, "
           f"noise convention '{summary['noise_convention']}', statistics over "
@@ -310,7 +311,7 @@ def print_summary(summary: dict, out: Path) -> int:
                 else "no traces (stopped before the first steps)")
         print(f"auv-cosim: interrupted by {sig} at t = {summary['time_reached_s']:.6g} s of "
               f"{summary['T']} s: kept {kept} and {out / 'summary.json'} (marked "
-              f"\"interrupted\": true; statistics over the seeds that completed)",
-              file=sys.stderr)
+              f"\"interrupted\": true; statistics over the seeds that completed)"
+              + (f"; {note}" if note else ""), file=sys.stderr)
         return EXIT_STATUS.get(sig, 130)
     return 0

@@ -34,29 +34,42 @@ USER_ERRORS = (ScenarioError, ModelError, CosimError, ExportError, AlgebraicLoop
 
 def run_command(args: argparse.Namespace) -> int:
     """Run the parsed command (``args.func``); its exit status, every failure mapped to one
-    line on stderr and a status: bad input 2, SIGINT 130, a bug of ours 2 with a log."""
+    line on stderr and a status: bad input 2, SIGINT 130, a bug of ours 2 with a log. When
+    the command had an earlier result in its output folder, one more line says it was kept
+    (the note :func:`orchestrator.outputs.staged_output` adds to the exception)."""
     try:
         return args.func(args)
     except USER_ERRORS as exc:
         print(f"auv-cosim {args.command}: error: {exc}", file=sys.stderr)
+        _notes(exc)
         return USAGE
     except OSError as exc:          # an output folder that is a file, unwritable, full, ...
         where = f" {exc.filename}" if exc.filename else ""
         print(f"auv-cosim {args.command}: error: cannot write or read{where}: "
               f"{exc.strerror or exc}", file=sys.stderr)
+        _notes(exc)
         return USAGE
     except Interrupted as exc:      # a stop during the design, before any step
         print(f"auv-cosim {args.command}: {exc}", file=sys.stderr)
+        _notes(exc)
         return EXIT_STATUS[exc.signal]
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         print("interrupted", file=sys.stderr)
+        _notes(exc)
         return 130
     except Exception as exc:        # a bug of ours, not bad input: say so, keep the traceback
         log = _write_bug_report(args)
         print(f"auv-cosim {args.command}: internal error (a bug in auv-cosim, not in your "
               f"input): {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
               f"; traceback in {log}; please report it with that file", file=sys.stderr)
+        _notes(exc)
         return USAGE
+
+
+def _notes(exc: BaseException) -> None:
+    """The notes of ``exc`` (an earlier result kept), one line each."""
+    for note in getattr(exc, "__notes__", ()):
+        print(note, file=sys.stderr)
 
 
 def _write_bug_report(args: argparse.Namespace) -> str:

@@ -8,8 +8,8 @@ from pathlib import Path
 from controller_fmu.regulator import TRACKING_MODES
 from estimator_fmu.estimators import ESTIMATOR_MODES
 
-from ..outputs import file_stem, output_folder
-from .common import add_scenario_options, scenario_of
+from ..outputs import file_stem, staged_output
+from .common import add_force_option, add_scenario_options, scenario_of
 from .errors import UsageError
 
 __all__ = ["add_build", "add_export", "add_validate", "cmd_build", "cmd_export", "cmd_validate"]
@@ -27,24 +27,27 @@ def cmd_build(args: argparse.Namespace) -> int:
     from ..atomic import write_text_atomically
     from ..running import build
     from ..running.fmus import fmu_readme
-    from ..running.naming import default_out
+    from ..running.naming import default_out, run_identity
     sc = scenario_of(args)
-    with output_folder(args.out or default_out(sc, BUILD_TAIL), "build") as out:
-        paths = build(sc, out)
+    lines = []
+    with staged_output(args.out or default_out(sc, BUILD_TAIL), "build",
+                       identity=run_identity(sc, "build"), force=args.force) as st:
+        paths = build(sc, st.path)
         if args.out is None:
-            write_text_atomically(out / "README.md", fmu_readme(sc))
+            write_text_atomically(st.path / "README.md", fmu_readme(sc))
         for k, p in paths.items():
-            print(f"{k:>18s}: {p} ({p.stat().st_size} bytes)")
+            lines.append(f"{k:>18s}: {st.shown(p)} ({p.stat().st_size} bytes)")
         if sc.deployment == "per-vehicle":
-            print("(no cross-check references for the per-vehicle FMUs: they are written "
-                  "for the stacked deployment's three FMUs)")
+            lines.append("(no cross-check references for the per-vehicle FMUs: they are "
+                         "written for the stacked deployment's three FMUs)")
         elif not args.no_crosscheck:
             from ..interop.crosscheck import write_crosscheck
             from ..running import scenario_config, scenario_system
-            written = write_crosscheck(paths, scenario_config(sc), out / "crosscheck",
+            written = write_crosscheck(paths, scenario_config(sc), st.path / "crosscheck",
                                        system=scenario_system(sc))
-            print(f"cross-check references (<Model>_in.csv, _ref.csv, _ref.opt) for "
-                  f"{', '.join(written)} in {out / 'crosscheck'}")
+            lines.append(f"cross-check references (<Model>_in.csv, _ref.csv, _ref.opt) for "
+                         f"{', '.join(written)} in {st.shown(st.path / 'crosscheck')}")
+    print("\n".join(lines))                  # after the swap: every path named exists
     return 0
 
 
@@ -56,30 +59,39 @@ def cmd_export(args: argparse.Namespace) -> int:
             compiler()                      # no C compiler: say so before any folder exists
         except NativeBuildError as exc:
             raise UsageError(str(exc)) from None
-    with output_folder(args.out or f"out/{file_stem(sc.name)}_{args.format}", "export") as out:
+    from ..running.naming import default_export_out, run_identity
+    with staged_output(args.out or default_export_out(sc, args.format), "export",
+                       identity=run_identity(sc, f"export {args.format}"),
+                       force=args.force) as st:
+        out = st.out
         if args.format == "native":
             from ..cosim.native import NativeBuildError
             from ..interop.native import export_native
             try:
-                paths = export_native(sc, out)
+                paths = export_native(sc, st.path)
             except NativeBuildError as exc:
                 raise UsageError(str(exc)) from None
             fmus = [p.name for p in paths.values() if p.suffix == ".fmu"]
             native = [f for f in fmus if f.endswith("Native.fmu")]
             kept = [f for f in fmus if f not in native]
-            print(f"native FMUs for scenario {sc.name} in {out}: {', '.join(native)}"
-                  + (f" (and, not linear, needing Python: {', '.join(kept)})" if kept else "")
-                  + f"; OSP system {paths['system'].name}, SSP archive {paths['ssp'].name}")
+            lines = [f"native FMUs for scenario {sc.name} in {out}: {', '.join(native)}"
+                     + (f" (and, not linear, needing Python: {', '.join(kept)})" if kept
+                        else "")
+                     + f"; OSP system {paths['system'].name}, SSP archive "
+                       f"{paths['ssp'].name}"]
         elif args.format == "osp":
             from ..interop.osp import export_osp
-            paths = export_osp(sc, out)
-            print(f"OSP system for scenario {sc.name} in {out}: {paths['system'].name}, "
-                  + ", ".join(p.name for k, p in paths.items() if k != "system"))
-            print(f"run it with libcosim: cosim run {paths['system']}  (or libcosimpy)")
+            paths = export_osp(sc, st.path)
+            lines = [f"OSP system for scenario {sc.name} in {out}: {paths['system'].name}, "
+                     + ", ".join(p.name for k, p in paths.items() if k != "system"),
+                     f"run it with libcosim: cosim run {st.shown(paths['system'])}  (or "
+                     "libcosimpy)"]
         else:
             from ..interop.ssp import export_ssp
-            path = export_ssp(sc, out / f"{file_stem(sc.name)}.ssp")
-            print(f"SSP archive for scenario {sc.name}: {path} (fmpy: simulate_ssp('{path}'))")
+            path = st.shown(export_ssp(sc, st.path / f"{file_stem(sc.name)}.ssp"))
+            lines = [f"SSP archive for scenario {sc.name}: {path} (fmpy: "
+                     f"simulate_ssp('{path}'))"]
+    print("\n".join(lines))
     return 0
 
 
@@ -126,6 +138,7 @@ def add_build(sub: argparse._SubParsersAction) -> None:
                     help="the controller FMU's default tracking law (default: scenario's)")
     sp.add_argument("--no-crosscheck", action="store_true",
                     help="skip the FMI cross-check reference files (500 steps of the closed loop)")
+    add_force_option(sp)
     sp.set_defaults(func=cmd_build)
 
 
@@ -144,6 +157,7 @@ def add_export(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="the estimator's mode")
     sp.add_argument("--seed", type=int, help="noise seed written as the plant's initial value")
     sp.add_argument("--out", help="output folder (default: out/<scenario>_<format>)")
+    add_force_option(sp)
     sp.set_defaults(func=cmd_export)
 
 

@@ -12,12 +12,27 @@ __all__ = ["add_plot", "cmd_plot"]
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
+    """Write the figures into a staging folder and swap it in as --out (default
+    ``RUN_DIR/figures``) when every figure is written
+    (:func:`orchestrator.outputs.staged_output`)."""
+    from ..outputs import staged_output
     from ..plotting import RunFolderError, folder_interruption, parse_formats, plot_run
+    dest = Path(args.out) if args.out else Path(args.run_dir) / "figures"
+    run_dir = Path(os.path.realpath(args.run_dir))
+    if Path(os.path.realpath(dest)) in (run_dir, *run_dir.parents):
+        raise UsageError(f"--out {dest} holds the run folder {args.run_dir} (the figures' "
+                         "folder is replaced whole): choose a folder inside it or elsewhere")
     try:
         formats = parse_formats(args.format)
-        written = plot_run(args.run_dir, args.out, formats)
+        if not (Path(args.run_dir) / "summary.json").is_file():
+            plot_run(args.run_dir, dest, formats)   # says why in one line, writes nothing
+        with staged_output(dest, "plot", force=None) as st:
+            written = [st.shown(p) for p in plot_run(args.run_dir, st.path, formats)]
     except (RunFolderError, ValueError) as exc:
-        raise UsageError(str(exc)) from None
+        error = UsageError(str(exc))
+        for note in getattr(exc, "__notes__", ()):
+            error.add_note(note)                    # the earlier figures kept
+        raise error from None
     if not args.quiet:
         for path in written:
             print(path)
@@ -25,7 +40,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if note:                  # the figures' titles say it too
         print(f"note: {args.run_dir}: {note} (each figure's title says so)")
     # a compare of plants writes one subfolder per plant: name the folder that holds them all
-    where = Path(os.path.commonpath([p.parent for p in written])) if written else args.out
+    where = Path(os.path.commonpath([p.parent for p in written])) if written else dest
     print(f"wrote {len(written)} files into {where}")
     return 0
 

@@ -5,12 +5,14 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from collections.abc import Callable
+from typing import Any
 
 from controller_fmu.regulator import TRACKING_MODES
 from controller_fmu.vehicle_law import ARCHITECTURES
 from estimator_fmu.estimators import ESTIMATOR_MODES
 
-from ..outputs import claim_folder, output_folder
+from ..outputs import staged_output
 from ..scenario import Scenario
 from .args import _count, current_speeds, leader_speeds, parse_floats, parse_seeds, positive_metres
 from .common import (
@@ -27,19 +29,27 @@ from .errors import UsageError
 __all__ = ["add_compare", "add_envelope", "add_run", "cmd_compare", "cmd_envelope", "cmd_run"]
 
 
+def _log(args: argparse.Namespace, st: Any) -> Callable[[str], None]:
+    """The progress lines of a command (none with --quiet), the staging folder's path
+    shown as the destination's."""
+    if args.quiet:
+        return lambda s: None
+    return lambda s: print(st.relocate(s))
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from ..running import simulate
     from ..running.naming import default_out, run_identity
     from ..running.systems import check_run
     sc = scenario_of(args)
     check_run(sc, predict=args.predict)     # every check, before anything is created
-    with output_folder(args.out or default_out(sc, sc.estimator, f"seed{sc.seed}"),
-                       "run") as out:
-        claim_folder(out, run_identity(sc, "run"), force=args.force)
-        summary = simulate(sc, [sc.estimator], [sc.seed], out, progress=not args.quiet,
-                           log=(lambda s: None) if args.quiet else print,
-                           predict=args.predict, master=args.master or "auto")
-    return print_summary(summary, out)
+    with staged_output(args.out or default_out(sc, sc.estimator, f"seed{sc.seed}"), "run",
+                       identity=run_identity(sc, "run"), force=args.force) as st:
+        summary = simulate(sc, [sc.estimator], [sc.seed], st.path, progress=not args.quiet,
+                           log=_log(args, st), predict=args.predict,
+                           master=args.master or "auto")
+        out = st.finish(complete=not summary.get("interrupted"))
+    return print_summary(st.relocate(summary), out, st.note)
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
@@ -70,13 +80,15 @@ def cmd_compare(args: argparse.Namespace) -> int:
     architectures = picked if what == "architectures" else None
     check_run(sc, method_list(sc, modes, trackings, architectures), predict=args.predict)
     tail = "compare" if args.what is None else f"compare-{what}"
-    with output_folder(args.out or default_out(sc, tail), "compare") as out:
-        claim_folder(out, run_identity(sc, f"compare --what {what}"), force=args.force)
-        summary = simulate(sc, modes, args.seeds, out, progress=not args.quiet,
-                           log=(lambda s: None) if args.quiet else print, trackings=trackings,
+    with staged_output(args.out or default_out(sc, tail), "compare",
+                       identity=run_identity(sc, f"compare --what {what}"),
+                       force=args.force) as st:
+        summary = simulate(sc, modes, args.seeds, st.path, progress=not args.quiet,
+                           log=_log(args, st), trackings=trackings,
                            workers=args.workers, architectures=architectures,
                            predict=args.predict, master=args.master or "auto")
-    return print_summary(summary, out)
+        out = st.finish(complete=not summary.get("interrupted"))
+    return print_summary(st.relocate(summary), out, st.note)
 
 
 def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
@@ -98,17 +110,21 @@ def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
                             f"; vehicle {other} is a {models[other - 1]!r} model"))
     from ..running.systems import check_native
     check_native(sc)
-    with output_folder(args.out or default_out(sc, "plants"), "compare") as out:
-        claim_folder(out, run_identity(sc, "compare --what plants"), force=args.force)
-        summary = compare_plants(sc, args.seeds, out, progress=not args.quiet,
-                                 log=(lambda s: None) if args.quiet else print)
+    with staged_output(args.out or default_out(sc, "plants"), "compare",
+                       identity=run_identity(sc, "compare --what plants"),
+                       force=args.force) as st:
+        summary = compare_plants(sc, args.seeds, st.path, progress=not args.quiet,
+                                 log=_log(args, st))
+        out = st.finish(complete=not summary.get("interrupted"))
+    summary = st.relocate(summary)
     print("\n".join(plant_table(summary)))
     print(f"wrote {out / 'summary.json'}")
     if summary.get("interrupted"):
         from ..interrupt import EXIT_STATUS
         sig = summary.get("interrupted_by")
         print(f"auv-cosim: interrupted by {sig}: kept what each plant's run produced and "
-              f"{out / 'summary.json'} (marked \"interrupted\": true)", file=sys.stderr)
+              f"{out / 'summary.json'} (marked \"interrupted\": true)"
+              + (f"; {st.note}" if st.note else ""), file=sys.stderr)
         return EXIT_STATUS.get(sig, 130)
     return 0
 
@@ -134,10 +150,16 @@ def cmd_envelope(args: argparse.Namespace) -> int:
         return 0
     from ..running.systems import check_native
     check_native(sc)                          # the grid's FMUs: refused before any folder
-    with output_folder(args.out or default_out(sc, "envelope"), "envelope") as out:
-        claim_folder(out, run_identity(sc, "envelope"), force=args.force)
+    with staged_output(args.out or default_out(sc, "envelope"), "envelope",
+                       identity=run_identity(sc, "envelope"), force=args.force) as st:
         summary = run_envelope(sc, args.speeds, args.radii, args.currents, args.tolerance,
-                               out, log=(lambda s: None) if args.quiet else print)
+                               st.path, log=_log(args, st))
+        out = st.finish(complete=not summary["interrupted"])
+    summary = st.relocate(summary)
+    if summary["interrupted"]:
+        print(f"auv-cosim envelope: interrupted: kept the points that ran in "
+              f"{out / 'summary.json'} (marked \"interrupted\": true)"
+              + (f"; {st.note}" if st.note else ""), file=sys.stderr)
     held = sum(p["holds"] for p in summary["envelope"]["points"])
     failed = summary["envelope"]["failed"]
     print(f"{held} of {len(summary['envelope']['points'])} points hold within "

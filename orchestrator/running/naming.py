@@ -1,7 +1,13 @@
 """What makes a run distinct, as a default output folder name and as the identity an output
-folder records (:func:`orchestrator.outputs.claim_folder`): the scenario, the deployment
+folder records (:func:`orchestrator.outputs.check_claim`): the scenario, the deployment
 and architecture, acoustic links, nonlinear vehicle models and the FMU kind; and a
-campaign's default folder (:func:`campaign_out`), its name cleaned the same way."""
+campaign's default folder (:func:`campaign_out`), its name cleaned the same way.
+
+A scenario file of the user's whose ``name`` is a built-in scenario's (a copy of
+``formation-4.toml`` that kept ``name = "formation-4"``) never shares the built-in's
+default folders nor its identity: its folder name is ``<name>_from-<file stem>``
+(``out/formation-4_from-my-copy_compare``) and its identity's scenario says the file
+(:func:`scenario_label`)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -9,7 +15,25 @@ from pathlib import Path
 from ..outputs import file_stem
 from ..scenario import Scenario
 
-__all__ = ["campaign_out", "default_out", "run_identity", "run_tags"]
+__all__ = ["campaign_out", "default_export_out", "default_out", "run_identity", "run_tags",
+           "scenario_label"]
+
+
+def _shadowing_file(sc: Scenario) -> Path | None:
+    """The user's scenario file of ``sc`` when its name is a built-in scenario's."""
+    from ..scenario import SCENARIO_DIR, builtin_scenarios
+    path = Path(sc.source)
+    if sc.name not in builtin_scenarios() or not path.is_file():
+        return None
+    return None if path.resolve().parent == SCENARIO_DIR else path
+
+
+def scenario_label(sc: Scenario) -> str:
+    """The scenario's name in folder names: :func:`orchestrator.outputs.file_stem` of its
+    name, ``<name>_from-<file stem>`` for a user's file named like a built-in."""
+    shadow = _shadowing_file(sc)
+    stem = file_stem(sc.name)
+    return stem if shadow is None else f"{stem}_from-{file_stem(shadow.stem)}"
 
 
 def run_tags(sc: Scenario) -> list[str]:
@@ -32,7 +56,12 @@ def run_tags(sc: Scenario) -> list[str]:
 def default_out(sc: Scenario, *tail: str) -> Path:
     """``out/<scenario>[_<tags>]_<tail>``, e.g. ``out/paper_kalman_seed0`` or
     ``out/formation-4_per-vehicle-distributed_links_native_compare``."""
-    return Path("out") / "_".join([file_stem(sc.name), *run_tags(sc), *tail])
+    return Path("out") / "_".join([scenario_label(sc), *run_tags(sc), *tail])
+
+
+def default_export_out(sc: Scenario, fmt: str) -> Path:
+    """``export``'s default folder, ``out/<scenario>_<format>`` (:func:`scenario_label`)."""
+    return Path("out") / f"{scenario_label(sc)}_{fmt}"
 
 
 def campaign_out(name: str) -> Path:
@@ -46,7 +75,9 @@ def campaign_out(name: str) -> Path:
 def run_identity(sc: Scenario, command: str) -> dict[str, str]:
     """What an output folder records about the run that writes it."""
     models = sorted({str(v.get("model", "")) for v in sc.fleet["vehicles"]}) if sc.fleet else []
-    return {"command": command, "scenario": sc.name, "deployment": sc.deployment,
+    shadow = _shadowing_file(sc)
+    name = sc.name if shadow is None else f"{sc.name} (file {shadow.resolve()})"
+    return {"command": command, "scenario": name, "deployment": sc.deployment,
             "architecture": sc.architecture if sc.deployment != "stacked" else "-",
             "links": "yes" if sc.network is not None else "no",
             "vehicles": ",".join(m for m in models if m) or "-", "fmus": sc.fmus}
