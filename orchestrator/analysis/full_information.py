@@ -87,10 +87,9 @@ def best_steady_motion(Ad: np.ndarray, Bd: np.ndarray, C: np.ndarray, H: np.ndar
     """
     from scipy.linalg import cholesky, null_space
 
-    from plant_model.noise_factor import psd_sqrt
-
     p, q, l_ = Ad.shape[0], Bd.shape[1], Phi.shape[0]
-    S = psd_sqrt(Zbar)        # the noise's square root: its rank rule keeps the bound's digits
+    w, V = np.linalg.eigh(0.5 * (Zbar + Zbar.T))
+    S = (V * np.sqrt(np.clip(w, 0.0, None))) @ V.T
     Qh, Rh = cholesky(Q), cholesky(R)
     nx, nu = p * l_, q * l_
     # unknowns vec(X), vec(U) (column-major); vec(A X B) = (B' kron A) vec X
