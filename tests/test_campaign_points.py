@@ -76,3 +76,16 @@ def test_run_keys(tmp_path):
     # the same scenario reached by another key is the same run
     same = resolve_point(5, {"simulation.T": 5.0, "simulation.estimator": "kalman"}, base, where)
     assert run_key(same, 0, "fmu", VER) == run_key(a, 0, "fmu", VER)
+
+
+
+def test_the_run_key_holds_the_noise_stream(tmp_path):
+    """Rows of noise stream 1 (machine-dependent factors) never mix with stream 2's: the
+    versions a run key is made of carry the stream."""
+    from orchestrator.analysis.summary import versions
+    from plant_model.noise_factor import NOISE_STREAM
+    spec, _, base, where = _spec(tmp_path, 'base = "paper"\n')
+    (pt,) = resolve_points(spec, base, where)
+    ver = versions()
+    assert ver["noise_stream"] == str(NOISE_STREAM) == "2"
+    assert run_key(pt, 0, "fmu", ver) != run_key(pt, 0, "fmu", dict(ver, noise_stream="1"))
