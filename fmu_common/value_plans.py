@@ -44,9 +44,14 @@ class PlannedAccess:
     _PLAN_CACHE_SIZE = 256
 
     def _outputs_view(self, buf: np.ndarray) -> np.ndarray:
+        """``buf`` (a view of the outputs), computed first if stale; a non-finite output is
+        logged (``_check_outputs``) as by the batched plans."""
         if self._dirty and self._initialized:
             self.compute_outputs()
             self._dirty = False
+            total = sum(self._out.tolist())
+            if total - total != 0.0:
+                self._check_outputs()
         return buf
 
     def get_real(self, vrs: list[int]) -> list[float]:
