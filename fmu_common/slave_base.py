@@ -229,6 +229,7 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
         self._input_error: str | None = None
         self._output_error: str | None = None     #: a refusal of every further step
         self._output_logged: str | None = None    #: the last non-finite output logged
+        self._bad_output: str | None = None       #: the outputs' last check found this
         self._param_error: str | None = None
         self._sample_period: float | None = None
         self._init_state()
@@ -344,17 +345,29 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
                                               "a fatal error")
 
     def _check_outputs(self) -> None:
-        """Log the first non-finite output (name, value, time and, if one is the cause, the
-        first non-finite input), once per distinct message. Without direct feedthrough it
-        also refuses every further step (it comes from the state); with it, the next step
-        checks the outputs again (finite inputs set meanwhile let it go on)."""
-        msg = self._nonfinite_output()
+        """After outputs were computed and their sum was not finite: record the first
+        non-finite output (name, value, time and, if one is the cause, the first non-finite
+        input) for the next fmi2DoStep to refuse, and log it once. Without direct feedthrough
+        every further step is refused (it comes from the state); with it, the next step goes
+        on if finite inputs set meanwhile made the outputs finite."""
+        msg = self._bad_output = self._nonfinite_output()
         if msg is None or msg == self._output_logged:
             return
         self._output_logged = msg
         if not self._feedthrough and self._output_error is None:
             self._output_error = msg
         self.log(f"{self._who()}: {msg}; the next step will be refused", Fmi2Status.error)
+
+    def _refresh_outputs(self) -> None:
+        """Compute the outputs and check them: one sum over the buffer (finite values sum to
+        a finite number unless they overflow; an exact check only then)."""
+        self.compute_outputs()
+        self._dirty = False
+        total = sum(self._out.tolist())
+        if total - total != 0.0:               # some output is nan or +-inf (or overflow)
+            self._check_outputs()
+        elif self._bad_output is not None:
+            self._bad_output = None
 
     def _nonfinite_output(self) -> str | None:
         """``output u[2] = inf at t = 0.04 s is not finite[: input y[1] = nan]`` for the
@@ -456,18 +469,12 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
                          f"period {self.step_parameter} = {h} s; set {self.step_parameter} "
                          "to the step you use", Fmi2Status.error)
                 return False
-        if self._feedthrough or self._dirty:    # the outputs at t, from this step's inputs
-            if self._dirty:
-                self.compute_outputs()
-                self._dirty = False
-            total = sum(self._out.tolist())
-            if total - total != 0.0:            # some output is nan or +-inf (or overflow)
-                msg = self._nonfinite_output()
-                if msg is not None:
-                    self._output_logged = msg
-                    self.log(f"{self._who()}: step at t = {current_time} s refused: {msg}",
-                             Fmi2Status.error)
-                    return False
+        if self._dirty:                         # the outputs at t, from this step's inputs,
+            self._refresh_outputs()             # unless read (and checked) since they changed
+        if self._bad_output is not None:
+            self.log(f"{self._who()}: step at t = {current_time} s refused: "
+                     f"{self._bad_output}", Fmi2Status.error)
+            return False
         try:
             self.advance(step_size)
         except Exception:
@@ -488,7 +495,7 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
             if total - total != 0.0:
                 msg = self._nonfinite_output()
                 if msg is not None:
-                    self._output_error = self._output_logged = msg
+                    self._output_error = self._output_logged = self._bad_output = msg
                     self.log(f"{self._who()}: {msg} after the step from t = {current_time} s "
                              "(further steps are refused)", Fmi2Status.error)
                     return False
