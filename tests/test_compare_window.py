@@ -126,3 +126,49 @@ def test_one_window_for_every_method(tmp_path, capsys):
     early, _ = _recomputed(series, "ideal", own["ideal"])
     assert summary["methods"]["ideal"]["cost_rate"]["mean"] != pytest.approx(early,
                                                                               rel=1e-6)
+
+
+@pytest.mark.parametrize("scenario, deployment, architecture", [
+    ("formation-4", "stacked", "centralized"),
+    ("formation-4", "per-vehicle", "centralized"),
+    ("formation-4", "per-vehicle", "distributed"),
+    ("formation-4-links", "per-vehicle", "distributed"),
+])
+def test_window_predictions_over_a_given_window_in_every_deployment(
+        tmp_path, scenario, deployment, architecture):
+    """What compare asks of every deployment: the window predictions of a method over the
+    common window [k0 h, T) (here 2 s after the method's own start), equal to what the
+    analysis functions give for that window; the stationary ones unchanged."""
+    from orchestrator.analysis.distributed_verdict import predict_cost
+    from orchestrator.analysis.per_vehicle import distributed_initial_state, distributed_loop_of
+    from orchestrator.analysis.prediction import method_predictions
+    from orchestrator.running.network import network_predictions
+    from orchestrator.running.setup import Method, window_dependent
+    from orchestrator.running.systems import make_setup
+    from orchestrator.scenario import load_scenario
+    from plant_model.discretization import discretize
+
+    sc = load_scenario(scenario).with_run(T=60.0, deployment=deployment,
+                                          architecture=architecture)
+    method = Method.of(sc)
+    setup = make_setup(sc, tmp_path / "fmus", [method])
+    own = setup.predictions(method)
+    assert window_dependent(own)
+    k0 = own.k0 + 200
+    common = setup.predictions(method, k0)
+    assert common.k0 == k0 and common.stationary == own.stationary
+    if sc.network is not None:
+        expected = network_predictions(sc, setup.network(architecture, method.estimator,
+                                                         method.tracking), None, k0)[1]
+    elif architecture == "distributed":
+        loop = distributed_loop_of(sc, method.estimator, method.tracking, sc.distributed)
+        expected = predict_cost(loop, (k0, sc.steps), distributed_initial_state(sc, loop))
+    else:
+        from controller_fmu.regulator import tracking_law
+        from estimator_fmu.estimators import make_estimator
+        model = discretize(sc.system, sc.h)
+        expected = method_predictions(sc, model, make_estimator(sc.system, model,
+                                                                method.estimator),
+                                      tracking_law(sc.system, method.tracking).Ks, k0)[1]
+    assert common.window.cost_rate == pytest.approx(expected.cost_rate, rel=1e-12)
+    assert common.window.cost_rate != pytest.approx(own.window.cost_rate, rel=1e-9)
