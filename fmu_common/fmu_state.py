@@ -305,7 +305,8 @@ class FmuStateMixin:
             if problem is None:
                 try:
                     self._restore(state.tree)
-                    self._output_error = None
+                    self._output_error = self._bad_output = self._output_logged = None
+                    self._dirty = True          # recomputed and checked before use
                     self._after_restore(bool(state.tree["initialized"]))
                     return
                 except Exception as exc:

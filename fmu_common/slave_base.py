@@ -227,7 +227,9 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
         self._initialized = False
         self._dirty = True
         self._input_error: str | None = None
-        self._output_error: str | None = None
+        self._output_error: str | None = None     #: a refusal of every further step
+        self._output_logged: str | None = None    #: the last non-finite output logged
+        self._bad_output: str | None = None       #: the outputs' last check found this
         self._param_error: str | None = None
         self._sample_period: float | None = None
         self._init_state()
@@ -239,6 +241,8 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
         self._feeding = {d for s in self.specs if s.causality == "output" for d in s.depends_on}
         #: input elements that outputs depend on directly (setting them dirties outputs)
         self._feeds = np.zeros(n_in, dtype=bool)
+        #: an output depends on an input directly: outputs are checked at the step's start
+        self._feedthrough = bool(self._feeding)
         for spec in self.specs:
             if spec.causality == "input":
                 self._feeds[i_in:i_in + spec.size] = spec.name in self._feeding
@@ -316,7 +320,7 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
 
     def _flag_input(self, msg: str) -> None:
         self._input_error = msg
-        self.log(f"{msg}; the next step will be refused", Fmi2Status.error)
+        self.log(f"{self._who()}: {msg}; the next step will be refused", Fmi2Status.error)
 
     def _check_inputs(self) -> None:
         """Flag the first non-finite input, if any (after a block of inputs was set)."""
@@ -341,14 +345,41 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
                                               "a fatal error")
 
     def _check_outputs(self) -> None:
-        """Log the first non-finite output and refuse the next step (it names it)."""
+        """After outputs were computed and their sum was not finite: record the first
+        non-finite output (name, value, time and, if one is the cause, the first non-finite
+        input) for the next fmi2DoStep to refuse, and log it once. Without direct feedthrough
+        every further step is refused (it comes from the state); with it, the next step goes
+        on if finite inputs set meanwhile made the outputs finite."""
+        msg = self._bad_output = self._nonfinite_output()
+        if msg is None or msg == self._output_logged:
+            return
+        self._output_logged = msg
+        if not self._feedthrough and self._output_error is None:
+            self._output_error = msg
+        self.log(f"{self._who()}: {msg}; the next step will be refused", Fmi2Status.error)
+
+    def _refresh_outputs(self) -> None:
+        """Compute the outputs and check them: one sum over the buffer (finite values sum to
+        a finite number unless they overflow; an exact check only then)."""
+        self.compute_outputs()
+        self._dirty = False
+        total = sum(self._out.tolist())
+        if total - total != 0.0:               # some output is nan or +-inf (or overflow)
+            self._check_outputs()
+        elif self._bad_output is not None:
+            self._bad_output = None
+
+    def _nonfinite_output(self) -> str | None:
+        """``output u[2] = inf at t = 0.04 s is not finite[: input y[1] = nan]`` for the
+        first non-finite output (None if all are finite); t the current communication point."""
         bad = np.flatnonzero(~np.isfinite(self._out))
-        if bad.size and self._output_error is None:
-            var = self.vars[self._vr_out + int(bad[0])]
-            self._output_error = (f"output {var.name} = {self._out[bad[0]]} became non-finite "
-                                  f"at t = {self._t_next} s")
-            self.log(f"{self._who()}: {self._output_error}; the next step will be refused",
-                     Fmi2Status.error)
+        if not bad.size:
+            return None
+        var = self.vars[self._vr_out + int(bad[0])]
+        cause = self._first_bad_input()
+        cause = f": {cause.removesuffix(' is not finite')}" if cause else ""
+        t = self._t_next if self._t_next is not None else 0.0
+        return f"output {var.name} = {self._out[bad[0]]} at t = {t} s is not finite{cause}"
 
     def _first_bad_parameter(self) -> str | None:
         """The first Real parameter element that is not finite, named with its value."""
@@ -438,6 +469,12 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
                          f"period {self.step_parameter} = {h} s; set {self.step_parameter} "
                          "to the step you use", Fmi2Status.error)
                 return False
+        if self._dirty:                         # the outputs at t, from this step's inputs,
+            self._refresh_outputs()             # unless read (and checked) since they changed
+        if self._bad_output is not None:
+            self.log(f"{self._who()}: step at t = {current_time} s refused: "
+                     f"{self._bad_output}", Fmi2Status.error)
+            return False
         try:
             self.advance(step_size)
         except Exception:
@@ -451,6 +488,17 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
             total = sum(state.tolist())
             if total - total != 0.0 and not np.all(np.isfinite(state)):
                 return self._nonfinite_step(current_time, step_size, state)
+        if not self._feedthrough:               # the outputs at t + h: now, not at a get
+            self.compute_outputs()
+            self._dirty = False
+            total = sum(self._out.tolist())
+            if total - total != 0.0:
+                msg = self._nonfinite_output()
+                if msg is not None:
+                    self._output_error = self._output_logged = self._bad_output = msg
+                    self.log(f"{self._who()}: {msg} after the step from t = {current_time} s "
+                             "(further steps are refused)", Fmi2Status.error)
+                    return False
         return True
 
     def _nonfinite_step(self, t: float, h: float, state: np.ndarray) -> bool:

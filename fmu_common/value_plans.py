@@ -4,7 +4,7 @@ pythonfmu's fmi2GetReal / fmi2SetReal call get_real(vrs) / set_real(vrs, values)
 list of value references each time; a co-simulation master passes the same few lists at
 every step. A plan (a closure over one slice of a buffer) is made once per list and found
 again by the list's first value reference: one dict lookup and one list comparison per
-call. Plans also watch the values for nan / inf with one ``sum`` per call.
+call. Outputs are checked for nan / inf (one ``sum``) when computed, not per call.
 """
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ class PlannedAccess:
 
     The slave provides ``_in``, ``_out`` (buffers), ``_vr_in``, ``_vr_out`` (first value
     references), ``_feeds``, ``_dirty``, ``_initialized``, ``compute_outputs``,
-    ``_early_outputs``, ``_check_outputs`` and ``_check_inputs``; it calls
+    ``_early_outputs``, ``_refresh_outputs`` and ``_check_inputs``; it calls
     :meth:`_init_plans` in ``__init__``.
     """
 
@@ -44,9 +44,10 @@ class PlannedAccess:
     _PLAN_CACHE_SIZE = 256
 
     def _outputs_view(self, buf: np.ndarray) -> np.ndarray:
+        """``buf`` (a view of the outputs), computed and checked first if stale
+        (``_refresh_outputs``: a non-finite output is logged, the next step refused)."""
         if self._dirty and self._initialized:
-            self.compute_outputs()
-            self._dirty = False
+            self._refresh_outputs()
         return buf
 
     def get_real(self, vrs: list[int]) -> list[float]:
@@ -158,15 +159,10 @@ class PlannedAccess:
             def plan() -> list:
                 if self._dirty:                             # self._outputs_view, inlined
                     if self._initialized:
-                        self.compute_outputs()
-                        self._dirty = False
+                        self._refresh_outputs()             # checked once per computation
                     else:
                         self._early_outputs()
-                values = view.tolist()
-                total = sum(values)
-                if total - total != 0.0:           # some value is nan or +-inf (or overflow)
-                    self._check_outputs()
-                return values
+                return view.tolist()
         else:
             self._check_refs("fmi2GetReal", vrs, Real, "a Real")
             getters = [self.vars[vr].getter for vr in vrs]

@@ -1,7 +1,9 @@
 """A compare uses one statistics window for all its methods: the latest of their own windows
 (each starts at its settling time, 5 time constants of its slowest closed-loop mode), so
-that the methods are compared on the same samples. summary.json says so: the top-level
-``stats_window_s`` is that window and every method's ``window_start_s`` its start.
+that the methods are compared on the same samples, and predicted over them. summary.json
+says so: the top-level ``stats_window_s`` is that window, every method's
+``window_start_s`` its start and ``prediction_window_s`` the window of its window
+predictions.
 
 The scenario is the paper's system with a slow plant, fast exosystems and a noisy sensor:
 the Kalman loop then settles in 9.95 s, the ideal one in 8.16 s."""
@@ -60,6 +62,19 @@ def _recomputed(series: dict, method: str, k0: int) -> tuple[float, list[float]]
     return cost, np.sqrt(np.mean(e * e, axis=0)).tolist()
 
 
+def _window_prediction(sc, mode: str, k0: int):
+    """The expected statistics over [k0 h, T) from the known start, straight from the
+    analysis function (orchestrator.analysis.prediction.predict_stationary)."""
+    from controller_fmu.regulator import tracking_law
+    from estimator_fmu.estimators import make_estimator
+    from orchestrator.analysis.prediction import predict_stationary
+    from plant_model.discretization import discretize
+    model = discretize(sc.system, sc.h)
+    return predict_stationary(sc.system, model, make_estimator(sc.system, model, mode),
+                              tracking_law(sc.system, sc.tracking).Ks,
+                              window=(k0, sc.steps), transient=True)
+
+
 def test_one_window_for_every_method(tmp_path, capsys):
     from orchestrator.running.setup import method_list
     from orchestrator.running.systems import make_setup
@@ -84,12 +99,20 @@ def test_one_window_for_every_method(tmp_path, capsys):
     starts = {n: m["window_start_s"] for n, m in summary["methods"].items()}
     assert starts == {"kalman": k0 * H, "ideal": k0 * H}
     assert summary["stationary"] is True
-    # ideal's window prediction is its own (from 8.16 s): said in the summary and printout
-    assert "prediction_window_start_s" not in summary["methods"]["kalman"]
-    assert summary["methods"]["ideal"]["prediction_window_start_s"] == own["ideal"] * H
+    # every method's window predictions are over the common window, ideal's too (its own
+    # starts at 8.16 s): the value is the analysis function's for that window
     assert printed[0].endswith("statistics over t in [9.95, 24) s")
-    assert ("note: the statistics of every method are over [9.95, 24) s; the window "
-            "predictions over each method's own window: ideal from t = 8.16 s") in printed
+    assert not any("own window" in line for line in printed)
+    for name, mode in (("kalman", "kalman"), ("ideal", "ideal")):
+        m = summary["methods"][name]
+        assert m["prediction_window_s"] == [k0 * H, T]
+        expected = _window_prediction(sc, mode, k0)
+        assert m["cost_rate"]["predicted_window"] == pytest.approx(expected.cost_rate,
+                                                                   rel=1e-12)
+        assert m["rms_e"]["predicted_window"] == pytest.approx(expected.rms_e, rel=1e-12)
+    own_window = _window_prediction(sc, "ideal", own["ideal"])
+    assert summary["methods"]["ideal"]["cost_rate"]["predicted_window"] != pytest.approx(
+        own_window.cost_rate, rel=1e-9)                 # the window matters
 
     series = read_rrd_scalars(out / "two-settling-times.rrd")
     assert summary["rrd"]["recorded_every_steps"] == 1
@@ -103,3 +126,49 @@ def test_one_window_for_every_method(tmp_path, capsys):
     early, _ = _recomputed(series, "ideal", own["ideal"])
     assert summary["methods"]["ideal"]["cost_rate"]["mean"] != pytest.approx(early,
                                                                               rel=1e-6)
+
+
+@pytest.mark.parametrize("scenario, deployment, architecture", [
+    ("formation-4", "stacked", "centralized"),
+    ("formation-4", "per-vehicle", "centralized"),
+    ("formation-4", "per-vehicle", "distributed"),
+    ("formation-4-links", "per-vehicle", "distributed"),
+])
+def test_window_predictions_over_a_given_window_in_every_deployment(
+        tmp_path, scenario, deployment, architecture):
+    """What compare asks of every deployment: the window predictions of a method over the
+    common window [k0 h, T) (here 2 s after the method's own start), equal to what the
+    analysis functions give for that window; the stationary ones unchanged."""
+    from orchestrator.analysis.distributed_verdict import predict_cost
+    from orchestrator.analysis.per_vehicle import distributed_initial_state, distributed_loop_of
+    from orchestrator.analysis.prediction import method_predictions
+    from orchestrator.running.network import network_predictions
+    from orchestrator.running.setup import Method, window_dependent
+    from orchestrator.running.systems import make_setup
+    from orchestrator.scenario import load_scenario
+    from plant_model.discretization import discretize
+
+    sc = load_scenario(scenario).with_run(T=60.0, deployment=deployment,
+                                          architecture=architecture)
+    method = Method.of(sc)
+    setup = make_setup(sc, tmp_path / "fmus", [method])
+    own = setup.predictions(method)
+    assert window_dependent(own)
+    k0 = own.k0 + 200
+    common = setup.predictions(method, k0)
+    assert common.k0 == k0 and common.stationary == own.stationary
+    if sc.network is not None:
+        expected = network_predictions(sc, setup.network(architecture, method.estimator,
+                                                         method.tracking), None, k0)[1]
+    elif architecture == "distributed":
+        loop = distributed_loop_of(sc, method.estimator, method.tracking, sc.distributed)
+        expected = predict_cost(loop, (k0, sc.steps), distributed_initial_state(sc, loop))
+    else:
+        from controller_fmu.regulator import tracking_law
+        from estimator_fmu.estimators import make_estimator
+        model = discretize(sc.system, sc.h)
+        expected = method_predictions(sc, model, make_estimator(sc.system, model,
+                                                                method.estimator),
+                                      tracking_law(sc.system, method.tracking).Ks, k0)[1]
+    assert common.window.cost_rate == pytest.approx(expected.cost_rate, rel=1e-12)
+    assert common.window.cost_rate != pytest.approx(own.window.cost_rate, rel=1e-9)

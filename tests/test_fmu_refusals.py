@@ -283,6 +283,79 @@ def test_pythonfmu_nan_input_is_refused_at_the_step_naming_it(paper, tmp_path):
     c.close()
 
 
+def test_pythonfmu_controller_fed_1e308_discards_the_step_naming_the_output(paper, tmp_path):
+    """The counterpart of the native controller's refusal: estimates of 1e308 (finite,
+    accepted) make u = -K xhat non-finite. fmi2GetReal answers fmi2OK (pythonfmu 0.7: OK or
+    Fatal only) and logs the output; fmi2DoStep is refused with fmi2Discard (its only
+    refusal) naming the instance, the output, its value and the time; with finite estimates
+    set again the controller steps on."""
+    sc, system, py, *_ = paper
+    c = _open(py["controller"], tmp_path, "py_big", **system.component("controller").parameters)
+    est = _names(c, "input")
+    assert _set(c, est, [1e308] * len(est)) == OK
+    status, u = _get(c, ["u[2]", "u[1]"])                 # not in order: the getters' path
+    assert status == OK and not all(map(math.isfinite, u))
+    assert re.fullmatch(r"AuvController instance 'py_big': output u\[1\] = (-?inf|nan) at "
+                        r"t = 0\.0 s is not finite; the next step will be refused", _last(c))
+    assert _step(c, 0.0) == DISCARD
+    assert re.fullmatch(r"AuvController instance 'py_big': step at t = 0\.0 s refused: output "
+                        r"u\[1\] = (-?inf|nan) at t = 0\.0 s is not finite", _last(c))
+    assert _set(c, est, [0.5] * len(est)) == OK
+    assert _step(c, 0.0) == OK and _get(c, ["u[1]"])[0] == OK
+    c.close()
+
+
+def test_pythonfmu_estimator_fed_1e308_discards_the_step_naming_the_output(paper, tmp_path):
+    """Measurements of 1e308 into the estimator: its estimates grow until one overflows;
+    that step is refused (fmi2Discard) naming the estimate, its value and the time, and the
+    next one too while the inputs stay."""
+    sc, system, py, *_ = paper
+    e = _open(py["estimator"], tmp_path, "py_est", **system.component("estimator").parameters)
+    inputs = _names(e, "input")
+    assert _set(e, inputs, [1e308] * len(inputs)) == OK
+    k, status = 0, OK
+    while status == OK and k < 100:
+        status = _step(e, k * H)
+        k += 1
+    assert status == DISCARD and k > 1                    # some steps were finite
+    t = (k - 1) * H
+    assert re.fullmatch(rf"AuvEstimator instance 'py_est': step at t = {t} s refused: output "
+                        rf"(xhat|what|zhat)\[\d\] = -?inf at t = {t} s is not finite",
+                        _last(e)), _last(e)
+    assert _step(e, t) == DISCARD
+    e.close()
+
+
+def _with(system, comp: str, **parameters):
+    return dataclasses.replace(system, components=tuple(
+        dataclasses.replace(c, parameters={**c.parameters, **parameters})
+        if c.name == comp else c for c in system.components))
+
+
+def test_the_master_names_the_fmu_and_the_output_that_went_non_finite(paper):
+    """Through the run path (run_system, pythonfmu FMUs): an unstable plant (A[1,1] = 100 /s)
+    overflows; its step is refused and the error, one line, names the plant, the output and
+    the time. An estimator started at 1e308: its estimate is read (fmi2OK: all pythonfmu 0.7
+    lets a getter answer) and reaches the controller and the plant, which refuses the step;
+    the error leads with the estimator and its output, not the plant's input."""
+    sc, system, py, *_ = paper
+    with pytest.raises(CosimError) as err:
+        run_system(_with(system, "plant", **{"A[1,1]": 100.0}), py, 1000)
+    msg = str(err.value)
+    assert len(msg.splitlines()) == 1
+    assert re.match(r"plant FMU: fmi2DoStep at t = [\d.]+ s returned Discard: AuvPlant "
+                    r"instance 'plant': output \w+\[\d\] = -?inf at t = [\d.]+ s is not "
+                    r"finite after the step from t = [\d.]+ s \(further steps are refused\)$",
+                    msg), msg
+    with pytest.raises(CosimError) as err:
+        run_system(_with(system, "estimator", **{"x0[1]": 1e308}), py, sc.steps)
+    msg = str(err.value)
+    assert len(msg.splitlines()) == 1 and "status 2" not in msg
+    assert re.match(r"estimator FMU: output xhat\[1\] = -?inf at t = 0\.0 s is not finite "
+                    r"\(read with fmi2GetReal\); then plant FMU: fmi2DoStep at t = 0\.0 s "
+                    r"returned Discard: ", msg), msg
+
+
 # ------------------------------------------------------------------ messages reach the error
 def test_messages_are_filed_by_instance_not_by_name(paper, tmp_path):
     """Two instances with one instance name (two runs in one process), then a third made

@@ -265,7 +265,8 @@ def predict_stationary(system: LinearSystem, model: DiscreteModel, est: LinearEs
     )
 
 
-def method_predictions(sc: Any, model: DiscreteModel, est: LinearEstimator, Ks: np.ndarray
+def method_predictions(sc: Any, model: DiscreteModel, est: LinearEstimator, Ks: np.ndarray,
+                       k0: int | None = None
                        ) -> tuple[Prediction, Prediction, Prediction | None, int]:
     """The predictions a run's summary gives for one method of the stacked law.
 
@@ -284,6 +285,9 @@ def method_predictions(sc: Any, model: DiscreteModel, est: LinearEstimator, Ks: 
         The estimator.
     Ks : np.ndarray
         The law's gain, u = -Ks [x; w; z].
+    k0 : int or None, optional
+        First sample of the window (a compare's common window); None: this method's own
+        (:func:`orchestrator.analysis.summary.stats_window` of its settling time).
 
     Returns
     -------
@@ -292,7 +296,8 @@ def method_predictions(sc: Any, model: DiscreteModel, est: LinearEstimator, Ks: 
     """
     from .summary import stats_window
     pred0 = predict_stationary(sc.system, model, est, Ks)
-    k0 = stats_window(sc.T, sc.h, pred0.settling_time)
+    if k0 is None:
+        k0 = stats_window(sc.T, sc.h, pred0.settling_time)
     if pred0.cost_rate is None:
         return pred0, pred0, None, k0
     win = (k0, sc.steps)

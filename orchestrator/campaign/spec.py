@@ -30,7 +30,6 @@ sweep key (``seeds`` is). Every problem is one line naming the file and the key
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args, get_origin
 
@@ -40,6 +39,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from ..scenario.errors import ScenarioError, _model_at, validate_scenario
 from ..scenario.fleet import is_fleet_scenario
 from ..scenario.loader import SCENARIO_DIR, _resolve
+from ..scenario.nesting import loads_scenario_toml
 
 __all__ = ["SpecError", "CampaignSpec", "load_spec", "parse_seed_text", "base_mapping",
            "COSIM_KEYS", "ENGINES"]
@@ -146,8 +146,8 @@ def base_mapping(base: str, spec_dir: Path | None = None) -> tuple[dict[str, Any
     path = _resolve(candidate if candidate.exists() else base)
     where = str(path) if path.parent != SCENARIO_DIR else f"built-in scenario '{path.stem}'"
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8")), where
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError) as exc:
+        return loads_scenario_toml(path.read_text(encoding="utf-8"), where), where
+    except (UnicodeDecodeError, OSError) as exc:
         raise ScenarioError(f"{where}: cannot be read as TOML: {exc}") from None
 
 
@@ -237,12 +237,14 @@ def load_spec(path: Path | str) -> tuple[CampaignSpec, list[int], dict[str, Any]
     path = Path(path)
     where = str(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = loads_scenario_toml(path.read_text(encoding="utf-8"), where)
+    except ScenarioError as exc:                # not TOML, or nested too deep
+        raise SpecError(str(exc)) from None
     except FileNotFoundError:
         raise SpecError(f"{where}: campaign spec not found") from None
     except IsADirectoryError:
         raise SpecError(f"{where} is a folder; a campaign spec is a .toml file") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError as exc:
         raise SpecError(f"{where}: not valid TOML: {exc}") from None
     except OSError as exc:
         raise SpecError(f"{where}: cannot be read: {exc.strerror}") from None

@@ -41,6 +41,10 @@ class CosimError(RuntimeError):
     """An FMU refused a call; the message names the FMU, the call and what it logged."""
 
 
+#: how an FMU logs a non-finite output (fmu_common/slave_base.py, fmu_common/native/fmu_core.c)
+_NONFINITE_OUTPUT = re.compile(r"output \S+ = \S+ at t = \S+ s is not finite")
+
+
 #: characters a resource path may hold for pythonfmu 0.7 to find it: its fmi2Instantiate
 #: decodes only "%20" in the resource URI, and a path it cannot open crashes the host
 _PYTHONFMU_SAFE_PATH = re.compile(r"[A-Za-z0-9_.~/ -]+")
@@ -310,8 +314,19 @@ class FmuInstance:
         CosimError
             Naming the FMU, the call, the status and what the FMU logged.
         """
-        return CosimError(f"{self.label} FMU: {call} returned "
-                          f"{STATUS[status] if 0 <= status < 6 else status}: {self.errors()}")
+        err = CosimError(f"{self.label} FMU: {call} returned "
+                         f"{STATUS[status] if 0 <= status < 6 else status}: {self.errors()}")
+        err.label = self.label                  # type: ignore[attr-defined]
+        return err
+
+    def nonfinite_output(self) -> str | None:
+        """The first non-finite output this FMU logged (``output u[2] = inf at t = 0.04 s is
+        not finite``: the pythonfmu slaves and the native FMUs word it alike), or None."""
+        for status, text in self.messages:
+            m = _NONFINITE_OUTPUT.search(text) if status in ("Error", "Discard") else None
+            if m:
+                return m.group(0)
+        return None
 
     def initialize(self, parameters: dict[str, Any], T: float) -> None:
         """Set up the experiment on [0, T], set the parameters, leave initialization mode.

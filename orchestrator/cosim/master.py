@@ -317,6 +317,24 @@ def _step_loop(plan: StepPlan, steps: int, h: float, bar: Any, stop: Any = None)
     return steps
 
 
+def _with_origin(exc: CosimError, instances: list[FmuInstance]) -> CosimError:
+    """``exc``, led by the first FMU (in evaluation order) that logged a non-finite output, if
+    the failing FMU logged none: a pythonfmu slave can only log it at fmi2GetReal (pythonfmu
+    0.7 answers fmi2OK or fmi2Fatal there), so the refusal may come later, from the FMU that
+    received the value; the error then names the output where it went non-finite first."""
+    failing = getattr(exc, "label", None)
+    if any(f.label == failing and f.nonfinite_output() for f in instances):
+        return exc
+    for fmu in instances:
+        if fmu.label != failing:
+            found = fmu.nonfinite_output()
+            if found is not None:
+                err = CosimError(f"{fmu.label} FMU: {found} (read with fmi2GetReal); then {exc}")
+                err.label = fmu.label           # type: ignore[attr-defined]
+                return err
+    return exc
+
+
 def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, *,
                coupling: str = "gauss-seidel", progress: Any = False,
                instance_suffix: str = "", stop: Any = None,
@@ -394,7 +412,8 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
         for comp in system.components:
             inst[comp.name] = FmuInstance(comp.name, fmus[comp.fmu], ex.dirs[comp.fmu],
                                           f"{comp.name}{instance_suffix}", mds[comp.fmu])
-            inst[comp.name].initialize(dict(comp.parameters), T=steps * h)
+            with np.errstate(over="ignore", invalid="ignore"):      # as in the loop below
+                inst[comp.name].initialize(dict(comp.parameters), T=steps * h)
         rec = {c.name: np.zeros((steps, sum(s.size for s in c.arrays("output"))))
                for c in system.components}
         plan = plan_steps(system, inst, rec, coupling)
@@ -404,9 +423,17 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
         elif progress:
             bar = progress                      # a shared bar (an object with update(n))
         t_loop = time.perf_counter()
-        initial_reads(plan)
-        done = (run_native_loop if chosen == "native" else _step_loop)(plan, steps, h, bar,
-                                                                         stop)
+        try:
+            # the slaves run in this thread: numpy's overflow warnings are not printed (the
+            # FMU refuses a non-finite output itself, naming it, in one logged line)
+            with np.errstate(over="ignore", invalid="ignore"):
+                initial_reads(plan)
+                done = (run_native_loop if chosen == "native" else _step_loop)(
+                    plan, steps, h, bar, stop)
+        except CosimError as exc:
+            first = [o.split(".")[0] for o in plan.order] + list(system.names)
+            raise _with_origin(exc, [inst[c] for c in dict.fromkeys(first) if c in inst]) \
+                from None
         loop_s = time.perf_counter() - t_loop
     finally:
         if progress is True and bar is not None:

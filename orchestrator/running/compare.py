@@ -23,7 +23,15 @@ from ..interrupt import StopFlag, stop_on_signals
 from ..outputs import file_stem
 from ..scenario import Scenario
 from .fmus import fleet_layout, record_stride
-from .setup import Method, Predictions, RunSetup, method_list, run_statistics, stats_context
+from .setup import (
+    Method,
+    Predictions,
+    RunSetup,
+    method_list,
+    run_statistics,
+    stats_context,
+    window_dependent,
+)
 from .systems import check_run, make_setup
 
 __all__ = ["NONLINEAR_NOTE", "common_window", "simulate"]
@@ -141,14 +149,6 @@ def common_window(predictions: Iterable[Predictions], at_least: int = 0) -> int:
     return max([int(at_least), *(p.k0 for p in predictions)])
 
 
-def _window_prediction(pred: Predictions) -> bool:
-    """Whether ``pred`` has figures that depend on its window (the mean motion of a planned
-    path over it, the average from the known start), beside the stationary ones."""
-    return ((pred.window is not pred.stationary and pred.window.cost_rate is not None)
-            or (pred.window_from_start is not None
-                and pred.window_from_start.cost_rate is not None))
-
-
 def _predictions(setup: RunSetup, methods: list[Method], results: dict[str, Any],
                  log: Callable[[str], None]) -> tuple[dict[str, Predictions], list[ModelError]]:
     """Every method's predictions, before the first run (their windows give the common
@@ -191,9 +191,11 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
     preds, skipped = _predictions(setup, methods, results, log)
     if len(skipped) == len(methods):
         raise ModelError(f"no method can run on this scenario: {skipped[0]}")
-    # one window for all: the methods are compared on the same samples
+    # one window for all: the methods are compared on the same samples, and predicted over
+    # them (a method whose own window starts earlier gets its window predictions again)
     k0 = common_window(preds.values(), window_from_step)
     window = (k0 * sc.h, sc.T)
+    preds = {m.name: setup.predictions(m, k0) for m in methods if m.name in preds}
     bound: dict[int, float | None] = {}     # the full-information bound over the window
     notes: set[str] = set()
     settling = 0.0              # the slowest settling time of a method whose window is early
@@ -263,9 +265,9 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
                 bound[k0] = fleet_bound(sc, k0)
             entry["cost_rate_full_information"] = bound[k0]
         entry["window_start_s"] = window[0]
-        if pred.k0 != k0 and _window_prediction(pred):
-            #: the window of its window predictions, its own (they are not recomputed)
-            entry["prediction_window_start_s"] = pred.k0 * sc.h
+        if window_dependent(pred):
+            #: the window of its window predictions: the common one
+            entry["prediction_window_s"] = [pred.k0 * sc.h, sc.T]
         entry["seeds_completed"] = len(per_seed)
         if stop:
             break

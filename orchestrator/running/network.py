@@ -155,13 +155,15 @@ def _positions(sc: Any, loop: Any, form: MessageForm, net: NetworkedLoop,
 SLOW_STATES = 600
 
 
-def network_predictions(sc: Any, setup: NetworkSetup, log: Log | None = None
+def network_predictions(sc: Any, setup: NetworkSetup, log: Log | None = None,
+                        k0: int | None = None
                         ) -> tuple[Prediction, Prediction, Prediction | None, int]:
     """(verdict, window prediction, same, k0) in the shape the workflow takes.
 
-    The window prediction is exact: E[J] over k0 <= k < K from the known start. k0 leaves
-    five time constants of the slowest mean-square mode, tau = -2 cycle / ln(rho), rho the
-    second-moment radius per cycle (E|e|^2 ~ rho^(t / cycle), |e| ~ rho^(t / (2 cycle))).
+    The window prediction is exact: E[J] over k0 <= k < K from the known start. k0 (unless
+    given: a compare's common window) leaves five time constants of the slowest mean-square
+    mode, tau = -2 cycle / ln(rho), rho the second-moment radius per cycle
+    (E|e|^2 ~ rho^(t / cycle), |e| ~ rho^(t / (2 cycle))).
     """
     net = setup.net
     if log is not None and net.n > SLOW_STATES:
@@ -171,7 +173,8 @@ def network_predictions(sc: Any, setup: NetworkSetup, log: Log | None = None
     cycle = net.period * net.h
     tau = -2.0 * cycle / math.log(rho) if 0.0 < rho < 1.0 else math.inf
     settling = 5.0 * tau
-    k0 = stats_window(sc.T, sc.h, settling if math.isfinite(settling) else sc.T)
+    if k0 is None:
+        k0 = stats_window(sc.T, sc.h, settling if math.isfinite(settling) else sc.T)
     verdict = Prediction(rms_e=None, rms_u=None, cost_rate=None, spectral_radius=rho,
                          settling_time=settling,
                          reason=None if rho < 1.0 else

@@ -220,9 +220,10 @@ class PerVehicleSetup(RunSetup):
         return (tracking_law(self.sc.system, central[0].tracking).design if central
                 else None)
 
-    def _predict(self, method: Method) -> Predictions:
+    def _predict(self, method: Method, k0: int | None = None) -> Predictions:
         """(stationary, over the window with the mean motion, window average from the
-        known start, first sample of the window) of one method.
+        known start, first sample of the window) of one method; the window from ``k0``
+        (a compare's common window) or, None, the method's own.
 
         Raises
         ------
@@ -232,15 +233,15 @@ class PerVehicleSetup(RunSetup):
         sc = self.sc
         architecture, mode, tracking = method.architecture, method.estimator, method.tracking
         if sc.sensors is not None and mode == "kalman":
-            return Predictions.of(self._multirate(architecture, tracking))
+            return Predictions.of(self._multirate(architecture, tracking, k0))
         if sc.network is not None:
             setup = self.network(architecture, mode, tracking)
             path = prediction_path(setup.net, sc.steps)
             if path == "dense":
-                return Predictions.of(network_predictions(sc, setup, self.log))
+                return Predictions.of(network_predictions(sc, setup, self.log, k0))
             # many links: the second moment in blocks (held values apart), or none when
             # even that is too long; the perfect links' window and margin
-            pred0, _, _, k0 = self._perfect(architecture, mode, tracking)
+            pred0, _, _, k0 = self._perfect(architecture, mode, tracking, k0)
             if path == "blocks" and self.log is not None:
                 self.log(f"predicting the expected cost over the window with the second "
                          f"moment in blocks ({setup.net.n} states, {len(setup.net.R)} links; "
@@ -252,9 +253,9 @@ class PerVehicleSetup(RunSetup):
                               settling_time=pred0.settling_time,
                               reason=too_many_states(setup.net.n, path, sc.steps))
             return Predictions(pred0, pred, pred if cost is not None else None, k0)
-        return Predictions.of(self._perfect(architecture, mode, tracking))
+        return Predictions.of(self._perfect(architecture, mode, tracking, k0))
 
-    def _multirate(self, architecture: str, tracking: str
+    def _multirate(self, architecture: str, tracking: str, k0: int | None = None
                    ) -> tuple[Prediction, Prediction, Prediction | None, int]:
         """:meth:`predictions` with the multi-rate filter of [sensors]: the periodic loop's
         (distributed, no dropouts; orchestrator.analysis.multirate_prediction), else the
@@ -270,23 +271,24 @@ class PerVehicleSetup(RunSetup):
             loop = distributed_loop_of(sc, "kalman", tracking, sc.distributed)
             try:
                 stat = predict_multirate_cost(sc, loop, sensors)
-                k0 = stats_window(sc.T, sc.h, stat.settling_time)
+                if k0 is None:
+                    k0 = stats_window(sc.T, sc.h, stat.settling_time)
                 win = predict_multirate_cost(sc, loop, sensors, (k0, sc.steps),
                                              distributed_initial_state(sc, loop))
                 return _prediction(stat), _prediction(win), None, k0
             except ModelError as exc:
                 reason = f"no prediction for the multi-rate Kalman filter: {exc}"
         # the steady filter's window and margin
-        pred0, _, _, k0 = self._perfect(architecture, "kalman", tracking)
+        pred0, _, _, k0 = self._perfect(architecture, "kalman", tracking, k0)
         pred = Prediction(rms_e=None, rms_u=None, cost_rate=None,
                           spectral_radius=pred0.spectral_radius,
                           settling_time=pred0.settling_time,
                           reason=reason + "; the figures are the simulation's")
         return pred0, pred, None, k0
 
-    def _perfect(self, architecture: str, mode: str, tracking: str
+    def _perfect(self, architecture: str, mode: str, tracking: str, k0: int | None = None
                  ) -> tuple[Prediction, Prediction, Prediction | None, int]:
-        """:meth:`predictions` with perfect links."""
+        """:meth:`predictions` with perfect links (the window from ``k0``, or the own)."""
         sc = self.sc
         if architecture == "centralized":            # the stacked loop's predictions
             self._check_centralized()
@@ -295,10 +297,11 @@ class PerVehicleSetup(RunSetup):
                           f"centralized loop: {cost.text()} ...", cost.seconds)
             model = discretize(sc.system, sc.h)
             return method_predictions(sc, model, make_estimator(sc.system, model, mode),
-                                      tracking_law(sc.system, tracking).Ks)
+                                      tracking_law(sc.system, tracking).Ks, k0)
         loop = distributed_loop_of(sc, mode, tracking, sc.distributed)
         pred0 = predict_cost(loop)
-        k0 = stats_window(sc.T, sc.h, pred0.settling_time)
+        if k0 is None:
+            k0 = stats_window(sc.T, sc.h, pred0.settling_time)
         X0 = distributed_initial_state(sc, loop)
         win = (k0, sc.steps)
         # the window average from a known start needs powers of the dense loop matrix:

@@ -106,6 +106,14 @@ class Predictions:
         return cls(*parts)
 
 
+def window_dependent(pred: Predictions) -> bool:
+    """Whether ``pred`` has figures that depend on its window (the mean motion of a planned
+    path over it, the average from the known start), beside the stationary ones."""
+    return ((pred.window is not pred.stationary and pred.window.cost_rate is not None)
+            or (pred.window_from_start is not None
+                and pred.window_from_start.cost_rate is not None))
+
+
 class RunSetup:
     """The FMUs, systems and predictions of one scenario's runs (module docstring).
 
@@ -142,6 +150,7 @@ class RunSetup:
         self.log: Callable[[str], None] | None = None
         self._native: dict[Method, Any] = {}
         self._predictions: dict[Method, Predictions] = {}
+        self._windowed: dict[tuple[Method, int], Predictions] = {}   #: over another window
 
     # what a deployment defines ---------------------------------------------------------
     def python_fmus(self, method: Method) -> dict[str, Path]:
@@ -152,7 +161,9 @@ class RunSetup:
         """The system of ``method`` and ``seed`` on the pythonfmu FMUs."""
         raise NotImplementedError
 
-    def _predict(self, method: Method) -> Predictions:
+    def _predict(self, method: Method, k0: int | None = None) -> Predictions:
+        """The predictions of ``method``, the window ones over [k0 h, T) (None: the
+        method's own window, from its settling time)."""
         raise NotImplementedError
 
     def stacked(self, system: SystemDescription, traces: dict[str, Any],
@@ -191,8 +202,10 @@ class RunSetup:
             self.log(text)
 
     # the same for every deployment ---------------------------------------------------------
-    def predictions(self, method: Method) -> Predictions:
-        """The predictions of ``method`` (computed once).
+    def predictions(self, method: Method, k0: int | None = None) -> Predictions:
+        """The predictions of ``method`` (computed once); with ``k0`` (a compare's common
+        window [k0 h, T)) its window predictions over that window, the rest unchanged
+        (computed once per window, and only when they depend on it).
 
         Raises
         ------
@@ -220,7 +233,14 @@ class RunSetup:
                 while len(_PREDICTIONS) > 64:
                     _PREDICTIONS.pop(next(iter(_PREDICTIONS)))
             self._predictions[method] = _PREDICTIONS[key]
-        return self._predictions[method]
+        own = self._predictions[method]
+        if k0 is None or k0 == own.k0 or not window_dependent(own):
+            return own
+        key = (method, int(k0))
+        if key not in self._windowed:
+            with self.interruptible(self.phase(method)):
+                self._windowed[key] = self._predict(method, int(k0))
+        return self._windowed[key]
 
     def _native_system(self, method: Method) -> Any:
         """The method's system with native FMUs where a component has a linear form."""

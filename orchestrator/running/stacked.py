@@ -117,7 +117,7 @@ class StackedSetup(RunSetup):
         self._law = tracking_law(self.sc.system, method.tracking)
         make_estimator(self.sc.system, self.model(), method.estimator)
 
-    def _predict(self, method: Method) -> Predictions:
+    def _predict(self, method: Method, k0: int | None = None) -> Predictions:
         from controller_fmu.regulator import tracking_law
         from estimator_fmu.estimators import make_estimator
 
@@ -129,7 +129,7 @@ class StackedSetup(RunSetup):
         est = make_estimator(sc.system, self.model(), method.estimator)
         self._law = law = tracking_law(sc.system, method.tracking)
         Ks = law.Ks
-        parts = Predictions.of(method_predictions(sc, self.model(), est, Ks))
+        parts = Predictions.of(method_predictions(sc, self.model(), est, Ks, k0))
         if self.coupling != "jacobi":
             return parts
         from ..analysis.jacobi import predict_stationary_jacobi

@@ -22,7 +22,6 @@ reported as a one-line :class:`ScenarioError` naming the file, section and key (
 from __future__ import annotations
 
 import copy
-import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -39,6 +38,7 @@ from plant_model.vehicle_models import find
 
 from .errors import ScenarioError, validate_scenario
 from .fleet import fleet_spec, is_fleet_scenario
+from .nesting import check_nesting, loads_scenario_toml
 from .schema import RunSettings, ScenarioFile, SystemScenario
 from .size import check_fleet_model
 
@@ -319,9 +319,7 @@ def load_scenario(spec: str | Path = "paper") -> Scenario:
     path = _resolve(spec)
     where = str(path) if path.parent != SCENARIO_DIR else f"built-in scenario '{path.stem}'"
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{where}: not valid TOML: {exc}") from None
+        text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
         raise ScenarioError(f"{where}: not a text file (byte {exc.start} is not UTF-8); "
                             "a scenario is a TOML file") from None
@@ -329,12 +327,14 @@ def load_scenario(spec: str | Path = "paper") -> Scenario:
         raise ScenarioError(f"{where} is a folder; a scenario is a .toml file") from None
     except OSError as exc:
         raise ScenarioError(f"{where}: cannot be read: {exc.strerror}") from None
-    return scenario_from_dict(data, where)
+    return scenario_from_dict(loads_scenario_toml(text, where), where)
 
 
 def scenario_from_dict(data: Mapping[str, Any], where: str = "scenario") -> Scenario:
     """Validate a parsed scenario mapping (see the module docstring for the keys): the
-    sections by :mod:`.schema` / :mod:`.schema_fleet`, then the system is built."""
+    sections by :mod:`.schema` / :mod:`.schema_fleet`, then the system is built; a mapping
+    nested deeper than :data:`.nesting.MAX_DEPTH` is refused first."""
+    check_nesting(data, where)
     if is_fleet_scenario(data):
         # fleets need networkx (graphs) and more: imported only for them
         from plant_model.fleet import fleet_system, resolve_fleet_spec
