@@ -63,6 +63,10 @@ _LEGACY_NAMES = {"summary.json", "figures", "fmus", "points", "crosscheck", "par
                  "campaign.json", "README.md"}
 _LEGACY_SUFFIXES = {".rrd", ".fmu", ".ssp", ".xml", ".parquet", ".svg", ".png", ".pdf"}
 
+#: what other commands write into a run's folder and goes with the run: ``plot``'s default
+#: ``figures`` (and its lock); a new run into the folder replaces them with the earlier run
+DERIVED = {"figures"}
+
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
 
 
@@ -237,13 +241,17 @@ def earlier_outputs(folder: Path) -> set[str]:
     """The names in ``folder`` an earlier command wrote: those its record lists; in a
     folder of an earlier version (a record without names, or its lock file) the names
     such versions wrote (``summary.json``, recordings, figures, FMUs, per-plant and
-    per-point subfolders, a campaign's tables); none in a folder auv-cosim did not write."""
+    per-point subfolders, a campaign's tables); none in a folder auv-cosim did not write.
+    What other commands derived from the run (:data:`DERIVED`: ``plot``'s ``figures``) goes
+    with it."""
     if not folder.is_dir():
         return set()
     names = {p.name for p in folder.iterdir()}
     record = _record(folder)
     if record is not None and isinstance(record.get("outputs"), list):
-        return names & ({str(n) for n in record["outputs"]} | {RUN_MARKER, LOCK_NAME})
+        derived = {n for n in names if n in DERIVED or (n.startswith(".") and n.endswith(".lock")
+                                                        and n[1:-5] in DERIVED)}
+        return names & ({str(n) for n in record["outputs"]} | {RUN_MARKER, LOCK_NAME} | derived)
     if record is None and LOCK_NAME not in names:
         return set()
     return {n for n in names if n in _LEGACY_NAMES or Path(n).suffix in _LEGACY_SUFFIXES

@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from orchestrator.cli import main
+from orchestrator.exit_status import POINTS_FAILED
 from orchestrator.scenario import SCENARIO_DIR
 from plant_model.acoustic.base import MAX_MESSAGE_CYCLE_STEPS
 from plant_model.acoustic.links import MAX_IN_FLIGHT
@@ -211,7 +212,7 @@ def test_a_bad_grid_point_fails_alone_and_the_others_reach_the_summary(capsys, t
     out = tmp_path / "env"
     assert main(["envelope", "--scenario", "formation-4", "--deployment", "per-vehicle",
                  "--T", "1", "--speeds", "1", "--radii", "inf,0.001,30", "--currents", "0.1",
-                 "--out", str(out)]) == 0
+                 "--out", str(out)]) == POINTS_FAILED
     printed = capsys.readouterr().out
     env = json.loads((out / "summary.json").read_text())["envelope"]
     straight, tiny, circle = env["points"]

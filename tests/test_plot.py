@@ -145,7 +145,7 @@ def test_a_run_plots_its_one_method_in_png_and_svg_by_default(runs, capsys):
     folder = runs["run"]
     assert main(["plot", str(folder)]) == 0
     out = folder / "figures"
-    assert sorted(p.name for p in out.iterdir()) == sorted(
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == sorted(
         f"{n}.{f}" for n in PAPER_FIGURES for f in ("png", "svg"))
     text = _svg_text(out / "state-1.svg")
     assert "kalman true" in text and "kalman estimate" in text

@@ -15,7 +15,7 @@ from .args import _positive
 from .errors import UsageError
 
 __all__ = ["ROOT", "add_fmu_options", "add_force_option", "add_master_option",
-           "add_predict_option", "add_quiet_option", "prediction_window_line",
+           "add_predict_option", "add_quiet_option",
            "add_scenario_options", "method_table", "print_summary", "stationarity_line",
            "summary_notes", "scenario_of", "viewer_command"]
 
@@ -236,26 +236,9 @@ def stationarity_line(summary: dict) -> str | None:
     return head + (f"; expected over this window: {window}" if window else "")
 
 
-def prediction_window_line(summary: dict) -> str | None:
-    """One line naming the methods whose window predictions (``predicted_window``, a
-    planned path's mean motion) are over their own window, which starts before the
-    window all methods' statistics share (None when there is none)."""
-    starts: dict[float, list[str]] = {}
-    for name, m in summary["methods"].items():
-        if m.get("prediction_window_start_s") is not None:
-            starts.setdefault(m["prediction_window_start_s"], []).append(name)
-    if not starts:
-        return None
-    lo, hi = summary["stats_window_s"]
-    own = "; ".join(f"{', '.join(names)} from t = {t:.6g} s" for t, names in starts.items())
-    return (f"note: the statistics of every method are over [{lo:.6g}, {hi:.6g}) s; the "
-            f"window predictions over each method's own window: {own}")
-
-
 def summary_notes(summary: dict) -> list[str]:
     """The notes under the table, one line each: saturation, why a prediction is missing,
-    the full-information bound, the stationarity of the window, window predictions over
-    another window than the statistics."""
+    the full-information bound, the stationarity of the window."""
     lines = [line for name, m in summary["methods"].items()
              if (line := saturation_line(name, m.get(
                  "actuator_saturation_fraction_per_vehicle")))]
@@ -270,7 +253,7 @@ def summary_notes(summary: dict) -> list[str]:
                      f"{summary['price_of_decentralization']:.4f}"
                      + ("" if pred is None else f" (predicted {pred:.4f})"))
         lines.append(line)
-    lines += [line for line in (stationarity_line(summary), prediction_window_line(summary))
+    lines += [line for line in (stationarity_line(summary),)
               if line]
     return lines
 
