@@ -20,6 +20,7 @@ import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
+from .finite_values import FiniteValues
 from .fmu_state import (
     STATE_FORMAT,
     STATE_MAGIC,
@@ -29,7 +30,7 @@ from .fmu_state import (
     decode_state,
     encode_state,
 )
-from .interface import ArraySpec, element_names, expand
+from .interface import ArraySpec, expand
 from .lifecycle import (
     COMM_POINT_TOLERANCE,
     FAILED,
@@ -83,7 +84,7 @@ def load_config(resources: str | None, filename: str) -> dict[str, Any]:
     return json.loads(path.read_text())
 
 
-class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
+class ArraySlave(FiniteValues, FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
     """Base class of the project's slaves (see the module docstring)."""
 
     #: name of the JSON configuration file in the FMU's resources/; by default the slave
@@ -318,23 +319,6 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
         if not math.isfinite(v):
             self._flag_input(f"input {name} = {v} is not finite")
 
-    def _flag_input(self, msg: str) -> None:
-        self._input_error = msg
-        self.log(f"{self._who()}: {msg}; the next step will be refused", Fmi2Status.error)
-
-    def _check_inputs(self) -> None:
-        """Flag the first non-finite input, if any (after a block of inputs was set)."""
-        msg = self._first_bad_input()
-        if msg is not None:
-            self._flag_input(msg)
-
-    def _first_bad_input(self) -> str | None:
-        bad = np.flatnonzero(~np.isfinite(self._in))
-        if not bad.size:
-            return None
-        var = self.vars[self._vr_in + int(bad[0])]
-        return f"input {var.name} = {self._in[bad[0]]} is not finite"
-
     # ----------------------------------------------------------- lifecycle
     def _early_outputs(self) -> None:
         """Outputs read before they are defined: refused before initialization or after a
@@ -343,55 +327,6 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
             self._out_of_order("fmi2GetReal", "outputs are defined only from "
                                               "fmi2EnterInitializationMode on, and not after "
                                               "a fatal error")
-
-    def _check_outputs(self) -> None:
-        """After outputs were computed and their sum was not finite: record the first
-        non-finite output (name, value, time and, if one is the cause, the first non-finite
-        input) for the next fmi2DoStep to refuse, and log it once. Without direct feedthrough
-        every further step is refused (it comes from the state); with it, the next step goes
-        on if finite inputs set meanwhile made the outputs finite."""
-        msg = self._bad_output = self._nonfinite_output()
-        if msg is None or msg == self._output_logged:
-            return
-        self._output_logged = msg
-        if not self._feedthrough and self._output_error is None:
-            self._output_error = msg
-        self.log(f"{self._who()}: {msg}; the next step will be refused", Fmi2Status.error)
-
-    def _refresh_outputs(self) -> None:
-        """Compute the outputs and check them: one sum over the buffer (finite values sum to
-        a finite number unless they overflow; an exact check only then)."""
-        self.compute_outputs()
-        self._dirty = False
-        total = sum(self._out.tolist())
-        if total - total != 0.0:               # some output is nan or +-inf (or overflow)
-            self._check_outputs()
-        elif self._bad_output is not None:
-            self._bad_output = None
-
-    def _nonfinite_output(self) -> str | None:
-        """``output u[2] = inf at t = 0.04 s is not finite[: input y[1] = nan]`` for the
-        first non-finite output (None if all are finite); t the current communication point."""
-        bad = np.flatnonzero(~np.isfinite(self._out))
-        if not bad.size:
-            return None
-        var = self.vars[self._vr_out + int(bad[0])]
-        cause = self._first_bad_input()
-        cause = f": {cause.removesuffix(' is not finite')}" if cause else ""
-        t = self._t_next if self._t_next is not None else 0.0
-        return f"output {var.name} = {self._out[bad[0]]} at t = {t} s is not finite{cause}"
-
-    def _first_bad_parameter(self) -> str | None:
-        """The first Real parameter element that is not finite, named with its value."""
-        for spec in self.specs:
-            if spec.causality != "parameter" or spec.type != "Real":
-                continue
-            arr = np.asarray(self.par[spec.name], float).reshape(-1)
-            bad = np.flatnonzero(~np.isfinite(arr))
-            if bad.size:
-                name = element_names(spec.name, spec.shape)[int(bad[0])]
-                return f"parameter {name} = {arr[bad[0]]} is not finite"
-        return None
 
     def exit_initialization_mode(self) -> None:
         """fmi2ExitInitializationMode: build the mathematics (:meth:`setup`) from the parameters.
@@ -500,21 +435,6 @@ class ArraySlave(FmuStateMixin, PlannedAccess, Fmi2StateMachine, Fmi2Slave):
                              "(further steps are refused)", Fmi2Status.error)
                     return False
         return True
-
-    def _nonfinite_step(self, t: float, h: float, state: np.ndarray) -> bool:
-        """Report a step whose state became non-finite: name the outputs it reaches."""
-        i = int(np.flatnonzero(~np.isfinite(state))[0])
-        self.compute_outputs()
-        self._dirty = False
-        bad = np.flatnonzero(~np.isfinite(self._out))
-        names = [self.vars[self._vr_out + int(j)].name for j in bad[:3]]
-        where = (f"outputs {', '.join(names)}{' ...' if bad.size > 3 else ''}" if names
-                 else f"internal state element {i + 1}")
-        self._output_error = (f"{where} became non-finite in the step from t = {t} s to "
-                              f"{t + h} s (state element {i + 1} = {state[i]})")
-        self.log(f"{self._who()}: fmi2DoStep refused: {self._output_error}", Fmi2Status.error)
-        return False
-
 
 
 class DelegatedStateSlave(ArraySlave):
