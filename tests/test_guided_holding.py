@@ -1,9 +1,9 @@
 """remus100-6dof-guided holds survey-4-remus's formation like remus100-6dof does.
 
 Measured (seed 0, T = 120 s, the second half t in [60, 120) s, distance of each vehicle's
-true position from its formation target, development machine): remus100-6dof largest
-4.12 m, RMS 1.18 m; remus100-6dof-guided largest 2.54 m, RMS 1.00 m (seed 1: 3.69 / 1.21 m
-and 2.38 / 1.04 m). Both launch off formation behind a leader already at speed (72.7 m at
+true position from its formation target, development machine, noise stream 2):
+remus100-6dof largest 2.63 m, RMS 0.77 m; remus100-6dof-guided largest 1.94 m, RMS 0.63 m
+(seed 1: 2.51 / 0.74 m and 2.03 / 0.61 m). Both launch off formation behind a leader already at speed (72.7 m at
 worst in the first seconds, the same for both). The guided vehicle's autopilot adds the
 course-rate feedforward and the depth loop K_z, which the internal autopilot lacks. About
 23 s for the two runs.
