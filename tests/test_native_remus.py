@@ -1,0 +1,217 @@
+"""The native (C) REMUS 100 FMUs (AuvRemus6dofNative, AuvRemus6dofActuatedNative) against
+the pythonfmu plant of the same seed: the C model with navigation sensors, the FMU with
+its autopilot and open loop, the state round trip, and bad parameters and inputs."""
+from __future__ import annotations
+
+import ctypes
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+from fmpy.validation import validate_fmu
+
+from orchestrator.cosim.build import build_fmus
+from orchestrator.cosim.instance import FmuLog
+from orchestrator.cosim.native_build import NATIVE_DIR
+from orchestrator.cosim.native_remus import native_remus_fmu
+from orchestrator.cosim.per_vehicle import build_configs, per_vehicle_configs
+from orchestrator.scenario import load_scenario
+from plant_model.navigation import NavigationSensors
+from plant_model.per_vehicle import sample_vehicle, vehicle_views
+from plant_model.remus100.autopilot import AutopilotGains
+from plant_model.remus100.dynamics import Remus100
+from plant_model.remus100.native_constants import const_struct, remus_constants
+from plant_model.remus100.plant import (
+    ActuatedRemus6dofPlant,
+    Remus6dofPlant,
+    default_substep,
+    linear_mass_damping,
+    substep_count,
+)
+
+pytestmark = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler (cc)")
+
+#: native vs pythonfmu, per signal, relative to the signal's largest magnitude (measured:
+#: up to 5e-15; docs/native.md says where the last bits differ)
+BOUND = 1e-12
+SEED, VEHICLE = 3, 3
+
+
+def _plant(cls, sensors=None):
+    sc = load_scenario("formation-4")
+    view = vehicle_views(sc.fleet)[VEHICLE - 1]
+    linear = sample_vehicle(view, sc.h, VEHICLE)
+    M, D = linear_mass_damping(view.B1, view.B2)
+    return cls(Remus100(), AutopilotGains(), linear, M, D, view.x0, view.w0, SEED,
+               substep_count(sc.h, default_substep(sc.h)), sensors=sensors), view
+
+
+def _inputs(actuated: bool, steps: int) -> np.ndarray:
+    t = np.arange(steps) * 0.01
+    if actuated:                       # rpm, rudder, stern: a turn and a dive, open loop
+        return np.column_stack([1000 + 300 * np.sin(t), 0.2 * np.sin(0.3 * t),
+                                0.1 * np.cos(0.2 * t)])
+    return np.random.default_rng(0).standard_normal((steps, 3)) * [30.0, 30.0, 10.0]
+
+
+def _relative(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per column: max |a - b| over the largest |b| (1 where b is all 0)."""
+    scale = np.abs(b).max(axis=0)
+    return np.abs(a - b).max(axis=0) / np.where(scale > 0, scale, 1.0)
+
+
+@pytest.fixture(scope="module")
+def model_lib(tmp_path_factory):
+    lib = tmp_path_factory.mktemp("remus_c") / "libremus.so"
+    subprocess.run(["cc", "-shared", "-fPIC", "-O2", "-std=c99", "-Werror", "-Wall",
+                    f"-I{NATIVE_DIR}", str(NATIVE_DIR / "remus6dof_model.c"),
+                    str(NATIVE_DIR / "numpy_random.c"), "-o", str(lib), "-lm"], check=True)
+    return ctypes.CDLL(str(lib))
+
+
+@pytest.mark.parametrize("cls", [Remus6dofPlant, ActuatedRemus6dofPlant])
+def test_the_c_model_with_sensors_is_the_python_plant(model_lib, cls):
+    """1000 steps with navigation sensors (dropouts on): every output within BOUND."""
+    plant, view = _plant(cls, NavigationSensors())
+    c = const_struct(remus_constants(plant))
+    st = ctypes.create_string_buffer(200_000)
+    dp = ctypes.POINTER(ctypes.c_double)
+    x0, w0 = np.array(view.x0, float), np.array(view.w0, float)
+    model_lib.remus_reset(ctypes.byref(c), st, x0.ctypes.data_as(dp), w0.ctypes.data_as(dp),
+                          ctypes.c_uint32(SEED), ctypes.c_uint32(VEHICLE))
+    steps, o = 1000, np.zeros(plant.output.size)
+    U = _inputs(cls is ActuatedRemus6dofPlant, steps)
+    got, want = np.zeros((steps, o.size)), np.zeros((steps, o.size))
+    for k in range(steps):
+        model_lib.remus_outputs(ctypes.byref(c), st, o.ctypes.data_as(dp))
+        got[k], want[k] = o, plant.output
+        u = np.ascontiguousarray(U[k])
+        plant.step(u)
+        assert model_lib.remus_step(ctypes.byref(c), st, u.ctypes.data_as(dp)) == 0
+    assert np.all(_relative(got, want) < BOUND)
+    assert want[:, -3:].min() == 0.0 and want[:, -3:].max() == 1.0   # reports and dropouts
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory):
+    """The pythonfmu FMUs of both kinds (formation-4, per vehicle) and their native ones."""
+    out = tmp_path_factory.mktemp("remus_native")
+    built = {}
+    for model in ("remus100-6dof", "remus100-6dof-guided"):
+        sc = load_scenario("formation-4").with_run(
+            T=2.0, deployment="per-vehicle", architecture="distributed", seed=SEED
+        ).with_vehicle_model(model)
+        cfgs = per_vehicle_configs(sc, "distributed", mode="kalman", seed=SEED,
+                                   tracking=sc.tracking)
+        built.update(build_fmus(None, out / model, kinds=build_configs(cfgs)))
+    return {k: native_remus_fmu(k, built[k], out / "native")
+            for k in ("remus6dof", "remus6dof_actuated")}
+
+
+class _Fmu:
+    def __init__(self, path, tmp):
+        self.md = read_model_description(str(path))
+        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
+        self.outs = [v.name for v in self.md.modelVariables if v.causality == "output"]
+        self.ins = [v.name for v in self.md.modelVariables if v.causality == "input"]
+        self.log = FmuLog()
+        self.messages = self.log.messages            # (status, text)
+        self.s = FMU2Slave(guid=self.md.guid, unzipDirectory=extract(str(path), str(tmp)),
+                           modelIdentifier=self.md.coSimulation.modelIdentifier,
+                           instanceName="remus")
+        self.s.instantiate(callbacks=self.log.callbacks, loggingOn=True)
+
+    def init(self, reals=None, ints=None):
+        self.s.setupExperiment(startTime=0.0)
+        self.s.enterInitializationMode()
+        for k, v in (reals or {}).items():
+            self.s.setReal([self.vr[k]], [v])
+        for k, v in (ints or {}).items():
+            self.s.setInteger([self.vr[k]], [v])
+        self.s.exitInitializationMode()
+
+    def out(self):
+        return np.array(self.s.getReal([self.vr[o] for o in self.outs]))
+
+    def step(self, k, u):
+        self.s.setReal([self.vr[i] for i in self.ins], list(u))
+        self.s.doStep(k * 0.01, 0.01)
+
+
+def _start(f, view):
+    f.init({**{f"x0[{i + 1}]": float(v) for i, v in enumerate(view.x0)}},
+           {"vehicle": VEHICLE, "seed": SEED})
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind, cls", [("remus6dof", Remus6dofPlant),
+                                       ("remus6dof_actuated", ActuatedRemus6dofPlant)])
+def test_the_native_fmu_is_the_python_plant(fmus, tmp_path, kind, cls):
+    """The FMU with its autopilot (force in) and open loop (commands in), 500 steps."""
+    assert validate_fmu(str(fmus[kind])) == []
+    plant, view = _plant(cls)
+    f = _Fmu(fmus[kind], tmp_path)
+    _start(f, view)
+    steps = 500
+    U = _inputs(kind == "remus6dof_actuated", steps)
+    got, want = np.zeros((steps, plant.output.size)), np.zeros((steps, plant.output.size))
+    for k in range(steps):
+        got[k], want[k] = f.out(), plant.output
+        f.step(k, U[k])
+        plant.step(U[k])
+    rel = _relative(got, want)
+    assert np.all(rel < BOUND), dict(zip(f.outs, rel))
+    assert np.ptp(want[:, 14]) > 0.01                 # it turns: the test sees the dynamics
+
+
+@pytest.mark.slow
+def test_a_restored_state_repeats_the_steps_bit_for_bit(fmus, tmp_path):
+    plant, view = _plant(Remus6dofPlant)
+    f = _Fmu(fmus["remus6dof"], tmp_path)
+    _start(f, view)
+    U = _inputs(False, 100)
+    for k in range(50):
+        f.step(k, U[k])
+    state = f.s.getFMUstate()
+    blob = f.s.serializeFMUstate(state)
+    first = []
+    for k in range(50, 100):
+        f.step(k, U[k])
+        first.append(f.out())
+    for restore in (lambda: f.s.setFMUstate(state),
+                    lambda: f.s.setFMUstate(f.s.deSerializeFMUstate(blob))):
+        restore()
+        again = []
+        for k in range(50, 100):
+            f.step(k, U[k])
+            again.append(f.out())
+        assert np.array_equal(np.array(first), np.array(again))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("reals, ints, named", [
+    ({"remus.L": 1.7}, {}, "remus.L"),                     # derived at export
+    ({"W_x[2,2]": 2e-4}, {}, "W_x[2,2]"),
+    ({"substep": 0.003}, {}, "substep"),                   # does not divide h
+    ({"autopilot.U_max": 0.0}, {}, "autopilot.U_max"),
+    ({}, {"vehicle": 0}, "vehicle"),
+])
+def test_a_bad_parameter_is_an_error_naming_it(fmus, tmp_path, reals, ints, named):
+    f = _Fmu(fmus["remus6dof"], tmp_path)
+    with pytest.raises(Exception, match="fmi2ExitInitializationMode"):
+        f.init(reals, ints)
+    assert any(f"parameter {named} " in m for _, m in f.messages), f.messages
+
+
+@pytest.mark.slow
+def test_a_nan_input_is_an_error_naming_it(fmus, tmp_path):
+    f = _Fmu(fmus["remus6dof_actuated"], tmp_path)
+    _start(f, _plant(ActuatedRemus6dofPlant)[1])
+    with pytest.raises(Exception, match="fmi2DoStep"):
+        f.step(0, [1000.0, float("nan"), 0.0])
+    assert any("input rudder_command = nan" in m for _, m in f.messages), f.messages
+    f.step(0, [1000.0, 0.0, 0.0])                      # the host goes on: no crash
+    assert np.all(np.isfinite(f.out()))
