@@ -95,6 +95,35 @@ def test_the_c_model_with_sensors_is_the_python_plant(model_lib, cls):
     assert want[:, -3:].min() == 0.0 and want[:, -3:].max() == 1.0   # reports and dropouts
 
 
+def test_the_c_derivative_and_rk4_are_the_numba_kernel_bit_for_bit(model_lib):
+    """2000 random states, commands and currents: kernel.derivative and one RK4 step of
+    0.01 s equal the C model's exactly (the same operations in the same order, the same
+    libm); what differs over a run is only the noise colouring (docs/native.md)."""
+    from plant_model.remus100 import kernel
+    p = kernel.pack(Remus100())
+    pc = np.zeros(134)
+    pc[:p.size] = p
+    dp = ctypes.POINTER(ctypes.c_double)
+    rng = np.random.default_rng(1)
+    scale = [10, 10, 10, .3, .3, 3, 1.5, .3, .3, .2, .2, .2, .2, .2, 800]
+    for _ in range(2000):
+        x = rng.standard_normal(15) * scale
+        cmd, cur = rng.standard_normal(3) * [.3, .3, 1000], rng.standard_normal(3) * .2
+        a, b = np.zeros(15), np.zeros(15)
+        kernel.derivative(p, x, cmd, cur, a)
+        model_lib.remus_derivative(pc.ctypes.data_as(dp), x.ctypes.data_as(dp),
+                                   cmd.ctypes.data_as(dp), cur.ctypes.data_as(dp),
+                                   b.ctypes.data_as(dp))
+        assert np.array_equal(a, b)
+        xa, xb = x.copy(), x.copy()
+        kernel.rk4(p, xa, cmd, cur, 0.01, 1)
+        model_lib.remus_rk4(pc.ctypes.data_as(dp), xb.ctypes.data_as(dp),
+                            cmd.ctypes.data_as(dp), cur.ctypes.data_as(dp),
+                            ctypes.c_double(0.01), 1)
+        assert np.array_equal(xa, xb)
+    assert np.any(a != 0.0)
+
+
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory):
     """The pythonfmu FMUs of both kinds (formation-4, per vehicle) and their native ones."""
