@@ -244,3 +244,19 @@ def test_a_nan_input_is_an_error_naming_it(fmus, tmp_path):
     assert any("input rudder_command = nan" in m for _, m in f.messages), f.messages
     f.step(0, [1000.0, 0.0, 0.0])                      # the host goes on: no crash
     assert np.all(np.isfinite(f.out()))
+
+
+def test_vehicles_that_differ_in_an_exported_parameter_are_refused_by_name():
+    """One native FMU serves vehicles that differ only in what it reads at run time (x0,
+    w0, seed, vehicle, substep, autopilot gains); a fixed parameter that differs is named
+    (native_system then keeps the pythonfmu FMU)."""
+    from types import SimpleNamespace
+
+    from orchestrator.cosim.native_remus import VehiclesDiffer, native_remus_components
+    one = {"remus.L": 1.6, "x0[1]": 0.0, "vehicle": 1, "autopilot.K_u": 300.0}
+    comps = (SimpleNamespace(name="vehicle_1", fmu="remus6dof", parameters=one),
+             SimpleNamespace(name="vehicle_2", fmu="remus6dof",
+                             parameters={**one, "x0[1]": 5.0, "vehicle": 2,
+                                         "autopilot.K_u": 200.0, "remus.L": 1.7}))
+    with pytest.raises(VehiclesDiffer, match=r"vehicle_2: its parameter remus.L = 1.7"):
+        native_remus_components("remus6dof", "unused.fmu", comps, "unused")

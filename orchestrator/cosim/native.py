@@ -389,11 +389,15 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
                                       parameters=native_parameters(forms[c.name], base[c.fmu]))
                   if c.name in forms else c for c in system.components)
     # the nonlinear REMUS 100: its C model, the same variables but the String
-    # noise_convention (built into the noise factor at export)
-    from .native_remus import REMUS_KINDS, native_remus_components
+    # noise_convention (built into the noise factor at export); vehicles that differ in a
+    # parameter fixed at export keep their pythonfmu FMU
+    from .native_remus import REMUS_KINDS, VehiclesDiffer, native_remus_components
     remus = [k for k in REMUS_KINDS if k in kinds and any(c.fmu == k for c in comps)]
     for k in remus:
-        built[k], comps = native_remus_components(k, fmus[k], comps, out_dir)
+        try:
+            built[k], comps = native_remus_components(k, fmus[k], comps, out_dir)
+        except VehiclesDiffer:
+            continue
     # a connection that carries data only for some value of a replaced component's
     # parameter (the truth in mode "ideal"): the native form has that value built in
     conns = tuple(dataclasses.replace(c, when=None) if c.when and c.when[0] in forms

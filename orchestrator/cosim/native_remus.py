@@ -34,8 +34,8 @@ from plant_model.remus100.native_constants import RemusConst, remus_constants
 
 from .native_build import NATIVE_DIR, NativeBuildError, compile_fmu, native_model
 
-__all__ = ["REMUS_KINDS", "RUNTIME_PARAMETERS", "native_remus_components", "native_remus_fmu",
-           "runtime_parameter"]
+__all__ = ["REMUS_KINDS", "RUNTIME_PARAMETERS", "VehiclesDiffer", "native_remus_components",
+           "native_remus_fmu", "runtime_parameter"]
 
 #: the REMUS 100 vehicle kinds with a native FMU
 REMUS_KINDS = ("remus6dof", "remus6dof_actuated")
@@ -45,6 +45,11 @@ _HEADERS = ("fmu_core.h", "remus6dof_fmu.h", "remus6dof_model.h", "numpy_random.
 #: String noise_convention) was used at export and must keep its value
 RUNTIME_PARAMETERS = ("x0", "w0", "substep", "seed", "vehicle")
 _LAYOUT = ("parameter", "input", "output")
+
+
+class VehiclesDiffer(NativeBuildError):
+    """The vehicles of one REMUS FMU differ in a parameter fixed at export: one native FMU
+    cannot serve them all (native_system keeps the pythonfmu FMU)."""
 
 
 def runtime_parameter(name: str) -> bool:
@@ -222,9 +227,11 @@ def native_remus_components(kind: str, fmu: Path | str, components: tuple, out_d
 
     Raises
     ------
-    NativeBuildError
+    VehiclesDiffer
         Naming a component and a parameter that differs from the first component's where
         the export's derived numbers depend on it.
+    NativeBuildError
+        If the FMU cannot be built (:func:`native_remus_fmu`).
     """
     mine = [c for c in components if c.fmu == kind]
     base = dict(mine[0].parameters)
@@ -235,7 +242,7 @@ def native_remus_components(kind: str, fmu: Path | str, components: tuple, out_d
             a, b = base.get(name), c.parameters.get(name)
             if not (a == b if isinstance(a, str) or isinstance(b, str)
                     else np.array_equal(np.asarray(a, float), np.asarray(b, float))):
-                raise NativeBuildError(
+                raise VehiclesDiffer(
                     f"{c.name}: its parameter {name} = {b!r} differs from {mine[0].name}'s "
                     f"{a!r}; the native {kind} FMU derives its numbers from it at export, "
                     "so every vehicle of one FMU must share it")
