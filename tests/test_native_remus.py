@@ -153,9 +153,11 @@ class _Fmu:
                            instanceName="remus")
         self.s.instantiate(callbacks=self.log.callbacks, loggingOn=True)
 
-    def init(self, reals=None, ints=None):
+    def init(self, reals=None, ints=None, strings=None):
         self.s.setupExperiment(startTime=0.0)
         self.s.enterInitializationMode()
+        for k, v in (strings or {}).items():
+            self.s.setString([self.vr[k]], [v])
         for k, v in (reals or {}).items():
             self.s.setReal([self.vr[k]], [v])
         for k, v in (ints or {}).items():
@@ -172,7 +174,7 @@ class _Fmu:
 
 def _start(f, view):
     f.init({**{f"x0[{i + 1}]": float(v) for i, v in enumerate(view.x0)}},
-           {"vehicle": VEHICLE, "seed": SEED})
+           {"vehicle": VEHICLE, "seed": SEED}, {"noise_convention": "intensity"})
 
 
 @pytest.mark.slow
@@ -227,11 +229,13 @@ def test_a_restored_state_repeats_the_steps_bit_for_bit(fmus, tmp_path):
     ({"substep": 0.003}, {}, "substep"),                   # does not divide h
     ({"autopilot.U_max": 0.0}, {}, "autopilot.U_max"),
     ({}, {"vehicle": 0}, "vehicle"),
+    ({}, {}, "noise_convention"),                           # a String, built in at export
 ])
 def test_a_bad_parameter_is_an_error_naming_it(fmus, tmp_path, reals, ints, named):
     f = _Fmu(fmus["remus6dof"], tmp_path)
-    with pytest.raises(Exception, match="fmi2ExitInitializationMode"):
-        f.init(reals, ints)
+    strings = {"noise_convention": "per_sample"} if named == "noise_convention" else {}
+    with pytest.raises(Exception, match="fmi2ExitInitializationMode|fmi2SetString"):
+        f.init(reals, ints, strings)
     assert any(f"parameter {named} " in m for _, m in f.messages), f.messages
 
 

@@ -14,8 +14,9 @@
  * 3000000 + vehicle]). What was computed at export (RemusConst BUILD_CONST: the mass
  * matrix and its inverse, the damping, the strips, the current's transition exp(K h) and
  * the noise factor, which need a matrix exponential and eigen-decompositions): the
- * parameters it came from (FIXED_VRS: the design model's matrices, h, remus.*, sensors.*)
- * are refused at initialization with another value, naming the parameter (export again).
+ * parameters it came from (FIXED_VRS: the design model's matrices, h, remus.*, sensors.*;
+ * and the String noise_convention, refused by fmu_core.c's fmi2SetString) are refused at
+ * initialization with another value, naming the parameter (export again).
  * Also refused, by name: autopilot.U_max, n_max, delta_max not positive, U_min negative,
  * a substep that does not divide h, vehicle < 1, seed < 0. A non-finite input is refused by
  * fmu_core.c; a state that would become non-finite ends the step with fmi2Error naming the
@@ -45,6 +46,10 @@ void model_real_name(fmi2ValueReference vr, char *out, size_t n) {
 }
 
 const char *model_int_name(fmi2ValueReference vr) { return vr == 0 ? "seed" : "vehicle"; }
+
+/* noise_convention: the noise factor it selects is in BUILD_CONST */
+const char *model_string_name(fmi2ValueReference vr) { (void)vr; return "noise_convention"; }
+const char *model_string_value(fmi2ValueReference vr) { (void)vr; return NOISE_CONVENTION; }
 
 /* round(h / substep) if substep divides h (plant.substep_count), else 0 */
 static int substep_count(double h, double substep) {

@@ -388,8 +388,7 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
     comps = tuple(dataclasses.replace(c, interface=tuple(native_specs(forms[c.name])),
                                       parameters=native_parameters(forms[c.name], base[c.fmu]))
                   if c.name in forms else c for c in system.components)
-    # the nonlinear REMUS 100: its C model, the same variables but the String
-    # noise_convention (built into the noise factor at export); vehicles that differ in a
+    # the nonlinear REMUS 100: its C model, the same variables; vehicles that differ in a
     # parameter fixed at export keep their pythonfmu FMU
     from .native_remus import REMUS_KINDS, VehiclesDiffer, native_remus_components
     remus = [k for k in REMUS_KINDS if k in kinds and any(c.fmu == k for c in comps)]

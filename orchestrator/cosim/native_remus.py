@@ -6,21 +6,22 @@ Made from the built pythonfmu FMU and one component's parameter values:
 
 - ``modelDescription.xml`` is the pythonfmu FMU's: the same variable names, causalities,
   units, descriptions and ModelStructure, with the component's values as start values;
-  the value references are renumbered per type (Reals 0.., the Integers seed, vehicle),
-  the layout fmu_core.c serves, and the String ``noise_convention`` is left out (the noise
-  factor it selects is computed at export); the co-simulation capabilities of a native
-  build (``needsExecutionTool="false"``, FMU state, the C sources listed);
+  the value references are renumbered per type (Reals 0.., the Integers seed, vehicle,
+  the String ``noise_convention``), the layout fmu_core.c serves; the co-simulation
+  capabilities of a native build (``needsExecutionTool="false"``, FMU state, the C sources listed);
 - the generated ``native_model.h`` holds the variables' names and start values, the value
   reference ``VR_<name>`` of each array's first element, and ``BUILD_CONST``: the numbers
   :func:`plant_model.remus100.native_constants.remus_constants` derives from the pythonfmu
   slave set up with those values (a matrix exponential, eigen-decompositions), with the
-  list of parameters they come from (refused at run time with another value).
+  list of parameters they come from (refused at run time with another value; so is
+  ``noise_convention``, whose noise factor is built in).
 
 So every component of one native FMU must share those parameters (a fleet of one
 vehicle type does: its vehicles differ in x0, w0, vehicle, seed and the gains).
 """
 from __future__ import annotations
 
+import json
 import re
 import zipfile
 from collections.abc import Mapping
@@ -41,8 +42,8 @@ __all__ = ["REMUS_KINDS", "RUNTIME_PARAMETERS", "VehiclesDiffer", "native_remus_
 REMUS_KINDS = ("remus6dof", "remus6dof_actuated")
 _SOURCES = ("fmu_core.c", "remus6dof_fmu.c", "remus6dof_model.c", "numpy_random.c")
 _HEADERS = ("fmu_core.h", "remus6dof_fmu.h", "remus6dof_model.h", "numpy_random.h")
-#: the parameter arrays the C model reads at initialization; every other one (but the
-#: String noise_convention) was used at export and must keep its value
+#: the parameter arrays the C model reads at initialization; every other one was used at
+#: export and must keep its value
 RUNTIME_PARAMETERS = ("x0", "w0", "substep", "seed", "vehicle")
 _LAYOUT = ("parameter", "input", "output")
 
@@ -77,7 +78,7 @@ def _c_array(v: Any) -> str:
 
 
 def _header(model: str, reals: list[tuple[str, str, float]], ints: dict[str, int],
-            const: dict, guid: str) -> str:
+            strings: dict[str, str], const: dict, guid: str) -> str:
     count = {c: sum(1 for _, cc, _ in reals if cc == c) for c in _LAYOUT}
     first: dict[str, int] = {}
     for vr, (name, _, _) in enumerate(reals):
@@ -97,6 +98,7 @@ def _header(model: str, reals: list[tuple[str, str, float]], ints: dict[str, int
         f"#define NOUT {count['output']}", f"#define NREAL {len(reals)}",
         "#define NINT 2", f"#define STEP_VR {first['h']}", "#define START_AT_ZERO 1",
         f"#define SEED_START {ints['seed']}", f"#define VEHICLE_START {ints['vehicle']}",
+        "#define NSTRING 1", f"#define NOISE_CONVENTION {json.dumps(strings['noise_convention'])}",
         "/* the value reference of each array's first element (of a scalar: its own) */",
         *(f"#define VR_{n} {vr}" for n, vr in first.items()),
         '#include "remus6dof_fmu.h"',
@@ -129,7 +131,7 @@ def _model_description(root: etree._Element, model: str, guid: str,
     mv = md.find("ModelVariables")
     old = list(mv)
     index = {}                                  # old 1-based index -> new
-    vr = {"Real": 0, "Integer": 0}
+    vr = {"Real": 0, "Integer": 0, "String": 0}
     kept_names = {sv.get("name") for sv in keep}
     for i, sv in enumerate(old, 1):
         if sv.get("name") not in kept_names:
@@ -188,15 +190,15 @@ def native_remus_fmu(kind: str, fmu: Path | str, out_dir: Path | str,
         const = _slave(kind, Path(fmu), parameters)
     except (ValueError, ArithmeticError) as exc:   # ModelError is a ValueError
         raise NativeBuildError(f"{model}: {exc}") from None
-    reals, ints, keep = [], {}, []
+    reals, ints, strings, keep = [], {}, {}, []
     for sv in root.iterfind("ModelVariables/ScalarVariable"):
         typ, name, caus = sv[0].tag, sv.get("name"), sv.get("causality")
-        if typ == "String":                      # noise_convention: in the noise factor
-            continue
-        if typ not in ("Real", "Integer"):
+        if typ not in ("Real", "Integer", "String"):
             raise NativeBuildError(f"{model}: variable {name} is a {typ}")
         start = parameters.get(name, sv[0].get("start", "0"))
-        if typ == "Integer":
+        if typ == "String":                      # noise_convention: in the noise factor
+            strings[name] = sv_start = str(start)
+        elif typ == "Integer":
             ints[name] = int(start)
             sv_start = str(int(start))
         else:
@@ -207,19 +209,21 @@ def native_remus_fmu(kind: str, fmu: Path | str, out_dir: Path | str,
             copy[0].set("start", sv_start)
         keep.append(copy)
     order = [_LAYOUT.index(c) if c in _LAYOUT else -1 for _, c, _ in reals]
-    if -1 in order or order != sorted(order) or set(ints) != {"seed", "vehicle"}:
+    if (-1 in order or order != sorted(order) or set(ints) != {"seed", "vehicle"}
+            or set(strings) != {"noise_convention"}):
         raise NativeBuildError(f"{model}: the variables are not Real parameters, inputs, "
-                               "outputs in this order with the Integers seed and vehicle")
+                               "outputs in this order with the Integers seed and vehicle and "
+                               "the String noise_convention")
     return compile_fmu(model, tuple(NATIVE_DIR / f for f in _SOURCES),
                        tuple(NATIVE_DIR / f for f in _HEADERS),
-                       lambda guid: _header(model, reals, ints, const, guid),
+                       lambda guid: _header(model, reals, ints, strings, const, guid),
                        lambda guid: _model_description(root, model, guid, keep), out_dir)
 
 
 def native_remus_components(kind: str, fmu: Path | str, components: tuple, out_dir: Path | str
                             ) -> tuple[Path, tuple]:
     """The native FMU of ``kind`` for the components of a system that use it, and the
-    components with the parameters it takes (``noise_convention`` left out).
+    components (unchanged: the native FMU has the pythonfmu FMU's variables).
 
     The FMU is exported with the first component's values; the others may differ only in
     the parameters the C model reads at run time (:data:`RUNTIME_PARAMETERS`, the
@@ -247,9 +251,4 @@ def native_remus_components(kind: str, fmu: Path | str, components: tuple, out_d
                     f"{a!r}; the native {kind} FMU derives its numbers from it at export, "
                     "so every vehicle of one FMU must share it")
     path = native_remus_fmu(kind, fmu, out_dir, base)
-    import dataclasses
-    out = tuple(dataclasses.replace(
-        c, parameters={k: v for k, v in c.parameters.items() if k != "noise_convention"},
-        interface=tuple(s for s in c.interface if s.name != "noise_convention"))
-        if c.fmu == kind else c for c in components)
-    return path, out
+    return path, tuple(components)
