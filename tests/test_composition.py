@@ -29,7 +29,9 @@ REFUSED = {("stacked", "links"): "[network] needs [simulation] deployment = \"pe
            ("stacked", "remus100-6dof"): "needs [simulation] deployment = \"per-vehicle\"",
            ("stacked", "remus100-6dof-guided"): "needs [simulation] deployment = \"per-vehicle\""}
 #: the FMU kinds that stay pythonfmu with --fmus native
-PYTHON_ONLY = ("network", "remus6dof", "remus6dof_actuated")
+PYTHON_ONLY = ("network",)
+#: the REMUS 100 vehicle kinds, native with --fmus native (orchestrator.cosim.native_remus)
+REMUS_KINDS = ("remus6dof", "remus6dof_actuated")
 T = "2.0"
 
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler (cc) for the "
@@ -95,9 +97,11 @@ def test_every_cell_runs_or_is_refused_in_one_line(scenarios, runs, tmp_path, ca
     kinds = {k: e["kind"] for k, e in summary["fmus"].items()}
     if fmus == "python":
         assert set(kinds.values()) == {"python"}
-    else:       # native where a component is linear or a guidance FMU; the network and the
-        assert "native" in kinds.values()             # 6-DOF vehicles stay pythonfmu
+    else:       # native where a component is linear, a guidance FMU or a 6-DOF vehicle;
+        assert "native" in kinds.values()             # the network stays pythonfmu
         assert all(v == "python" for k, v in kinds.items() if k in PYTHON_ONLY)
+        assert all(v == "native" for k, v in kinds.items() if k not in PYTHON_ONLY)
+        assert any(k in REMUS_KINDS for k in kinds) == (vehicle != "remus100")
         if vehicle == "remus100-6dof-guided":
             assert kinds["guidance"] == kinds["autopilot"] == "native"
     scalars = read_rrd_scalars(out / f"{summary['scenario']}.rrd")
@@ -120,3 +124,26 @@ def test_every_cell_runs_or_is_refused_in_one_line(scenarios, runs, tmp_path, ca
             scale = max(float(np.nanmax(np.abs(values))), 1e-300)
             assert np.nanmax(np.abs(got - values)) <= 1e-12 * scale, entity
         assert m["cost_rate"]["mean"] == pytest.approx(mref["cost_rate"]["mean"], rel=1e-12)
+
+
+@pytest.mark.slow
+@needs_cc
+@pytest.mark.parametrize("vehicle", ["remus100-6dof", "remus100-6dof-guided"])
+def test_native_remus_cells_are_all_native_and_equal_the_python_cells(scenarios, tmp_path,
+                                                                      capsys, vehicle):
+    """--fmus native runs no pythonfmu FMU, and every recorded signal equals the python
+    cell's to 1e-12 of its largest magnitude (measured: 2e-14; docs/native.md)."""
+    rec = {}
+    for fmus in FMUS:
+        code, out, io = _run(scenarios, tmp_path, "distributed", "none", vehicle, fmus, capsys)
+        assert code == 0, io.err
+        summary = json.loads((out / "summary.json").read_text())
+        kinds = {k: e["kind"] for k, e in summary["fmus"].items()}
+        assert set(kinds.values()) == {fmus}, kinds
+        rec[fmus] = read_rrd_scalars(out / f"{summary['scenario']}.rrd")
+    assert set(rec["python"]) == set(rec["native"])
+    for entity, (_, _, want) in rec["python"].items():
+        got = rec["native"][entity][2]
+        scale = max(float(np.max(np.abs(want))) if want.size else 0.0, 1e-300)
+        assert got.shape == want.shape and np.max(np.abs(got - want), initial=0.0) <= (
+            1e-12 * scale), entity

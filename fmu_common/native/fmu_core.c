@@ -310,6 +310,32 @@ fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
                           const fmi2Boolean v[]) {
     (void)v; return n ? bad_vr(c, "fmi2SetBoolean", vr[0]) : fmi2OK;
 }
+#if NSTRING > 0
+/* String parameters are fixed at export: readable, and settable to that value only */
+fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]) {
+    INSTANCE(c);
+    for (size_t i = 0; i < n; i++) {
+        if (vr[i] >= NSTRING) return bad_vr(in, "fmi2GetString", vr[i]);
+        v[i] = model_string_value(vr[i]);
+    }
+    return fmi2OK;
+}
+fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                         const fmi2String v[]) {
+    INSTANCE(c);
+    for (size_t i = 0; i < n; i++) {
+        if (vr[i] >= NSTRING) return bad_vr(in, "fmi2SetString", vr[i]);
+        const char *fixed = model_string_value(vr[i]);
+        if (!v[i] || strcmp(v[i], fixed) != 0) {
+            fmu_log(in, fmi2Error, "parameter %s = '%s' differs from '%s', the value this "
+                    "native FMU was exported with (export it again with this value)",
+                    model_string_name(vr[i]), v[i] ? v[i] : "(NULL)", fixed);
+            return fmi2Error;
+        }
+    }
+    return fmi2OK;
+}
+#else
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]) {
     (void)v; return n ? bad_vr(c, "fmi2GetString", vr[0]) : fmi2OK;
 }
@@ -317,6 +343,7 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
                          const fmi2String v[]) {
     (void)v; return n ? bad_vr(c, "fmi2SetString", vr[0]) : fmi2OK;
 }
+#endif
 
 /* ------------------------------------------------------------------ FMI: stepping */
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real step, fmi2Boolean noPrior) {

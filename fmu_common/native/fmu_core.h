@@ -5,7 +5,8 @@
  *
  * Variables. Real value references: 0 .. NPARR-1 the Real parameters, then the NIN inputs
  * (VR_IN0 ..), then the NOUT outputs (VR_OUT0 ..); Integer value references 0 .. NINT-1
- * the Integer parameters. All of them live in one block (Data), with the model's evolving
+ * the Integer parameters; String value references 0 .. NSTRING-1 the String parameters
+ * fixed at export (not in Data). The others live in one block (Data), with the model's evolving
  * state (ModelState, defined by the model's header) and the phase, step count and next
  * communication point: the FMU state is a copy of that block.
  *
@@ -37,6 +38,12 @@
 typedef enum { INSTANTIATED, INIT, STEPPING, TERMINATED } Phase;
 
 #include "native_model.h"
+
+/* String parameters (value references 0 .. NSTRING-1), fixed at export: none unless the
+   generated header says otherwise */
+#ifndef NSTRING
+#define NSTRING 0
+#endif
 
 #define VR_IN0 NPARR
 #define VR_OUT0 (NPARR + NIN)
@@ -70,6 +77,9 @@ void model_start_values(Data *d);
 void model_real_name(fmi2ValueReference vr, char *out, size_t n);
 /* the FMI name of the Integer parameter vr */
 const char *model_int_name(fmi2ValueReference vr);
+/* with NSTRING > 0: the name and the exported value of the String parameter vr */
+const char *model_string_name(fmi2ValueReference vr);
+const char *model_string_value(fmi2ValueReference vr);
 /* the parameters (already checked finite) at fmi2ExitInitializationMode: 0 if usable,
    else -1 after logging which one is not and why */
 int model_check(Instance *in);

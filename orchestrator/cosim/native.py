@@ -67,10 +67,11 @@ NONLINEAR_VEHICLE_KINDS = tuple(dict.fromkeys(e.fmu_kind for e in REGISTRY.value
 #: sensors the vehicle and estimator FMUs are not either)
 LINEAR_KINDS = tuple(k for k in FMU_KINDS
                      if k not in ("network", *NONLINEAR_VEHICLE_KINDS, *GUIDANCE_KINDS))
-#: the kinds that have a native (C) FMU: the linear ones, and the guidance interface
-#: (AuvGuidance, AuvAutopilot: a C model each, orchestrator.cosim.native_guidance); the
-#: network and the nonlinear vehicle stay pythonfmu
-NATIVE_KINDS = LINEAR_KINDS + GUIDANCE_KINDS
+#: the kinds that have a native (C) FMU: the linear ones, the guidance interface
+#: (AuvGuidance, AuvAutopilot: a C model each, orchestrator.cosim.native_guidance) and the
+#: nonlinear REMUS 100 (AuvRemus6dof, AuvRemus6dofActuated: orchestrator.cosim.native_remus);
+#: the network stays pythonfmu
+NATIVE_KINDS = LINEAR_KINDS + GUIDANCE_KINDS + NONLINEAR_VEHICLE_KINDS
 #: the C sources compiled into every linear native FMU (the shared FMI plumbing, the linear
 #: system, numpy's generator)
 C_SOURCES = (NATIVE_DIR / "fmu_core.c", NATIVE_DIR / "linear_fmu.c",
@@ -387,6 +388,15 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
     comps = tuple(dataclasses.replace(c, interface=tuple(native_specs(forms[c.name])),
                                       parameters=native_parameters(forms[c.name], base[c.fmu]))
                   if c.name in forms else c for c in system.components)
+    # the nonlinear REMUS 100: its C model, the same variables; vehicles that differ in a
+    # parameter fixed at export keep their pythonfmu FMU
+    from .native_remus import REMUS_KINDS, VehiclesDiffer, native_remus_components
+    remus = [k for k in REMUS_KINDS if k in kinds and any(c.fmu == k for c in comps)]
+    for k in remus:
+        try:
+            built[k], comps = native_remus_components(k, fmus[k], comps, out_dir)
+        except VehiclesDiffer:
+            continue
     # a connection that carries data only for some value of a replaced component's
     # parameter (the truth in mode "ideal"): the native form has that value built in
     conns = tuple(dataclasses.replace(c, when=None) if c.when and c.when[0] in forms

@@ -8,11 +8,12 @@ form taken (:func:`orchestrator.cosim.native.form_of`). One native FMU is built 
 with the first component's values as start values; every other component of the kind gets
 its own values as a parameter set in the OSP and SSP files. The wiring is the pythonfmu
 system's: the native FMUs have the same inputs and outputs. What is not linear stays
-pythonfmu and needs Python: an acoustic network, the nonlinear vehicle (remus100-6dof),
-and the vehicle and estimator FMUs with navigation sensors (their schedule, dropouts and
-time-varying filter). For REMUS 100 scenarios the guidance interface ships beside the
-system as native FMUs too (``AuvGuidanceNative``, ``AuvAutopilotNative``: a C model each
-with the pythonfmu FMU's interface, :mod:`orchestrator.cosim.native_guidance`,
+pythonfmu and needs Python: an acoustic network and the estimator FMU with navigation
+sensors (its schedule, dropouts and time-varying filter). The nonlinear REMUS 100
+vehicles (remus100-6dof, remus100-6dof-guided) are native with a C model of their own
+(:mod:`orchestrator.cosim.native_remus`). For REMUS 100 scenarios the guidance interface
+ships beside the system as native FMUs too (``AuvGuidanceNative``, ``AuvAutopilotNative``:
+a C model each with the pythonfmu FMU's interface, :mod:`orchestrator.cosim.native_guidance`,
 docs/guidance.md).
 """
 from __future__ import annotations

@@ -269,8 +269,10 @@ class RunSetup:
         # takes this seed's value, as its pythonfmu counterpart does
         seeds = {c.name: c.parameters["seed"] for c in python.components
                  if "seed" in c.parameters}
+        from ..cosim.native_remus import REMUS_KINDS  # a C model of its own, seeded too
         comps = tuple(dataclasses.replace(c, parameters={**c.parameters, "seed": seeds[c.name]})
-                      if c.name in ns.forms and ns.forms[c.name].nxi > 0 and c.name in seeds
+                      if c.name in seeds and (c.fmu in REMUS_KINDS or (
+                          c.name in ns.forms and ns.forms[c.name].nxi > 0))
                       else c for c in ns.system.components)
         return dataclasses.replace(ns.system, components=comps)
 
