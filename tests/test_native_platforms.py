@@ -155,7 +155,9 @@ def paper_system(tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_the_paper_fmus_carry_three_platforms_and_validate(paper_system):
+def test_the_paper_fmus_carry_three_platforms_and_validate(paper_system, tmp_path):
+    """Each exported FMU: sources, modelDescription and the three binaries; fmpy validates
+    it; the DLL exports exactly the fmi2 functions and imports KERNEL32 and msvcrt only."""
     ns, _, _, _ = paper_system
     for key in ns.native_keys:
         fmu = ns.fmus[key]
@@ -167,8 +169,37 @@ def test_the_paper_fmus_carry_three_platforms_and_validate(paper_system):
             dll = z.read(f"binaries/win64/{model}.dll")
             arm = z.read(f"binaries/aarch64-linux/{model}.so")
             assert any(n.startswith("sources/") for n in z.namelist())
-        assert dll[:2] == b"MZ" and b"fmi2DoStep" in dll           # a PE file exporting it
+        assert dll[:2] == b"MZ"                                      # a PE file
         assert arm[:4] == b"\x7fELF" and int.from_bytes(arm[18:20], "little") == 183  # aarch64
+        exports, imports = _pe_table(dll, tmp_path / f"{model}.dll")
+        assert exports == FMI2_FUNCTIONS                    # the fmi2 functions, nothing else
+        assert imports == {"KERNEL32.dll", "msvcrt.dll"}    # no libgcc or other DLL needed
+
+
+#: the functions an FMI 2.0 co-simulation FMU exports (fmi2Functions.h)
+FMI2_FUNCTIONS = {f"fmi2{n}" for n in (
+    "GetTypesPlatform GetVersion SetDebugLogging Instantiate FreeInstance SetupExperiment "
+    "EnterInitializationMode ExitInitializationMode Terminate Reset GetReal GetInteger "
+    "GetBoolean GetString SetReal SetInteger SetBoolean SetString GetFMUstate SetFMUstate "
+    "FreeFMUstate SerializedFMUstateSize SerializeFMUstate DeSerializeFMUstate "
+    "GetDirectionalDerivative SetRealInputDerivatives GetRealOutputDerivatives DoStep "
+    "CancelStep GetStatus GetRealStatus GetIntegerStatus GetBooleanStatus "
+    "GetStringStatus").split()}
+
+
+def _pe_table(dll: bytes, path: Path) -> tuple[set[str], set[str]]:
+    """The names a DLL exports and the DLLs it imports (MinGW's objdump)."""
+    import re
+    import shutil
+    objdump = shutil.which("x86_64-w64-mingw32-objdump")
+    if objdump is None:
+        pytest.skip("x86_64-w64-mingw32-objdump is missing (Debian binutils-mingw-w64-x86-64)")
+    path.write_bytes(dll)
+    text = subprocess.run([objdump, "-p", str(path)], capture_output=True, text=True,
+                          check=True).stdout
+    table = text.split("[Ordinal/Name Pointer] Table", 1)[1].split("\n\n", 1)[0]
+    exports = set(re.findall(r"\]\s+(\w+)", table))
+    return exports, set(re.findall(r"DLL Name: (\S+)", text))
 
 
 @pytest.mark.slow
@@ -264,7 +295,22 @@ def test_a_guided_remus_vehicle_on_another_platform_equals_linux64(
         assert np.ptp(ref[:, col[f"autopilot.{out}"]]) > 0.0, out
 
 
-# ------------------------------------------------------------------ export from the CLI
+# ------------------------------------------------------------------ runs, and the CLI
+@pytest.mark.slow
+def test_a_runs_native_fmus_carry_the_hosts_binary_alone(tmp_path):
+    """native_system without platforms (what ``auv-cosim run --fmus native`` calls) builds
+    linux64 only: a run compiles nothing for another platform."""
+    from orchestrator.interop.native import native_system
+    from orchestrator.running import build, scenario_system
+    from orchestrator.scenario import load_scenario
+    sc = load_scenario("paper").with_run(T=1.0)
+    ns = native_system(scenario_system(sc), build(sc, tmp_path / "py"), tmp_path / "native")
+    assert ns.native_keys
+    for key in ns.native_keys:
+        assert set(_binaries(ns.fmus[key])) == {"linux64"}
+
+
+
 @pytest.mark.slow
 def test_export_native_builds_every_platform_with_a_compiler_and_says_which_is_absent(
         tmp_path):
