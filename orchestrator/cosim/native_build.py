@@ -203,8 +203,9 @@ def compile_fmu(model: str, sources: tuple[Path, ...], headers: tuple[Path, ...]
         whole = _cached_library(model, guid + hashlib.sha256(xml).hexdigest(),
                                 *ccs.values()).with_suffix(".fmu")
     else:
+        builds = sorted((n, cc, PLATFORMS[n].cflags, PLATFORMS[n].libs) for n, cc in ccs.items())
         whole = _cached_library(model, guid + hashlib.sha256(xml).hexdigest(),
-                                repr(sorted(ccs.items()))).with_suffix(".fmu")
+                                repr(builds)).with_suffix(".fmu")
     if whole.is_file():
         out.mkdir(parents=True, exist_ok=True)
         copy_atomically(whole, out / f"{model}.fmu")
