@@ -40,7 +40,7 @@ def missing_tools(platform: str) -> str | None:
     missing = []
     if platform_compiler(platform) is None:
         p = PLATFORMS[platform]
-        missing.append(f"{p.cc} (Debian {p.package})")
+        missing.append(f"{os.environ.get(p.env, p.cc)} (Debian {p.package}, or set {p.env})")
     if platform == "win64" and _wine() is None:
         missing.append("wine64 (Debian wine64 and wine)")
     if platform == "aarch64-linux":
