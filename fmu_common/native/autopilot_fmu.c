@@ -82,7 +82,9 @@ static void command(const Data *d, double cmd[3], double err[2]) {
     double vw[3];
     for (int i = 0; i < 3; i++) vw[i] = R[i][0] * nu[0] + R[i][1] * nu[1] + R[i][2] * nu[2];
     double U = sqrt(vw[0] * vw[0] + vw[1] * vw[1] + vw[2] * vw[2]);
-    double h = hypot(vw[0], vw[1]);
+    /* not hypot(): libm's differs by an ulp between platforms (glibc x86-64 and aarch64,
+       MinGW); + * and sqrt are IEEE, the same everywhere (docs/native.md) */
+    double h = sqrt(vw[0] * vw[0] + vw[1] * vw[1]);
     double n = n_max * U_d / r[VR_U_max] + r[VR_K_u] * (U_d - U) + r[VR_K_ui] * I[0];
     double chi = h > U_min ? atan2(vw[1], vw[0]) : att[2];
     double delta_r = r[VR_K_chi] * wrap(chi_d - chi) + r[VR_K_r] * (chi_rate - w[2]);

@@ -53,9 +53,10 @@ int model_check(Instance *in) {
     return 0;
 }
 
-/* the course of v if the horizontal speed is above U_min, else the one held (rad) */
+/* the course of v if the horizontal speed is above U_min, else the one held (rad); the
+   speed by + * and sqrt, not hypot(), whose last bit differs between platforms' libm */
 static double course_of(const double *v, double held, double U_min) {
-    return hypot(v[0], v[1]) > U_min ? atan2(v[1], v[0]) : held;
+    return sqrt(v[0] * v[0] + v[1] * v[1]) > U_min ? atan2(v[1], v[0]) : held;
 }
 
 void model_reset(Data *d) {

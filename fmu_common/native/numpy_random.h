@@ -19,7 +19,7 @@
 
 #include <stdint.h>
 
-#if defined(__GNUC__) || defined(__clang__)
+#if (defined(__GNUC__) || defined(__clang__)) && !defined(_WIN32)   /* no ELF visibility in a DLL */
 #define NPR_HIDDEN __attribute__((visibility("hidden")))
 #else
 #define NPR_HIDDEN

@@ -53,11 +53,20 @@ def cmd_build(args: argparse.Namespace) -> int:
 
 def cmd_export(args: argparse.Namespace) -> int:
     sc = scenario_of(args)
+    platforms: tuple[str, ...] = ()
+    notes: list[str] = []
+    if args.platforms is not None and args.format != "native":
+        raise UsageError("--platforms is for export native only")
     if args.format == "native":
         from ..cosim.native import NativeBuildError, compiler
+        from ..cosim.platforms import resolve_platforms
         try:
             compiler()                      # no C compiler: say so before any folder exists
-        except NativeBuildError as exc:
+            # a requested platform without its compiler: the same, nothing written
+            platforms, notes = resolve_platforms(
+                None if args.platforms is None
+                else [p.strip() for p in args.platforms.split(",") if p.strip()])
+        except (NativeBuildError, ValueError) as exc:
             raise UsageError(str(exc)) from None
     from ..running.naming import default_export_out, run_identity
     with staged_output(args.out or default_export_out(sc, args.format), "export",
@@ -68,7 +77,7 @@ def cmd_export(args: argparse.Namespace) -> int:
             from ..cosim.native import NativeBuildError
             from ..interop.native import export_native
             try:
-                paths = export_native(sc, st.path)
+                paths = export_native(sc, st.path, platforms=platforms)
             except NativeBuildError as exc:
                 raise UsageError(str(exc)) from None
             fmus = [p.name for p in paths.values() if p.suffix == ".fmu"]
@@ -78,7 +87,9 @@ def cmd_export(args: argparse.Namespace) -> int:
                      + (f" (and, not linear, needing Python: {', '.join(kept)})" if kept
                         else "")
                      + f"; OSP system {paths['system'].name}, SSP archive "
-                       f"{paths['ssp'].name}"]
+                       f"{paths['ssp'].name}",
+                     f"binaries for {', '.join(platforms)}",
+                     *notes]
         elif args.format == "osp":
             from ..interop.osp import export_osp
             paths = export_osp(sc, st.path)
@@ -157,6 +168,11 @@ def add_export(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="the estimator's mode")
     sp.add_argument("--seed", type=int, help="noise seed written as the plant's initial value")
     sp.add_argument("--out", help="output folder (default: out/<scenario>_<format>)")
+    sp.add_argument("--platforms", metavar="LIST",
+                    help="native only: the platforms the native FMUs carry binaries for, "
+                         "comma-separated, of linux64, win64, aarch64-linux (default: every "
+                         "one whose compiler is installed; one asked for without its "
+                         "compiler is an error)")
     add_force_option(sp)
     sp.set_defaults(func=cmd_export)
 

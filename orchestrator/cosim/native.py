@@ -15,8 +15,10 @@ writes the form as an FMI 2.0 co-simulation FMU:
   ``numpy_random.c``/``.h`` (fmu_common/native/: numpy's SeedSequence, PCG64 and ziggurat
   normals, so a native plant draws the pythonfmu plant's noise), the generated
   ``native_model.h`` and the FMI 2.0 headers, the .c files listed in the modelDescription;
-- ``binaries/linux64/<model>.so``: built at export with the system C compiler
-  (:data:`CFLAGS`; libc and libm only).
+- ``binaries/linux64/<model>.so``: built with the system C compiler (:data:`CFLAGS`; libc
+  and libm only); ``auv-cosim export native`` adds ``binaries/win64/<model>.dll`` and
+  ``binaries/aarch64-linux/<model>.so`` where their cross compilers are installed
+  (:mod:`orchestrator.cosim.platforms`).
 
 A native FMU does not re-solve the Riccati equations: a design change means exporting
 again, or setting the gain and filter parameters. The guidance interface (not linear) has
@@ -31,7 +33,7 @@ import importlib
 import tempfile
 import threading
 import zipfile
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -287,8 +289,8 @@ def _model_description(form: NativeForm, model: str, guid: str, T: float, h: flo
 
 
 def build_native_fmu(form: NativeForm, model: str, out_dir: Path | str, T: float,
-                     h: float | None = None) -> Path:
-    """Write ``<model>.fmu`` into ``out_dir``: modelDescription, sources, linux64 binary.
+                     h: float | None = None, platforms: Sequence[str] | None = None) -> Path:
+    """Write ``<model>.fmu`` into ``out_dir``: modelDescription, sources, binaries.
 
     Parameters
     ----------
@@ -303,6 +305,8 @@ def build_native_fmu(form: NativeForm, model: str, out_dir: Path | str, T: float
     h : float or None, optional
         The system's communication step, the default experiment's step (ecos steps an FMU
         at its default experiment's step); default the form's h.
+    platforms : Sequence[str] or None, optional
+        The platforms it carries binaries for (:func:`compile_fmu`); default the host's.
 
     Returns
     -------
@@ -317,7 +321,8 @@ def build_native_fmu(form: NativeForm, model: str, out_dir: Path | str, T: float
     form.check()
     return compile_fmu(model, C_SOURCES, C_HEADERS, lambda guid: _header(form, guid),
                        lambda guid: _model_description(form, model, guid, T,
-                                                       form.h if h is None else h), out_dir)
+                                                       form.h if h is None else h), out_dir,
+                       platforms)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -332,7 +337,8 @@ class NativeSystem:
 
 
 def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: Path | str,
-                  kinds: tuple[str, ...] = NATIVE_KINDS) -> NativeSystem:
+                  kinds: tuple[str, ...] = NATIVE_KINDS,
+                  platforms: Sequence[str] | None = None) -> NativeSystem:
     """Build native FMUs for the components of ``kinds`` and the system that uses them, and
     for the guidance interface's FMUs among ``fmus`` (beside the system, not in it).
 
@@ -346,6 +352,9 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
         Where the native FMUs go.
     kinds : tuple[str, ...], optional
         The FMU kinds to replace (default: every one that has a native FMU).
+    platforms : Sequence[str] or None, optional
+        The platforms the native FMUs carry binaries for (:func:`compile_fmu`); default
+        the host's (what a run needs).
 
     Returns
     -------
@@ -377,13 +386,13 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
                 and _shape(forms[c.name]) != _shape(base[c.fmu])]
     if problems:
         raise NativeBuildError("; ".join(problems))
-    built = {k: build_native_fmu(f, native_model(k), out_dir, system.T, system.h)
+    built = {k: build_native_fmu(f, native_model(k), out_dir, system.T, system.h, platforms)
              for k, f in base.items()}
     # the guidance interface beside the system (REMUS 100 scenarios) or in it (vehicles
     # flown through it): its C models, the same variables, so components keep their
     # interface and parameters
     from .native_guidance import native_guidance_fmu
-    built.update({k: native_guidance_fmu(k, fmus[k], out_dir) for k in GUIDANCE_KINDS
+    built.update({k: native_guidance_fmu(k, fmus[k], out_dir, platforms) for k in GUIDANCE_KINDS
                   if k in fmus and k in kinds})
     comps = tuple(dataclasses.replace(c, interface=tuple(native_specs(forms[c.name])),
                                       parameters=native_parameters(forms[c.name], base[c.fmu]))

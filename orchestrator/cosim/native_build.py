@@ -11,18 +11,26 @@ import shutil
 import subprocess
 import tempfile
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from ..atomic import copy_atomically, temporary_sibling
 from .build import FMU_KINDS, ROOT, fmu_cache_dir, prune_cache
+from .platforms import (
+    HOST_CFLAGS,
+    PLATFORMS,
+    host_platform,
+    missing_compiler,
+    platform_compiler,
+)
 
 __all__ = ["CFLAGS", "FMI_HEADERS", "NATIVE_DIR", "NativeBuildError", "compile_fmu", "compiler",
            "native_model", "run_compiler", "tolerances_header"]
 
 NATIVE_DIR = ROOT / "fmu_common" / "native"
-#: how the shared library is built (IEEE arithmetic kept: no -ffast-math)
-CFLAGS = ("-shared", "-fPIC", "-O2", "-std=c99", "-Wall", "-Wextra")
+#: how the host's shared library is built (IEEE arithmetic kept: no -ffast-math); the
+#: other platforms' flags: orchestrator.cosim.platforms.PLATFORMS
+CFLAGS = HOST_CFLAGS
 FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
 
 
@@ -92,20 +100,64 @@ def _fmi_include() -> Path:
     return Path(fmpy.__file__).parent / "c-code"
 
 
-def _cached_library(model: str, guid: str, cc: str) -> Path:
+def _cached_library(model: str, guid: str, cc: str, flags: Sequence[str] = CFLAGS,
+                    suffix: str = ".so") -> Path:
     """Where the compiled library of ``model`` with this GUID (a digest of its sources and
-    its generated header, start values included) and this compiler is kept: the FMU
-    cache's ``native/`` folder (:func:`orchestrator.cosim.build.fmu_cache_dir`), so a
-    second run of the same design links nothing."""
-    key = hashlib.sha256("\n".join((guid, cc, *CFLAGS)).encode()).hexdigest()[:24]
-    return fmu_cache_dir() / "native" / f"{model}-{key}.so"
+    its generated header, start values included), this compiler and these flags is kept:
+    the FMU cache's ``native/`` folder (:func:`orchestrator.cosim.build.fmu_cache_dir`),
+    so a second run of the same design links nothing."""
+    key = hashlib.sha256("\n".join((guid, cc, *flags)).encode()).hexdigest()[:24]
+    return fmu_cache_dir() / "native" / f"{model}-{key}{suffix}"
+
+
+def _compilers(platforms: Sequence[str] | None) -> dict[str, str]:
+    """Platform -> its compiler's path, the host's alone for None.
+
+    Raises
+    ------
+    NativeBuildError
+        An unknown platform, or one whose compiler is missing (one line naming it).
+    """
+    if platforms is None:
+        return {host_platform(): compiler()}
+    out = {}
+    for name in platforms:
+        if name not in PLATFORMS:
+            raise NativeBuildError(f"unknown platform {name!r} (known: {', '.join(PLATFORMS)})")
+        cc = compiler() if name == host_platform() else platform_compiler(name)
+        if cc is None:
+            raise NativeBuildError(missing_compiler(name))
+        out[name] = cc
+    if not out:
+        raise NativeBuildError("no platform to build a native FMU for")
+    return out
+
+
+def _library(model: str, guid: str, name: str, cc: str, src: Path,
+             sources: tuple[Path, ...], lib: Path) -> None:
+    """Compile ``model``'s library for platform ``name`` into ``lib``, or copy it from the
+    cache (and cache what was compiled)."""
+    p = PLATFORMS[name]
+    flags = CFLAGS if name == host_platform() else p.cflags
+    cached = _cached_library(model, guid, cc, flags, p.suffix)
+    if cached.is_file():
+        shutil.copyfile(cached, lib)
+        return
+    cmd = [cc, *flags, f"-I{src}", "-o", str(lib), *(str(src / f.name) for f in sources),
+           *p.libs]
+    run_compiler(cmd, model if name == host_platform() else f"{model} for {name}")
+    try:
+        cached.parent.mkdir(parents=True, exist_ok=True)
+        copy_atomically(lib, cached)
+    except OSError:                         # a read-only cache: compile every time
+        pass
 
 
 def compile_fmu(model: str, sources: tuple[Path, ...], headers: tuple[Path, ...],
                 header: Callable[[str], str], description: Callable[[str], bytes],
-                out_dir: Path | str) -> Path:
+                out_dir: Path | str, platforms: Sequence[str] | None = None) -> Path:
     """Compile ``sources`` with the generated ``native_model.h`` and zip ``<model>.fmu``
-    (the library taken from the FMU cache when this design was compiled before).
+    (each library taken from the FMU cache when this design was compiled before).
 
     Parameters
     ----------
@@ -118,6 +170,10 @@ def compile_fmu(model: str, sources: tuple[Path, ...], headers: tuple[Path, ...]
         sources and of the header without it).
     out_dir : Path or str
         Destination folder (created if missing); the .fmu is written atomically.
+    platforms : Sequence[str] or None, optional
+        The platforms whose binaries it carries (``binaries/<platform>/``, names of
+        :data:`~orchestrator.cosim.platforms.PLATFORMS`); default the host's alone (a run
+        needs no other; ``auv-cosim export native`` asks for more).
 
     Returns
     -------
@@ -127,10 +183,10 @@ def compile_fmu(model: str, sources: tuple[Path, ...], headers: tuple[Path, ...]
     Raises
     ------
     NativeBuildError
-        No compiler, or the compiler failed (:func:`run_compiler`); ``out_dir`` is then
-        not created.
+        No compiler for a platform, or a compiler failed (:func:`run_compiler`);
+        ``out_dir`` is then not created.
     """
-    cc = compiler()
+    ccs = _compilers(platforms)
     tolerances = tolerances_header()
     digest = hashlib.sha256()
     for f in (*sources, *headers):
@@ -143,7 +199,13 @@ def compile_fmu(model: str, sources: tuple[Path, ...], headers: tuple[Path, ...]
     # the whole .fmu is kept too, by its GUID and its modelDescription (start values
     # included): a second run copies the same bytes, so the unzipped copy is found again
     # (orchestrator.cosim.unpacked) instead of a new one per run
-    whole = _cached_library(model, guid + hashlib.sha256(xml).hexdigest(), cc).with_suffix(".fmu")
+    if platforms is None:                   # the host's alone: the key runs always had
+        whole = _cached_library(model, guid + hashlib.sha256(xml).hexdigest(),
+                                *ccs.values()).with_suffix(".fmu")
+    else:
+        builds = sorted((n, cc, PLATFORMS[n].cflags, PLATFORMS[n].libs) for n, cc in ccs.items())
+        whole = _cached_library(model, guid + hashlib.sha256(xml).hexdigest(),
+                                repr(builds)).with_suffix(".fmu")
     if whole.is_file():
         out.mkdir(parents=True, exist_ok=True)
         copy_atomically(whole, out / f"{model}.fmu")
@@ -157,19 +219,11 @@ def compile_fmu(model: str, sources: tuple[Path, ...], headers: tuple[Path, ...]
         (src / "native_model.h").write_text(header(guid))
         for name in FMI_HEADERS:
             shutil.copy2(_fmi_include() / name, src / name)
-        lib = Path(tmp) / f"{model}.so"
-        cached = _cached_library(model, guid, cc)
-        if cached.is_file():
-            shutil.copyfile(cached, lib)
-        else:
-            cmd = [cc, *CFLAGS, f"-I{src}", "-o", str(lib),
-                   *(str(src / f.name) for f in sources), "-lm"]
-            run_compiler(cmd, model)
-            try:
-                cached.parent.mkdir(parents=True, exist_ok=True)
-                copy_atomically(lib, cached)
-            except OSError:                 # a read-only cache: compile every time
-                pass
+        libs = {}
+        for name, cc in ccs.items():
+            libs[name] = Path(tmp) / name / f"{model}{PLATFORMS[name].suffix}"
+            libs[name].parent.mkdir()
+            _library(model, guid, name, cc, src, sources, libs[name])
         out.mkdir(parents=True, exist_ok=True)
         fmu = out / f"{model}.fmu"
         with temporary_sibling(fmu) as part, zipfile.ZipFile(part, "w",
@@ -177,7 +231,8 @@ def compile_fmu(model: str, sources: tuple[Path, ...], headers: tuple[Path, ...]
             z.writestr("modelDescription.xml", xml)
             for f in sorted(src.iterdir()):
                 z.write(f, f"sources/{f.name}")
-            z.write(lib, f"binaries/linux64/{model}.so")
+            for name, lib in libs.items():
+                z.write(lib, f"binaries/{name}/{lib.name}")
     try:
         copy_atomically(fmu, whole)
         prune_cache(fmu_cache_dir())        # what is unused for 30 days goes

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import re
 import zipfile
+from collections.abc import Sequence
 from pathlib import Path
 
 from lxml import etree
@@ -104,7 +105,8 @@ def _model_description(root: etree._Element, kind: str, model: str, guid: str) -
     return etree.tostring(md, xml_declaration=True, encoding="UTF-8", pretty_print=True)
 
 
-def native_guidance_fmu(kind: str, fmu: Path | str, out_dir: Path | str) -> Path:
+def native_guidance_fmu(kind: str, fmu: Path | str, out_dir: Path | str,
+                        platforms: Sequence[str] | None = None) -> Path:
     """The native FMU of a guidance kind, from its built pythonfmu FMU.
 
     Parameters
@@ -115,6 +117,8 @@ def native_guidance_fmu(kind: str, fmu: Path | str, out_dir: Path | str) -> Path
         The pythonfmu FMU (its modelDescription gives the interface and start values).
     out_dir : Path or str
         Destination folder; the FMU is ``<Model>Native.fmu`` (:func:`native_model`).
+    platforms : Sequence[str] or None, optional
+        The platforms it carries binaries for (:func:`compile_fmu`); default the host's.
 
     Returns
     -------
@@ -138,4 +142,5 @@ def native_guidance_fmu(kind: str, fmu: Path | str, out_dir: Path | str) -> Path
                        (NATIVE_DIR / "fmu_core.h", NATIVE_DIR / "named_reals.h",
                         NATIVE_DIR / c_header),
                        lambda guid: _header(kind, variables, guid),
-                       lambda guid: _model_description(root, kind, model, guid), out_dir)
+                       lambda guid: _model_description(root, kind, model, guid), out_dir,
+                       platforms)

@@ -19,6 +19,7 @@ docs/guidance.md).
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
 from ..cosim.native import NativeSystem, native_system
@@ -28,7 +29,8 @@ from ..scenario import Scenario
 __all__ = ["NativeSystem", "export_native", "native_system"]  # the last two: cosim.native
 
 
-def export_native(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
+def export_native(sc: Scenario, out_dir: Path | str,
+                  platforms: Sequence[str] | None = None) -> dict[str, Path]:
     """Native FMUs of the scenario's design, an OSP system and an SSP archive in ``out_dir``.
 
     Parameters
@@ -37,6 +39,9 @@ def export_native(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
         The scenario (its deployment, estimator, tracking law, architecture and seed).
     out_dir : Path or str
         Destination folder.
+    platforms : Sequence[str] or None, optional
+        The platforms the native FMUs carry binaries for
+        (:func:`orchestrator.cosim.native_build.compile_fmu`); default the host's.
 
     Returns
     -------
@@ -51,7 +56,7 @@ def export_native(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
     system = scenario_system(sc)
     with tempfile.TemporaryDirectory(prefix="auv_native_py_") as tmp:
         py = build(sc, Path(tmp))
-        ns = native_system(system, py, out)
+        ns = native_system(system, py, out, platforms=platforms)
         kept = {k: p for k, p in ns.fmus.items() if k not in ns.native_keys}
         for k, p in kept.items():                  # the network's pythonfmu FMUs, if any
             target = out / Path(p).name

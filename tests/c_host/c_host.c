@@ -1,7 +1,11 @@
 /*
  * c_host: a fixed-step FMI 2.0 co-simulation master for a whole system, in plain C99 (libc,
  * libdl, libm; no Python, no environment variables). It runs the native FMUs of
- * `auv-cosim export native` where no Python exists, and times them.
+ * `auv-cosim export native` where no Python exists, and times them. It builds for Linux
+ * (x86-64: binaries/linux64; aarch64: binaries/aarch64-linux) and for 64-bit Windows
+ * (MinGW-w64: binaries/win64, LoadLibrary instead of dlopen; build it with
+ * -D__USE_MINGW_ANSI_STDIO=1 so numbers are read and printed by MinGW's correctly rounded
+ * routines, not msvcrt's).
  *
  *   c_host SYSTEM_FILE STEPS H OUT_CSV
  *
@@ -13,14 +17,18 @@
  *   int <name> <vr> <value>
  *   connect <src> <src_vr> <dst> <dst_vr>     a Real output to a Real input
  *   record <name> <vr>                         a Real written to the CSV (in order)
+ *   series <name> <vr> <file>    a Real input set before step k to line k of <file> (one
+ *                                number a line, at least STEPS lines; the file is the last
+ *                                field, so it may hold spaces)
  *
- * The library is <folder>/binaries/linux64/<model_identifier>.so; the resource location
- * is the file URI of <folder>/resources, percent-encoded (RFC 3986).
+ * The library is <folder>/binaries/<platform>/<model_identifier>.so (.dll on Windows); the
+ * resource location is the file URI of <folder>/resources, percent-encoded (RFC 3986;
+ * on Windows file:///C:/..., a folder given as C:\... or C:/...).
  *
  * Algorithm (libcosim's fixed-step one, our master's "jacobi" coupling):
  *   read every connection source and record variable at t_0 -> row 0
- *   for k = 0 .. STEPS-1: set every destination from the values read last (all sets after
- *   all gets), fmi2DoStep(k H, H) on every FMU in file order, read again (t_(k+1)) -> row k+1
+ *   for k = 0 .. STEPS-1: set every destination from the values read last and every series
+ *   input to its line k (all sets after all gets), fmi2DoStep(k H, H) on every FMU in file order, read again (t_(k+1)) -> row k+1
  * The CSV holds rows 0 .. STEPS-1: time, then the record variables, %.17g. One
  * fmi2GetReal and one fmi2SetReal per FMU and step. Printed on stdout: "us_per_step X",
  * the loop alone (CSV writing is after it).
@@ -29,19 +37,79 @@
  * t and the status, after the FMU's own message from the logger; everything instantiated
  * is freed); 2 a bad system file or a missing library.
  */
+#ifdef _WIN32
+#include <windows.h>
+typedef HMODULE Lib;
+#define PLATFORM "win64"
+#define LIB_SUFFIX ".dll"
+#else
 #define _POSIX_C_SOURCE 200809L
 #include <dlfcn.h>
+#include <time.h>
+typedef void *Lib;
+#ifdef __aarch64__
+#define PLATFORM "aarch64-linux"
+#else
+#define PLATFORM "linux64"
+#endif
+#define LIB_SUFFIX ".so"
+#endif
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "fmi2Functions.h"
 
+/* ------------------------------------------------------------------ the platform */
+/* the library at path, or NULL with the reason in err */
+static Lib lib_open(char *path, char *err, size_t n) {
+#ifdef _WIN32
+    for (char *p = path; *p; p++) if (*p == '/') *p = '\\';
+    Lib lib = LoadLibraryA(path);
+    if (!lib) snprintf(err, n, "cannot load %s (Windows error %lu)", path,
+                       (unsigned long)GetLastError());
+    return lib;
+#else
+    Lib lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!lib) snprintf(err, n, "%s", dlerror());
+    return lib;
+#endif
+}
+
+static void *lib_sym(Lib lib, const char *name) {
+#ifdef _WIN32
+    return (void *)GetProcAddress(lib, name);
+#else
+    return dlsym(lib, name);
+#endif
+}
+
+static void lib_close(Lib lib) {
+#ifdef _WIN32
+    FreeLibrary(lib);
+#else
+    dlclose(lib);
+#endif
+}
+
+/* a monotonic clock, microseconds */
+static double now_us(void) {
+#ifdef _WIN32
+    LARGE_INTEGER f, c;
+    QueryPerformanceFrequency(&f);
+    QueryPerformanceCounter(&c);
+    return (double)c.QuadPart * 1e6 / (double)f.QuadPart;
+#else
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec * 1e6 + (double)t.tv_nsec / 1e3;
+#endif
+}
+
 typedef struct {
     char name[128], model[128], guid[128], dir[1024];
-    void *lib;
+    Lib lib;
     fmi2Component c;
     fmi2InstantiateTYPE *instantiate;
     fmi2FreeInstanceTYPE *free_instance;
@@ -62,11 +130,13 @@ typedef struct {
 typedef struct { int fmu; fmi2ValueReference vr; double v; int is_int; } Start;
 typedef struct { int src, dst; fmi2ValueReference svr, dvr; size_t slot, dslot; } Link;
 typedef struct { int fmu; fmi2ValueReference vr; size_t slot; } Rec;
+typedef struct { int fmu; fmi2ValueReference vr; size_t dslot, n; double *v; } Series;
 
 static Fmu *fmus; static size_t nfmu;
 static Start *starts; static size_t nstart;
 static Link *links; static size_t nlink;
 static Rec *recs; static size_t nrec;
+static Series *series; static size_t nseries;
 
 static void logger(fmi2ComponentEnvironment env, fmi2String inst, fmi2Status st,
                    fmi2String cat, fmi2String fmt, ...) {
@@ -97,10 +167,11 @@ static void cleanup(void) {
     for (size_t i = 0; i < nfmu; i++) {
         Fmu *f = &fmus[i];
         if (f->c) { f->terminate(f->c); f->free_instance(f->c); }
-        if (f->lib) dlclose(f->lib);
+        if (f->lib) lib_close(f->lib);
         free(f->get_vr); free(f->set_vr); free(f->got); free(f->put);
     }
-    free(fmus); free(starts); free(links); free(recs);
+    for (size_t i = 0; i < nseries; i++) free(series[i].v);
+    free(fmus); free(starts); free(links); free(recs); free(series);
 }
 
 static void bad_file(int line, const char *msg) {
@@ -110,15 +181,22 @@ static void bad_file(int line, const char *msg) {
 }
 
 /* the file URI of dir/resources, every byte outside RFC 3986's unreserved set and '/'
-   percent-encoded */
+   percent-encoded (on Windows: file:///C:/..., backslashes as slashes, the colon kept) */
 static void resource_uri(const char *dir, char *out, size_t n) {
     static const char hex[] = "0123456789ABCDEF";
+#ifdef _WIN32
+    size_t k = (size_t)snprintf(out, n, "file:///");
+    const char *keep = "-._~/:";
+#else
     size_t k = (size_t)snprintf(out, n, "file://");
+    const char *keep = "-._~/";
+#endif
     char path[1100];
     snprintf(path, sizeof path, "%s/resources", dir);
-    for (const unsigned char *p = (const unsigned char *)path; *p && k + 4 < n; p++) {
+    for (unsigned char *p = (unsigned char *)path; *p && k + 4 < n; p++) {
+        if (*p == '\\') *p = '/';
         if ((*p >= 'A' && *p <= 'Z') || (*p >= 'a' && *p <= 'z') || (*p >= '0' && *p <= '9') ||
-            strchr("-._~/", *p)) out[k++] = (char)*p;
+            strchr(keep, *p)) out[k++] = (char)*p;
         else { out[k++] = '%'; out[k++] = hex[*p >> 4]; out[k++] = hex[*p & 15]; }
     }
     out[k] = '\0';
@@ -126,7 +204,7 @@ static void resource_uri(const char *dir, char *out, size_t n) {
 
 #define SYM(f, field, name)                                                           \
     do {                                                                              \
-        *(void **)(&(f)->field) = dlsym((f)->lib, name);                              \
+        *(void **)(&(f)->field) = lib_sym((f)->lib, name);                            \
         if (!(f)->field) bad_file(line, "the FMU library lacks " name);               \
     } while (0)
 
@@ -153,10 +231,10 @@ static void read_system(const char *path) {
             snprintf(f->model, sizeof f->model, "%s", b);
             snprintf(f->guid, sizeof f->guid, "%s", c);
             snprintf(f->dir, sizeof f->dir, "%s", buf + off + used);
-            char lib[1300];
-            snprintf(lib, sizeof lib, "%s/binaries/linux64/%s.so", f->dir, f->model);
-            f->lib = dlopen(lib, RTLD_NOW | RTLD_LOCAL);
-            if (!f->lib) bad_file(line, dlerror());
+            char lib[1300], err[1500];
+            snprintf(lib, sizeof lib, "%s/binaries/" PLATFORM "/%s" LIB_SUFFIX, f->dir, f->model);
+            f->lib = lib_open(lib, err, sizeof err);
+            if (!f->lib) bad_file(line, err);
             SYM(f, instantiate, "fmi2Instantiate"); SYM(f, free_instance, "fmi2FreeInstance");
             SYM(f, setup, "fmi2SetupExperiment");
             SYM(f, enter_init, "fmi2EnterInitializationMode");
@@ -188,8 +266,29 @@ static void read_system(const char *path) {
             if (i < 0) bad_file(line, "no such fmu");
             recs = grow(recs, nrec + 1, sizeof(Rec));
             recs[nrec++] = (Rec){i, vr, 0};
+        } else if (strcmp(kw, "series") == 0) {
+            unsigned vr;
+            int used = 0;
+            if (sscanf(buf + off, " %127s %u %n", a, &vr, &used) < 2 || !used)
+                bad_file(line, "expected: series <name> <vr> <file>");
+            int i = find(a);
+            if (i < 0) bad_file(line, "no such fmu");
+            series = grow(series, nseries + 1, sizeof(Series));
+            Series *s = &series[nseries++];
+            *s = (Series){i, vr, 0, 0, NULL};
+            FILE *sf = fopen(buf + off + used, "r");
+            if (!sf) bad_file(line, "cannot open the series file");
+            char num[128];
+            while (fgets(num, sizeof num, sf)) {
+                char *end;
+                double v = strtod(num, &end);
+                if (end == num) continue;           /* a blank line */
+                s->v = grow(s->v, s->n + 1, sizeof(double));
+                s->v[s->n++] = v;
+            }
+            fclose(sf);
         } else {
-            bad_file(line, "unknown directive (fmu, real, int, connect, record)");
+            bad_file(line, "unknown directive (fmu, real, int, connect, record, series)");
         }
     }
     fclose(fp);
@@ -211,6 +310,12 @@ static void plan(void) {
         t->set_vr = grow(t->set_vr, t->nset + 1, sizeof *t->set_vr);
         t->set_vr[t->nset] = links[l].dvr;
         links[l].dslot = t->nset++;
+    }
+    for (size_t q = 0; q < nseries; q++) {
+        Fmu *t = &fmus[series[q].fmu];
+        t->set_vr = grow(t->set_vr, t->nset + 1, sizeof *t->set_vr);
+        t->set_vr[t->nset] = series[q].vr;
+        series[q].dslot = t->nset++;
     }
     for (size_t r = 0; r < nrec; r++) recs[r].slot = get_slot(recs[r].fmu, recs[r].vr);
     for (size_t i = 0; i < nfmu; i++) {
@@ -258,6 +363,13 @@ int main(int argc, char **argv) {
     double h = strtod(argv[3], NULL);
     if (steps < 1 || !(h > 0.0)) { fprintf(stderr, "c_host: STEPS >= 1 and H > 0\n"); return 2; }
     read_system(argv[1]);
+    for (size_t q = 0; q < nseries; q++)
+        if (series[q].n < (size_t)steps) {
+            fprintf(stderr, "c_host: series %zu of %s has %zu values, fewer than %ld steps\n",
+                    q + 1, fmus[series[q].fmu].name, series[q].n, steps);
+            cleanup();
+            return 2;
+        }
     plan();
     for (size_t i = 0; i < nfmu; i++) {
         Fmu *f = &fmus[i];
@@ -286,8 +398,7 @@ int main(int argc, char **argv) {
 
     double *rows = calloc((size_t)steps * (nrec + 1), sizeof(double));
     if (!rows) { fprintf(stderr, "c_host: out of memory\n"); cleanup(); return 2; }
-    struct timespec t0, t1;
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    double t0 = now_us();
     read_all(0.0);
     for (long k = 0; k < steps; k++) {
         double t = (double)k * h;
@@ -296,6 +407,8 @@ int main(int argc, char **argv) {
         for (size_t r = 0; r < nrec; r++) row[r + 1] = fmus[recs[r].fmu].got[recs[r].slot];
         for (size_t l = 0; l < nlink; l++)
             fmus[links[l].dst].put[links[l].dslot] = fmus[links[l].src].got[links[l].slot];
+        for (size_t q = 0; q < nseries; q++)
+            fmus[series[q].fmu].put[series[q].dslot] = series[q].v[k];
         for (size_t i = 0; i < nfmu; i++)
             if (fmus[i].nset)
                 CHECK(&fmus[i], fmus[i].set_real(fmus[i].c, fmus[i].set_vr, fmus[i].nset,
@@ -304,9 +417,7 @@ int main(int argc, char **argv) {
             CHECK(&fmus[i], fmus[i].do_step(fmus[i].c, t, h, fmi2True), "fmi2DoStep", t);
         if (k + 1 < steps) read_all((double)(k + 1) * h);
     }
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    double us = ((double)(t1.tv_sec - t0.tv_sec) * 1e6 + (double)(t1.tv_nsec - t0.tv_nsec) / 1e3)
-                / (double)steps;
+    double us = (now_us() - t0) / (double)steps;
     printf("us_per_step %.4f\n", us);
 
     FILE *out = fopen(argv[4], "w");
