@@ -29,7 +29,7 @@ REFUSED = {("stacked", "links"): "[network] needs [simulation] deployment = \"pe
            ("stacked", "remus100-6dof"): "needs [simulation] deployment = \"per-vehicle\"",
            ("stacked", "remus100-6dof-guided"): "needs [simulation] deployment = \"per-vehicle\""}
 #: the FMU kinds that stay pythonfmu with --fmus native
-PYTHON_ONLY = ("network", "remus6dof", "remus6dof_actuated")
+PYTHON_ONLY = ("remus6dof", "remus6dof_actuated")
 T = "2.0"
 
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler (cc) for the "
@@ -95,9 +95,13 @@ def test_every_cell_runs_or_is_refused_in_one_line(scenarios, runs, tmp_path, ca
     kinds = {k: e["kind"] for k, e in summary["fmus"].items()}
     if fmus == "python":
         assert set(kinds.values()) == {"python"}
-    else:       # native where a component is linear or a guidance FMU; the network and the
+    else:       # native where a component is linear, a guidance FMU or the network; the
         assert "native" in kinds.values()             # 6-DOF vehicles stay pythonfmu
         assert all(v == "python" for k, v in kinds.items() if k in PYTHON_ONLY)
+        if links == "links":
+            assert kinds["network"] == "native"
+        if vehicle == "remus100":                     # linear: no pythonfmu FMU at all
+            assert set(kinds.values()) == {"native"}, kinds
         if vehicle == "remus100-6dof-guided":
             assert kinds["guidance"] == kinds["autopilot"] == "native"
     scalars = read_rrd_scalars(out / f"{summary['scenario']}.rrd")

@@ -1,10 +1,10 @@
 """Native FMUs: a designed FMU compiled to C, no Python at run time.
 
-Every FMU kind except the acoustic network is linear once designed
-(:mod:`fmu_common.native_form`). :func:`form_of` sets up the pythonfmu slave of a
-component in this process (from the configuration inside its built .fmu and the
-component's parameter values) and asks it for its linear form; :func:`build_native_fmu`
-writes the form as an FMI 2.0 co-simulation FMU:
+Every FMU kind except the acoustic network, the guidance interface and the nonlinear
+vehicles is linear once designed (:mod:`fmu_common.native_form`). :func:`form_of` sets up
+the pythonfmu slave of a component in this process (from the configuration inside its
+built .fmu and the component's parameter values) and asks it for its linear form;
+:func:`build_native_fmu` writes the form as an FMI 2.0 co-simulation FMU:
 
 - ``modelDescription.xml``: the slave's inputs and outputs (names, units, direct
   feedthrough), the form's matrices as parameters (structured names, start values from the
@@ -20,7 +20,8 @@ writes the form as an FMI 2.0 co-simulation FMU:
 
 A native FMU does not re-solve the Riccati equations: a design change means exporting
 again, or setting the gain and filter parameters. The guidance interface (not linear) has
-a C model of its own per FMU: :mod:`orchestrator.cosim.native_guidance`.
+a C model of its own per FMU: :mod:`orchestrator.cosim.native_guidance`; so has the
+acoustic network (``AuvNetworkNative``, :mod:`orchestrator.cosim.native_network`).
 """
 from __future__ import annotations
 
@@ -67,10 +68,11 @@ NONLINEAR_VEHICLE_KINDS = tuple(dict.fromkeys(e.fmu_kind for e in REGISTRY.value
 #: sensors the vehicle and estimator FMUs are not either)
 LINEAR_KINDS = tuple(k for k in FMU_KINDS
                      if k not in ("network", *NONLINEAR_VEHICLE_KINDS, *GUIDANCE_KINDS))
-#: the kinds that have a native (C) FMU: the linear ones, and the guidance interface
-#: (AuvGuidance, AuvAutopilot: a C model each, orchestrator.cosim.native_guidance); the
-#: network and the nonlinear vehicle stay pythonfmu
-NATIVE_KINDS = LINEAR_KINDS + GUIDANCE_KINDS
+#: the kinds that have a native (C) FMU: the linear ones, the guidance interface
+#: (AuvGuidance, AuvAutopilot: a C model each, orchestrator.cosim.native_guidance) and the
+#: acoustic network (AuvNetwork, orchestrator.cosim.native_network); the nonlinear vehicle
+#: stays pythonfmu
+NATIVE_KINDS = LINEAR_KINDS + GUIDANCE_KINDS + ("network",)
 #: the C sources compiled into every linear native FMU (the shared FMI plumbing, the linear
 #: system, numpy's generator)
 C_SOURCES = (NATIVE_DIR / "fmu_core.c", NATIVE_DIR / "linear_fmu.c",
@@ -324,7 +326,7 @@ class NativeSystem:
     """A system whose linear components are native FMUs."""
 
     system: SystemDescription            #: the same wiring, native interfaces and parameters
-    fmus: dict[str, Path]                #: FMU key -> .fmu (native, or pythonfmu: network)
+    fmus: dict[str, Path]                #: FMU key -> .fmu (native, or pythonfmu)
     forms: dict[str, NativeForm]         #: component -> its linear form
     #: the FMU keys whose FMU is native (the linear forms' and the guidance interface's)
     native_keys: frozenset[str] = frozenset()
@@ -384,6 +386,13 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
     from .native_guidance import native_guidance_fmu
     built.update({k: native_guidance_fmu(k, fmus[k], out_dir) for k in GUIDANCE_KINDS
                   if k in fmus and k in kinds})
+    if "network" in fmus and "network" in kinds:
+        # the acoustic inbox's C model, the same variables: every network component keeps
+        # its interface and parameters (the queue is sized for all of them)
+        from .native_network import native_network_fmu
+        built["network"] = native_network_fmu(
+            fmus["network"], out_dir,
+            [c.parameters for c in system.components if c.fmu == "network"])
     comps = tuple(dataclasses.replace(c, interface=tuple(native_specs(forms[c.name])),
                                       parameters=native_parameters(forms[c.name], base[c.fmu]))
                   if c.name in forms else c for c in system.components)

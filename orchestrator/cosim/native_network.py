@@ -92,10 +92,10 @@ def _capacity(config: Mapping[str, Any], parameter_sets: Iterable[Mapping[str, A
     return min(need, 1001)
 
 
-def _header(config: Mapping[str, Any], R: list[Var], I: list[Var], vr: dict[str, int],
+def _header(config: Mapping[str, Any], reals: list[Var], ints: list[Var], vr: dict[str, int],
             qcap: int, guid: str) -> str:
     """native_model.h: sizes, the link table, names and start values (module docstring)."""
-    count = {c: sum(1 for _, cc, _ in R if cc == c) for c in _LAYOUT}
+    count = {c: sum(1 for _, cc, _ in reals if cc == c) for c in _LAYOUT}
     layout = link_layout(dict(config))
     widths = [sum(n for _, n in fields) for _, _, fields, _ in layout]
     schedule = config.get("schedule")
@@ -112,7 +112,7 @@ def _header(config: Mapping[str, Any], R: list[Var], I: list[Var], vr: dict[str,
         f0, n0 = fields[0]
         tx = need(element_names(f"{p}.tx.{f0}", (n0,))[0])
         rx = need(element_names(f"{p}.rx.{f0}", (n0,))[0])
-        names = [R[tx + i][0] for i in range(w)] if tx + w <= len(R) else []
+        names = [reals[tx + i][0] for i in range(w)] if tx + w <= len(reals) else []
         if names != [nm for f, n in fields for nm in element_names(f"{p}.tx.{f}", (n,))]:
             raise NativeBuildError(f"AuvNetwork: the tx inputs of {p} are not contiguous")
         stats = [need(f"{p}.{s}") for s in ("age", "delivered", "lost", "in_flight")]
@@ -143,7 +143,8 @@ def _header(config: Mapping[str, Any], R: list[Var], I: list[Var], vr: dict[str,
         "   AuvNetwork FMU's modelDescription: see fmu_core.h and network_fmu.c */",
         f'#define NATIVE_GUID "{guid}"',
         f"#define NPARR {count['parameter']}", f"#define NIN {count['input']}",
-        f"#define NOUT {count['output']}", f"#define NREAL {len(R)}", f"#define NINT {len(I)}",
+        f"#define NOUT {count['output']}", f"#define NREAL {len(reals)}",
+        f"#define NINT {len(ints)}",
         f"#define STEP_VR {need('h')}", "#define START_AT_ZERO 0",
         f"#define NLINKS {len(layout)}", f"#define WMAX {max(widths, default=1)}",
         f"#define QCAP {qcap}", f"#define NGRAPHS {G}", f"#define HAS_RANGE {int(has_range)}",
@@ -153,15 +154,15 @@ def _header(config: Mapping[str, Any], R: list[Var], I: list[Var], vr: dict[str,
         "static const LinkInfo LINKS[NLINKS > 0 ? NLINKS : 1] = {",
         *(rows or ['    {"", "", 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, -1, 0, -1},']), "};",
         f"static const int POSITION_INDEX[3] = {{{pos[0]}, {pos[1]}, {pos[2]}}};",
-        "static const char *const REAL_NAMES[ALLOC(NREAL)] = {", strings([n for n, _, _ in R]),
+        "static const char *const REAL_NAMES[ALLOC(NREAL)] = {", strings([n for n, _, _ in reals]),
         "};",
         "/* start values of the Real parameters and inputs (outputs: 0) */",
         "static const double REAL_START[ALLOC(NREAL)] = {",
-        ",\n".join(f"    {float(s)!r}" for _, _, s in R) or "    0.0", "};",
-        "static const char *const INT_NAMES[ALLOC(NINT)] = {", strings([n for n, _, _ in I]),
+        ",\n".join(f"    {float(s)!r}" for _, _, s in reals) or "    0.0", "};",
+        "static const char *const INT_NAMES[ALLOC(NINT)] = {", strings([n for n, _, _ in ints]),
         "};",
         "static const int INT_START[ALLOC(NINT)] = {",
-        ",\n".join(f"    {int(s)}" for _, _, s in I) or "    0", "};",
+        ",\n".join(f"    {int(s)}" for _, _, s in ints) or "    0", "};",
         "#endif", ""])
 
 
@@ -216,9 +217,9 @@ def native_network_fmu(fmu: Path | str, out_dir: Path | str,
     with zipfile.ZipFile(fmu) as z:
         root = etree.fromstring(z.read("modelDescription.xml"))
         config = json.loads(z.read("resources/auv_network_config.json"))
-    R, I, vr = _variables(root)
+    reals, ints, vr = _variables(root)
     qcap = _capacity(config, list(parameter_sets))
-    _header(config, R, I, vr, qcap, "")             # an interface it does not serve: now
+    _header(config, reals, ints, vr, qcap, "")             # an interface it does not serve: now
     return compile_fmu(model, NETWORK_C, NETWORK_H,
-                       lambda guid: _header(config, R, I, vr, qcap, guid),
+                       lambda guid: _header(config, reals, ints, vr, qcap, guid),
                        lambda guid: _model_description(root, vr, model, guid), out_dir)
