@@ -174,3 +174,37 @@ def test_a_non_finite_input_is_refused_naming_it_and_the_fmu_goes_on(pair):
     inst.slave.setReal([inst.vr["link[2].tx.eps[1]"]], [1.0])
     assert inst.do_step(inst.component, 0.0, H, 1) == 0
     inst.close()
+
+
+@pytest.mark.slow
+def test_export_native_ships_the_native_network_and_libcosim_runs_it(tmp_path):
+    """`auv-cosim export native` of a fleet over links: AuvNetworkNative.fmu beside the
+    other native FMUs, no FMU that needs Python, and libcosim runs the OSP system to our
+    Jacobi master's traces bit for bit (links' deliveries, losses and ages included)."""
+    pytest.importorskip("libcosimpy")
+    from fmpy import read_model_description
+
+    from orchestrator.cosim.master import run_system
+    from orchestrator.cosim.native import native_system
+    from orchestrator.interop import libcosim
+    from orchestrator.interop.native import export_native
+    from orchestrator.running.systems import build, scenario_system
+    from orchestrator.scenario import load_scenario
+    libcosim.quiet_libcosim()
+    sc = load_scenario("formation-4").with_run(
+        T=20.0, deployment="per-vehicle", architecture="distributed",
+        network={"latency": 1.0, "period": 2.0, "loss": 0.2})
+    paths = export_native(sc, tmp_path / "x")
+    fmus = {p.name for p in paths.values() if p.suffix == ".fmu"}
+    assert "AuvNetworkNative.fmu" in fmus and "AuvNetwork.fmu" not in fmus
+    assert not any(read_model_description(str(p)).coSimulation.needsExecutionTool
+                   for p in paths.values() if p.suffix == ".fmu")
+    ns = native_system(scenario_system(sc), build(sc, tmp_path / "py"), tmp_path / "n2")
+    steps = sc.steps
+    lc = libcosim.run_libcosim(paths["system"], ns.system, steps)
+    ours, _, _ = run_system(ns.system, ns.fmus, steps, coupling="jacobi")
+    assert set(lc["traces"]) == set(ours)
+    for key, arr in lc["traces"].items():
+        assert np.array_equal(arr, ours[key]), key
+    for count in (".lost", ".delivered"):           # both happened
+        assert sum(float(ours[k][-1].max()) for k in ours if k.endswith(count)) > 0, count
