@@ -328,8 +328,12 @@ class NativeSystem:
     system: SystemDescription            #: the same wiring, native interfaces and parameters
     fmus: dict[str, Path]                #: FMU key -> .fmu (native, or pythonfmu)
     forms: dict[str, NativeForm]         #: component -> its linear form
-    #: the FMU keys whose FMU is native (the linear forms' and the guidance interface's)
+    #: the FMU keys whose FMU is native (the linear forms', the guidance interface's, the
+    #: network's, the multi-rate filter's)
     native_keys: frozenset[str] = frozenset()
+    #: the components whose interface is the native FMU's own (a linear form's, the
+    #: multi-rate filter's); the others keep the pythonfmu FMU's variables
+    replaced: frozenset[str] = frozenset()
 
 
 def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: Path | str,
@@ -359,13 +363,20 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
         If two components of one kind have forms of different shapes (named).
     """
     forms: dict[str, NativeForm] = {}
+    filters: dict[str, tuple[tuple[ArraySpec, ...], dict[str, float]]] = {}
+    built: dict[str, Path] = {}
     for kind in dict.fromkeys(c.fmu for c in system.components
                               if c.fmu in kinds and c.fmu in LINEAR_KINDS):
+        mine = [c for c in system.components if c.fmu == kind]
         try:
             forms.update({c.name: form_of(c.fmu, Path(fmus[c.fmu]), c.parameters)
-                          for c in system.components if c.fmu == kind})
-        except NotImplementedError:         # not linear in this system (navigation sensors):
-            continue                        # its pythonfmu FMU stays
+                          for c in mine})
+        except NotImplementedError:         # not linear in this system (navigation sensors)
+            if kind == "vehicle_estimator":  # the multi-rate filter: a C model of its own
+                from .native_multirate import multirate_components
+                built[kind], more = multirate_components(mine, fmus[kind], out_dir, system.T)
+                filters.update(more)
+            continue                        # else its pythonfmu FMU stays
     # a static law works at any step; its h is the system's, for the default experiment
     forms = {k: dataclasses.replace(f, h=system.h) if f.static else f for k, f in forms.items()}
     base: dict[str, NativeForm] = {}
@@ -378,8 +389,8 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
                 and _shape(forms[c.name]) != _shape(base[c.fmu])]
     if problems:
         raise NativeBuildError("; ".join(problems))
-    built = {k: build_native_fmu(f, native_model(k), out_dir, system.T, system.h)
-             for k, f in base.items()}
+    built.update({k: build_native_fmu(f, native_model(k), out_dir, system.T, system.h)
+                  for k, f in base.items()})
     # the guidance interface beside the system (REMUS 100 scenarios) or in it (vehicles
     # flown through it): its C models, the same variables, so components keep their
     # interface and parameters
@@ -395,15 +406,20 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
             [c.parameters for c in system.components if c.fmu == "network"])
     comps = tuple(dataclasses.replace(c, interface=tuple(native_specs(forms[c.name])),
                                       parameters=native_parameters(forms[c.name], base[c.fmu]))
-                  if c.name in forms else c for c in system.components)
+                  if c.name in forms else
+                  dataclasses.replace(c, interface=filters[c.name][0],
+                                      parameters=filters[c.name][1])
+                  if c.name in filters else c for c in system.components)
     # a connection that carries data only for some value of a replaced component's
     # parameter (the truth in mode "ideal"): the native form has that value built in
-    conns = tuple(dataclasses.replace(c, when=None) if c.when and c.when[0] in forms
+    conns = tuple(dataclasses.replace(c, when=None) if c.when and c.when[0] in
+                  (*forms, *filters)
                   and system.active(c) else c for c in system.connections)
     paths = {k: Path(v) for k, v in fmus.items()}
     paths.update(built)
     return NativeSystem(system=dataclasses.replace(system, components=comps, connections=conns),
-                        fmus=paths, forms=forms, native_keys=frozenset(built))
+                        fmus=paths, forms=forms, native_keys=frozenset(built),
+                        replaced=frozenset((*forms, *filters)))
 
 
 def _shape(f: NativeForm) -> tuple[Any, ...]:

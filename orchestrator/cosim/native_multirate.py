@@ -203,3 +203,37 @@ def native_multirate_fmu(fmu: Path | str, parameters: Mapping[str, Any], out_dir
     path = compile_fmu(model, MULTIRATE_C, MULTIRATE_H, lambda g: _header(specs, kf, g),
                        lambda g: _model_description(specs, model, g, T, kf[7]), out_dir)
     return path, specs, kf
+
+
+def multirate_components(components: list[Any], fmu: Path | str, out_dir: Path | str,
+                         T: float) -> tuple[Path, dict[str, tuple[tuple[ArraySpec, ...],
+                                                                   dict[str, float]]]]:
+    """The native filter FMU for the vehicle estimator components of a system, and per
+    component its native interface and parameter values (those that differ from the first
+    component's, which are the FMU's start values).
+
+    Parameters
+    ----------
+    components : list[Component]
+        The system's components of the vehicle estimator kind (all with [sensors]).
+    fmu : Path or str
+        Their pythonfmu FMU.
+    out_dir : Path or str
+        Destination folder.
+    T : float
+        Stop time of the default experiment, s.
+
+    Returns
+    -------
+    tuple[Path, dict[str, tuple[tuple[ArraySpec, ...], dict[str, float]]]]
+        The .fmu, and component name -> (interface, parameters).
+    """
+    first = components[0]
+    path, specs, base = native_multirate_fmu(fmu, first.parameters, out_dir, T)
+    out = {}
+    for c in components:
+        kf = base if c is first else template_filter(Path(fmu), c.parameters)[0]
+        if kf[0].shape != base[0].shape or kf[1].shape != base[1].shape:
+            raise ModelError(f"{c.name}: its filter does not have the shape of {first.name}'s")
+        out[c.name] = (tuple(specs), native_parameters(kf, base))
+    return path, out

@@ -275,7 +275,7 @@ class RunSetup:
         same = {c.name: c for c in python.components}
         comps = tuple(dataclasses.replace(c, parameters={**c.parameters, "seed": seeds[c.name]})
                       if c.name in ns.forms and ns.forms[c.name].nxi > 0 and c.name in seeds
-                      else same.get(c.name, c) if c.name not in ns.forms and
+                      else same.get(c.name, c) if c.name not in ns.replaced and
                       c.fmu in ns.native_keys else c for c in ns.system.components)
         return dataclasses.replace(ns.system, components=comps)
 
