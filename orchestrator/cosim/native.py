@@ -65,7 +65,8 @@ NONLINEAR_VEHICLE_KINDS = tuple(dict.fromkeys(e.fmu_kind for e in REGISTRY.value
                                               if e.nonlinear))
 #: the kinds whose FMUs are linear once designed, compiled from their linear form (the
 #: network, the nonlinear vehicle and the guidance interface are not; with navigation
-#: sensors the vehicle and estimator FMUs are not either)
+#: sensors the vehicle and estimator FMUs are not either: the estimator is then the native
+#: multi-rate filter, orchestrator.cosim.native_multirate, the vehicle stays pythonfmu)
 LINEAR_KINDS = tuple(k for k in FMU_KINDS
                      if k not in ("network", *NONLINEAR_VEHICLE_KINDS, *GUIDANCE_KINDS))
 #: the kinds that have a native (C) FMU: the linear ones, the guidance interface

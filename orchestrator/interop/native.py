@@ -9,9 +9,10 @@ with the first component's values as start values; every other component of the 
 its own values as a parameter set in the OSP and SSP files. The wiring is the pythonfmu
 system's: the native FMUs have the same inputs and outputs. An acoustic network ships as
 ``AuvNetworkNative`` (its own C model with the pythonfmu FMU's variables,
-:mod:`orchestrator.cosim.native_network`). What stays pythonfmu and needs Python: the
-nonlinear vehicle (remus100-6dof), and the vehicle and estimator FMUs with navigation
-sensors (their schedule, dropouts and time-varying filter). For REMUS 100 scenarios the
+:mod:`orchestrator.cosim.native_network`); with navigation sensors the estimator ships
+as the native multi-rate filter (:mod:`orchestrator.cosim.native_multirate`). What stays
+pythonfmu and needs Python: the nonlinear vehicle (remus100-6dof), and the vehicle FMU
+with navigation sensors (its report schedule and dropouts). For REMUS 100 scenarios the
 guidance interface ships beside the system as native FMUs too (``AuvGuidanceNative``,
 ``AuvAutopilotNative``: a C model each with the pythonfmu FMU's interface,
 :mod:`orchestrator.cosim.native_guidance`, docs/guidance.md).
