@@ -107,14 +107,20 @@ def _header(config: Mapping[str, Any], reals: list[Var], ints: list[Var], vr: di
             raise NativeBuildError(f"AuvNetwork: no variable {name} in the modelDescription")
         return vr[name]
 
+    def block(want: list[str]) -> int:
+        """The value reference of the first of ``want``, which must follow each other."""
+        first = need(want[0])
+        if [n for n, _, _ in reals[first:first + len(want)]] != want:
+            raise NativeBuildError(f"AuvNetwork: {want[0]} .. {want[-1]} are not contiguous "
+                                   "Real variables")
+        return first
+
     rows = []
     for (p, label, fields, _), w in zip(layout, widths):
-        f0, n0 = fields[0]
-        tx = need(element_names(f"{p}.tx.{f0}", (n0,))[0])
-        rx = need(element_names(f"{p}.rx.{f0}", (n0,))[0])
-        names = [reals[tx + i][0] for i in range(w)] if tx + w <= len(reals) else []
-        if names != [nm for f, n in fields for nm in element_names(f"{p}.tx.{f}", (n,))]:
-            raise NativeBuildError(f"AuvNetwork: the tx inputs of {p} are not contiguous")
+        tx = block([nm for f, n in fields for nm in element_names(f"{p}.tx.{f}", (n,))])
+        rx = block([nm for f, n in fields for nm in element_names(f"{p}.rx.{f}", (n,))])
+        block(element_names(f"{p}.M", (w, w)))
+        block(element_names(f"{p}.rx0", (w,)))
         stats = [need(f"{p}.{s}") for s in ("age", "delivered", "lost", "in_flight")]
         if stats[0] != rx + w or stats != list(range(rx + w, rx + w + 4)):
             raise NativeBuildError(f"AuvNetwork: the rx outputs of {p} are not contiguous")
