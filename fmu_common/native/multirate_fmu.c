@@ -150,19 +150,24 @@ static int filter(const Data *d, double est[NS], double Pp[NS * NS]) {
     return 0;
 }
 
+/* the estimate and P+ into the state's cache; the outputs from it */
 void model_outputs(Data *d) {
-    double est[NS], Pp[NS * NS];
-    if (filter(d, est, Pp) != 0)
-        for (int i = 0; i < NS; i++) est[i] = NAN;  /* fmi2GetReal reports it, named */
-    for (int i = 0; i < NX; i++) d->r[VR_xhat + i] = est[i];
-    for (int i = NX; i < NS; i++) d->r[VR_what + i - NX] = est[i];
+    ModelState *m = &d->m;
+    m->ok = filter(d, m->est, m->Pp) == 0;
+    if (!m->ok)
+        for (int i = 0; i < NS; i++) m->est[i] = NAN;   /* fmi2GetReal reports it, named */
+    for (int i = 0; i < NX; i++) d->r[VR_xhat + i] = m->est[i];
+    for (int i = NX; i < NS; i++) d->r[VR_what + i - NX] = m->est[i];
 }
 
+/* fmu_core.c has just computed the outputs of these inputs (model_outputs): the step goes on
+   from the cached estimate and P+ */
 int model_step(Instance *in, double t, double step) {
     Data *d = &in->d;
-    double est[NS], Pp[NS * NS], q[NS], T[NS * NS], P[NS * NS];
+    const double *est = d->m.est, *Pp = d->m.Pp;
+    double q[NS], T[NS * NS], P[NS * NS];
     const double *Ad = d->r + VR_Ad, *Bd = d->r + VR_Bd, *Qd = d->r + VR_Qd, *u = d->r + VR_u;
-    if (filter(d, est, Pp) != 0) {
+    if (!d->m.ok) {
         fmu_log(in, fmi2Error, "%s: the innovation covariance is singular at t = %g s",
                 in->name, t);
         return -1;
