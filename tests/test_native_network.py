@@ -208,3 +208,25 @@ def test_export_native_ships_the_native_network_and_libcosim_runs_it(tmp_path):
         assert np.array_equal(arr, ours[key]), key
     for count in (".lost", ".delivered"):           # both happened
         assert sum(float(ours[k][-1].max()) for k in ours if k.endswith(count)) > 0, count
+
+
+def test_a_native_run_of_another_seed_gives_its_links_that_seed(tmp_path):
+    """--fmus native builds the system for the scenario's seed; a run of another seed (a
+    campaign's, compare's) gives every network component that seed, as the pythonfmu run
+    does, so its loss streams are that seed's."""
+    from orchestrator.running.systems import make_setup
+    from orchestrator.scenario import load_scenario
+    sc = load_scenario("formation-4").with_run(
+        T=2.0, deployment="per-vehicle", architecture="distributed", fmus="native",
+        network={"latency": 1.0, "period": 2.0, "loss": 0.2})
+    setup = make_setup(sc, tmp_path)
+    method = setup.methods[0]
+    assert setup.fmu_report(method)["network"]["kind"] == "native"
+    other = sc.seed + 4
+    native = {c.name: c for c in setup.system(method, other).components}
+    python = {c.name: c for c in setup.python_system(method, other).components}
+    nets = [n for n, c in native.items() if c.fmu == "network"]
+    assert len(nets) == 4
+    for n in nets:
+        assert native[n].parameters["seed"] == python[n].parameters["seed"] == other
+        assert native[n].parameters == python[n].parameters
