@@ -230,3 +230,35 @@ def test_a_native_run_of_another_seed_gives_its_links_that_seed(tmp_path):
     for n in nets:
         assert native[n].parameters["seed"] == python[n].parameters["seed"] == other
         assert native[n].parameters == python[n].parameters
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("architecture", ["distributed", "centralized"])
+def test_a_fleet_over_links_runs_native_to_the_pythonfmu_traces(tmp_path, architecture):
+    """`auv-cosim run` of formation-4 per vehicle with --latency 1 --period 2 --loss 0.2,
+    --fmus python and native: the native run has no pythonfmu FMU (the compiled master runs
+    it), every link's delivered / lost / in-flight trace equals the pythonfmu run's bit for
+    bit, and every other trace to 1e-12 of its scale."""
+    import json
+
+    from orchestrator.cli import main
+    from orchestrator.recording import read_rrd_scalars
+    runs = {}
+    for fm in ("python", "native"):
+        out = tmp_path / fm
+        assert main(["run", "--scenario", "formation-4", "--T", "10", "--seed", "5",
+                     "--quiet", "--out", str(out), "--fmus", fm, "--deployment",
+                     "per-vehicle", "--architecture", architecture, "--latency", "1",
+                     "--period", "2", "--loss", "0.2"]) == 0
+        s = json.loads((out / "summary.json").read_text())
+        runs[fm] = (s, read_rrd_scalars(out / f"{s['scenario']}.rrd"))
+    assert {e["kind"] for e in runs["native"][0]["fmus"].values()} == {"native"}
+    assert set(runs["native"][0]["master"].values()) == {"native"}
+    ref, got = runs["python"][1], runs["native"][1]
+    assert set(ref) == set(got)
+    links = [e for e in ref if e.startswith("network/links/")]
+    assert links and all(np.array_equal(ref[e][2], got[e][2]) for e in links)
+    assert sum(float(np.asarray(ref[e][2])[-1, 1]) for e in links) > 0      # losses
+    for entity, (_, _, values) in ref.items():
+        scale = max(float(np.nanmax(np.abs(values))), 1e-300)
+        assert np.nanmax(np.abs(got[entity][2] - values)) <= 1e-12 * scale, entity
