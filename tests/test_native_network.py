@@ -26,7 +26,11 @@ RANGE_CONFIG = dict(CONFIG, range=10.0, state_size=6, position_index=[0, 1, 2],
 #: a key and a seed of another component, and a longer latency than the start values
 OTHER = {"seed": 99, "link[1].key": link_key(4, 3), "link[2].latency": 5.0,
          "leader.loss": 0.5, "link[1].offset": 0.4}
-CONFIGS = {"plain": CONFIG, "sched": SCHED_CONFIG, "range": RANGE_CONFIG}
+#: a modem range and no leader link (a planned leader)
+NO_LEADER = dict(CONFIG, leader_size=0, leader=None, range=8.0, state_size=6,
+                 position_index=[0, 1, 2])
+CONFIGS = {"plain": CONFIG, "sched": SCHED_CONFIG, "range": RANGE_CONFIG,
+           "no_leader": NO_LEADER}
 
 
 @pytest.fixture(scope="module")
@@ -72,17 +76,20 @@ def _propagated(names, key):
     return np.array([n.startswith(("link[2].rx.", "leader.rx.")) for n in names])
 
 
-@pytest.mark.parametrize("key", list(CONFIGS))
-@pytest.mark.parametrize("override", [{}, OTHER], ids=["start", "other"])
-def test_native_delivers_and_loses_what_the_pythonfmu_network_does(pair, key, override):
-    py, nat, names = _both(pair, key, **override)
+CASES = [(k, o) for k in CONFIGS for o in ("start", "other") if (k, o) != ("no_leader", "other")]
+
+
+@pytest.mark.parametrize("key, which", CASES, ids=["-".join(c) for c in CASES])
+def test_native_delivers_and_loses_what_the_pythonfmu_network_does(pair, key, which):
+    py, nat, names = _both(pair, key, **(OTHER if which == "other" else {}))
     prop = _propagated(names, key)
     assert py.shape == nat.shape == (300, len(names))
     assert np.array_equal(py[:, ~prop], nat[:, ~prop])          # counts, ages, held values
     scale = np.max(np.abs(py[:, prop]), axis=0)
     assert np.all(np.abs(nat[:, prop] - py[:, prop]) <= 1e-13 * scale)
-    lost = [names.index(f"{p}.lost") for p in ("link[1]", "link[2]", "leader")]
-    delivered = [names.index(f"{p}.delivered") for p in ("link[1]", "link[2]", "leader")]
+    links = ("link[1]", "link[2]", "leader")[:3 if CONFIGS[key]["leader_size"] else 2]
+    lost = [names.index(f"{p}.lost") for p in links]
+    delivered = [names.index(f"{p}.delivered") for p in links]
     assert np.all(nat[-1, lost] > 0) and np.all(nat[-1, delivered] > 0)   # both happened
 
 

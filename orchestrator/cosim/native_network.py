@@ -134,8 +134,9 @@ def _header(config: Mapping[str, Any], reals: list[Var], ints: list[Var], vr: di
     extra = [f"#define VR_h {need('h')}", f"#define IVR_seed {need('seed')}"]
     if has_range:
         extra += [f"#define VR_range {need('range')}", f"#define VR_x {need('x[1]')}"]
-        if config["leader_size"]:
-            extra.append(f"#define VR_leader_H {need('leader.H[1,1]')}")
+        # without a leader link no link reads H (0: a placeholder the C model compiles with)
+        extra.append(f"#define VR_leader_H "
+                     f"{need('leader.H[1,1]') if config['leader_size'] else 0}")
     if G:
         extra += [f"#define VR_schedule_t {need('schedule.t[1]')}",
                   f"#define VR_schedule_period {need('schedule.period')}"]
