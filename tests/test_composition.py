@@ -28,8 +28,6 @@ FMUS = ("python", "native")
 REFUSED = {("stacked", "links"): "[network] needs [simulation] deployment = \"per-vehicle\"",
            ("stacked", "remus100-6dof"): "needs [simulation] deployment = \"per-vehicle\"",
            ("stacked", "remus100-6dof-guided"): "needs [simulation] deployment = \"per-vehicle\""}
-#: the FMU kinds that stay pythonfmu with --fmus native
-PYTHON_ONLY = ("network",)
 #: the REMUS 100 vehicle kinds, native with --fmus native (orchestrator.cosim.native_remus)
 REMUS_KINDS = ("remus6dof", "remus6dof_actuated")
 T = "2.0"
@@ -97,11 +95,11 @@ def test_every_cell_runs_or_is_refused_in_one_line(scenarios, runs, tmp_path, ca
     kinds = {k: e["kind"] for k, e in summary["fmus"].items()}
     if fmus == "python":
         assert set(kinds.values()) == {"python"}
-    else:       # native where a component is linear, a guidance FMU or a 6-DOF vehicle;
-        assert "native" in kinds.values()             # the network stays pythonfmu
-        assert all(v == "python" for k, v in kinds.items() if k in PYTHON_ONLY)
-        assert all(v == "native" for k, v in kinds.items() if k not in PYTHON_ONLY)
+    else:       # every FMU native: the linear forms, the guidance interface, the 6-DOF
+        assert set(kinds.values()) == {"native"}, kinds   # vehicles and the network
         assert any(k in REMUS_KINDS for k in kinds) == (vehicle != "remus100")
+        if links == "links":
+            assert kinds["network"] == "native"
         if vehicle == "remus100-6dof-guided":
             assert kinds["guidance"] == kinds["autopilot"] == "native"
     scalars = read_rrd_scalars(out / f"{summary['scenario']}.rrd")

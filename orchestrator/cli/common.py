@@ -59,8 +59,9 @@ def add_fmu_options(sp: argparse.ArgumentParser) -> None:
     from fmu_common.native_form import FMU_IMPLEMENTATIONS
     sp.add_argument("--fmus", choices=FMU_IMPLEMENTATIONS,
                     help="python: the pythonfmu FMUs; native: compiled (C) FMUs of every "
-                         "component with a linear form, pythonfmu for the rest (the acoustic "
-                         "network, a nonlinear vehicle, the multi-rate estimator); needs a C "
+                         "component with a linear form or a C model (the acoustic network, the "
+                         "guidance interface, the multi-rate estimator), pythonfmu for the "
+                         "rest (a nonlinear vehicle, a vehicle with [sensors]); needs a C "
                          "compiler (default: the scenario's [simulation] fmus, else python)")
 
 

@@ -1,10 +1,10 @@
 """Native FMUs: a designed FMU compiled to C, no Python at run time.
 
-Every FMU kind except the acoustic network is linear once designed
-(:mod:`fmu_common.native_form`). :func:`form_of` sets up the pythonfmu slave of a
-component in this process (from the configuration inside its built .fmu and the
-component's parameter values) and asks it for its linear form; :func:`build_native_fmu`
-writes the form as an FMI 2.0 co-simulation FMU:
+Every FMU kind except the acoustic network, the guidance interface and the nonlinear
+vehicles is linear once designed (:mod:`fmu_common.native_form`). :func:`form_of` sets up
+the pythonfmu slave of a component in this process (from the configuration inside its
+built .fmu and the component's parameter values) and asks it for its linear form;
+:func:`build_native_fmu` writes the form as an FMI 2.0 co-simulation FMU:
 
 - ``modelDescription.xml``: the slave's inputs and outputs (names, units, direct
   feedthrough), the form's matrices as parameters (structured names, start values from the
@@ -22,7 +22,8 @@ writes the form as an FMI 2.0 co-simulation FMU:
 
 A native FMU does not re-solve the Riccati equations: a design change means exporting
 again, or setting the gain and filter parameters. The guidance interface (not linear) has
-a C model of its own per FMU: :mod:`orchestrator.cosim.native_guidance`.
+a C model of its own per FMU: :mod:`orchestrator.cosim.native_guidance`; so has the
+acoustic network (``AuvNetworkNative``, :mod:`orchestrator.cosim.native_network`).
 """
 from __future__ import annotations
 
@@ -66,14 +67,15 @@ NONLINEAR_VEHICLE_KINDS = tuple(dict.fromkeys(e.fmu_kind for e in REGISTRY.value
                                               if e.nonlinear))
 #: the kinds whose FMUs are linear once designed, compiled from their linear form (the
 #: network, the nonlinear vehicle and the guidance interface are not; with navigation
-#: sensors the vehicle and estimator FMUs are not either)
+#: sensors the vehicle and estimator FMUs are not either: the estimator is then the native
+#: multi-rate filter, orchestrator.cosim.native_multirate, the vehicle stays pythonfmu)
 LINEAR_KINDS = tuple(k for k in FMU_KINDS
                      if k not in ("network", *NONLINEAR_VEHICLE_KINDS, *GUIDANCE_KINDS))
 #: the kinds that have a native (C) FMU: the linear ones, the guidance interface
 #: (AuvGuidance, AuvAutopilot: a C model each, orchestrator.cosim.native_guidance) and the
-#: nonlinear REMUS 100 (AuvRemus6dof, AuvRemus6dofActuated: orchestrator.cosim.native_remus);
-#: the network stays pythonfmu
-NATIVE_KINDS = LINEAR_KINDS + GUIDANCE_KINDS + NONLINEAR_VEHICLE_KINDS
+#: nonlinear REMUS 100 (AuvRemus6dof, AuvRemus6dofActuated: orchestrator.cosim.native_remus)
+#: and the acoustic network (AuvNetwork, orchestrator.cosim.native_network)
+NATIVE_KINDS = LINEAR_KINDS + GUIDANCE_KINDS + NONLINEAR_VEHICLE_KINDS + ("network",)
 #: the C sources compiled into every linear native FMU (the shared FMI plumbing, the linear
 #: system, numpy's generator)
 C_SOURCES = (NATIVE_DIR / "fmu_core.c", NATIVE_DIR / "linear_fmu.c",
@@ -330,10 +332,14 @@ class NativeSystem:
     """A system whose linear components are native FMUs."""
 
     system: SystemDescription            #: the same wiring, native interfaces and parameters
-    fmus: dict[str, Path]                #: FMU key -> .fmu (native, or pythonfmu: network)
+    fmus: dict[str, Path]                #: FMU key -> .fmu (native, or pythonfmu)
     forms: dict[str, NativeForm]         #: component -> its linear form
-    #: the FMU keys whose FMU is native (the linear forms' and the guidance interface's)
+    #: the FMU keys whose FMU is native (the linear forms', the guidance interface's, the
+    #: network's, the multi-rate filter's)
     native_keys: frozenset[str] = frozenset()
+    #: the components whose interface is the native FMU's own (a linear form's, the
+    #: multi-rate filter's); the others keep the pythonfmu FMU's variables
+    replaced: frozenset[str] = frozenset()
 
 
 def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: Path | str,
@@ -367,13 +373,21 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
         If two components of one kind have forms of different shapes (named).
     """
     forms: dict[str, NativeForm] = {}
+    filters: dict[str, tuple[tuple[ArraySpec, ...], dict[str, float]]] = {}
+    built: dict[str, Path] = {}
     for kind in dict.fromkeys(c.fmu for c in system.components
                               if c.fmu in kinds and c.fmu in LINEAR_KINDS):
+        mine = [c for c in system.components if c.fmu == kind]
         try:
             forms.update({c.name: form_of(c.fmu, Path(fmus[c.fmu]), c.parameters)
-                          for c in system.components if c.fmu == kind})
-        except NotImplementedError:         # not linear in this system (navigation sensors):
-            continue                        # its pythonfmu FMU stays
+                          for c in mine})
+        except NotImplementedError:         # not linear in this system (navigation sensors)
+            if kind == "vehicle_estimator":  # the multi-rate filter: a C model of its own
+                from .native_multirate import multirate_components
+                built[kind], more = multirate_components(mine, fmus[kind], out_dir, system.T,
+                                                         platforms)
+                filters.update(more)
+            continue                        # else its pythonfmu FMU stays
     # a static law works at any step; its h is the system's, for the default experiment
     forms = {k: dataclasses.replace(f, h=system.h) if f.static else f for k, f in forms.items()}
     base: dict[str, NativeForm] = {}
@@ -386,34 +400,46 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
                 and _shape(forms[c.name]) != _shape(base[c.fmu])]
     if problems:
         raise NativeBuildError("; ".join(problems))
-    built = {k: build_native_fmu(f, native_model(k), out_dir, system.T, system.h, platforms)
-             for k, f in base.items()}
+    built.update({k: build_native_fmu(f, native_model(k), out_dir, system.T, system.h,
+                                      platforms) for k, f in base.items()})
     # the guidance interface beside the system (REMUS 100 scenarios) or in it (vehicles
     # flown through it): its C models, the same variables, so components keep their
     # interface and parameters
     from .native_guidance import native_guidance_fmu
     built.update({k: native_guidance_fmu(k, fmus[k], out_dir, platforms) for k in GUIDANCE_KINDS
                   if k in fmus and k in kinds})
+    if "network" in fmus and "network" in kinds:
+        # the acoustic inbox's C model, the same variables: every network component keeps
+        # its interface and parameters (the queue is sized for all of them)
+        from .native_network import native_network_fmu
+        built["network"] = native_network_fmu(
+            fmus["network"], out_dir,
+            [c.parameters for c in system.components if c.fmu == "network"], platforms)
     comps = tuple(dataclasses.replace(c, interface=tuple(native_specs(forms[c.name])),
                                       parameters=native_parameters(forms[c.name], base[c.fmu]))
-                  if c.name in forms else c for c in system.components)
+                  if c.name in forms else
+                  dataclasses.replace(c, interface=filters[c.name][0],
+                                      parameters=filters[c.name][1])
+                  if c.name in filters else c for c in system.components)
     # the nonlinear REMUS 100: its C model, the same variables; vehicles that differ in a
     # parameter fixed at export keep their pythonfmu FMU
     from .native_remus import REMUS_KINDS, VehiclesDiffer, native_remus_components
     remus = [k for k in REMUS_KINDS if k in kinds and any(c.fmu == k for c in comps)]
     for k in remus:
         try:
-            built[k], comps = native_remus_components(k, fmus[k], comps, out_dir)
+            built[k], comps = native_remus_components(k, fmus[k], comps, out_dir, platforms)
         except VehiclesDiffer:
             continue
     # a connection that carries data only for some value of a replaced component's
     # parameter (the truth in mode "ideal"): the native form has that value built in
-    conns = tuple(dataclasses.replace(c, when=None) if c.when and c.when[0] in forms
+    conns = tuple(dataclasses.replace(c, when=None) if c.when and c.when[0] in
+                  (*forms, *filters)
                   and system.active(c) else c for c in system.connections)
     paths = {k: Path(v) for k, v in fmus.items()}
     paths.update(built)
     return NativeSystem(system=dataclasses.replace(system, components=comps, connections=conns),
-                        fmus=paths, forms=forms, native_keys=frozenset(built))
+                        fmus=paths, forms=forms, native_keys=frozenset(built),
+                        replaced=frozenset((*forms, *filters)))
 
 
 def _shape(f: NativeForm) -> tuple[Any, ...]:

@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 import re
 import zipfile
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -153,7 +153,8 @@ def _model_description(root: etree._Element, model: str, guid: str,
 
 
 def native_remus_fmu(kind: str, fmu: Path | str, out_dir: Path | str,
-                     parameters: Mapping[str, Any] | None = None) -> Path:
+                     parameters: Mapping[str, Any] | None = None,
+                     platforms: Sequence[str] | None = None) -> Path:
     """The native FMU of a REMUS 100 kind, from its built pythonfmu FMU.
 
     Parameters
@@ -168,6 +169,8 @@ def native_remus_fmu(kind: str, fmu: Path | str, out_dir: Path | str,
     parameters : Mapping[str, Any], optional
         A component's parameter values (FMI scalar names): the start values and the
         numbers derived from them; default the FMU's start values.
+    platforms : Sequence[str] or None, optional
+        The platforms it carries binaries for (:func:`compile_fmu`); default the host's.
 
     Returns
     -------
@@ -217,17 +220,19 @@ def native_remus_fmu(kind: str, fmu: Path | str, out_dir: Path | str,
     return compile_fmu(model, tuple(NATIVE_DIR / f for f in _SOURCES),
                        tuple(NATIVE_DIR / f for f in _HEADERS),
                        lambda guid: _header(model, reals, ints, strings, const, guid),
-                       lambda guid: _model_description(root, model, guid, keep), out_dir)
+                       lambda guid: _model_description(root, model, guid, keep), out_dir,
+                       platforms)
 
 
-def native_remus_components(kind: str, fmu: Path | str, components: tuple, out_dir: Path | str
-                            ) -> tuple[Path, tuple]:
+def native_remus_components(kind: str, fmu: Path | str, components: tuple, out_dir: Path | str,
+                            platforms: Sequence[str] | None = None) -> tuple[Path, tuple]:
     """The native FMU of ``kind`` for the components of a system that use it, and the
     components (unchanged: the native FMU has the pythonfmu FMU's variables).
 
     The FMU is exported with the first component's values; the others may differ only in
     the parameters the C model reads at run time (:data:`RUNTIME_PARAMETERS`, the
-    autopilot gains).
+    autopilot gains). ``platforms``: those its binaries are built for
+    (:func:`native_remus_fmu`).
 
     Raises
     ------
@@ -250,5 +255,5 @@ def native_remus_components(kind: str, fmu: Path | str, components: tuple, out_d
                     f"{c.name}: its parameter {name} = {b!r} differs from {mine[0].name}'s "
                     f"{a!r}; the native {kind} FMU derives its numbers from it at export, "
                     "so every vehicle of one FMU must share it")
-    path = native_remus_fmu(kind, fmu, out_dir, base)
+    path = native_remus_fmu(kind, fmu, out_dir, base, platforms)
     return path, tuple(components)

@@ -7,14 +7,16 @@ controller and the leader) the pythonfmu slave is set up once in this process an
 form taken (:func:`orchestrator.cosim.native.form_of`). One native FMU is built per kind,
 with the first component's values as start values; every other component of the kind gets
 its own values as a parameter set in the OSP and SSP files. The wiring is the pythonfmu
-system's: the native FMUs have the same inputs and outputs. What is not linear stays
-pythonfmu and needs Python: an acoustic network and the estimator FMU with navigation
-sensors (its schedule, dropouts and time-varying filter). The nonlinear REMUS 100
-vehicles (remus100-6dof, remus100-6dof-guided) are native with a C model of their own
-(:mod:`orchestrator.cosim.native_remus`). For REMUS 100 scenarios the guidance interface
-ships beside the system as native FMUs too (``AuvGuidanceNative``, ``AuvAutopilotNative``:
-a C model each with the pythonfmu FMU's interface, :mod:`orchestrator.cosim.native_guidance`,
-docs/guidance.md).
+system's: the native FMUs have the same inputs and outputs. An acoustic network ships as
+``AuvNetworkNative`` (its own C model with the pythonfmu FMU's variables,
+:mod:`orchestrator.cosim.native_network`); with navigation sensors the estimator ships
+as the native multi-rate filter (:mod:`orchestrator.cosim.native_multirate`). The
+nonlinear REMUS 100 vehicles (remus100-6dof, remus100-6dof-guided) are native with a C
+model of their own (:mod:`orchestrator.cosim.native_remus`). What stays pythonfmu and
+needs Python: the linear vehicle FMU with navigation sensors (its report schedule and
+dropouts). For REMUS 100 scenarios the guidance interface ships beside the system as
+native FMUs too (``AuvGuidanceNative``, ``AuvAutopilotNative``: a C model each with the
+pythonfmu FMU's interface, :mod:`orchestrator.cosim.native_guidance`, docs/guidance.md).
 """
 from __future__ import annotations
 
@@ -58,7 +60,7 @@ def export_native(sc: Scenario, out_dir: Path | str,
         py = build(sc, Path(tmp))
         ns = native_system(system, py, out, platforms=platforms)
         kept = {k: p for k, p in ns.fmus.items() if k not in ns.native_keys}
-        for k, p in kept.items():                  # the network's pythonfmu FMUs, if any
+        for k, p in kept.items():                  # the pythonfmu FMUs left, if any
             target = out / Path(p).name
             target.write_bytes(Path(p).read_bytes())
             ns.fmus[k] = target
