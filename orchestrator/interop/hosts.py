@@ -33,10 +33,12 @@ from pathlib import Path
 
 __all__ = ["HOSTS", "Host", "export_hint", "host_commands", "results_dir"]
 
-#: run a host process with the venv's libpython preloaded (pythonfmu FMUs need it)
-_PYTHON_ENV = ("LD_PRELOAD=\"$(.venv/bin/python -c 'import sysconfig as s; "
-               "print(s.get_config_var(\"LIBDIR\") + \"/\" + s.get_config_var(\"INSTSONAME\"))')\" "
-               "PYTHONEXECUTABLE=\"$PWD/.venv/bin/python\" ")
+#: in a subshell, before a host without Python starts: the venv's libpython preloaded and
+#: the venv named (pythonfmu FMUs need both)
+_PYTHON_ENV = (" export LD_PRELOAD=\"$(.venv/bin/python -c 'import sysconfig as s; "
+               "print(s.get_config_var(\"LIBDIR\") + \"/\" + "
+               "s.get_config_var(\"INSTSONAME\"))')\"\n"
+               " export PYTHONEXECUTABLE=\"$PWD/.venv/bin/python\"\n")
 
 
 @dataclass(frozen=True)
@@ -93,7 +95,8 @@ HOSTS: tuple[Host, ...] = (
     Host("cosim", "libcosim's command line, `cosim` of open-simulation-platform/cosim-cli "
                   "(not on PyPI: Linux and Windows builds with its GitHub releases)",
          ("osp", "native"),
-         "{env}cosim run {system_sh} --duration {T} --output-dir {results_sh}/cosim",
+         "{env_open}cosim run {system_sh} --duration {T} --output-dir {results_sh}/cosim"
+         "{env_close}",
          tested=False),
     Host("ecos", "the ecos engine (C++, its CLI from the ecospy wheel; Debian needs libtbb12)",
          ("ssp", "native"),
@@ -101,7 +104,9 @@ HOSTS: tuple[Host, ...] = (
          "print(pathlib.Path(ecospy.__file__).parent / \"binaries\" / \"ecos\")')\"\n"
          "chmod +x \"$ECOS\"  # the wheel may not set the run bit\n"
          "mkdir -p {results_sh}/ecos\n"
-         "(SSP={ssp_abs_sh}; {env_export}cd {results_sh}/ecos && \"$ECOS\" simulate "
+         "(SSP={ssp_abs_sh}\n"
+         "{env_export}"
+         " cd {results_sh}/ecos && \"$ECOS\" simulate "
          "--path \"$SSP\" --stopTime {T} --stepSize {h} --noParallel)"),
     Host("c-host", "a C host with no Python (tests/c_host/c_host.c: libc, libdl, libm)",
          ("native",),
@@ -113,6 +118,14 @@ HOSTS: tuple[Host, ...] = (
          "{results_sh}/c_host/c_host {results_sh}/c_host/system.txt {steps} {h} "
          "{results_sh}/c_host.csv"),
 )
+
+
+def _absolute_sh(path: Path) -> str:
+    """``path`` for the shell, made absolute with ``$PWD`` if it is relative."""
+    if path.is_absolute():
+        return shlex.quote(str(path))
+    quoted = shlex.quote(str(path))
+    return f'"$PWD/{path}"' if quoted == str(path) else '"$PWD/"' + quoted
 
 
 def results_dir(export_dir: Path | str) -> Path:
@@ -154,14 +167,13 @@ def host_commands(fmt: str, export_dir: Path | str, *, T: float, h: float,
               "results_sh": shlex.quote(str(results)),
               "fmpy_csv_py": repr(str(results / "fmpy.csv")),
               "libcosim_py": repr(str(results / "libcosim")),
-              "env": _PYTHON_ENV if needs_python else "",
-              "env_export": f"export {_PYTHON_ENV.strip()}; " if needs_python else ""}
+              "env_open": "(" + _PYTHON_ENV.lstrip() + " " if needs_python else "",
+              "env_close": ")" if needs_python else "",
+              "env_export": _PYTHON_ENV if needs_python else ""}
     for name, value in (("system", system), ("ssp", ssp)):
         fields[f"{name}_sh"] = shlex.quote(str(value)) if value is not None else ""
         fields[f"{name}_py"] = repr(str(value)) if value is not None else ""
-        fields[f"{name}_abs_sh"] = ("" if value is None else shlex.quote(str(value))
-                                    if Path(value).is_absolute()
-                                    else '"$PWD/"' + shlex.quote(str(value)))
+        fields[f"{name}_abs_sh"] = "" if value is None else _absolute_sh(Path(value))
     out = []
     for host in HOSTS:
         if fmt not in host.formats or (host.key == "c-host" and needs_python):
