@@ -17,6 +17,7 @@ import os
 import re
 import subprocess
 import zipfile
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -309,3 +310,41 @@ def test_fmpy_runs_the_native_export(workspace, paper):
     assert rows == round(paper.T / paper.h) + 1
     ref = loop_reference(paper.system, paper.h, paper.estimator, paper.seed, rows, "fmpy")
     assert max_rel_error(fmpy_traces(got, ref), ref) < 1e-9
+
+
+@pytest.mark.slow
+def test_the_c_host_system_from_osp_equals_the_one_from_the_design(tmp_path):
+    """formation-4 per vehicle (13 components, initial values per component): the system
+    file written from the exported OSP system holds the same FMUs, values, active
+    connections and recorded outputs as the one written from the system description, and
+    the C host runs it."""
+    from orchestrator.benchmarks.native import c_host_binary, write_c_host_system
+    from orchestrator.interop.c_host import write_c_host_system_from_osp
+    from orchestrator.interop.native import export_native, native_system
+    from orchestrator.running import build, scenario_system
+    sc = load_scenario("formation-4").with_run(T=1.0, deployment="per-vehicle",
+                                               architecture="distributed")
+    paths = export_native(sc, tmp_path / "x")
+    mine = write_c_host_system_from_osp(paths["system"], tmp_path / "from osp")
+    ns = native_system(scenario_system(sc), build(sc, tmp_path / "py"), tmp_path / "n")
+    theirs = write_c_host_system(ns.system, ns.fmus, tmp_path / "from design")
+
+    def lines(path: Path) -> list[str]:
+        out = []
+        for ln in path.read_text().splitlines():
+            out.append(" ".join(ln.split()[:4]) if ln.startswith("fmu ") else ln)
+        return out
+    a, b = lines(mine), lines(theirs)
+    assert sum(ln.startswith("real ") for ln in a) > 100
+    # the OSP system also wires the truth the estimators read only in mode 'ideal'
+    # (write_c_host_system leaves out inactive connections); libcosim sets them too
+    extra = list((Counter(a) - Counter(b)).elements())
+    assert not Counter(b) - Counter(a)
+    assert extra and all(ln.startswith("connect vehicle_") for ln in extra)
+    exe = c_host_binary(tmp_path)
+    r = subprocess.run([str(exe), str(mine), str(sc.steps), repr(sc.h), str(tmp_path / "c.csv")],
+                       capture_output=True, text=True, env={}, timeout=120)
+    assert r.returncode == 0, r.stderr
+    got = np.loadtxt(tmp_path / "c.csv", delimiter=",", skiprows=1)
+    assert got.shape == (sc.steps, 1 + sum(ln.startswith("record ") for ln in a))
+    assert np.isfinite(got).all()
