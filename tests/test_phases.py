@@ -1,0 +1,80 @@
+"""Where a run's time goes (orchestrator.running.phases) and the faster window sums.
+
+The phase clock counts each phase's own time (nested phases and measured parts apart);
+the window sums of the predictions (the mean motion of the distributed loop, the leader's
+second moment of the full-information bound) are done in blocks of samples now: the block
+size changes nothing but rounding.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from orchestrator.running import phases
+
+
+def test_nested_phases_count_their_own_time():
+    """A phase inside another, and a part added inside it, are counted once each."""
+    phases.reset()
+    t0 = time.perf_counter()
+    with phases.phase("build"):
+        time.sleep(0.05)
+        with phases.phase("design"):
+            time.sleep(0.1)
+        with phases.phase("instantiate"):
+            time.sleep(0.03)
+            phases.add("loop", 0.02)            # measured inside: not instantiate's
+    split = phases.split(time.perf_counter() - t0)
+    assert set(split) == set(phases.PHASES)
+    assert 0.09 <= split["design"] < 0.2
+    assert 0.04 <= split["build"] < 0.09          # without the design's 0.1 s
+    assert split["loop"] == 0.02
+    assert 0.005 <= split["instantiate"] < 0.05   # its 0.03 s less the loop's 0.02 s
+    assert abs(sum(split.values()) - (time.perf_counter() - t0)) < 0.01
+    assert split["other"] >= -1e-6
+    phases.reset()
+    assert phases.split(1.0) == {**{p: 0.0 for p in phases.PHASES}, "other": 1.0}
+
+
+def test_zbar_in_one_product_equals_the_sum_of_outer_products():
+    """The leader's mean z z' over a window, as one product of the samples, is the sum of
+    the per-sample outer products; a second call with equal content is a copy from the cache."""
+    from orchestrator.analysis.full_information import _zbar
+    rng = np.random.default_rng(3)
+    Phi = np.linalg.qr(rng.standard_normal((4, 4)))[0] * 0.999
+    z0 = rng.standard_normal(4)
+    k0, K = 17, 900
+    z = np.linalg.matrix_power(Phi, k0) @ z0
+    S = np.zeros((4, 4))
+    for _ in range(k0, K):
+        S += np.outer(z, z)
+        z = Phi @ z
+    got = _zbar(Phi, z0, k0, K)
+    assert np.allclose(got, S / (K - k0), rtol=1e-12, atol=1e-15)
+    again = _zbar(Phi.copy(), z0.copy(), k0, K)
+    assert np.array_equal(again, got) and again is not got
+    again[0, 0] = 1e9                                 # the cached value is not shared
+    assert _zbar(Phi, z0, k0, K)[0, 0] == got[0, 0]
+
+
+@pytest.mark.parametrize("block", [1, 7])
+def test_the_window_mean_motion_does_not_depend_on_the_block(block, monkeypatch):
+    """predict_cost over a window with the mean motion: blocks of 1 sample (the former
+    per-sample sums) or 7 give the default block's cost and RMS to 1e-12."""
+    from orchestrator.analysis import distributed_verdict as dv
+    from orchestrator.analysis.per_vehicle import distributed_initial_state, distributed_loop_of
+    from orchestrator.scenario import load_scenario
+    sc = load_scenario("formation-4").with_run(T=5.0, deployment="per-vehicle",
+                                               architecture="distributed")
+    loop = distributed_loop_of(sc, "kalman", sc.tracking, sc.distributed)
+    X0 = distributed_initial_state(sc, loop)
+    ref = dv.predict_cost(loop, (40, sc.steps), X0)
+    monkeypatch.setattr(dv, "_MEAN_BLOCK", block)
+    got = dv.predict_cost(loop, (40, sc.steps), X0)
+    assert got.cost_rate == pytest.approx(ref.cost_rate, rel=1e-12)
+    assert np.allclose(got.rms_e, ref.rms_e, rtol=1e-12)
+    assert np.allclose(got.rms_u, ref.rms_u, rtol=1e-12)
+    mean_only = ref.cost_rate - dv.predict_cost(loop).cost_rate
+    assert mean_only > 1e-6 * ref.cost_rate           # the mean motion is in it
