@@ -78,3 +78,30 @@ def test_the_window_mean_motion_does_not_depend_on_the_block(block, monkeypatch)
     assert np.allclose(got.rms_u, ref.rms_u, rtol=1e-12)
     mean_only = ref.cost_rate - dv.predict_cost(loop).cost_rate
     assert mean_only > 1e-6 * ref.cost_rate           # the mean motion is in it
+
+
+@pytest.mark.slow
+def test_bench_phases_splits_a_whole_run(capsys):
+    """``bench --phases`` runs ``auv-cosim run`` as a subprocess: every phase is counted,
+    the run's phases sum to its summary's wall time, the subprocess took longer than that
+    (start-up), and the printed lines name every phase with its share."""
+    import json
+
+    from orchestrator.cli.entry import main
+    assert main(["bench", "--phases", "--scenario", "formation-4", "--deployment",
+                 "per-vehicle", "--architecture", "distributed", "--T", "5", "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert r["argv"] == ["--scenario", "formation-4", "--deployment", "per-vehicle",
+                         "--architecture", "distributed", "--T", "5.0"]
+    ph = r["phases_s"]
+    assert set(ph) == set(phases.PHASES)
+    for key in ("build", "design", "predictions", "instantiate", "loop", "recording"):
+        assert ph[key] > 0, key
+    assert sum(ph.values()) == pytest.approx(r["wall_s"], abs=0.05)
+    assert r["command_s"] > r["wall_s"] and r["startup_and_exit_s"] > 0.1
+    assert r["outside_loop_s"] == pytest.approx(r["command_s"] - ph["loop"])
+    assert main(["bench", "--phases", "--scenario", "paper", "--T", "2"]) == 0
+    printed = capsys.readouterr().out
+    for word in ("build", "design", "predictions", "instantiate", "loop", "statistics",
+                 "recording", "other", "start-up", "outside the loop"):
+        assert word in printed, word
