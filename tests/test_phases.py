@@ -105,3 +105,33 @@ def test_bench_phases_splits_a_whole_run(capsys):
     for word in ("build", "design", "predictions", "instantiate", "loop", "statistics",
                  "recording", "other", "start-up", "outside the loop"):
         assert word in printed, word
+
+
+def test_a_distributed_prediction_is_read_back_bit_for_bit(tmp_path, monkeypatch):
+    """predict_cost of a fleet: the second call (a fresh loop object of the same content,
+    as a second run makes) is read from the cache folder and equals the first bit for bit;
+    another window is another entry; with the cache off nothing is written."""
+    from orchestrator.analysis import distributed_verdict as dv
+    from orchestrator.analysis.per_vehicle import distributed_initial_state, distributed_loop_of
+    from orchestrator.scenario import load_scenario
+    monkeypatch.setenv("AUV_COSIM_PREDICTION_CACHE", str(tmp_path / "cache"))
+    sc = load_scenario("formation-4").with_run(T=5.0, deployment="per-vehicle",
+                                               architecture="distributed")
+    loop = distributed_loop_of(sc, "kalman", sc.tracking, sc.distributed)
+    X0 = distributed_initial_state(sc, loop)
+    first = dv.predict_cost(loop, (40, sc.steps), X0)
+    files = list((tmp_path / "cache").glob("distributed-cost-*.json"))
+    assert len(files) == 1
+    calls = []
+    monkeypatch.setattr(dv, "_predict_cost", lambda *a: calls.append(a))
+    again = dv.predict_cost(distributed_loop_of(sc, "kalman", sc.tracking, sc.distributed),
+                            (40, sc.steps), X0)
+    assert not calls and again == first
+    monkeypatch.undo()
+    monkeypatch.setenv("AUV_COSIM_PREDICTION_CACHE", str(tmp_path / "cache"))
+    other = dv.predict_cost(loop, (41, sc.steps), X0)
+    assert other.cost_rate != first.cost_rate
+    assert len(list((tmp_path / "cache").glob("distributed-cost-*.json"))) == 2
+    monkeypatch.setenv("AUV_COSIM_PREDICTION_CACHE", "0")
+    assert dv.predict_cost(loop, (42, sc.steps), X0).cost_rate > 0
+    assert len(list((tmp_path / "cache").glob("distributed-cost-*.json"))) == 2

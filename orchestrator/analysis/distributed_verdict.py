@@ -185,6 +185,9 @@ def predict_cost(loop: DistributedLoop, window: tuple[int, int] | None = None,
                  ) -> DistributedPrediction:
     """J/T = tr(Qc E[e e']) + tr(Rc E[u u']) from the discrete Lyapunov equation.
 
+    Kept on disk by content (:mod:`orchestrator.analysis.distributed_cache`): a second run
+    of the same fleet (another seed, folder or command) reads it back bit for bit.
+
     Sigma = Phi_R Sigma Phi_R' + Gam_R W Gam_R' on the error part; E[e e'] = Ce Sigma Ce',
     E[u u'] = Gx Sigma Gx' + Geta W Geta'. With ``window`` = (k0, K) and ``X0`` the mean
     motion X_mean[k] = Phi^k X0 is averaged over the window and added; with ``transient`` the
@@ -212,6 +215,14 @@ def predict_cost(loop: DistributedLoop, window: tuple[int, int] | None = None,
     ModelError
         If the error part is not stable.
     """
+    from .distributed_cache import cached_prediction
+    return cached_prediction(loop, window, X0, transient,
+                             lambda: _predict_cost(loop, window, X0, transient))
+
+
+def _predict_cost(loop: DistributedLoop, window: tuple[int, int] | None,
+                  X0: np.ndarray | None, transient: bool) -> DistributedPrediction:
+    """:func:`predict_cost`, computed."""
     verdict = stability_verdict(loop, check=True)
     R = ~loop.deterministic
     PhiR = loop.Phi[np.ix_(R, R)]
