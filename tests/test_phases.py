@@ -135,3 +135,22 @@ def test_a_distributed_prediction_is_read_back_bit_for_bit(tmp_path, monkeypatch
     monkeypatch.setenv("AUV_COSIM_PREDICTION_CACHE", "0")
     assert dv.predict_cost(loop, (42, sc.steps), X0).cost_rate > 0
     assert len(list((tmp_path / "cache").glob("distributed-cost-*.json"))) == 2
+
+
+def test_closest_approach_equals_the_all_pairs_definition():
+    """formation_stats' closest approach (per coordinate, squared, over blocks of samples)
+    is the minimum of ||p_i - p_j|| over every pair and sample, bit for bit, with its pair
+    and time, also where a block boundary (256 samples) splits the run."""
+    from orchestrator.analysis.formation import formation_stats
+    rng = np.random.default_rng(5)
+    N, steps = 9, 600
+    x = rng.standard_normal((steps, 3 * N)) * 4
+    idx = np.arange(3 * N).reshape(N, 3)
+    pos = x[:, idx]
+    d = np.sqrt(np.sum((pos[:, :, None, :] - pos[:, None, :, :]) ** 2, axis=-1))
+    d[:, np.tril(np.ones((N, N), dtype=bool))] = np.inf
+    k, i, j = np.unravel_index(np.argmin(d), d.shape)
+    r = formation_stats(x, idx, np.zeros((N, 3)), [(1, 2)], 0, 0.1)
+    assert r["min_separation"] == d[k, i, j]
+    assert r["min_separation_vehicles"] == [i + 1, j + 1]
+    assert r["min_separation_time_s"] == pytest.approx(k * 0.1)
