@@ -25,6 +25,10 @@ from .block_stein import stein
 from .distributed import DistributedLoop, _assemble, _fmt
 from .prediction import window_average_covariance
 
+#: samples of the mean motion per block in :func:`predict_cost` (a block of a 3417-state
+#: loop is 27 MB)
+_MEAN_BLOCK = 1000
+
 __all__ = ["DistributedPrediction", "StabilityVerdict", "predict_cost", "stability_verdict",
            "vehicle_blocks"]
 
@@ -181,6 +185,9 @@ def predict_cost(loop: DistributedLoop, window: tuple[int, int] | None = None,
                  ) -> DistributedPrediction:
     """J/T = tr(Qc E[e e']) + tr(Rc E[u u']) from the discrete Lyapunov equation.
 
+    Kept on disk by content (:mod:`orchestrator.analysis.distributed_cache`): a second run
+    of the same fleet (another seed, folder or command) reads it back bit for bit.
+
     Sigma = Phi_R Sigma Phi_R' + Gam_R W Gam_R' on the error part; E[e e'] = Ce Sigma Ce',
     E[u u'] = Gx Sigma Gx' + Geta W Geta'. With ``window`` = (k0, K) and ``X0`` the mean
     motion X_mean[k] = Phi^k X0 is averaged over the window and added; with ``transient`` the
@@ -208,6 +215,14 @@ def predict_cost(loop: DistributedLoop, window: tuple[int, int] | None = None,
     ModelError
         If the error part is not stable.
     """
+    from .distributed_cache import cached_prediction
+    return cached_prediction(loop, window, X0, transient,
+                             lambda: _predict_cost(loop, window, X0, transient))
+
+
+def _predict_cost(loop: DistributedLoop, window: tuple[int, int] | None,
+                  X0: np.ndarray | None, transient: bool) -> DistributedPrediction:
+    """:func:`predict_cost`, computed."""
     verdict = stability_verdict(loop, check=True)
     R = ~loop.deterministic
     PhiR = loop.Phi[np.ix_(R, R)]
@@ -226,11 +241,18 @@ def predict_cost(loop: DistributedLoop, window: tuple[int, int] | None = None,
         for _ in range(k0):
             X = Phi @ X
         ee, uu = np.zeros_like(See), np.zeros_like(Suu)
-        for _ in range(k0, K):
-            e, u = loop.Ce @ X, loop.Gx @ X
-            ee += np.outer(e, e)
-            uu += np.outer(u, u)
-            X = Phi @ X
+        # the window's states in blocks of rows: one product per block, not per sample
+        block = np.empty((min(_MEAN_BLOCK, max(K - k0, 1)), X.size))
+        k = k0
+        while k < K:
+            rows = min(block.shape[0], K - k)
+            for j in range(rows):
+                block[j] = X
+                X = Phi @ X
+            E, U = block[:rows] @ loop.Ce.T, block[:rows] @ loop.Gx.T
+            ee += E.T @ E
+            uu += U.T @ U
+            k += rows
         See, Suu = See + ee / max(K - k0, 1), Suu + uu / max(K - k0, 1)
     rho = verdict.stacked_spectral_radius if PhiR.size else 0.0
     tau = -loop.h / np.log(rho) if rho > 0 else loop.h

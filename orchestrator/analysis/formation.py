@@ -57,15 +57,23 @@ def formation_stats(x: np.ndarray, position_index: np.ndarray, offsets: np.ndarr
     N = idx.shape[0]
     best, where = np.inf, (0, 1, 0)
     if N >= 2:
-        iu = np.triu_indices(N, 1)
+        # per block the squared distances of every ordered pair, one coordinate at a time
+        # (contiguous (b, N, N) arrays; summed in the order north, east, down as before),
+        # i >= j masked, and the square root of the minimum alone (it is increasing: the
+        # same pair, time and value, first in (k, i, j) order)
+        not_pair = np.tril(np.ones((N, N), dtype=bool))
+        coords = np.ascontiguousarray(np.moveaxis(pos, 2, 0))     # (3, steps, N)
         for a in range(0, pos.shape[0], _CHUNK):
-            block = pos[a:a + _CHUNK]                         # (b, N, 3)
-            diff = block[:, :, None, :] - block[:, None, :, :]
-            dist = np.sqrt(np.sum(diff * diff, axis=-1))[:, iu[0], iu[1]]   # (b, pairs)
-            k, pair = np.unravel_index(np.argmin(dist), dist.shape)
-            if dist[k, pair] < best:
-                best, where = float(dist[k, pair]), (int(iu[0][pair]), int(iu[1][pair]),
-                                                     a + int(k))
+            d2 = np.zeros((min(_CHUNK, pos.shape[0] - a), N, N))
+            for c in range(3):
+                blk = coords[c, a:a + _CHUNK]
+                d = blk[:, :, None] - blk[:, None, :]
+                d *= d
+                d2 += d
+            d2[:, not_pair] = np.inf
+            k, i, j = np.unravel_index(np.argmin(d2), d2.shape)
+            if np.sqrt(d2[k, i, j]) < best:
+                best, where = float(np.sqrt(d2[k, i, j])), (int(i), int(j), a + int(k))
     return {
         "formation_error_rms": rms,
         "formation_error_rms_max": max(rms.values()) if rms else None,

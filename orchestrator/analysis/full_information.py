@@ -25,6 +25,7 @@ leader without process noise (a planned path; otherwise None with the reason).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -48,13 +49,23 @@ class FullInformationBound:
 
 
 def _zbar(Phi: np.ndarray, z0: np.ndarray, k0: int, K: int) -> np.ndarray:
-    """Mean of z z' over k0 <= k < K for z[k] = Phi^k z0."""
-    z = np.linalg.matrix_power(Phi, k0) @ z0
-    S = np.zeros((z.size, z.size))
-    for _ in range(k0, K):
-        S += np.outer(z, z)
+    """Mean of z z' over k0 <= k < K for z[k] = Phi^k z0 (the vehicles of a fleet share
+    the leader's: computed once per content, :func:`_zbar_cached`)."""
+    Phi, z0 = np.ascontiguousarray(Phi, dtype=float), np.ascontiguousarray(z0, dtype=float)
+    return _zbar_cached(Phi.tobytes(), Phi.shape, z0.tobytes(), int(k0), int(K)).copy()
+
+
+@lru_cache(maxsize=16)
+def _zbar_cached(phi: bytes, shape: tuple[int, int], z0: bytes, k0: int,
+                 K: int) -> np.ndarray:
+    """:func:`_zbar` of the arrays given by their bytes: the samples as rows, one product."""
+    Phi = np.frombuffer(phi).reshape(shape)
+    z = np.linalg.matrix_power(Phi, k0) @ np.frombuffer(z0)
+    Z = np.empty((max(K - k0, 0), z.size))
+    for j in range(Z.shape[0]):
+        Z[j] = z
         z = Phi @ z
-    return S / max(K - k0, 1)
+    return (Z.T @ Z) / max(K - k0, 1)
 
 
 def best_steady_motion(Ad: np.ndarray, Bd: np.ndarray, C: np.ndarray, H: np.ndarray,

@@ -118,7 +118,9 @@ def trace_stats(traces: dict[str, np.ndarray], Q: np.ndarray, R: np.ndarray,
         ``rms_e``, ``mean_e``, ``rms_u`` (lists) and ``cost_rate`` (float, per second).
     """
     e, u = traces["e"][k0:], traces["u"][k0:]
-    cost = np.einsum("ki,ij,kj->k", e, Q, e) + np.einsum("ki,ij,kj->k", u, R, u)
+    # e' Q e per sample through one matrix product (a three-operand einsum loops in C
+    # without BLAS: seconds for a 100-vehicle fleet's 30,000 samples)
+    cost = np.einsum("ki,ki->k", e @ Q, e) + np.einsum("ki,ki->k", u @ R, u)
     return {"rms_e": np.sqrt(np.mean(e * e, axis=0)).tolist(),
             "mean_e": np.mean(e, axis=0).tolist(),
             "rms_u": np.sqrt(np.mean(u * u, axis=0)).tolist(),

@@ -226,8 +226,36 @@ def cmd_bench_predictions(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_phases(args: argparse.Namespace) -> int:
+    """``bench --phases``: a whole ``auv-cosim run`` of the scenario options, split."""
+    from ..benchmarks.phases import benchmark_phases
+    r = benchmark_phases(vars(args))
+    if args.json:
+        print(json.dumps(r, indent=2))
+        return 0
+    print(f"auv-cosim run {' '.join(r['argv'])}: {r['command_s']:.1f} s ({r['steps']} steps); "
+          f"load average {r['loadavg'][0]:.2f} on {r['cpus']} CPUs (after: "
+          f"{r['loadavg_after'][0]:.2f})")
+    labels = {"build": "build (FMUs, native FMUs)", "design": "design (gains, filters)",
+              "predictions": "predictions (and the bound)",
+              "instantiate": "instantiate, initialize, free FMUs", "loop": "loop",
+              "statistics": "statistics (traces, formation)", "recording": "recording (.rrd)",
+              "other": "other (inside the command)"}
+    for key, label in labels.items():
+        v = r["phases_s"][key]
+        print(f"  {label:38s} {v:8.2f} s  {100 * v / r['command_s']:5.1f} %")
+    print(f"  {'start-up and exit (imports, parsing)':38s} {r['startup_and_exit_s']:8.2f} s  "
+          f"{100 * r['startup_and_exit_s'] / r['command_s']:5.1f} %")
+    ratio = r["outside_to_loop"]
+    print(f"  outside the loop {r['outside_loop_s']:.1f} s, inside {r['loop_s']:.1f} s: "
+          + ("-" if ratio is None else f"{ratio:.2f}x") + " (target <= 1)")
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from ..benchmarks.paper import benchmark
+    if getattr(args, "phases", False):
+        return cmd_bench_phases(args)
     if getattr(args, "predictions", False):
         return cmd_bench_predictions(args)
     if getattr(args, "deployment", None) == "per-vehicle":
@@ -302,6 +330,11 @@ def add_bench(sub: argparse._SubParsersAction) -> None:
                     help="the predictions over acoustic links (per-vehicle fleet with "
                          "--latency/--period/--loss): the second moment and the critical-loss "
                          "search, cold and from the cache, per architecture")
+    sp.add_argument("--phases", action="store_true",
+                    help="a whole 'auv-cosim run' of the scenario options (a subprocess): "
+                         "its time split into build, design, predictions, instantiate, loop, "
+                         "statistics, recording, other and start-up, and outside the loop "
+                         "against inside it")
     sp.add_argument("--json", action="store_true", help="print the figures as JSON")
     add_fmu_options(sp)
     sp.set_defaults(func=cmd_bench)

@@ -52,6 +52,8 @@ def cmd_build(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
+    """Write the scenario's FMUs with an OSP system, an SSP archive or as native FMUs, then
+    print, per host that runs them, its command (:mod:`orchestrator.interop.hosts`)."""
     sc = scenario_of(args)
     platforms: tuple[str, ...] = ()
     notes: list[str] = []
@@ -68,6 +70,7 @@ def cmd_export(args: argparse.Namespace) -> int:
                 else [p.strip() for p in args.platforms.split(",") if p.strip()])
         except (NativeBuildError, ValueError) as exc:
             raise UsageError(str(exc)) from None
+    from ..interop.hosts import export_hint, host_commands
     from ..running.naming import default_export_out, run_identity
     with staged_output(args.out or default_export_out(sc, args.format), "export",
                        identity=run_identity(sc, f"export {args.format}"),
@@ -90,18 +93,22 @@ def cmd_export(args: argparse.Namespace) -> int:
                        f"{paths['ssp'].name}",
                      f"binaries for {', '.join(platforms)}",
                      *notes]
+            hosts = host_commands("native", st.shown(st.path), T=sc.T, h=sc.h,
+                                  system=st.shown(paths["system"]),
+                                  ssp=st.shown(paths["ssp"]), needs_python=bool(kept))
         elif args.format == "osp":
             from ..interop.osp import export_osp
             paths = export_osp(sc, st.path)
             lines = [f"OSP system for scenario {sc.name} in {out}: {paths['system'].name}, "
-                     + ", ".join(p.name for k, p in paths.items() if k != "system"),
-                     f"run it with libcosim: cosim run {st.shown(paths['system'])}  (or "
-                     "libcosimpy)"]
+                     + ", ".join(p.name for k, p in paths.items() if k != "system")]
+            hosts = host_commands("osp", st.shown(st.path), T=sc.T, h=sc.h,
+                                  system=st.shown(paths["system"]))
         else:
             from ..interop.ssp import export_ssp
             path = st.shown(export_ssp(sc, st.path / f"{file_stem(sc.name)}.ssp"))
-            lines = [f"SSP archive for scenario {sc.name}: {path} (fmpy: "
-                     f"simulate_ssp('{path}'))"]
+            lines = [f"SSP archive for scenario {sc.name}: {path}"]
+            hosts = host_commands("ssp", st.shown(st.path), T=sc.T, h=sc.h, ssp=path)
+    lines.append(export_hint(hosts))
     print("\n".join(lines))
     return 0
 

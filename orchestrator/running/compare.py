@@ -22,6 +22,7 @@ from ..atomic import write_text_atomically
 from ..interrupt import StopFlag, stop_on_signals
 from ..outputs import file_stem
 from ..scenario import Scenario
+from . import phases
 from .fmus import fleet_layout, record_stride
 from .setup import (
     Method,
@@ -108,6 +109,7 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     from .seeds import seed_pool
 
     t0 = time.perf_counter()
+    phases.reset()
     methods = method_list(sc, modes, trackings, architectures)
     check_run(sc, methods, predict=predict)     # run's checks: every caller, every point
     out = Path(out_dir)
@@ -237,7 +239,8 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
                     f"t = {reached:.6g} s (not in the statistics)")
                 break
             loop_us.append(res.loop_s / sc.steps * 1e6)
-            per_seed.append(run_statistics(sc, res, k0, formation))
+            with phases.phase("statistics"):
+                per_seed.append(run_statistics(sc, res, k0, formation))
             if "link_age" in res.traces:
                 link_ages.append((res.info["links"], res.traces["link_age"]))
             log(f"{name:>9s} seed {seed}: cost rate {per_seed[-1]['cost_rate']:.4g}"
@@ -262,7 +265,8 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
         entry["spectral_radius"] = pred.stationary.spectral_radius
         if per_seed and sc.fleet is not None:
             if k0 not in bound:                 # one for the window, not one per method
-                bound[k0] = fleet_bound(sc, k0)
+                with phases.phase("predictions"):
+                    bound[k0] = fleet_bound(sc, k0)
             entry["cost_rate_full_information"] = bound[k0]
         entry["window_start_s"] = window[0]
         if window_dependent(pred):
@@ -279,9 +283,11 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
     recorded = min((len(next(iter(tr.values()))) for tr in rrd_runs.values()), default=0)
     if recorded:          # an interrupted compare: every method up to the shortest run
         rrd_runs = {m: {k: v[:recorded] for k, v in tr.items()} for m, tr in rrd_runs.items()}
-        rrd_info = writer.write(rrd_path, rrd_runs, sc.h,
-                                recording_name=f"{sc.name} ({', '.join(rrd_runs)})",
-                                fleet=fleet_layout(sc), stride=stride, links=rrd_links or None)
+        with phases.phase("recording"):
+            rrd_info = writer.write(rrd_path, rrd_runs, sc.h,
+                                    recording_name=f"{sc.name} ({', '.join(rrd_runs)})",
+                                    fleet=fleet_layout(sc), stride=stride,
+                                    links=rrd_links or None)
     else:
         rrd_path.unlink(missing_ok=True)          # never leave an earlier run's .rrd
         rrd_info = {"bytes": 0, "signals": 0, "rrd_s": 0.0}
@@ -314,7 +320,9 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
         "time_reached_s": recorded * sc.h if stop else sc.T,
         "rrd": {"path": str(rrd_path) if recorded else None, "traces_of_seed": int(seeds[0]),
                 "recorded_every_steps": stride, "recorded_steps": recorded, **rrd_info},
-        "timing": {"cosim_loop_us_per_step_mean": float(np.mean(loop_us)) if loop_us else None},
+        "timing": {"cosim_loop_us_per_step_mean": float(np.mean(loop_us)) if loop_us else None,
+                   # where the command's time went (orchestrator.running.phases)
+                   "phases_s": phases.split(time.perf_counter() - t0)},
         "fmus": _fmu_entries(setup, methods),
         "wall_s": time.perf_counter() - t0,
         "versions": versions(),

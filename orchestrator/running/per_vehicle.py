@@ -48,6 +48,7 @@ from .network import (
     schedule_settings,
     too_many_states,
 )
+from .phases import phase
 from .setup import Method, Predictions, RunSetup
 from .stacked import stacked_phase
 
@@ -138,6 +139,12 @@ class PerVehicleSetup(RunSetup):
 
     def _configs(self, architecture: str, mode: str, tracking: str,
                  seed: int) -> list[dict[str, dict[str, Any]]]:
+        with phase("design"):
+            return self._configs_of(architecture, mode, tracking, seed)
+
+    def _configs_of(self, architecture: str, mode: str, tracking: str,
+                    seed: int) -> list[dict[str, dict[str, Any]]]:
+        """Every vehicle's FMU configurations (their designs solved here)."""
         sc = self.sc
         gain = None
         if architecture == "centralized":

@@ -30,6 +30,8 @@ from ..interrupt import interruptible, mark_simulated
 from ..outputs import file_stem
 from ..scenario import Scenario, ScenarioError
 from ..scenario.loader import check_deployment
+from .phases import add as add_phase
+from .phases import phase
 
 __all__ = ["NO_PREDICTION", "PREDICT_LEVELS", "Method", "Predictions", "RunSetup", "check_setup",
            "method_list", "run_statistics", "stats_context"]
@@ -215,6 +217,11 @@ class RunSetup:
             On SIGINT / SIGTERM while computing them, before any loop ran
             (:func:`orchestrator.interrupt.interruptible`).
         """
+        with phase("predictions"):
+            return self._predictions_of(method, k0)
+
+    def _predictions_of(self, method: Method, k0: int | None) -> Predictions:
+        """:meth:`predictions`, inside its phase."""
         if method not in self._predictions and self.predict == "none":
             from ..analysis.summary import stats_window
             none = Prediction(rms_e=None, rms_u=None, cost_rate=None, spectral_radius=None,
@@ -255,9 +262,10 @@ class RunSetup:
 
     def fmus(self, method: Method) -> dict[str, Path]:
         """The FMUs ``method`` runs: FMU key -> path (native ones where ``fmus = native``)."""
-        if self.sc.fmus == "native":
-            return self._native_system(method).fmus
-        return self.python_fmus(method)
+        with phase("build"):
+            if self.sc.fmus == "native":
+                return self._native_system(method).fmus
+            return self.python_fmus(method)
 
     def system(self, method: Method, seed: int) -> SystemDescription:
         """The system ``method`` runs on ``seed`` (on the FMUs of :meth:`fmus`)."""
@@ -316,16 +324,22 @@ class RunSetup:
             ran in this process.
         """
         t0 = time.perf_counter()
-        system = system if system is not None else self.system(method, seed)
-        with self.interruptible(self.phase(method)):
+        with phase("build"):
+            system = system if system is not None else self.system(method, seed)
+        with self.interruptible(self.phase(method)), phase("design"):
             self.prepare(method)
         mark_simulated()
-        traces, loop_s, info = run_system(system, self.fmus(method), self.sc.steps,
-                                          coupling=self.coupling, progress=progress,
-                                          stop=stop, master=self.master,
-                                          instance_suffix=f"_{method.estimator}_{seed}")
+        fmus = self.fmus(method)
+        with phase("instantiate"):     # the loop's own seconds are counted apart
+            traces, loop_s, info = run_system(system, fmus, self.sc.steps,
+                                              coupling=self.coupling, progress=progress,
+                                              stop=stop, master=self.master,
+                                              instance_suffix=f"_{method.estimator}_{seed}")
+            add_phase("loop", loop_s)
+        with phase("statistics"):
+            stacked = self.stacked(system, traces, info)
         return RunResult(mode=method.estimator, seed=int(seed), h=self.sc.h,
-                         traces=self.stacked(system, traces, info),
+                         traces=stacked,
                          wall_s=time.perf_counter() - t0, loop_s=loop_s,
                          coupling=self.coupling, info=info)
 

@@ -41,7 +41,7 @@ from plant_model.memo import feed_hash
 
 from .loop import NetworkedLoop
 
-__all__ = ["cached", "loop_digest", "prediction_cache_dir"]
+__all__ = ["cached", "cached_digest", "loop_digest", "prediction_cache_dir"]
 
 T_ = TypeVar("T_")
 
@@ -118,11 +118,33 @@ def cached(kind: str, net: NetworkedLoop, args: Any, compute: Callable[[], T_],
     -------
     The value.
     """
+    return cached_digest(kind, loop_digest(net), args, compute, encode, decode)
+
+
+def cached_digest(kind: str, digest: str, args: Any, compute: Callable[[], T_],
+                  encode: Callable[[T_], Any] = lambda v: v,
+                  decode: Callable[[Any], T_] = lambda v: v) -> T_:
+    """:func:`cached` for any loop: ``digest`` is the SHA-256 of what ``compute`` depends
+    on (its code included).
+
+    Parameters
+    ----------
+    kind : str
+        What is cached (a file name prefix).
+    digest : str
+        The loop's digest.
+    args, compute, encode, decode
+        As :func:`cached`.
+
+    Returns
+    -------
+    The value.
+    """
     folder = prediction_cache_dir()
     if folder is None:
         return compute()
     h = hashlib.sha256()
-    feed_hash(h, [kind, loop_digest(net), args])
+    feed_hash(h, [kind, digest, args])
     path = folder / f"{kind}-{h.hexdigest()[:40]}.json"
     try:
         return decode(json.loads(path.read_text())["value"])
