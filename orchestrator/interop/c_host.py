@@ -43,7 +43,8 @@ def write_c_host_system_from_osp(system_xml: Path | str, out_dir: Path | str) ->
     Raises
     ------
     ValueError
-        On an initial value the C host cannot set (only Real and Integer), or a
+        On an initial value the C host cannot set (only Real and Integer; a String
+        equal to the FMU's start value is left out, as it is already set), or a
         connection naming a variable the FMU lacks.
     """
     from fmpy import read_model_description
@@ -70,9 +71,12 @@ def write_c_host_system_from_osp(system_xml: Path | str, out_dir: Path | str) ->
             var = iv.get("variable")
             (value_el,) = list(iv)
             kind = etree.QName(value_el).localname
+            if kind == "String" and value_el.get("value") == _start(md, var):
+                continue            # the FMU's own value (a native FMU's, fixed at export)
             if kind not in ("Real", "Integer"):
-                raise ValueError(f"{name}.{var}: a {kind} initial value, which the C host "
-                                 "cannot set (Real and Integer only)")
+                raise ValueError(f"{name}.{var}: a {kind} initial value that differs from the "
+                                 "FMU's start value, which the C host cannot set (Real and "
+                                 "Integer only)")
             vr = variables[name][var][0]
             value = value_el.get("value")
             lines.append(f"real {name} {vr} {float(value)!r}" if kind == "Real"
@@ -90,6 +94,11 @@ def write_c_host_system_from_osp(system_xml: Path | str, out_dir: Path | str) ->
     path = out / "system.txt"
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def _start(md: object, var: str) -> str | None:
+    """The start value of ``var`` in a model description read by fmpy (None if none)."""
+    return next((v.start for v in md.modelVariables if v.name == var), None)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
