@@ -167,12 +167,16 @@ def paper():
 
 @pytest.mark.slow
 def test_export_prints_the_docs_commands(workspace):
-    """What each export prints after its first line is the page's blocks for that format,
-    under each host's title, in the page's order."""
+    """What each export prints after its first line (and, for native, the line of the
+    platforms it built) is the page's blocks for that format, under each host's title, in
+    the page's order."""
     shown = doc_commands()
     for fmt in FORMATS:
         mine = [(BY_KEY[k], t) for (f, k), t in shown.items() if f == fmt]
         first, _, rest = workspace["printed"][fmt].partition("\n")
+        if fmt == "native":
+            platforms, _, rest = rest.partition("\n")
+            assert platforms.startswith("binaries for linux64"), platforms
         assert rest.rstrip("\n") == export_hint(mine), fmt
         assert f"out/paper_{fmt}" in first
 
