@@ -59,10 +59,11 @@ def add_fmu_options(sp: argparse.ArgumentParser) -> None:
     from fmu_common.native_form import FMU_IMPLEMENTATIONS
     sp.add_argument("--fmus", choices=FMU_IMPLEMENTATIONS,
                     help="python: the pythonfmu FMUs; native: compiled (C) FMUs of every "
-                         "component with a linear form or a C model (the acoustic network, the "
-                         "guidance interface, the multi-rate estimator), pythonfmu for the "
-                         "rest (a nonlinear vehicle, a vehicle with [sensors]); needs a C "
-                         "compiler (default: the scenario's [simulation] fmus, else python)")
+                         "component with a linear form or a C model (the REMUS 100 6-DOF "
+                         "vehicles, the acoustic network, the guidance interface, the "
+                         "multi-rate estimator), pythonfmu only for the linear vehicle with "
+                         "[sensors]; needs a C compiler (default: the scenario's [simulation] "
+                         "fmus, else python)")
 
 
 def add_master_option(sp: argparse.ArgumentParser) -> None:
