@@ -29,11 +29,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import functools
-import importlib
-import tempfile
-import threading
-import zipfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -55,6 +50,7 @@ from .native_build import (
     compiler,
     native_model,
 )
+from .native_template import component_slave
 from .system import SystemDescription
 
 __all__ = ["CFLAGS", "LINEAR_KINDS", "NATIVE_KINDS", "NONLINEAR_VEHICLE_KINDS", "NativeBuildError",
@@ -84,25 +80,6 @@ C_HEADERS = (NATIVE_DIR / "fmu_core.h", NATIVE_DIR / "linear_model.h",
              NATIVE_DIR / "numpy_random.h")
 
 # ------------------------------------------------------------------ the form of a component
-def _scalar_arrays(specs: list[ArraySpec], values: Mapping[str, Any]) -> dict[str, Any]:
-    """Per parameter array its value: the start value with the component's scalars set."""
-    out: dict[str, Any] = {}
-    for s in specs:
-        if s.causality != "parameter":
-            continue
-        if s.type == "String":
-            out[s.name] = str(values.get(s.name, s.start))
-            continue
-        arr = np.array(s.start if s.start is not None else 0.0,
-                       dtype=float if s.type == "Real" else np.int64).reshape(s.shape)
-        flat = arr.reshape(-1)
-        for i, nm in enumerate(element_names(s.name, s.shape)):
-            if nm in values:
-                flat[i] = values[nm]
-        out[s.name] = arr
-    return out
-
-
 def form_of(kind: str, fmu: Path, parameters: Mapping[str, Any]) -> NativeForm:
     """The linear form of a component: its slave set up in this process.
 
@@ -127,36 +104,12 @@ def form_of(kind: str, fmu: Path, parameters: Mapping[str, Any]) -> NativeForm:
     """
     if kind not in LINEAR_KINDS:
         raise ModelError(f"the {kind} FMU has no native form (it is not linear)")
-    with zipfile.ZipFile(fmu) as z:
-        config = z.read(f"resources/{FMU_KINDS[kind].config_file}").decode()
-    slave = _template_slave(kind, config)
-    with _TEMPLATE_LOCK:                       # one user of a template slave at a time
-        # every parameter array is set (start values with this component's scalars), so
-        # what an earlier component of the same FMU set is gone before setup() runs
-        slave.par.update(_scalar_arrays(slave.specs, parameters))
-        slave.setup()
+    with component_slave(kind, fmu, parameters) as slave:
         form = copy.deepcopy(slave.native_form())  # its own arrays: the slave serves on
     if not form.description:                   # pythonfmu's instance attribute is None
         form = dataclasses.replace(form, description=type(slave).description)
     form.check()
     return form
-
-
-#: serializes the use of the template slaves (a Dask worker may run threads)
-_TEMPLATE_LOCK = threading.Lock()
-
-
-@functools.lru_cache(maxsize=16)
-def _template_slave(kind: str, config: str) -> Any:
-    """One slave of ``kind`` made from an FMU's configuration file (its text: the key),
-    reused for each component of that FMU (a fleet has one FMU file per kind and a
-    hundred components of it: making the slave, its variables registered, was most of
-    the native build's time)."""
-    k = FMU_KINDS[kind]
-    cls = getattr(importlib.import_module(k.module), k.model)
-    with tempfile.TemporaryDirectory(prefix="auv_native_") as res:
-        (Path(res) / k.config_file).write_text(config)
-        return cls(instance_name=f"native-{kind}", resources=res)
 
 
 # ------------------------------------------------------------------ interface and files

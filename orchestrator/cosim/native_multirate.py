@@ -19,7 +19,6 @@ pythonfmu slave makes (as the linear native FMUs take their designed matrices):
 from __future__ import annotations
 
 import re
-import zipfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -30,7 +29,7 @@ from lxml import etree
 from fmu_common.interface import ArraySpec, element_names
 from plant_model.linalg_checks import ModelError
 
-from .build import FMU_KINDS, patch_model_description
+from .build import patch_model_description
 from .native_build import NATIVE_DIR, compile_fmu, native_model
 
 __all__ = ["MULTIRATE_C", "multirate_specs", "native_multirate_fmu", "template_filter"]
@@ -54,13 +53,8 @@ def template_filter(fmu: Path, parameters: Mapping[str, Any]) -> tuple[Any, list
     """
     from estimator_fmu.multirate import MultiRateKalman
 
-    from .native import _TEMPLATE_LOCK, _scalar_arrays, _template_slave
-    with zipfile.ZipFile(fmu) as z:
-        config = z.read(f"resources/{FMU_KINDS[KIND].config_file}").decode()
-    slave = _template_slave(KIND, config)
-    with _TEMPLATE_LOCK:
-        slave.par.update(_scalar_arrays(slave.specs, parameters))
-        slave.setup()
+    from .native_template import component_slave
+    with component_slave(KIND, fmu, parameters) as slave:
         est = slave.estimator
         if not isinstance(est, MultiRateKalman):
             raise ModelError("this vehicle estimator is linear: it has a native form")

@@ -60,14 +60,8 @@ def runtime_parameter(name: str) -> bool:
 
 
 def _slave(kind: str, fmu: Path, parameters: Mapping[str, Any]) -> Any:
-    from .build import FMU_KINDS
-    from .native import _TEMPLATE_LOCK, _scalar_arrays, _template_slave
-    with zipfile.ZipFile(fmu) as z:
-        config = z.read(f"resources/{FMU_KINDS[kind].config_file}").decode()
-    slave = _template_slave(kind, config)
-    with _TEMPLATE_LOCK:
-        slave.par.update(_scalar_arrays(slave.specs, parameters))
-        slave.setup()
+    from .native_template import component_slave
+    with component_slave(kind, fmu, parameters) as slave:
         return remus_constants(slave.plant)
 
 
