@@ -61,8 +61,8 @@ def distributed_digest(loop: Any) -> str:
 
 
 def cached_prediction(loop: Any, window: tuple[int, int] | None, X0: np.ndarray | None,
-                      transient: bool, compute: Callable[[], Any]) -> Any:
-    """``compute()`` (a DistributedPrediction), or its value stored for the same loop,
+                      transient: bool, compute: Callable[[], Any], result: type) -> Any:
+    """``compute()`` (a ``result``, a dataclass), or its value stored for the same loop,
     window, initial state and ``transient``.
 
     Parameters
@@ -77,15 +77,16 @@ def cached_prediction(loop: Any, window: tuple[int, int] | None, X0: np.ndarray 
         The window average from a known start.
     compute : callable
         Computes the prediction.
+    result : type
+        Its dataclass (``DistributedPrediction``): a stored value is ``result(**fields)``.
 
     Returns
     -------
-    DistributedPrediction
+    result
     """
     from .acoustic.cache import cached_digest
-    from .distributed_verdict import DistributedPrediction
     args = [list(window) if window is not None else None,
             None if X0 is None else np.asarray(X0, dtype=float), bool(transient)]
     return cached_digest("distributed-cost", distributed_digest(loop), args, compute,
                          encode=dataclasses.asdict,
-                         decode=lambda d: DistributedPrediction(**d))
+                         decode=lambda d: result(**d))

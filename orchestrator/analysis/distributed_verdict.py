@@ -217,7 +217,8 @@ def predict_cost(loop: DistributedLoop, window: tuple[int, int] | None = None,
     """
     from .distributed_cache import cached_prediction
     return cached_prediction(loop, window, X0, transient,
-                             lambda: _predict_cost(loop, window, X0, transient))
+                             lambda: _predict_cost(loop, window, X0, transient),
+                             DistributedPrediction)
 
 
 def _predict_cost(loop: DistributedLoop, window: tuple[int, int] | None,
