@@ -34,18 +34,18 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from lxml import etree
 
 from fmu_common.interface import ArraySpec, element_names
 from fmu_common.native_form import NativeForm
 from plant_model.linalg_checks import ModelError
 from plant_model.vehicle_models import REGISTRY
 
-from .build import FMU_KINDS, GUIDANCE_KINDS, patch_model_description
+from .build import FMU_KINDS, GUIDANCE_KINDS
 from .native_build import (
     CFLAGS,
     NATIVE_DIR,
     NativeBuildError,
+    arrays_model_description,
     compile_fmu,
     compiler,
     native_model,
@@ -207,40 +207,10 @@ def _header(form: NativeForm, guid: str) -> str:
 
 
 def _model_description(form: NativeForm, model: str, guid: str, T: float, h: float) -> bytes:
-    specs = native_specs(form)
-    root = etree.Element("fmiModelDescription", fmiVersion="2.0", modelName=model, guid=guid,
-                         description=form.description + " (native C build: the designed "
-                         "matrices, no Python)", generationTool="auv-cosim native",
-                         variableNamingConvention="structured", numberOfEventIndicators="0")
-    cs = etree.SubElement(root, "CoSimulation", modelIdentifier=model,
-                          needsExecutionTool="false",
-                          canHandleVariableCommunicationStepSize=str(form.static).lower(),
-                          canGetAndSetFMUstate="true", canSerializeFMUstate="true")
-    src = etree.SubElement(cs, "SourceFiles")
-    for f in C_SOURCES:
-        etree.SubElement(src, "File", name=f.name)
-    cats = etree.SubElement(root, "LogCategories")
-    for c in ("logStatusError", "logAll"):
-        etree.SubElement(cats, "Category", name=c)
-    mv = etree.SubElement(root, "ModelVariables")
-    vr = {"Real": 0, "Integer": 0}
-    for spec in specs:
-        start = (np.asarray(spec.start).reshape(-1) if spec.start is not None
-                 else np.zeros(spec.size))
-        for i, nm in enumerate(element_names(spec.name, spec.shape)):
-            variability = ("fixed" if spec.causality == "parameter" else
-                           "discrete" if spec.type == "Integer" else "continuous")
-            sv = etree.SubElement(mv, "ScalarVariable", name=nm,
-                                  valueReference=str(vr[spec.type]), causality=spec.causality,
-                                  variability=variability, description=spec.description)
-            vr[spec.type] += 1
-            typ = etree.SubElement(sv, spec.type)
-            if spec.causality != "output":
-                typ.set("start", repr(float(start[i])) if spec.type == "Real"
-                        else str(int(start[i])))
-    etree.SubElement(root, "ModelStructure")
-    xml = etree.tostring(root, xml_declaration=True, encoding="UTF-8")
-    return patch_model_description(xml, specs, T=T, h=h)
+    return arrays_model_description(
+        native_specs(form), model, guid,
+        form.description + " (native C build: the designed matrices, no Python)",
+        C_SOURCES, T=T, h=h, variable_step=form.static)
 
 
 def build_native_fmu(form: NativeForm, model: str, out_dir: Path | str, T: float,

@@ -14,8 +14,13 @@ import zipfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import numpy as np
+from lxml import etree
+
+from fmu_common.interface import ArraySpec, element_names
+
 from ..atomic import copy_atomically, temporary_sibling
-from .build import FMU_KINDS, ROOT, fmu_cache_dir, prune_cache
+from .build import FMU_KINDS, ROOT, fmu_cache_dir, patch_model_description, prune_cache
 from .platforms import (
     HOST_CFLAGS,
     PLATFORMS,
@@ -24,8 +29,8 @@ from .platforms import (
     platform_compiler,
 )
 
-__all__ = ["CFLAGS", "FMI_HEADERS", "NATIVE_DIR", "NativeBuildError", "compile_fmu", "compiler",
-           "native_model", "run_compiler", "tolerances_header"]
+__all__ = ["CFLAGS", "FMI_HEADERS", "NATIVE_DIR", "NativeBuildError", "arrays_model_description",
+           "compile_fmu", "compiler", "native_model", "run_compiler", "tolerances_header"]
 
 NATIVE_DIR = ROOT / "fmu_common" / "native"
 #: how the host's shared library is built (IEEE arithmetic kept: no -ffast-math); the
@@ -239,3 +244,46 @@ def compile_fmu(model: str, sources: tuple[Path, ...], headers: tuple[Path, ...]
     except OSError:                         # a read-only cache: zip every time
         pass
     return fmu
+
+
+def arrays_model_description(specs: list[ArraySpec], model: str, guid: str, description: str,
+                             sources: Sequence[Path], *, T: float, h: float,
+                             variable_step: bool = False) -> bytes:
+    """The modelDescription.xml of a native FMU whose variables are ``specs`` (Real and
+    Integer arrays, structured names, value references numbered per type in order, start
+    values from the specs), compiled from ``sources``; units, InitialUnknowns and the
+    default experiment (``T``, ``h``) by :func:`patch_model_description`. Shared by the
+    linear forms and the multi-rate filter (:mod:`orchestrator.cosim.native_multirate`).
+    """
+    root = etree.Element("fmiModelDescription", fmiVersion="2.0", modelName=model, guid=guid,
+                         description=description, generationTool="auv-cosim native",
+                         variableNamingConvention="structured", numberOfEventIndicators="0")
+    cs = etree.SubElement(root, "CoSimulation", modelIdentifier=model,
+                          needsExecutionTool="false",
+                          canHandleVariableCommunicationStepSize=str(variable_step).lower(),
+                          canGetAndSetFMUstate="true", canSerializeFMUstate="true")
+    src = etree.SubElement(cs, "SourceFiles")
+    for f in sources:
+        etree.SubElement(src, "File", name=f.name)
+    cats = etree.SubElement(root, "LogCategories")
+    for c in ("logStatusError", "logAll"):
+        etree.SubElement(cats, "Category", name=c)
+    mv = etree.SubElement(root, "ModelVariables")
+    vr = {"Real": 0, "Integer": 0}
+    for spec in specs:
+        start = (np.asarray(spec.start).reshape(-1) if spec.start is not None
+                 else np.zeros(spec.size))
+        for i, nm in enumerate(element_names(spec.name, spec.shape)):
+            variability = ("fixed" if spec.causality == "parameter" else
+                           "discrete" if spec.type == "Integer" else "continuous")
+            sv = etree.SubElement(mv, "ScalarVariable", name=nm,
+                                  valueReference=str(vr[spec.type]), causality=spec.causality,
+                                  variability=variability, description=spec.description)
+            vr[spec.type] += 1
+            typ = etree.SubElement(sv, spec.type)
+            if spec.causality != "output":
+                typ.set("start", repr(float(start[i])) if spec.type == "Real"
+                        else str(int(start[i])))
+    etree.SubElement(root, "ModelStructure")
+    xml = etree.tostring(root, xml_declaration=True, encoding="UTF-8")
+    return patch_model_description(xml, specs, T=T, h=h)

@@ -24,13 +24,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from lxml import etree
 
 from fmu_common.interface import ArraySpec, element_names
 from plant_model.linalg_checks import ModelError
 
-from .build import patch_model_description
-from .native_build import NATIVE_DIR, compile_fmu, native_model
+from .native_build import NATIVE_DIR, arrays_model_description, compile_fmu, native_model
 
 __all__ = ["MULTIRATE_C", "multirate_specs", "native_multirate_fmu", "template_filter"]
 
@@ -131,37 +129,10 @@ def _header(specs: list[ArraySpec], kf: tuple, guid: str) -> str:
 
 def _model_description(specs: list[ArraySpec], model: str, guid: str, T: float,
                        h: float) -> bytes:
-    root = etree.Element("fmiModelDescription", fmiVersion="2.0", modelName=model, guid=guid,
-                         description="Navigation filter of one AUV: a multi-rate Kalman filter "
-                         "on [x; w] from acoustic fixes, DVL and depth with dropouts (native C "
-                         "build of the design, no Python)", generationTool="auv-cosim native",
-                         variableNamingConvention="structured", numberOfEventIndicators="0")
-    cs = etree.SubElement(root, "CoSimulation", modelIdentifier=model,
-                          needsExecutionTool="false",
-                          canHandleVariableCommunicationStepSize="false",
-                          canGetAndSetFMUstate="true", canSerializeFMUstate="true")
-    src = etree.SubElement(cs, "SourceFiles")
-    for f in MULTIRATE_C:
-        etree.SubElement(src, "File", name=f.name)
-    cats = etree.SubElement(root, "LogCategories")
-    for c in ("logStatusError", "logAll"):
-        etree.SubElement(cats, "Category", name=c)
-    mv = etree.SubElement(root, "ModelVariables")
-    vr = 0
-    for spec in specs:
-        start = np.ravel(spec.start) if spec.start is not None else np.zeros(spec.size)
-        for i, nm in enumerate(element_names(spec.name, spec.shape)):
-            sv = etree.SubElement(mv, "ScalarVariable", name=nm, valueReference=str(vr),
-                                  causality=spec.causality,
-                                  variability="fixed" if spec.causality == "parameter"
-                                  else "continuous", description=spec.description)
-            vr += 1
-            typ = etree.SubElement(sv, "Real")
-            if spec.causality != "output":
-                typ.set("start", repr(float(start[i])))
-    etree.SubElement(root, "ModelStructure")
-    xml = etree.tostring(root, xml_declaration=True, encoding="UTF-8")
-    return patch_model_description(xml, specs, T=T, h=h)
+    return arrays_model_description(
+        specs, model, guid, "Navigation filter of one AUV: a multi-rate Kalman filter on "
+        "[x; w] from acoustic fixes, DVL and depth with dropouts (native C build of the "
+        "design, no Python)", MULTIRATE_C, T=T, h=h)
 
 
 def native_multirate_fmu(fmu: Path | str, parameters: Mapping[str, Any], out_dir: Path | str,
