@@ -46,12 +46,9 @@ def distributed_digest(loop: Any) -> str:
     """
     if "_digest" in loop.__dict__:
         return loop.__dict__["_digest"]
-    import scipy
+    from .acoustic.cache import code_digest
     h = hashlib.sha256()
-    feed_hash(h, f"numpy {np.__version__} scipy {scipy.__version__}")
-    here = Path(__file__).parent
-    for name in _SOURCES:
-        feed_hash(h, [name, (here / name).read_text()])
+    feed_hash(h, code_digest(Path(__file__).parent, _SOURCES))
     feed_hash(h, [loop.Phi, loop.Gam, loop.W, loop.Gx, loop.Geta, loop.Ce, loop.Qc, loop.Rc,
                   np.asarray(loop.deterministic), float(loop.h), np.asarray(loop.LG),
                   float(loop.cohesion), str(loop.estimator)])

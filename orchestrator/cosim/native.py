@@ -350,7 +350,7 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
     remus = [k for k in REMUS_KINDS if k in kinds and any(c.fmu == k for c in comps)]
     for k in remus:
         try:
-            built[k], comps = native_remus_components(k, fmus[k], comps, out_dir, platforms)
+            built[k] = native_remus_components(k, fmus[k], comps, out_dir, platforms)
         except VehiclesDiffer:
             continue
     # a connection that carries data only for some value of a replaced component's

@@ -108,7 +108,10 @@ def _header(model: str, reals: list[tuple[str, str, float]], ints: dict[str, int
 
 
 def _model_description(root: etree._Element, model: str, guid: str,
-                       keep: list[etree._Element]) -> bytes:
+                       starts: Mapping[str, str]) -> bytes:
+    """The pythonfmu FMU's modelDescription, every variable kept, as the native FMU's:
+    its identity, the native capabilities and sources, value references numbered per type
+    in order (as fmu_core.c serves them), ``starts`` (name -> start text) set."""
     md = etree.fromstring(etree.tostring(root))
     md.set("modelName", model)
     md.set("guid", guid)
@@ -122,27 +125,13 @@ def _model_description(root: etree._Element, model: str, guid: str,
     for f in _SOURCES:
         etree.SubElement(src, "File", name=f)
     md.replace(md.find("CoSimulation"), cs)
-    mv = md.find("ModelVariables")
-    old = list(mv)
-    index = {}                                  # old 1-based index -> new
     vr = {"Real": 0, "Integer": 0, "String": 0}
-    kept_names = {sv.get("name") for sv in keep}
-    for i, sv in enumerate(old, 1):
-        if sv.get("name") not in kept_names:
-            mv.remove(sv)
-            continue
+    for sv in md.iterfind("ModelVariables/ScalarVariable"):
         typ = sv[0].tag
         sv.set("valueReference", str(vr[typ]))
         vr[typ] += 1
-        index[i] = len(index) + 1
-        start = next(s for s in keep if s.get("name") == sv.get("name"))[0].get("start")
-        if start is not None:
-            sv[0].set("start", start)
-    for u in md.iterfind("ModelStructure//Unknown"):
-        u.set("index", str(index[int(u.get("index"))]))
-        deps = u.get("dependencies")
-        if deps:
-            u.set("dependencies", " ".join(str(index[int(x)]) for x in deps.split()))
+        if sv[0].get("start") is not None and sv.get("name") in starts:
+            sv[0].set("start", starts[sv.get("name")])
     return etree.tostring(md, xml_declaration=True, encoding="UTF-8", pretty_print=True)
 
 
@@ -187,7 +176,7 @@ def native_remus_fmu(kind: str, fmu: Path | str, out_dir: Path | str,
         const = _slave(kind, Path(fmu), parameters)
     except (ValueError, ArithmeticError) as exc:   # ModelError is a ValueError
         raise NativeBuildError(f"{model}: {exc}") from None
-    reals, ints, strings, keep = [], {}, {}, []
+    reals, ints, strings, starts = [], {}, {}, {}
     for sv in root.iterfind("ModelVariables/ScalarVariable"):
         typ, name, caus = sv[0].tag, sv.get("name"), sv.get("causality")
         if typ not in ("Real", "Integer", "String"):
@@ -201,10 +190,7 @@ def native_remus_fmu(kind: str, fmu: Path | str, out_dir: Path | str,
         else:
             reals.append((name, caus, float(start)))
             sv_start = repr(float(start))
-        copy = etree.fromstring(etree.tostring(sv))
-        if sv[0].get("start") is not None:
-            copy[0].set("start", sv_start)
-        keep.append(copy)
+        starts[name] = sv_start
     order = [_LAYOUT.index(c) if c in _LAYOUT else -1 for _, c, _ in reals]
     if (-1 in order or order != sorted(order) or set(ints) != {"seed", "vehicle"}
             or set(strings) != {"noise_convention"}):
@@ -214,14 +200,14 @@ def native_remus_fmu(kind: str, fmu: Path | str, out_dir: Path | str,
     return compile_fmu(model, tuple(NATIVE_DIR / f for f in _SOURCES),
                        tuple(NATIVE_DIR / f for f in _HEADERS),
                        lambda guid: _header(model, reals, ints, strings, const, guid),
-                       lambda guid: _model_description(root, model, guid, keep), out_dir,
+                       lambda guid: _model_description(root, model, guid, starts), out_dir,
                        platforms)
 
 
 def native_remus_components(kind: str, fmu: Path | str, components: tuple, out_dir: Path | str,
-                            platforms: Sequence[str] | None = None) -> tuple[Path, tuple]:
-    """The native FMU of ``kind`` for the components of a system that use it, and the
-    components (unchanged: the native FMU has the pythonfmu FMU's variables).
+                            platforms: Sequence[str] | None = None) -> Path:
+    """The native FMU of ``kind`` for the components of a system that use it (they stay as
+    they are: the native FMU has the pythonfmu FMU's variables).
 
     The FMU is exported with the first component's values; the others may differ only in
     the parameters the C model reads at run time (:data:`RUNTIME_PARAMETERS`, the
@@ -249,5 +235,4 @@ def native_remus_components(kind: str, fmu: Path | str, components: tuple, out_d
                     f"{c.name}: its parameter {name} = {b!r} differs from {mine[0].name}'s "
                     f"{a!r}; the native {kind} FMU derives its numbers from it at export, "
                     "so every vehicle of one FMU must share it")
-    path = native_remus_fmu(kind, fmu, out_dir, base, platforms)
-    return path, tuple(components)
+    return native_remus_fmu(kind, fmu, out_dir, base, platforms)

@@ -277,16 +277,16 @@ class RunSetup:
         # takes this seed's value, as its pythonfmu counterpart does
         seeds = {c.name: c.parameters["seed"] for c in python.components
                  if "seed" in c.parameters}
-        # a component with its own C model (guidance, network, the REMUS 100) has the
-        # pythonfmu component's variables: its parameters are this seed's python ones (a
-        # link's loss stream is keyed by the seed)
-        from ..cosim.native_remus import REMUS_KINDS
+        # a component not replaced by a native form (a C model of its own: guidance,
+        # network, the REMUS 100; or a pythonfmu FMU kept) has the pythonfmu component's
+        # variables: its parameters are this seed's python ones (a link's loss stream and a
+        # vehicle's sensors are keyed by the seed)
         same = {c.name: c for c in python.components}
-        comps = tuple(dataclasses.replace(c, parameters={**c.parameters, "seed": seeds[c.name]})
-                      if c.name in seeds and (c.fmu in REMUS_KINDS or (
-                          c.name in ns.forms and ns.forms[c.name].nxi > 0))
-                      else same.get(c.name, c) if c.name not in ns.replaced and
-                      c.fmu in ns.native_keys else c for c in ns.system.components)
+        comps = tuple(same[c.name] if c.name not in ns.replaced
+                      else dataclasses.replace(c, parameters={**c.parameters,
+                                                              "seed": seeds[c.name]})
+                      if c.name in seeds and c.name in ns.forms and ns.forms[c.name].nxi > 0
+                      else c for c in ns.system.components)
         return dataclasses.replace(ns.system, components=comps)
 
     def fmu_report(self, method: Method) -> dict[str, dict[str, Any]]:

@@ -41,7 +41,7 @@ from plant_model.memo import feed_hash
 
 from .loop import NetworkedLoop
 
-__all__ = ["cached", "cached_digest", "loop_digest", "prediction_cache_dir"]
+__all__ = ["cached", "cached_digest", "code_digest", "loop_digest", "prediction_cache_dir"]
 
 T_ = TypeVar("T_")
 
@@ -63,12 +63,14 @@ def prediction_cache_dir() -> Path | None:
     return base / "predictions"
 
 
-def _code_digest() -> str:
+def code_digest(here: Path = Path(__file__).parent, sources: tuple[str, ...] = _SOURCES
+                ) -> str:
+    """SHA-256 of the numpy and scipy versions and the code of ``sources`` (file names in
+    the folder ``here``): what a cached prediction was computed with."""
     import scipy
     h = hashlib.sha256()
     h.update(f"numpy {np.__version__} scipy {scipy.__version__}".encode())
-    here = Path(__file__).parent
-    for name in _SOURCES:
+    for name in sources:
         h.update(name.encode())
         h.update((here / name).read_bytes())
     return h.hexdigest()
@@ -80,7 +82,7 @@ def loop_digest(net: NetworkedLoop) -> str:
     if "_digest" in net.__dict__:
         return net.__dict__["_digest"]
     h = hashlib.sha256()
-    feed_hash(h, _code_digest())
+    feed_hash(h, code_digest())
     seq, seen = [], {}
     for k in range(net.startup + net.period):
         pat = net.pattern(k)
