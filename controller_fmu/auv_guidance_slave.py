@@ -10,6 +10,7 @@ course, plus what the base class saves.
 """
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any
 
@@ -33,11 +34,18 @@ def guidance_defaults() -> dict[str, Any]:
     """Start values when a build names none: the design model of ``remus100-6dof`` with
     its default parameters (``remus100`` linearized at its default cruise speed;
     plant_model.vehicle_models), at rest, 0 m deep, course north."""
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in _defaults().items()}
+
+
+@functools.cache
+def _defaults() -> dict[str, Any]:
+    """:func:`guidance_defaults`, built once per process (a fleet asks once per vehicle)."""
     from plant_model.remus100.autopilot import AutopilotGains
     from plant_model.vehicle_models import get
     par = get("remus100-6dof").build({}).parameters
-    return {"M": list(par["total_mass"]), "D": list(par["damping"]), "v_ref0": [0.0] * 3,
-            "depth0": 0.0, "course0": 0.0, "U_min": AutopilotGains().U_min}
+    return {"M": tuple(par["total_mass"]), "D": tuple(par["damping"]),
+            "v_ref0": (0.0,) * 3, "depth0": 0.0, "course0": 0.0,
+            "U_min": AutopilotGains().U_min}
 
 
 class AuvGuidance(Fmi2Slave):

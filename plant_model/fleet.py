@@ -42,6 +42,7 @@ the FMUs' resources and rebuilt from their parameters):
 """
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -167,8 +168,14 @@ def fleet_vehicles(spec: Mapping[str, Any]) -> list[VehicleModel]:
     vehicles = spec.get("vehicles") or []
     if not vehicles:
         raise ModelError("the fleet has no vehicles")
-    models = [make_vehicle(v.get("model", "remus100"), v.get("params", {}), f"vehicle {i}")
-              for i, v in enumerate(vehicles, start=1)]
+    built: dict[str, VehicleModel] = {}       # vehicles of one model and parameters: one
+    models = []                               # build (a fleet of 100 REMUS: 1, not 100)
+    for i, v in enumerate(vehicles, start=1):
+        model, params = v.get("model", "remus100"), v.get("params", {})
+        key = json.dumps([model, params], sort_keys=True, default=repr)
+        if key not in built:
+            built[key] = make_vehicle(model, params, f"vehicle {i}")
+        models.append(built[key])
     p, s = models[0].p, models[0].s
     for i, mdl in enumerate(models[1:], start=2):
         if mdl.p != p or mdl.s != s:

@@ -57,3 +57,24 @@ def test_a_fleet_run_against_plain_loops(built_scenario):
     both = formation_summary([st, dict(st, min_separation=st["min_separation"] / 2)], [2, 9])
     assert both["min_separation"]["seed"] == 9
     assert both["formation_error_rms"] == st["formation_error_rms"]
+
+
+def test_the_pruned_closest_approach_equals_every_pair_at_every_sample():
+    """The block bound drops pairs; the value, pair and sample are those of the brute force
+    (random walks of 12 vehicles, several near misses, a tie at two samples)."""
+    rng = np.random.default_rng(5)
+    steps, N = 1500, 12
+    pos = np.cumsum(rng.normal(scale=0.3, size=(steps, N, 3)), axis=0)
+    pos += rng.uniform(-40, 40, size=(1, N, 3))
+    pos[700, 3] = pos[700, 8] + [0.05, 0.0, 0.0]         # near misses in different blocks
+    pos[1200, 1] = pos[1200, 10] + [0.0, 0.03, 0.0]
+    pos[1300, 2] = pos[1300, 5] + [0.0, 0.03, 0.0]       # the same distance later: not taken
+    x = pos.reshape(steps, N * 3)
+    index = np.arange(N * 3).reshape(N, 3)
+    st = formation_stats(x, index, np.zeros((N, 3)), [], 0, 0.1)
+    d = np.linalg.norm(pos[:, :, None] - pos[:, None, :], axis=3)
+    d[:, np.tril(np.ones((N, N), bool))] = np.inf
+    k, i, j = np.unravel_index(np.argmin(d), d.shape)
+    assert st["min_separation"] == pytest.approx(d[k, i, j], rel=1e-12)
+    assert st["min_separation_vehicles"] == [i + 1, j + 1] == [2, 11]
+    assert st["min_separation_time_s"] == pytest.approx(k * 0.1) == pytest.approx(120.0)

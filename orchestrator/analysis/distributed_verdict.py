@@ -21,7 +21,7 @@ import numpy as np
 from controller_fmu.distributed import consensus_eigenvalues, min_observer_gain
 from plant_model.linalg_checks import ModelError
 
-from .block_stein import stein
+from .block_stein import stein, triangular_order
 from .distributed import DistributedLoop, _assemble, _fmt
 from .prediction import window_average_covariance
 
@@ -68,7 +68,15 @@ def _verdict(loop: DistributedLoop) -> StabilityVerdict:
     eigenproblem of a few thousand states for formation-100), and every prediction of a
     run asks for them."""
     R = ~loop.deterministic
-    ev = np.linalg.eigvals(loop.Phi[np.ix_(R, R)])
+    PhiR = loop.Phi[np.ix_(R, R)]
+    blocks_R = vehicle_blocks(loop)
+    if (sum(b.size for b in blocks_R) == PhiR.shape[0]
+            and triangular_order(PhiR, blocks_R) is not None):
+        # block triangular (an acyclic graph): the eigenvalues are the diagonal blocks'
+        ev = np.concatenate([np.linalg.eigvals(PhiR[np.ix_(b, b)]) for b in blocks_R]
+                            or [np.zeros(0, complex)])
+    else:
+        ev = np.linalg.eigvals(PhiR)
     k = int(np.argmax(np.abs(ev)))
     rho = float(np.abs(ev[k]))
     lams = consensus_eigenvalues(loop.LG)
@@ -76,13 +84,18 @@ def _verdict(loop: DistributedLoop) -> StabilityVerdict:
     blocks: list[tuple[complex, float]] = []
     if identical:
         sa, law = loop.sampled[0], loop.laws[0]
-        for lam in lams:
+        radius: dict[complex, float] = {}      # eigenvalues of L + G repeat (exactly, read
+        for lam in lams:                       # off the diagonal of an acyclic graph's)
+            if complex(lam) in radius:
+                blocks.append((complex(lam), radius[complex(lam)]))
+                continue
             part = _assemble([sa], [law], np.array([[lam]], dtype=complex), np.zeros(1),
                              loop.observer, np.zeros((sa.M.shape[0], loop.observer.Phi.shape[0])),
                              [np.zeros(sa.M.shape[0])], loop.cohesion, loop.estimator == "kalman")
             Rb = ~part["deterministic"]
-            blocks.append((complex(lam), float(np.max(np.abs(
-                np.linalg.eigvals(part["Phi"][np.ix_(Rb, Rb)]))))))
+            radius[complex(lam)] = float(np.max(np.abs(
+                np.linalg.eigvals(part["Phi"][np.ix_(Rb, Rb)]))))
+            blocks.append((complex(lam), radius[complex(lam)]))
     if identical:       # exact: the stacked eigenvalues are ill-conditioned when L + G
         rho = max(b for _, b in blocks)     # is defective (a Jordan chain of length k)
     return StabilityVerdict(

@@ -159,12 +159,14 @@ def _c_double(v: float) -> str:
 def _header(form: NativeForm, guid: str) -> str:
     roles, offset, par = [], 0, []
     index = {}
+    row_base = 0          # where the role's row ends start in ModelState.row_end
     for i, r in enumerate(form.roles):
         m = r.matrix
         roles.append(f'    {{"{r.name}", {offset}u, {m.shape[0]}u, {m.shape[1]}u, {r.row0}u, '
-                     f'{r.col0}u, {r.sign!r}, {int(r.vector)}}},')
+                     f'{r.col0}u, {r.sign!r}, {int(r.vector)}, {row_base}u}},')
         par += [_c_double(v) for v in r.value.reshape(-1)]
         offset += r.value.size
+        row_base += m.shape[0] + 1
         index[r.key] = i
     names_in = [nm for s in form.inputs for nm in element_names(s.name, s.shape)]
     names_out = [nm for s in form.outputs for nm in element_names(s.name, s.shape)]
@@ -181,6 +183,7 @@ def _header(form: NativeForm, guid: str) -> str:
         f'#define NATIVE_GUID "{guid}"',
         f"#define NQ {form.nq}", f"#define NU {form.nu}", f"#define NY {form.ny}",
         f"#define NXI {form.nxi}", f"#define NPAR {offset}", f"#define NROLES {len(roles)}",
+        f"#define NROW_ENDS {row_base}",
         f"#define H_START {float(form.h)!r}", f"#define SEED_START {int(form.seed)}",
         f"#define STREAM_START {int(form.stream or 0)}",
         f"#define NSTREAMS {len(streams)}",

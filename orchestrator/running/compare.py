@@ -111,9 +111,9 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     t0 = time.perf_counter()
     phases.reset()
     methods = method_list(sc, modes, trackings, architectures)
-    check_run(sc, methods, predict=predict)     # run's checks: every caller, every point
     out = Path(out_dir)
     setup = make_setup(sc, out / "fmus", methods, predict=predict, master=master)
+    check_run(sc, methods, predict=predict, setup=setup)   # run's checks: every caller
     out.mkdir(parents=True, exist_ok=True)
     # the .rrd writer imports Rerun in a child while we simulate; SIGINT / SIGTERM stop
     # the runs between steps and keep what was simulated

@@ -135,7 +135,7 @@ def build(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
 
 def check_run(sc: Scenario, methods: Sequence[Method] = (), *,
               coupling: str = "gauss-seidel", predict: str = "stationary",
-              available: int | None = None) -> int:
+              available: int | None = None, setup: RunSetup | None = None) -> int:
     """Every check a run makes before it starts: the one set of rules of ``run``,
     ``compare``, each ``envelope`` point and each ``campaign`` point.
 
@@ -166,6 +166,10 @@ def check_run(sc: Scenario, methods: Sequence[Method] = (), *,
     available : int, optional
         Bytes of memory available (default
         :func:`orchestrator.scenario.size.available_memory`).
+    setup : RunSetup, optional
+        The run's own setup (:func:`make_setup` of the same scenario and methods): the
+        system it builds for the memory check is then the one the run uses (a fleet's
+        vehicle laws and network loop are made once, not twice).
 
     Returns
     -------
@@ -182,7 +186,8 @@ def check_run(sc: Scenario, methods: Sequence[Method] = (), *,
         Native FMUs and no C compiler.
     """
     methods = tuple(methods) or (Method.of(sc),)
-    setup = make_setup(sc, Path("."), methods, coupling=coupling, predict=predict)  # 1, 2
+    if setup is None:
+        setup = make_setup(sc, Path("."), methods, coupling=coupling, predict=predict)  # 1, 2
     check_native(sc)
     width = _trace_width(setup.python_system(Method.of(sc), sc.seed))  # as scenario_system
     return check_memory(sc, len(methods), available, width=width)

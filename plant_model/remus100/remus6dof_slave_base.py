@@ -93,9 +93,10 @@ class Remus6dofSlave(PlantSlave):
         :meth:`ArraySlave.interface`): ``dims``, ``system``, ``h``, ``seed``, ``vehicle``,
         ``remus`` ({field: value}), ``autopilot`` ({gain: value}), ``substep``.
         """
-        remus = {**{f: getattr(Remus100(), f) for f in REMUS_FIELDS},
+        default_remus, default_gains = Remus100(), AutopilotGains()
+        remus = {**{f: getattr(default_remus, f) for f in REMUS_FIELDS},
                  **config.get("remus", {})}
-        gains = {**{f: getattr(AutopilotGains(), f) for f in GAIN_FIELDS},
+        gains = {**{f: getattr(default_gains, f) for f in GAIN_FIELDS},
                  **config.get("autopilot", {})}
         specs = system_parameter_specs(config, VEHICLE_PARAMETERS) + [
             sample_period_spec(config, "sample period: the communication step"),
@@ -108,7 +109,7 @@ class Remus6dofSlave(PlantSlave):
                       unit="s"),
             ArraySpec("remus.r_g", (3,), "parameter", "centre of gravity from CO (= CB), body "
                       "axes", start=np.asarray(config.get("remus", {}).get(
-                          "r_g", Remus100().r_g), float), unit="m"),
+                          "r_g", default_remus.r_g), float), unit="m"),
         ]
         specs += [ArraySpec(f"remus.{f}", (), "parameter", f"REMUS 100 data: {f} "
                             "(plant_model.remus100.dynamics.Remus100)", start=float(remus[f]),
