@@ -54,7 +54,7 @@ from .bounds import Bound
 from .graph import CommunicationGraph, communication_graph
 from .linalg_checks import ModelError, as_matrix, as_vector
 from .system import LinearSystem
-from .vehicle_models import get, make_vehicle
+from .vehicle_models import DEFAULT_MODEL, get, make_vehicle
 from .vehicle_targets import leader_state_map, state_offset
 from .vehicles import VehicleModel
 
@@ -171,7 +171,7 @@ def fleet_vehicles(spec: Mapping[str, Any]) -> list[VehicleModel]:
     built: dict[str, VehicleModel] = {}       # vehicles of one model and parameters: one
     models = []                               # build (a fleet of 100 REMUS: 1, not 100)
     for i, v in enumerate(vehicles, start=1):
-        model, params = v.get("model", "remus100"), v.get("params", {})
+        model, params = v.get("model", DEFAULT_MODEL), v.get("params", {})
         key = json.dumps([model, params], sort_keys=True, default=repr)
         if key not in built:
             built[key] = make_vehicle(model, params, f"vehicle {i}")

@@ -30,6 +30,9 @@ import numpy as np
 
 from fmu_common.interface import ArraySpec
 
+from .linalg_checks import ModelError
+from .vehicle_models import DEFAULT_MODEL, get
+
 __all__ = ["fleet_parameter_specs", "fleet_spec_from_parameters"]
 
 ALL = frozenset({"plant", "estimator", "controller"})
@@ -45,16 +48,6 @@ _VEHICLE_FIELDS: dict[str, tuple[frozenset, str | None, str]] = {
     "V_ybar": (SIM, None, "intensity of the leader measurement noise n_z,i"),
     "Q": (CTRL, "1/m2", "tracking error weight Q_i (times I if scalar)"),
     "R": (CTRL, "1/N2", "control weight R_i (times I if scalar)"),
-}
-_PARAM_UNITS = {"mass": "kg", "added_mass": "kg", "time_constant": "s", "cruise_speed": "m/s",
-                "drag_coefficient": None}
-_PARAM_DOCS = {
-    "mass": "rigid-body mass (kg)", "added_mass": "added mass per NED axis (kg)",
-    "time_constant": "low-speed damping time constant per NED axis (s)",
-    "drag_coefficient": "parasitic drag coefficient on the frontal area",
-    "cruise_speed": "speed at which quadratic drag is linearized (secant) (m/s)",
-    "A": "vehicle state matrix A_ii", "B1": "control input matrix B1_i",
-    "B2": "disturbance input matrix B2_i", "C": "output matrix C_i",
 }
 #: current / disturbance key -> (kinds, unit, description)
 _DIST_FIELDS: dict[str, tuple[frozenset, str | None, str]] = {
@@ -75,10 +68,16 @@ _LEADER_FIELDS: dict[str, tuple[frozenset, str | None, str]] = {
 def _leaves(spec: dict[str, Any], kind: str) -> Iterator[tuple[tuple, str, Any, str | None, str]]:
     """(path in spec, FMI name, value, unit, description) of every parameter of ``kind``."""
     for i, v in enumerate(spec["vehicles"], start=1):
+        model = v.get("model", DEFAULT_MODEL)
+        docs = get(model).param_docs
         for key, value in v.get("params", {}).items():
-            if key in _PARAM_DOCS:
-                yield (("vehicles", i - 1, "params", key), f"vehicle[{i}].{key}", value,
-                       _PARAM_UNITS.get(key), f"vehicle {i}: {_PARAM_DOCS[key]}")
+            if key not in docs:
+                raise ModelError(f"vehicle {i}: parameter {key!r} of the {model} model is not "
+                                 "a parameter a fleet FMU can take (it takes "
+                                 f"{', '.join(docs) or 'none of this model'})")
+            unit, doc = docs[key]
+            yield (("vehicles", i - 1, "params", key), f"vehicle[{i}].{key}", value, unit,
+                   f"vehicle {i}: {doc}")
         for key, (kinds, unit, doc) in _VEHICLE_FIELDS.items():
             if kind in kinds and key in v:
                 yield (("vehicles", i - 1, key), f"vehicle[{i}].{key}", v[key], unit,

@@ -22,33 +22,53 @@ A new model is one module (its constructor from parameters) and one entry of
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+import dataclasses
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from .linalg_checks import ModelError
+from .remus100.limits import VehicleLimits, remus_limits
 from .remus100.models import (
     REMUS100_6DOF_PARAMS,
     remus100_6dof_design,
     remus100_6dof_explicit_params,
     remus100_fitted_from_params,
+    remus_from_parameters,
 )
 from .vehicles import (
     GENERIC_PARAMS,
+    REMUS100_MAX_SPEED,
     REMUS100_PARAMS,
     VehicleModel,
     generic_from_params,
     remus100_from_params,
 )
 
-__all__ = ["LAYOUTS", "REGISTRY", "VEHICLE_MODELS", "ModelEntry", "family_of", "find", "get",
-           "listed_params", "make_vehicle", "plants_of", "vehicle_of"]
+__all__ = ["DEFAULT_MODEL", "LAYOUTS", "REGISTRY", "VEHICLE_MODELS", "ModelEntry", "family_of",
+           "find", "get", "listed_params", "make_vehicle", "plants_of", "vehicle_of"]
 
 #: state layouts: ``ned`` x = [n, e, d, v_n, v_e, v_d] (m, m/s), NED forces in (N), NED
 #: positions out (the leader's position and velocity are a vehicle's target, navigation
 #: sensors fit); ``outputs`` any A, B1, B2, C (targets through pinv(C))
 LAYOUTS = ("ned", "outputs")
+#: the model of a ``[vehicles]`` table that names none
+DEFAULT_MODEL = "remus100"
+
+#: a stacked fleet FMU's parameter documentation: parameter -> (unit, description)
+ParamDocs = Mapping[str, tuple[str | None, str]]
+
+_REMUS100_DOCS: ParamDocs = {
+    "mass": ("kg", "rigid-body mass"), "added_mass": ("kg", "added mass per NED axis"),
+    "time_constant": ("s", "low-speed damping time constant per NED axis"),
+    "drag_coefficient": (None, "parasitic drag coefficient on the frontal area"),
+    "cruise_speed": ("m/s", "speed at which quadratic drag is linearized (secant)"),
+}
+_GENERIC_DOCS: ParamDocs = {
+    "A": (None, "vehicle state matrix A_ii"), "B1": (None, "control input matrix B1_i"),
+    "B2": (None, "disturbance input matrix B2_i"), "C": (None, "output matrix C_i"),
+}
 
 
 @dataclass(frozen=True)
@@ -74,8 +94,20 @@ class ModelEntry:
     stack: tuple[str, ...] = ()
     #: the model whose vehicle (and parameters) this one flies through its own stack
     variant_of: str | None = None
+    #: the parameters a stacked fleet FMU exposes (:mod:`plant_model.fleet_parameters`),
+    #: unit and description; a nonlinear model has none (per-vehicle deployment only)
+    param_docs: ParamDocs = dataclasses.field(default_factory=dict)
+    #: the vehicle's limits (top speed, turn radius, depth rate) for the [design] checks;
+    #: None: none known
+    limits: Callable[[VehicleModel], VehicleLimits] | None = None
+    #: its design model drives the guidance and autopilot FMUs (exported beside a fleet's
+    #: FMUs: docs/guidance.md)
+    guidance: bool = False
 
     def __post_init__(self) -> None:
+        if not self.nonlinear and set(self.params) - set(self.param_docs):
+            raise ValueError(f"{self.name}: parameters without documentation for the fleet "
+                             f"FMU: {sorted(set(self.params) - set(self.param_docs))}")
         if self.layout not in LAYOUTS:
             raise ValueError(f"{self.name}: layout {self.layout!r} is not one of {LAYOUTS}")
         if self.nonlinear and self.design is None:
@@ -103,23 +135,37 @@ def _guided(build: Callable[[Mapping[str, Any]], VehicleModel]
     return guided
 
 
+def _linear_remus_limits(model: VehicleModel) -> VehicleLimits:
+    """A linear REMUS 100 model: the top speed of its range, nothing else."""
+    return VehicleLimits(REMUS100_MAX_SPEED, None, None,
+                         f"{model.name}: top speed {REMUS100_MAX_SPEED:g} m/s of the linear "
+                         "model's range; no turn radius or depth rate")
+
+
+def _remus6dof_limits(model: VehicleModel) -> VehicleLimits:
+    """The nonlinear REMUS 100 of the model's data: top speed, turn radius, depth rate
+    (:func:`plant_model.remus100.limits.remus_limits`)."""
+    return remus_limits(remus_from_parameters(dict(model.parameters["nonlinear"])))
+
+
 REGISTRY: dict[str, ModelEntry] = {e.name: e for e in (
     ModelEntry("remus100", "the linear REMUS 100 in NED, quadratic drag linearized at "
                "cruise_speed (plant_model.vehicles.remus100)",
                remus100_from_params, REMUS100_PARAMS, listed_params(REMUS100_PARAMS),
-               family="remus100", layout="ned"),
+               family="remus100", layout="ned", param_docs=_REMUS100_DOCS,
+               limits=_linear_remus_limits, guidance=True),
     ModelEntry("remus100-6dof", "the nonlinear 6-DOF REMUS 100 behind the same force "
                "interface, per-vehicle deployment only (docs/remus100-6dof.md)",
                remus100_6dof_design, REMUS100_6DOF_PARAMS, remus100_6dof_explicit_params,
                family="remus100", layout="ned", nonlinear=True, fmu_kind="remus6dof",
-               native=False, design="remus100"),
+               native=False, design="remus100", limits=_remus6dof_limits, guidance=True),
     ModelEntry("remus100-fitted", "the first-order model fitted to remus100-6dof's "
                "frequency responses at 1.5 m/s (plant_model.remus100.models)",
                remus100_fitted_from_params, (), listed_params(()),
-               family="remus100", layout="ned"),
+               family="remus100", layout="ned", limits=_linear_remus_limits, guidance=True),
     ModelEntry("generic", "any linear model A, B1, B2, C (plant_model.vehicles.generic)",
                generic_from_params, GENERIC_PARAMS, listed_params(GENERIC_PARAMS),
-               family="generic", layout="outputs"),
+               family="generic", layout="outputs", param_docs=_GENERIC_DOCS),
     ModelEntry("remus100-6dof-guided", "remus100-6dof's vehicle and parameters flown through "
                "the guidance FMUs: force -> AuvGuidance -> AuvAutopilot -> the vehicle's "
                "actuators, per-vehicle deployment only (docs/guidance.md)",
@@ -127,7 +173,7 @@ REGISTRY: dict[str, ModelEntry] = {e.name: e for e in (
                remus100_6dof_explicit_params, family="remus100", layout="ned",
                nonlinear=True, fmu_kind="remus6dof_actuated", native=False,
                design="remus100", stack=("guidance", "autopilot"),
-               variant_of="remus100-6dof"),
+               variant_of="remus100-6dof", limits=_remus6dof_limits, guidance=True),
 )}
 
 #: the model names, in the registry's order

@@ -41,8 +41,8 @@ from plant_model.path_feasibility import (
     path_states,
 )
 from plant_model.remus100.limits import VehicleLimits
-from plant_model.vehicle_models import get, vehicle_of
-from plant_model.vehicles import REMUS100_MAX_SPEED, VehicleModel
+from plant_model.vehicle_models import REGISTRY, get
+from plant_model.vehicles import VehicleModel
 
 from .distributed import Agent, agents_from_fleet_spec, sample_agent
 
@@ -98,16 +98,9 @@ def vehicle_limits(model: VehicleModel, options: Mapping[str, Any]) -> VehicleLi
     """The limits of one vehicle (module docstring, item 1); [design] max_speed,
     min_turn_radius, max_depth_rate override what the model gives."""
     given = {k: options.get(k) for k in ("max_speed", "min_turn_radius", "max_depth_rate")}
-    if vehicle_of(model.name) == "remus100-6dof":       # and the variants that fly it
-        from plant_model.remus100.limits import remus_limits
-        from plant_model.remus100.models import remus_from_parameters
-        lim = remus_limits(remus_from_parameters(dict(model.parameters["nonlinear"])))
-    elif model.name in ("remus100", "remus100-fitted"):
-        lim = VehicleLimits(REMUS100_MAX_SPEED, None, None,
-                            f"{model.name}: top speed {REMUS100_MAX_SPEED:g} m/s of the linear "
-                            "model's range; no turn radius or depth rate")
-    else:
-        lim = VehicleLimits(None, None, None, f"{model.name}: no limits known")
+    entry = get(model.name)
+    lim = (entry.limits(model) if entry.limits is not None else
+           VehicleLimits(None, None, None, f"{model.name}: no limits known"))
     over = {k: float(v) for k, v in given.items() if v is not None}
     if over:
         lim = replace(lim, **over, source=(lim.source + "; " if lim.source else "")
@@ -127,10 +120,11 @@ def vehicle_band(models: Sequence[VehicleModel]) -> float:
     """
     bands = []
     for mdl in models:
-        if vehicle_of(mdl.name) != "remus100-6dof":
+        if not get(mdl.name).nonlinear:
             raise ModelError(f"[design] bandwidth = \"vehicle\" needs nonlinear vehicles "
-                             f"(remus100-6dof); a {mdl.name!r} vehicle is its own design model: "
-                             "give the bandwidth in rad/s")
+                             f"({', '.join(e.name for e in REGISTRY.values() if e.nonlinear)}); "
+                             f"a {mdl.name!r} vehicle is its own design model: give the "
+                             "bandwidth in rad/s")
         M = 1.0 / np.diag(np.asarray(mdl.B1, float)[3:6, :3])
         D = -np.diag(np.asarray(mdl.A, float)[3:6, 3:6]) * M
         data = tuple(sorted((k, tuple(v) if isinstance(v, list) else v)

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from plant_model.noise_factor import NOISE_STREAM
+from plant_model.vehicle_models import DEFAULT_MODEL
 
 from ..atomic import write_text_atomically
 from ..outputs import file_stem
@@ -219,7 +220,7 @@ def run_envelope(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
     summary = {"scenario": sc.name, "T": sc.T, "h": sc.h, "seed": sc.seed,
                "noise_stream": NOISE_STREAM,
                "estimator": sc.estimator, "architecture": sc.architecture,
-               "models": sorted({v.get("model", "remus100") for v in sc.fleet["vehicles"]}),
+               "models": sorted({v.get("model", DEFAULT_MODEL) for v in sc.fleet["vehicles"]}),
                "envelope": {"tolerance_m": tolerance, "points": points,
                             "failed": sum(p["failed"] is not None for p in points),
                             "path_check": verdicts},

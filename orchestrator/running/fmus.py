@@ -167,7 +167,7 @@ def guidance_configs(sc: Scenario) -> dict[str, dict[str, Any]]:
         return {}
     models = fleet_vehicles(sc.fleet)
     entries = [find(m.name) for m in models]
-    if any(e is None or e.family != "remus100" or e.layout != "ned" for e in entries):
+    if any(e is None or not e.guidance for e in entries):
         return {}
     return stack_configs(models[0], vehicle_views(sc.fleet)[0], sc.h, sc.T, sc.seed)
 

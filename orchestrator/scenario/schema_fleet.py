@@ -52,7 +52,7 @@ from plant_model.linalg_checks import (
 )
 from plant_model.navigation import NavigationSensors
 from plant_model.system import NOISE_CONVENTIONS
-from plant_model.vehicle_models import get
+from plant_model.vehicle_models import DEFAULT_MODEL, get
 from plant_model.vehicle_targets import leader_state_map, state_offset
 from plant_model.vehicles import VehicleModel
 
@@ -250,7 +250,7 @@ class FleetVehiclesSection(Section):
 
     count: Annotated[int, Ge(1), expect("must be a positive integer")] = Field(
         description="the number of vehicles, a positive integer")
-    model: str = "remus100"
+    model: str = DEFAULT_MODEL
     params: dict[str, Any] = Field(default_factory=dict)
     offsets: Matrix = None
     positions: Matrix = None
