@@ -208,7 +208,8 @@ class TimeVaryingKalman:
 
 def tv_estimator(system: LinearSystem, model: DiscreteModel,
                  options: dict[str, Any] | None = None) -> TimeVaryingKalman:
-    """The stacked filter on s = [x; w; z] from [y; ybar] (mvec = [y; ybar; x; w; z]),
+    """The stacked filter on s = [x; w; z] from [y; ybar] (mvec = [y; ybar; x; w; z]; from
+    y alone when the whole reference is a planned path, whose ybar is then not read),
     q0 = s(0), P0 from ``options["P0"]`` by :func:`stacked_initial_covariance` (one
     vehicle's matrix when ``options["fleet"]``; default 0, the known start)."""
     options = options or {}
@@ -220,8 +221,10 @@ def tv_estimator(system: LinearSystem, model: DiscreteModel,
         fleet = bool(options.get("fleet")) and P0.ndim == 2
         P0 = stacked_initial_covariance(system, P0, per_vehicle=P0.shape[0] if fleet
                                         else None)
-    return TimeVaryingKalman(model.Ad, model.Bd, model.Qd, model.Rd, model.M, P0,
-                             system.initial_state())
+    # ybar only when some reference state is filtered (a planned path is propagated)
+    rows = model.p if system.known_reference_mask().all() else 2 * model.p
+    return TimeVaryingKalman(model.Ad, model.Bd, model.Qd, model.Rd[:rows, :rows],
+                             model.M[:rows], P0, system.initial_state())
 
 
 def tv_vehicle_estimator(system: LinearSystem, model: DiscreteModel, where: str = "vehicle",

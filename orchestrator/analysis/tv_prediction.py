@@ -47,12 +47,13 @@ __all__ = ["TOL", "tv_gain_estimator", "tv_method_predictions", "tv_window_momen
 TOL = 1e-13
 
 
-def tv_gain_estimator(est: TimeVaryingKalman, L: np.ndarray) -> LinearEstimator:
+def tv_gain_estimator(est: TimeVaryingKalman, L: np.ndarray, nmvec: int) -> LinearEstimator:
     """The filter of sample k as a linear estimator with gain L = L_k (est = q + L (meas -
-    Mm q), q+ = Ad est + Bd u): what :func:`closed_loop` takes."""
-    ns, nmeas = L.shape
+    Mm q), q+ = Ad est + Bd u; meas the first rows of mvec, of length ``nmvec``): what
+    :func:`closed_loop` takes."""
+    ns = L.shape[0]
     nm = est.Mm.shape[0]
-    Dm = np.zeros((ns, nm + ns))
+    Dm = np.zeros((ns, nmvec))
     Dm[:, :nm] = L
     return LinearEstimator("tv", np.eye(ns) - L @ est.Mm, Dm, est.Ad, est.Bd, est.q0,
                            uses_truth=False)
@@ -106,7 +107,7 @@ def tv_window_moments(system: LinearSystem, model: DiscreteModel, est: TimeVaryi
     k = 0
     while k < K:
         L, _, Pn = riccati_step(P, est.Ad, est.Mm, est.Qd, est.Rd)
-        Phi, Gam, Gx, Geta = closed_loop(model, tv_gain_estimator(est, L), Ks)
+        Phi, Gam, Gx, Geta = closed_loop(model, tv_gain_estimator(est, L, 2 * model.p + ns), Ks)
         if tol > 0 and np.abs(Pn - P).max() <= tol * max(np.abs(P).max(), 1e-300):
             break                       # L_k is the steady gain from here on
         if k >= k0:
