@@ -6,7 +6,8 @@ FMU state: the estimator's q (LinearEstimator.get_state), plus what the base cla
 """
 from typing import Any
 
-from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
+from estimator_fmu.estimators import make_estimator
+from estimator_fmu.registry import ESTIMATOR_MODES, options_of, parameter_specs
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from estimator_fmu.slave_common import EstimatorSlave as Fmi2Slave
@@ -24,7 +25,8 @@ MEASUREMENTS = ("y", "ybar", "x", "w", "z")
 
 
 class AuvEstimator(Fmi2Slave):
-    """Steady-state Kalman filters on [x; w] and z, or the classical / ideal estimates."""
+    """The estimator of its ``mode`` (estimator_fmu.registry): Kalman filters, the classical
+    law or the truth."""
 
     description = ("State estimator for the AUV tracking law: steady-state Kalman filters "
                    "(current-estimator form), the paper's classical law, or the true state")
@@ -43,6 +45,7 @@ class AuvEstimator(Fmi2Slave):
             noise_convention_spec(config),
             ArraySpec("mode", (), "parameter", "estimator: " + ", ".join(ESTIMATOR_MODES),
                       start=config["mode"], type="String"),
+            *parameter_specs(config),
             ArraySpec("y", (p,), "input", "measured vehicle output y"),
             ArraySpec("ybar", (p,), "input", "measured reference output ybar"),
             ArraySpec("x", (n,), "input", "true vehicle state (read only in mode 'ideal')"),
@@ -67,7 +70,8 @@ class AuvEstimator(Fmi2Slave):
             estimator of the chosen mode does not exist.
         """
         system, model = sampled_system(self, "estimator", ESTIMATOR_PARAMETERS)
-        self.estimator = make_estimator(system, model, self.par["mode"])
+        self.estimator = make_estimator(system, model, self.par["mode"],
+                                        options_of(self.par, self.config))
         nm = 2 * system.p + model.ns
         self._mvec = self._in[:nm]
         self._u = self.io["u"]

@@ -8,8 +8,9 @@ saves.
 """
 from typing import Any
 
-from estimator_fmu.estimators import ESTIMATOR_MODES, make_vehicle_estimator
+from estimator_fmu.estimators import make_vehicle_estimator
 from estimator_fmu.multirate import navigation_estimator
+from estimator_fmu.registry import ESTIMATOR_MODES, options_of, parameter_specs
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from estimator_fmu.slave_common import EstimatorSlave as Fmi2Slave
@@ -51,6 +52,7 @@ class AuvVehicleEstimator(Fmi2Slave):
             noise_convention_spec(config),
             ArraySpec("mode", (), "parameter", "estimator: " + ", ".join(ESTIMATOR_MODES),
                       start=config["mode"], type="String"),
+            *parameter_specs(config),
             *sensor_parameter_specs(config),
             measured,
             ArraySpec("x", (n,), "input", "true vehicle state (read only in mode 'ideal')"),
@@ -77,6 +79,7 @@ class AuvVehicleEstimator(Fmi2Slave):
                                                   sensors_from_parameters(self.par))
             self._mvec = self._in[:NAV_SIZE + model.ns]
         else:
-            self.estimator = make_vehicle_estimator(view, model, self.par["mode"])
+            self.estimator = make_vehicle_estimator(view, model, self.par["mode"],
+                                                    options=options_of(self.par, {}))
             self._mvec = self._in[:view.p + model.ns]
         self._u = self.io["u"]

@@ -23,6 +23,7 @@ Modes:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.linalg import LinAlgError, solve_discrete_are
@@ -32,10 +33,18 @@ from plant_model.linalg_checks import ModelError, unobservable_modes
 from plant_model.memo import DesignCache
 from plant_model.system import LinearSystem
 
-__all__ = ["ESTIMATOR_MODES", "LinearEstimator", "SteadyKalman", "steady_kalman",
-           "make_estimator", "make_vehicle_estimator"]
+__all__ = ["LinearEstimator", "SteadyKalman", "steady_kalman", "make_estimator",
+           "make_vehicle_estimator", "kalman_estimator", "classical_estimator",
+           "ideal_estimator", "kalman_vehicle_estimator", "classical_vehicle_estimator",
+           "ideal_vehicle_estimator"]
 
-ESTIMATOR_MODES = ("kalman", "classical", "ideal")
+
+def __getattr__(name: str) -> object:
+    # the estimator names live in the registry (estimator_fmu.registry), which imports this
+    if name == "ESTIMATOR_MODES":
+        from .registry import ESTIMATOR_MODES
+        return ESTIMATOR_MODES
+    raise AttributeError(name)
 
 #: filter gains of this process, by the numbers they come from (plant_model.memo)
 _KALMAN_CACHE = DesignCache("steady_kalman")
@@ -209,7 +218,8 @@ def _one_based(idx: np.ndarray) -> str:
     return "[" + ",".join(str(i + 1) for i in idx) + "]"
 
 
-def make_estimator(system: LinearSystem, model: DiscreteModel, mode: str) -> LinearEstimator:
+def make_estimator(system: LinearSystem, model: DiscreteModel, mode: str,
+                   options: dict | None = None) -> Any:
     """Build the estimator of ``mode`` for ``system`` sampled as ``model``.
 
     Parameters
@@ -219,11 +229,13 @@ def make_estimator(system: LinearSystem, model: DiscreteModel, mode: str) -> Lin
     model : DiscreteModel
         ``system`` sampled at the communication step h.
     mode : str
-        One of :data:`ESTIMATOR_MODES` (module docstring).
+        An estimator of the registry (:mod:`estimator_fmu.registry`).
+    options : dict or None, optional
+        The row's options (``P0`` of the time-varying filter).
 
     Returns
     -------
-    LinearEstimator
+    LinearEstimator or TimeVaryingKalman
         The estimator, reset to its initial internal state.
 
     Raises
@@ -232,62 +244,75 @@ def make_estimator(system: LinearSystem, model: DiscreteModel, mode: str) -> Lin
         If the mode is unknown, a Kalman filter does not exist (:func:`steady_kalman`), or
         ``classical`` meets a C or H without full column rank.
     """
-    n, r, l_, p, ns = system.n, system.r, system.l, system.p, model.ns
+    from .registry import estimator_kind
+    return estimator_kind(mode).make(system, model, options)
+
+
+def kalman_estimator(system: LinearSystem, model: DiscreteModel) -> LinearEstimator:
+    """``kalman``: the steady filter on the stacked s (module docstring)."""
+    n, r, p, ns = system.n, system.r, system.p, model.ns
     nm = 2 * p + ns                     # length of mvec = [y; ybar; x; w; z]
-    if mode == "kalman":
-        known = system.known_reference_mask()
-        zs = n + r + np.flatnonzero(~known)           # filtered reference states
-        xw = np.arange(n + r)
-        y_rows, ybar_rows = np.arange(p), np.arange(p, 2 * p)
-        zname = "z" if known.sum() == 0 else f"z{_one_based(zs - n - r)}"
-        if not np.any(system.Bz[:, ~known]):
-            # No filtered reference state drives the vehicles: the joint filter splits
-            # exactly into a filter on [x; w] from y and one on the reference from ybar.
-            blocks = [("[x; w] from y (pair ([[A, B2], [0, K]], [C, 0]))", xw, y_rows)]
-            if zs.size:
-                blocks.append((f"{zname} from ybar (pair (F, H))", zs, ybar_rows))
-        else:
-            blocks = [(f"[x; w; {zname}] from [y; ybar]", np.concatenate([xw, zs]),
-                       np.arange(2 * p))]
-        L = np.zeros((ns, 2 * p))
-        for name, S, rows in blocks:
-            kf = steady_kalman(name, model.Ad[np.ix_(S, S)], model.M[np.ix_(rows, S)],
-                               model.Qd[np.ix_(S, S)], model.Rd[np.ix_(rows, rows)])
-            L[np.ix_(S, rows)] = kf.L
-        Ce = np.eye(ns) - L @ model.M
-        Dm = np.zeros((ns, nm))
-        Dm[:, :2 * p] = L
-        return LinearEstimator(mode, Ce, Dm, model.Ad.copy(), model.Bd.copy(),
-                               system.initial_state(), uses_truth=False,
-                               gain=(L, model.M.copy()))
-    if mode == "classical":
-        for name, M, cols in (("C", system.C, n), ("H", system.H, l_)):
-            rank = np.linalg.matrix_rank(M)
-            if rank < cols:
-                raise ModelError(
-                    f"the classical estimator needs {name} with full column rank to "
-                    f"recover the state from its output ({name} has rank {rank} < {cols})"
-                )
-        Ce = np.zeros((ns, r))
-        Ce[n:n + r] = np.eye(r)
-        Dm = np.zeros((ns, nm))
-        Dm[:n, :p] = np.linalg.pinv(system.C)
-        Dm[n + r:, p:2 * p] = np.linalg.pinv(system.H)
-        Aq = np.zeros((r, ns))
-        Aq[:, n:n + r] = model.Ad[n:n + r, n:n + r]     # expm(K h)
-        return LinearEstimator(mode, Ce, Dm, Aq, np.zeros((r, system.m)), system.w0.copy(),
-                               uses_truth=False)
-    if mode == "ideal":
-        Dm = np.zeros((ns, nm))
-        Dm[:, 2 * p:] = np.eye(ns)
-        return LinearEstimator(mode, np.zeros((ns, 0)), Dm, np.zeros((0, ns)),
-                               np.zeros((0, system.m)), np.zeros(0), uses_truth=True)
-    raise ModelError(f"unknown estimator mode {mode!r}; expected one of "
-                     f"{', '.join(ESTIMATOR_MODES)}")
+    known = system.known_reference_mask()
+    zs = n + r + np.flatnonzero(~known)           # filtered reference states
+    xw = np.arange(n + r)
+    y_rows, ybar_rows = np.arange(p), np.arange(p, 2 * p)
+    zname = "z" if known.sum() == 0 else f"z{_one_based(zs - n - r)}"
+    if not np.any(system.Bz[:, ~known]):
+        # No filtered reference state drives the vehicles: the joint filter splits
+        # exactly into a filter on [x; w] from y and one on the reference from ybar.
+        blocks = [("[x; w] from y (pair ([[A, B2], [0, K]], [C, 0]))", xw, y_rows)]
+        if zs.size:
+            blocks.append((f"{zname} from ybar (pair (F, H))", zs, ybar_rows))
+    else:
+        blocks = [(f"[x; w; {zname}] from [y; ybar]", np.concatenate([xw, zs]),
+                   np.arange(2 * p))]
+    L = np.zeros((ns, 2 * p))
+    for name, S, rows in blocks:
+        kf = steady_kalman(name, model.Ad[np.ix_(S, S)], model.M[np.ix_(rows, S)],
+                           model.Qd[np.ix_(S, S)], model.Rd[np.ix_(rows, rows)])
+        L[np.ix_(S, rows)] = kf.L
+    Ce = np.eye(ns) - L @ model.M
+    Dm = np.zeros((ns, nm))
+    Dm[:, :2 * p] = L
+    return LinearEstimator("kalman", Ce, Dm, model.Ad.copy(), model.Bd.copy(),
+                           system.initial_state(), uses_truth=False,
+                           gain=(L, model.M.copy()))
+
+
+def classical_estimator(system: LinearSystem, model: DiscreteModel) -> LinearEstimator:
+    """``classical``: xhat = C^+ y, zhat = H^+ ybar, what open loop (module docstring)."""
+    n, r, l_, p, ns = system.n, system.r, system.l, system.p, model.ns
+    nm = 2 * p + ns
+    for name, M, cols in (("C", system.C, n), ("H", system.H, l_)):
+        rank = np.linalg.matrix_rank(M)
+        if rank < cols:
+            raise ModelError(
+                f"the classical estimator needs {name} with full column rank to "
+                f"recover the state from its output ({name} has rank {rank} < {cols})"
+            )
+    Ce = np.zeros((ns, r))
+    Ce[n:n + r] = np.eye(r)
+    Dm = np.zeros((ns, nm))
+    Dm[:n, :p] = np.linalg.pinv(system.C)
+    Dm[n + r:, p:2 * p] = np.linalg.pinv(system.H)
+    Aq = np.zeros((r, ns))
+    Aq[:, n:n + r] = model.Ad[n:n + r, n:n + r]     # expm(K h)
+    return LinearEstimator("classical", Ce, Dm, Aq, np.zeros((r, system.m)), system.w0.copy(),
+                           uses_truth=False)
+
+
+def ideal_estimator(system: LinearSystem, model: DiscreteModel) -> LinearEstimator:
+    """``ideal``: est = [x; w; z], the truth."""
+    p, ns = system.p, model.ns
+    nm = 2 * p + ns
+    Dm = np.zeros((ns, nm))
+    Dm[:, 2 * p:] = np.eye(ns)
+    return LinearEstimator("ideal", np.zeros((ns, 0)), Dm, np.zeros((0, ns)),
+                           np.zeros((0, system.m)), np.zeros(0), uses_truth=True)
 
 
 def make_vehicle_estimator(system: LinearSystem, model: DiscreteModel, mode: str,
-                           where: str = "vehicle") -> LinearEstimator:
+                           where: str = "vehicle", options: dict | None = None) -> Any:
     """One vehicle's own estimator of s = [x; w] from its own y (per-vehicle deployment).
 
     ``model`` is the vehicle alone (:func:`plant_model.per_vehicle.sample_vehicle`); the
@@ -309,9 +334,11 @@ def make_vehicle_estimator(system: LinearSystem, model: DiscreteModel, mode: str
     model : DiscreteModel
         The vehicle sampled alone (l = 0).
     mode : str
-        One of :data:`ESTIMATOR_MODES`.
+        An estimator of the registry (:mod:`estimator_fmu.registry`).
     where : str, optional
         Names the vehicle in error messages.
+    options : dict or None, optional
+        The row's options (``P0`` of the time-varying filter).
 
     Returns
     -------
@@ -324,34 +351,50 @@ def make_vehicle_estimator(system: LinearSystem, model: DiscreteModel, mode: str
         If the mode is unknown, the Kalman filter does not exist or C lacks full column
         rank for ``classical``.
     """
+    from .registry import estimator_kind
+    return estimator_kind(mode).make_vehicle(system, model, where, options)
+
+
+def kalman_vehicle_estimator(system: LinearSystem, model: DiscreteModel,
+                             where: str = "vehicle") -> LinearEstimator:
+    """``kalman`` of one vehicle (:func:`make_vehicle_estimator`)."""
+    s, ns = system.p, model.ns
+    nm = s + ns
+    M = np.ascontiguousarray(model.M[:s])
+    L = steady_kalman(f"{where} [x; w] from y (pair ([[A, B2], [0, K]], [C, 0]))",
+                      model.Ad, M, model.Qd, model.Rd[:s, :s]).L
+    Dm = np.zeros((ns, nm))
+    Dm[:, :s] = L
+    return LinearEstimator("kalman", np.eye(ns) - L @ M, Dm, model.Ad.copy(), model.Bd.copy(),
+                           np.concatenate([system.x0, system.w0]), uses_truth=False,
+                           gain=(L, M))
+
+
+def classical_vehicle_estimator(system: LinearSystem, model: DiscreteModel,
+                                where: str = "vehicle") -> LinearEstimator:
+    """``classical`` of one vehicle (:func:`make_vehicle_estimator`)."""
     n, r, s, ns = system.n, system.r, system.p, model.ns
     nm = s + ns
-    if mode == "kalman":
-        M = np.ascontiguousarray(model.M[:s])
-        L = steady_kalman(f"{where} [x; w] from y (pair ([[A, B2], [0, K]], [C, 0]))",
-                          model.Ad, M, model.Qd, model.Rd[:s, :s]).L
-        Dm = np.zeros((ns, nm))
-        Dm[:, :s] = L
-        return LinearEstimator(mode, np.eye(ns) - L @ M, Dm, model.Ad.copy(), model.Bd.copy(),
-                               np.concatenate([system.x0, system.w0]), uses_truth=False,
-                               gain=(L, M))
-    if mode == "classical":
-        rank = np.linalg.matrix_rank(system.C)
-        if rank < n:
-            raise ModelError(f"{where}: the classical estimator needs C with full column rank "
-                             f"to recover the state from y (C has rank {rank} < {n})")
-        Ce = np.zeros((ns, r))
-        Ce[n:] = np.eye(r)
-        Dm = np.zeros((ns, nm))
-        Dm[:n, :s] = np.linalg.pinv(system.C)
-        Aq = np.zeros((r, ns))
-        Aq[:, n:] = model.Ad[n:, n:]
-        return LinearEstimator(mode, Ce, Dm, Aq, np.zeros((r, system.m)), system.w0.copy(),
-                               uses_truth=False)
-    if mode == "ideal":
-        Dm = np.zeros((ns, nm))
-        Dm[:, s:] = np.eye(ns)
-        return LinearEstimator(mode, np.zeros((ns, 0)), Dm, np.zeros((0, ns)),
-                               np.zeros((0, system.m)), np.zeros(0), uses_truth=True)
-    raise ModelError(f"unknown estimator mode {mode!r}; expected one of "
-                     f"{', '.join(ESTIMATOR_MODES)}")
+    rank = np.linalg.matrix_rank(system.C)
+    if rank < n:
+        raise ModelError(f"{where}: the classical estimator needs C with full column rank "
+                         f"to recover the state from y (C has rank {rank} < {n})")
+    Ce = np.zeros((ns, r))
+    Ce[n:] = np.eye(r)
+    Dm = np.zeros((ns, nm))
+    Dm[:n, :s] = np.linalg.pinv(system.C)
+    Aq = np.zeros((r, ns))
+    Aq[:, n:] = model.Ad[n:, n:]
+    return LinearEstimator("classical", Ce, Dm, Aq, np.zeros((r, system.m)), system.w0.copy(),
+                           uses_truth=False)
+
+
+def ideal_vehicle_estimator(system: LinearSystem, model: DiscreteModel,
+                            where: str = "vehicle") -> LinearEstimator:
+    """``ideal`` of one vehicle (:func:`make_vehicle_estimator`)."""
+    s, ns = system.p, model.ns
+    nm = s + ns
+    Dm = np.zeros((ns, nm))
+    Dm[:, s:] = np.eye(ns)
+    return LinearEstimator("ideal", np.zeros((ns, 0)), Dm, np.zeros((0, ns)),
+                           np.zeros((0, system.m)), np.zeros(0), uses_truth=True)

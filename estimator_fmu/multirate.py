@@ -110,8 +110,13 @@ def periodic_filter(Ad: np.ndarray, Qd: np.ndarray, sensors: NavigationSensors, 
 class MultiRateKalman:
     """The filter of the module docstring; ``estimate`` then ``update`` once per step."""
 
-    mode = "kalman"
     uses_truth = False
+
+    @property
+    def mode(self) -> str:
+        """Its estimator's name (the registry row whose navigation is this filter)."""
+        from .registry import NAVIGATION_FILTER
+        return NAVIGATION_FILTER
 
     def __init__(self, model: DiscreteModel, sensors: NavigationSensors, q0: np.ndarray):
         ns = model.ns
@@ -189,21 +194,25 @@ class MultiRateKalman:
 
 def navigation_estimator(system: LinearSystem, model: DiscreteModel, mode: str,
                          sensors: NavigationSensors) -> MultiRateKalman | LinearEstimator:
-    """One vehicle's estimator from its navigation sensors: ``kalman`` the
-    :class:`MultiRateKalman`, ``ideal`` the truth (mvec = [nav; x; w]).
+    """One vehicle's estimator from its navigation sensors, as its registry row's
+    ``navigation`` says: "filter" the :class:`MultiRateKalman`, "truth" the truth
+    (mvec = [nav; x; w]).
 
     Raises
     ------
     ModelError
-        For ``classical``, which needs a position fix every step.
+        For an estimator that needs a position fix every step (``navigation`` None).
     """
+    from .registry import ESTIMATORS, estimator_kind
     ns = model.ns
-    if mode == "kalman":
+    kind = estimator_kind(mode)
+    if kind.navigation == "filter":
         return MultiRateKalman(model, sensors, np.concatenate([system.x0, system.w0]))
-    if mode == "ideal":
+    if kind.navigation == "truth":
         Dm = np.zeros((ns, NAV_SIZE + ns))
         Dm[:, NAV_SIZE:] = np.eye(ns)
         return LinearEstimator(mode, np.zeros((ns, 0)), Dm, np.zeros((0, ns)),
                                np.zeros((0, system.m)), np.zeros(0), uses_truth=True)
+    ok = " or ".join(k for k, e in ESTIMATORS.items() if e.navigation)
     raise ModelError(f"estimator mode {mode!r} needs a position fix every step; with [sensors] "
-                     "(acoustic fixes, DVL, depth at their own rates) use kalman or ideal")
+                     f"(acoustic fixes, DVL, depth at their own rates) use {ok}")

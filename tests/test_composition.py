@@ -145,3 +145,60 @@ def test_native_remus_cells_are_all_native_and_equal_the_python_cells(scenarios,
         scale = max(float(np.max(np.abs(want))) if want.size else 0.0, 1e-300)
         assert got.shape == want.shape and np.max(np.abs(got - want), initial=0.0) <= (
             1e-12 * scale), entity
+
+
+# --- the time-varying Kalman filter (kalman-tv) ----------------------------------------
+TV_REFUSED = {"distributed": "the distributed per-vehicle loop needs estimator kalman or ideal, "
+                             "not 'kalman-tv'",
+              "links": "needs estimator kalman or classical or ideal, not 'kalman-tv'"}
+TV_CELLS = [(d, ln, f) for d in DEPLOYMENTS for ln in LINKS for f in FMUS]
+
+
+@pytest.fixture(scope="module")
+def tv_scenario(tmp_path_factory):
+    path = tmp_path_factory.mktemp("composition-tv") / "formation-4-tv.toml"
+    path.write_text((ROOT / "orchestrator/scenario/builtin/formation-4.toml").read_text()
+                    + "\n[estimator]\nP0 = 4.0\n")
+    return path
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("dep, links, fmus", TV_CELLS, ids=["-".join(c) for c in TV_CELLS])
+def test_kalman_tv_cells_run_or_are_refused_in_one_line(tv_scenario, runs, tmp_path, capsys,
+                                                        dep, links, fmus):
+    """kalman-tv on formation-4 (remus100): stacked and per-vehicle centralized run, python
+    and native, native equal to python to 1e-12 of each signal's scale; the distributed
+    law and acoustic links refuse it in one line (their analyses need a time-invariant
+    estimator)."""
+    if fmus == "native" and shutil.which("cc") is None:
+        pytest.skip("no C compiler (cc) for the native FMUs")
+    out = tmp_path / f"tv-{dep}-{links}-{fmus}"
+    code = main(["run", "--scenario", str(tv_scenario), "--T", T, "--seed", "3", "--quiet",
+                 "--out", str(out), "--fmus", fmus, "--estimator", "kalman-tv",
+                 *DEPLOYMENTS[dep], *LINKS[links]])
+    io = capsys.readouterr()
+    want = ([REFUSED[("stacked", "links")]] if (dep, links) == ("stacked", "links") else
+            [TV_REFUSED["distributed"]] if dep == "distributed" else
+            [TV_REFUSED["links"]] if links == "links" else None)
+    if want is not None:
+        assert code == 2
+        lines = io.err.strip().splitlines()
+        assert len(lines) == 1 and any(w in lines[0] for w in want), io.err
+        assert not out.exists() or not any(out.iterdir())
+        return
+    assert code == 0, io.err
+    summary = json.loads((out / "summary.json").read_text())
+    (m,) = summary["methods"].values()
+    assert math.isfinite(m["cost_rate"]["mean"]) and math.isfinite(m["cost_rate"]["predicted"])
+    kinds = {k: e["kind"] for k, e in summary["fmus"].items()}
+    assert set(kinds.values()) == {fmus}, kinds
+    scalars = read_rrd_scalars(out / f"{summary['scenario']}.rrd")
+    runs[("tv", dep, links, fmus)] = (scalars, m)
+    if fmus == "native" and ("tv", dep, links, "python") in runs:
+        ref, mref = runs[("tv", dep, links, "python")]
+        assert set(ref) == set(scalars)
+        for entity, (_, _, values) in ref.items():
+            got = scalars[entity][2]
+            scale = max(float(np.nanmax(np.abs(values))), 1e-300)
+            assert np.nanmax(np.abs(got - values)) <= 1e-12 * scale, entity
+        assert m["cost_rate"]["mean"] == pytest.approx(mref["cost_rate"]["mean"], rel=1e-12)

@@ -44,7 +44,7 @@ def test_the_estimate_counts_only_the_phases_that_run():
     full = design_estimate(917)
     bare = design_estimate(917, kalman=False, predict=False)
     assert full.seconds > MAX_DESIGN_S > bare.seconds > ANNOUNCE_S
-    assert full.phases == ("design", "kalman", "predictions") and bare.phases == ("design",)
+    assert full.phases == ("design", "filter", "predictions") and bare.phases == ("design",)
     assert design_estimate(300 * 9 + 6).seconds > 10 * 3600       # the 300-vehicle case
     assert design_estimate(6).seconds < 1e-3                       # the paper's system
 

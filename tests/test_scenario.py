@@ -232,7 +232,7 @@ def test_bad_seed(write, seed):
 def test_unknown_estimator(write, est):
     msg = load_error(write(lambda d: d["simulation"].update(estimator=est)))
     assert f"[simulation] estimator {est!r} is unknown" in msg, msg
-    assert "kalman, classical, ideal" in msg
+    assert ", ".join(ESTIMATOR_MODES) in msg
 
 
 # one change each: the model (errors from LinearSystem, with their section) -----------------

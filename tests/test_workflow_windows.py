@@ -72,7 +72,7 @@ def test_compare_with_only_impossible_modes_is_one_line(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("methods, fragment", [
-    ("kalman,bogus", "bogus is not one of the estimators (kalman, classical, ideal)"),
+    ("kalman,bogus", "bogus is not one of the estimators (kalman, kalman-tv, classical, ideal)"),
     ("kalman,kalman", "give each method once"),
 ])
 def test_bad_methods(tmp_path, capsys, methods, fragment):

@@ -26,6 +26,7 @@
 #define NATIVE_MODEL_TABLES
 #include "fmu_core.h"
 #include "named_reals.h"
+#include "kalman_core.h"
 
 #if !defined(NS) || !defined(VR_Ad) || !defined(VR_nav) || !defined(VR_xhat)
 #error "native_model.h is not the multi-rate filter's"
@@ -95,27 +96,15 @@ static int filter(const Data *d, double est[NS], double Pp[NS * NS]) {
             S[a][b] = P[measured(J[a]) * NS + measured(J[b])] + (a == b ? R_(VR_Rd + J[a]) : 0.0);
         for (int c = 0; c < NS; c++) X[a][c] = P[measured(J[a]) * NS + c];   /* H P */
     }
-    for (int c = 0; c < nj; c++) {                  /* S X = H P: elimination, pivoting */
-        int piv = c;
-        for (int a = c + 1; a < nj; a++)
-            if (fabs(S[a][c]) > fabs(S[piv][c])) piv = a;
-        if (S[piv][c] == 0.0) return -1;
-        if (piv != c) {
-            for (int b = 0; b < nj; b++) { double t = S[c][b]; S[c][b] = S[piv][b]; S[piv][b] = t; }
-            for (int b = 0; b < NS; b++) { double t = X[c][b]; X[c][b] = X[piv][b]; X[piv][b] = t; }
+    {                                               /* S X = H P (kalman_core.h) */
+        double Sf[NAVROWS * NAVROWS], Xf[NAVROWS * NS];
+        for (int a = 0; a < nj; a++) {
+            for (int b = 0; b < nj; b++) Sf[a * nj + b] = S[a][b];
+            for (int c = 0; c < NS; c++) Xf[a * NS + c] = X[a][c];
         }
-        for (int a = c + 1; a < nj; a++) {
-            double f = S[a][c] / S[c][c];
-            for (int b = c; b < nj; b++) S[a][b] -= f * S[c][b];
-            for (int b = 0; b < NS; b++) X[a][b] -= f * X[c][b];
-        }
-    }
-    for (int c = nj - 1; c >= 0; c--) {
-        for (int b = 0; b < NS; b++) {
-            double v = X[c][b];
-            for (int a = c + 1; a < nj; a++) v -= S[c][a] * X[a][b];
-            X[c][b] = v / S[c][c];
-        }
+        if (kalman_solve(nj, NS, Sf, Xf) != 0) return -1;
+        for (int a = 0; a < nj; a++)
+            for (int c = 0; c < NS; c++) X[a][c] = Xf[a * NS + c];
     }
     for (int a = 0; a < NS; a++)
         for (int b = 0; b < nj; b++) K[a][b] = X[b][a];
@@ -164,45 +153,16 @@ void model_outputs(Data *d) {
    from the cached estimate and P+ */
 int model_step(Instance *in, double t, double step) {
     Data *d = &in->d;
-    const double *est = d->m.est, *Pp = d->m.Pp;
-    double q[NS], T[NS * NS], P[NS * NS];
     const double *Ad = d->r + VR_Ad, *Bd = d->r + VR_Bd, *Qd = d->r + VR_Qd, *u = d->r + VR_u;
     if (!d->m.ok) {
         fmu_log(in, fmi2Error, "%s: the innovation covariance is singular at t = %g s",
                 in->name, t);
         return -1;
     }
-    int ok = 1;
-    for (int a = 0; a < NS; a++) {
-        double acc = 0.0, bu = 0.0;
-        for (int b = 0; b < NS; b++) acc += Ad[a * NS + b] * est[b];
-        for (int b = 0; b < NU_; b++) bu += Bd[a * NU_ + b] * u[b];
-        q[a] = acc + bu;
-        for (int b = 0; b < NS; b++) {
-            double v = 0.0;
-            for (int c = 0; c < NS; c++) v += Ad[a * NS + c] * Pp[c * NS + b];
-            T[a * NS + b] = v;
-        }
-    }
-    for (int a = 0; a < NS; a++)
-        for (int b = 0; b < NS; b++) {
-            double v = 0.0;
-            for (int c = 0; c < NS; c++) v += T[a * NS + c] * Ad[b * NS + c];
-            P[a * NS + b] = v + Qd[a * NS + b];
-        }
-    for (int a = 0; a < NS; a++)
-        for (int b = 0; b < NS; b++) {
-            double v = 0.5 * (P[a * NS + b] + P[b * NS + a]);
-            ok = ok && isfinite(v);
-            T[a * NS + b] = v;
-        }
-    for (int a = 0; a < NS; a++) ok = ok && isfinite(q[a]);
-    if (!ok) {
+    if (kalman_predict(NS, NU_, Ad, Bd, Qd, d->m.est, d->m.Pp, u, d->m.q, d->m.P) != 0) {
         fmu_log(in, fmi2Error, "%s: the filter's state would become non-finite in the step "
                 "from t = %g s to %g s", in->name, t, t + step);
         return -1;
     }
-    memcpy(d->m.q, q, sizeof q);
-    memcpy(d->m.P, T, sizeof(double) * NS * NS);
     return 0;
 }

@@ -56,15 +56,24 @@ from controller_fmu.distributed import (
     design_vehicle_law,
 )
 from estimator_fmu.estimators import steady_kalman
+from estimator_fmu.registry import ESTIMATORS as _ROWS
+from estimator_fmu.registry import TRUTH, estimator_kind
 from plant_model.discretization import van_loan, zoh
 from plant_model.fleet import disturbance_of, fleet_graph, fleet_vehicles
 from plant_model.graph import CommunicationGraph
 from plant_model.linalg_checks import ModelError, as_matrix, as_vector
 
 __all__ = ["Agent", "DistributedLoop", "SampledAgent", "agents_from_fleet_spec",
-           "design_laws", "distributed_closed_loop", "sample_agent"]
+           "design_laws", "distributed_closed_loop", "filtered", "sample_agent"]
 
-ESTIMATORS = ("ideal", "kalman")
+#: the estimators the distributed law accepts (their registry rows' ``distributed``)
+ESTIMATORS = tuple(k.name for k in _ROWS.values() if k.distributed is not None)
+
+
+def filtered(estimator: str) -> bool:
+    """Whether each vehicle runs its own steady Kalman filter (q in the loop) under the
+    distributed law, rather than the truth."""
+    return estimator_kind(estimator).distributed == "steady"
 
 
 def _fmt(z: complex) -> str:
@@ -182,7 +191,7 @@ class SampledAgent:
 
 
 def sample_agent(agent: Agent, h: float, *, convention: str = "intensity",
-                 estimator: str = "ideal", where: str = "vehicle") -> SampledAgent:
+                 estimator: str = TRUTH, where: str = "vehicle") -> SampledAgent:
     """Exact ZOH of [x; w] (zoh), Van Loan's Qd, Rd = V_y / h; the vehicle's own Kalman gain.
 
     Parameters
@@ -216,10 +225,10 @@ def sample_agent(agent: Agent, h: float, *, convention: str = "intensity",
     else:
         raise ModelError(f"unknown noise convention {convention!r}")
     M = np.hstack([agent.C, np.zeros((agent.C.shape[0], r))])
-    if estimator not in ESTIMATORS:
-        raise ModelError(f"unknown estimator {estimator!r} for the distributed loop; "
+    if estimator_kind(estimator).distributed is None:
+        raise ModelError(f"estimator {estimator!r} is not accepted by the distributed loop; "
                          f"expected one of {', '.join(ESTIMATORS)}")
-    L = steady_kalman(f"{where} [x; w]", Ad, M, Qd, Rd).L if estimator == "kalman" else None
+    L = steady_kalman(f"{where} [x; w]", Ad, M, Qd, Rd).L if filtered(estimator) else None
     return SampledAgent(Ad=Ad, Bd=Bd, Qd=Qd, Rd=Rd, M=M, L=L)
 
 
@@ -426,7 +435,7 @@ def _assemble(sampled: Sequence[SampledAgent], laws: Sequence[VehicleLaw], LG: n
 
 def distributed_closed_loop(agents: Sequence[Agent], laws: Sequence[VehicleLaw],
                             graph: CommunicationGraph, observer: SampledObserver, H: Any, *,
-                            cohesion: float = 0.0, estimator: str = "ideal",
+                            cohesion: float = 0.0, estimator: str = TRUTH,
                             convention: str = "intensity") -> DistributedLoop:
     """The stacked sampled closed loop of all vehicles (module docstring).
 
@@ -464,7 +473,7 @@ def distributed_closed_loop(agents: Sequence[Agent], laws: Sequence[VehicleLaw],
     g = np.diag(graph.pinning_matrix()).copy()
     H = np.asarray(H, dtype=float)
     parts = _assemble(sampled, laws, LG, g, observer, H, [a.offset for a in agents],
-                      float(cohesion), estimator == "kalman")
+                      float(cohesion), filtered(estimator))
     return DistributedLoop(**parts, Qc=block_diag(*[a.Q for a in agents]),
                            Rc=block_diag(*[a.R for a in agents]), h=h, sampled=sampled,
                            laws=tuple(laws), observer=observer, LG=LG,

@@ -22,7 +22,7 @@ from controller_fmu.distributed import consensus_eigenvalues, min_observer_gain
 from plant_model.linalg_checks import ModelError
 
 from .block_stein import stein, triangular_order
-from .distributed import DistributedLoop, _assemble, _fmt
+from .distributed import DistributedLoop, _assemble, _fmt, filtered
 from .prediction import window_average_covariance
 
 #: samples of the mean motion per block in :func:`predict_cost` (a block of a 3417-state
@@ -91,7 +91,7 @@ def _verdict(loop: DistributedLoop) -> StabilityVerdict:
                 continue
             part = _assemble([sa], [law], np.array([[lam]], dtype=complex), np.zeros(1),
                              loop.observer, np.zeros((sa.M.shape[0], loop.observer.Phi.shape[0])),
-                             [np.zeros(sa.M.shape[0])], loop.cohesion, loop.estimator == "kalman")
+                             [np.zeros(sa.M.shape[0])], loop.cohesion, filtered(loop.estimator))
             Rb = ~part["deterministic"]
             radius[complex(lam)] = float(np.max(np.abs(
                 np.linalg.eigvals(part["Phi"][np.ix_(Rb, Rb)]))))

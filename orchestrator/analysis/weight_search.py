@@ -31,6 +31,7 @@ from controller_fmu.weight_design import (
     closed_loop_bandwidth,
     noise_force_covariance,
 )
+from estimator_fmu.registry import STEADY_FILTER, TRUTH, estimator_kind
 from plant_model.fleet import fleet_vehicles
 from plant_model.linalg_checks import ModelError
 from plant_model.path_feasibility import (
@@ -349,7 +350,7 @@ def design_fleet(spec: Mapping[str, Any], options: Mapping[str, Any], *, h: floa
     if options.get("bandwidth") is None and options.get("force_budget") is None:
         return DesignResult(**base)
     agents, _, leader = agents_from_fleet_spec(spec)
-    mode = "ideal" if estimator == "ideal" else "kalman"
+    mode = TRUTH if estimator_kind(estimator).uses_truth else STEADY_FILTER
     groups: dict[bytes, list[int]] = {}
     for i, a in enumerate(agents):
         groups.setdefault(_key(a) + (umax[i].tobytes() if umax else b""), []).append(i)

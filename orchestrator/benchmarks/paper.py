@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from estimator_fmu.registry import DEFAULT_ESTIMATOR
 from fmu_common.interface import element_names
 
 from ..analysis.reference import run_monolithic
@@ -63,7 +64,7 @@ def _fmi_call_costs(fmus: dict[str, Path], cfg: dict[str, Any],
     return out
 
 
-def benchmark(sc: Scenario, mode: str = "kalman", seed: int = 0) -> dict[str, Any]:
+def benchmark(sc: Scenario, mode: str = DEFAULT_ESTIMATOR, seed: int = 0) -> dict[str, Any]:
     """Time one run both ways; returns the figures (also printed by the CLI)."""
     from ..recording import write_rrd
     sc = sc.with_run(estimator=mode)
@@ -130,7 +131,8 @@ def _instantiate_times(fmus: dict[str, Path], cfg: dict[str, Any]) -> dict[str, 
     return out
 
 
-def benchmark_fleet(N: int, *, T: float = 300.0, mode: str = "kalman", tracking: str = "regulator",
+def benchmark_fleet(N: int, *, T: float = 300.0, mode: str = DEFAULT_ESTIMATOR,
+                    tracking: str = "regulator",
                     seed: int = 0) -> dict[str, Any]:
     """Figures for a generated grid fleet of N REMUS 100 vehicles (orchestrator.scenario.generator):
     design and filter-gain time, FMU build time and modelDescription size, instantiate +

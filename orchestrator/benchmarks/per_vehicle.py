@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from estimator_fmu.registry import DEFAULT_ESTIMATOR
+
 __all__ = ["benchmark_per_vehicle"]
 
 
@@ -31,7 +33,7 @@ def _md_bytes(fmu: Path) -> int:
 
 
 def benchmark_per_vehicle(N: int, *, architecture: str = "distributed", T: float = 20.0,
-                          mode: str = "kalman", tracking: str = "regulator",
+                          mode: str = DEFAULT_ESTIMATOR, tracking: str = "regulator",
                           seed: int = 0, predict: bool = True) -> dict[str, Any]:
     """Figures of one fleet size (module docstring).
 

@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from estimator_fmu.registry import DEFAULT_ESTIMATOR
+
 __all__ = ["benchmark_predictions"]
 
 
@@ -32,7 +34,7 @@ def _timed(f: Any) -> tuple[Any, float]:
 
 def benchmark_predictions(sc: Any, architectures: Sequence[str] = ("centralized",
                                                                    "distributed"),
-                          mode: str = "kalman", tracking: str = "regulator"
+                          mode: str = DEFAULT_ESTIMATOR, tracking: str = "regulator"
                           ) -> dict[str, Any]:
     """Figures per architecture (module docstring).
 

@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from estimator_fmu.registry import DEFAULT_ESTIMATOR
+
 __all__ = ["benchmark_remus"]
 
 
@@ -107,7 +109,7 @@ def benchmark_remus(steps: int = 20_000) -> dict[str, Any]:
             sc = load_scenario("formation-4").with_run(
                 T=10.0, deployment="per-vehicle", architecture="distributed"
             ).with_vehicle_model(model)
-            cfgs = per_vehicle_configs(sc, "distributed", mode="kalman", seed=0,
+            cfgs = per_vehicle_configs(sc, "distributed", mode=DEFAULT_ESTIMATOR, seed=0,
                                        tracking=sc.tracking)
             fmus = build_fmus(None, Path(tmp) / model, kinds=build_configs(cfgs))
             system = per_vehicle_system(sc, cfgs, "distributed")

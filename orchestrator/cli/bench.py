@@ -6,7 +6,7 @@ import argparse
 import json
 
 from controller_fmu.regulator import TRACKING_MODES
-from estimator_fmu.estimators import ESTIMATOR_MODES
+from estimator_fmu.registry import DEFAULT_ESTIMATOR, ESTIMATOR_MODES
 
 from .args import _fleet_sizes
 from .common import add_fmu_options, add_scenario_options, scenario_of
@@ -25,7 +25,7 @@ def cmd_bench_per_vehicle(args: argparse.Namespace) -> int:
           f"{'max diff':>9s} {'pred s':>7s}")
     for N in args.fleet:
         r = benchmark_per_vehicle(N, architecture=arch, T=args.T or 20.0,
-                                  mode=args.estimator or "kalman",
+                                  mode=args.estimator or DEFAULT_ESTIMATOR,
                                   tracking=args.tracking or "regulator", seed=args.seed or 0)
         rows.append(r)
         md = max(r["model_description_bytes"].values()) / 1e3
@@ -53,7 +53,7 @@ def cmd_bench_fleet(args: argparse.Namespace) -> int:
           f"{'mD kB (p/e/c)':>18s} {'init s (p/e/c)':>18s} {'cosim us':>9s} {'mono us':>8s} "
           f"{'ratio':>6s} {'FMI us':>7s} {'max diff':>9s}")
     for N in args.fleet:
-        r = benchmark_fleet(N, T=args.T or 300.0, mode=args.estimator or "kalman",
+        r = benchmark_fleet(N, T=args.T or 300.0, mode=args.estimator or DEFAULT_ESTIMATOR,
                             tracking=args.tracking or "regulator", seed=args.seed or 0)
         rows.append(r)
         keys = ("plant", "estimator", "controller")
@@ -203,7 +203,7 @@ def cmd_bench_predictions(args: argparse.Namespace) -> int:
                          "a per-vehicle fleet with links, e.g. --scenario formation-4 "
                          "--deployment per-vehicle --latency 1 --period 2 --loss 0.2")
     archs = [args.architecture] if args.architecture else ["centralized", "distributed"]
-    r = benchmark_predictions(sc, archs, mode=args.estimator or "kalman",
+    r = benchmark_predictions(sc, archs, mode=args.estimator or DEFAULT_ESTIMATOR,
                               tracking=args.tracking or "regulator")
     if args.json:
         print(json.dumps(r, indent=2))
@@ -300,7 +300,8 @@ def add_bench(sub: argparse._SubParsersAction) -> None:
     """The ``bench`` command's sub-parser."""
     sp = sub.add_parser("bench", help="time the co-simulation against the monolithic loop")
     add_scenario_options(sp)
-    sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="estimator mode (default: kalman)")
+    sp.add_argument("--estimator", choices=ESTIMATOR_MODES,
+                    help=f"estimator mode (default: {DEFAULT_ESTIMATOR})")
     sp.add_argument("--seed", type=int, help="noise seed")
     sp.add_argument("--tracking", choices=TRACKING_MODES, help="tracking law")
     sp.add_argument("--fleet", type=_fleet_sizes,

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from controller_fmu.regulator import TRACKING_MODES
-from estimator_fmu.estimators import ESTIMATOR_MODES
+from estimator_fmu.registry import ESTIMATOR_MODES
 
 from ..outputs import file_stem, staged_output
 from .common import add_force_option, add_scenario_options, scenario_of

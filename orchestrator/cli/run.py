@@ -10,7 +10,7 @@ from typing import Any
 
 from controller_fmu.regulator import TRACKING_MODES
 from controller_fmu.vehicle_law import ARCHITECTURES
-from estimator_fmu.estimators import ESTIMATOR_MODES
+from estimator_fmu.registry import COMPARED_BY_DEFAULT, DEFAULT_ESTIMATOR, ESTIMATOR_MODES
 
 from ..outputs import staged_output
 from ..scenario import Scenario
@@ -66,7 +66,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
                          "[simulation] deployment = \"per-vehicle\")")
     choices = {"estimators": ESTIMATOR_MODES, "tracking": TRACKING_MODES,
                "architectures": ARCHITECTURES}[what]
-    picked = list(choices)
+    picked = list(COMPARED_BY_DEFAULT if what == "estimators" else choices)
     if args.methods:
         picked = [m.strip() for m in args.methods.split(",") if m.strip()]
         unknown = [m for m in picked if m not in choices]
@@ -185,7 +185,8 @@ def add_run(sub: argparse._SubParsersAction) -> None:
     """The ``run`` command's sub-parser."""
     sp = sub.add_parser("run", help="co-simulate one estimator mode, write .rrd and summary.json")
     add_scenario_options(sp)
-    sp.add_argument("--estimator", choices=ESTIMATOR_MODES, help="estimator mode (default: kalman)")
+    sp.add_argument("--estimator", choices=ESTIMATOR_MODES,
+                    help=f"estimator mode (default: {DEFAULT_ESTIMATOR})")
     sp.add_argument("--seed", type=int, help="noise seed (default: scenario's)")
     _add_run_outputs(sp, "out/<scenario>[_<system>]_<estimator>_seed<seed>; <system> names a "
                          "per-vehicle deployment and architecture, links, nonlinear vehicles, "

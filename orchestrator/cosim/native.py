@@ -308,10 +308,10 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
             forms.update({c.name: form_of(c.fmu, Path(fmus[c.fmu]), c.parameters)
                           for c in mine})
         except NotImplementedError:         # not linear in this system (navigation sensors)
-            if kind == "vehicle_estimator":  # the multi-rate filter: a C model of its own
-                from .native_multirate import multirate_components
-                built[kind], more = multirate_components(mine, fmus[kind], out_dir, system.T,
-                                                         platforms)
+            if kind in ("estimator", "vehicle_estimator"):  # a Kalman filter in C of its own
+                from .native_multirate import filter_components
+                built[kind], more = filter_components(kind, mine, fmus[kind], out_dir,
+                                                      system.T, platforms)
                 filters.update(more)
             continue                        # else its pythonfmu FMU stays
     # a static law works at any step; its h is the system's, for the default experiment

@@ -34,7 +34,9 @@ __all__ = ["MULTIRATE_C", "multirate_specs", "native_multirate_fmu", "template_f
 
 MULTIRATE_C = (NATIVE_DIR / "fmu_core.c", NATIVE_DIR / "multirate_fmu.c")
 MULTIRATE_H = (NATIVE_DIR / "fmu_core.h", NATIVE_DIR / "multirate_model.h",
-               NATIVE_DIR / "named_reals.h")
+               NATIVE_DIR / "named_reals.h", NATIVE_DIR / "kalman_core.h")
+#: the time-varying Kalman filter from P0 (kalman-tv): the same state and Kalman core
+TVKF_C = (NATIVE_DIR / "fmu_core.c", NATIVE_DIR / "tvkf_fmu.c")
 KIND = "vehicle_estimator"
 
 
@@ -97,7 +99,8 @@ def native_parameters(kf: tuple, base: tuple) -> dict[str, float]:
     return out
 
 
-def _header(specs: list[ArraySpec], kf: tuple, guid: str) -> str:
+def _header(specs: list[ArraySpec], kf: tuple, guid: str, extra: tuple[str, ...] = ()
+            ) -> str:
     names, starts, causes = [], [], []
     for s in specs:
         st = np.ravel(s.start) if s.start is not None else np.zeros(s.size)
@@ -116,7 +119,7 @@ def _header(specs: list[ArraySpec], kf: tuple, guid: str) -> str:
         f"#define NPARR {causes.count('parameter')}", f"#define NIN {causes.count('input')}",
         f"#define NOUT {causes.count('output')}", f"#define NREAL {len(names)}",
         "#define NINT 0", f"#define STEP_VR {first['h']}", "#define START_AT_ZERO 1",
-        f"#define NS {ns}", f"#define NX {kf[8]}", f"#define NU_ {m}",
+        f"#define NS {ns}", f"#define NX {kf[8]}", f"#define NU_ {m}", *extra,
         *(f"#define VR_{n} {vr}" for n, vr in first.items()),
         '#include "multirate_model.h"',
         "#ifdef NATIVE_MODEL_TABLES",
@@ -172,6 +175,26 @@ def native_multirate_fmu(fmu: Path | str, parameters: Mapping[str, Any], out_dir
                        lambda g: _model_description(specs, model, g, T, kf[7]), out_dir,
                        platforms)
     return path, specs, kf
+
+
+def filter_components(kind: str, components: list[Any], fmu: Path | str, out_dir: Path | str,
+                      T: float, platforms: Sequence[str] | None = None
+                      ) -> tuple[Path, dict[str, tuple[tuple[ArraySpec, ...], dict[str, float]]]]:
+    """The native FMU of estimator components whose filter has no linear form: the
+    multi-rate navigation filter, or the time-varying Kalman filter from P0 (by the filter
+    the first component's slave makes); the arguments and result as
+    :func:`multirate_components`."""
+    from estimator_fmu.kalman_tv import TimeVaryingKalman
+
+    from .native_template import component_slave
+    with component_slave(kind, Path(fmu), components[0].parameters) as slave:
+        tv = isinstance(slave.estimator, TimeVaryingKalman)
+    if tv:
+        from .native_tvkf import tv_components
+        return tv_components(kind, components, fmu, out_dir, T, platforms)
+    if kind != KIND:
+        raise ModelError(f"the {kind} FMU's estimator has no native form")
+    return multirate_components(components, fmu, out_dir, T, platforms)
 
 
 def multirate_components(components: list[Any], fmu: Path | str, out_dir: Path | str,

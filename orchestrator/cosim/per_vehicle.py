@@ -42,6 +42,7 @@ from controller_fmu.vehicle_law import (
     centralized_rows,
     observer_start,
 )
+from estimator_fmu.registry import TRUTH
 from plant_model.acoustic.links import link_sender
 from plant_model.fleet import fleet_graph, fleet_vehicles
 from plant_model.per_vehicle import leader_system, vehicle_views
@@ -175,6 +176,8 @@ def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tra
         cfg = dict(base, system=_mapping(view, leader))
         if sc.sensors is not None:              # acoustic fixes, DVL, depth at their rates
             cfg["sensors"] = dict(sc.sensors)
+        if getattr(sc, "estimator_P0", None) is not None:    # [estimator] P0, one vehicle's
+            cfg["P0"] = np.asarray(sc.estimator_P0, dtype=float).tolist()
         entry = get(models[i].name)
         one = {"vehicle": dict(cfg, vehicle=i + 1), "vehicle_estimator": cfg}
         if entry.nonlinear:                  # a nonlinear REMUS 100 vehicle FMU
@@ -261,7 +264,7 @@ def per_vehicle_system(sc: Any, configs: list[dict[str, dict[str, Any]]],
                   _component(c, ctrl_key, configs[i][ctrl_key])]
         measured = "nav" if "sensors" in configs[i][vk] else "y"
         conns += [Connection(v, measured, e, measured),
-                  *(Connection(v, s, e, s, (e, "mode", "ideal")) for s in ("x", "w")),
+                  *(Connection(v, s, e, s, (e, "mode", TRUTH)) for s in ("x", "w")),
                   Connection(c, "u", e, "u")]
         stack = stack_kinds(configs[i])
         if stack:                           # force -> guidance -> autopilot -> actuators

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from estimator_fmu.registry import TRUTH
 from fmu_common.interface import ArraySpec, element_names
 
 from .build import FMU_KINDS, interface_of
@@ -383,7 +384,7 @@ def component_parameters(specs: list[ArraySpec] | tuple[ArraySpec, ...]) -> dict
 _LOOP = (
     ("plant", "y", "estimator", "y", None),
     ("plant", "ybar", "estimator", "ybar", None),
-    *(("plant", s, "estimator", s, ("estimator", "mode", "ideal")) for s in ("x", "w", "z")),
+    *(("plant", s, "estimator", s, ("estimator", "mode", TRUTH)) for s in ("x", "w", "z")),
     *(("estimator", s, "controller", s, None) for s in ("xhat", "what", "zhat")),
     ("controller", "u", "plant", "u", None),
     ("controller", "u", "estimator", "u", None),

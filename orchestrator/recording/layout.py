@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from estimator_fmu.registry import ESTIMATORS
+
 __all__ = ["FLEET_TRACE_KEYS", "TRACE_KEYS", "TRUE_COLOR", "VIEW_GROUPS", "FleetLayout",
            "axis_colors", "color_name", "method_color"]
 
@@ -45,11 +47,8 @@ VIEW_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("reference", ("z", "zhat")),
 )
 
-_FIXED_COLORS: dict[str, tuple[int, int, int]] = {
-    "kalman": (31, 119, 180),    # blue
-    "classical": (255, 127, 14),  # orange
-    "ideal": (44, 160, 44),       # green
-}
+#: each estimator's colour (its registry row)
+_FIXED_COLORS: dict[str, tuple[int, int, int]] = {k: e.color for k, e in ESTIMATORS.items()}
 _PALETTE: tuple[tuple[int, int, int], ...] = (
     (214, 39, 40),    # red
     (148, 103, 189),  # purple

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 
+from estimator_fmu.registry import ESTIMATORS
 from plant_model.remus100.rigid_body import quaternion_xyzw
 
 from .actuators import DEFAULT_DELTA_MAX, DEFAULT_N_MAX, send_actuators, send_limits
@@ -40,7 +41,7 @@ __all__ = ["write_rrd"]
 _AGGREGATION = "MinMax"
 #: the ideal method's line in the paper layout: wider and translucent, so that the Kalman
 #: line (nearly the same curve) shows on top of it and it shows round the Kalman line
-_WIDE_METHODS = {"ideal": (3.0, 150)}
+_WIDE_METHODS = {k: e.wide for k, e in ESTIMATORS.items() if e.wide is not None}
 _LINE_WIDTH = 1.0
 
 

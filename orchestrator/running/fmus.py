@@ -136,6 +136,8 @@ def scenario_config(sc: Scenario) -> dict[str, Any]:
     """
     cfg = fmu_config(sc.system.to_mapping(), sc.system.dims, sc.h, sc.T, sc.seed, sc.estimator,
                      sc.tracking, sc.fleet)
+    if sc.estimator_P0 is not None:     # [estimator] P0 (one vehicle's in a fleet)
+        cfg["P0"] = np.asarray(sc.estimator_P0, dtype=float).tolist()
     if sc.design is not None and sc.design.clip:
         cfg["u_max"] = [float(x) for row in sc.design.u_max for x in row]
     return cfg

@@ -28,13 +28,14 @@ __all__ = ["ANNOUNCE_S", "DESIGN_COST", "DesignEstimate", "MAX_DESIGN_S", "MEMOR
 #: times; 320 s in all at n = 726). "design": sampling the model, the Riccati equation (13),
 #: the Sylvester equations (14)-(15) and the regulator equations, with their PBH
 #: stabilizability test (one SVD of an n x 2n matrix per marginal mode: the n^4 term);
-#: "kalman": the steady filter's PBH detectability test and discrete Riccati equation;
+#: "filter": a Kalman filter's (steady or time-varying) PBH detectability test and
+#: discrete Riccati equation;
 #: "predictions": the Lyapunov equations of the closed loop (about 3n states) and the
 #: window's covariance.
-DESIGN_COST = {"design": (1.6e-8, 7.5e-11), "kalman": (0.0, 6.9e-10),
+DESIGN_COST = {"design": (1.6e-8, 7.5e-11), "filter": (0.0, 6.9e-10),
                "predictions": (1.5e-7, 3.0e-10)}
 #: the phases of DESIGN_COST as messages name them
-PHASE_NAMES = {"design": "tracking design", "kalman": "Kalman filter",
+PHASE_NAMES = {"design": "tracking design", "filter": "Kalman filter",
                "predictions": "predictions"}
 #: bytes per state^2 the stacked set-up holds at its peak beyond the loaded scenario (the
 #: same calibration's maximum resident set: about 90 dense n x n float64 matrices)
@@ -78,7 +79,7 @@ def design_estimate(states: int, kalman: bool = True, predict: bool = True) -> D
     -------
     DesignEstimate
     """
-    phases = ("design",) + (("kalman",) if kalman else ()) + (("predictions",) if predict
+    phases = ("design",) + (("filter",) if kalman else ()) + (("predictions",) if predict
                                                                 else ())
     n = float(states)
     seconds = sum(DESIGN_COST[p][0] * n ** 3 + DESIGN_COST[p][1] * n ** 4 for p in phases)
@@ -118,8 +119,11 @@ def check_design(sc: Scenario, estimators: Iterable[str], predict: str, *, who: 
     ModelError
         One line with the vehicles, the states, the estimate and the limit.
     """
+    from estimator_fmu.registry import estimator_kind
     from plant_model.linalg_checks import ModelError
-    est = design_estimate(stacked_states(sc), "kalman" in set(estimators), predict != "none")
+    est = design_estimate(stacked_states(sc), any(estimator_kind(e).solves_riccati
+                                                  for e in set(estimators)),
+                          predict != "none")
     short = memory_short(est.bytes, available)
     too_slow = est.seconds > MAX_DESIGN_S
     too_big = short is not None

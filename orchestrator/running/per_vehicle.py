@@ -17,6 +17,7 @@ import numpy as np
 
 from controller_fmu.regulator import tracking_law
 from estimator_fmu.estimators import make_estimator
+from estimator_fmu.registry import NAVIGATION_FILTER, estimator_kind
 from plant_model.discretization import discretize
 from plant_model.linalg_checks import ModelError
 
@@ -24,7 +25,7 @@ from ..analysis.acoustic.blocks import predict_window_blocks
 from ..analysis.acoustic.prediction import prediction_work
 from ..analysis.distributed_verdict import predict_cost
 from ..analysis.per_vehicle import distributed_initial_state, distributed_loop_of
-from ..analysis.prediction import Prediction, method_predictions
+from ..analysis.prediction import Prediction
 from ..analysis.summary import stats_window
 from ..cosim.build import build_fmus
 from ..cosim.per_vehicle import (
@@ -135,7 +136,8 @@ class PerVehicleSetup(RunSetup):
         if method.architecture != "centralized":
             return super().phase(method)
         return stacked_phase(self.sc, design_estimate(
-            stacked_states(self.sc), method.estimator == "kalman", self.predict != "none"))
+            stacked_states(self.sc), estimator_kind(method.estimator).solves_riccati,
+            self.predict != "none"))
 
     def _configs(self, architecture: str, mode: str, tracking: str,
                  seed: int) -> list[dict[str, dict[str, Any]]]:
@@ -239,7 +241,7 @@ class PerVehicleSetup(RunSetup):
         """
         sc = self.sc
         architecture, mode, tracking = method.architecture, method.estimator, method.tracking
-        if sc.sensors is not None and mode == "kalman":
+        if sc.sensors is not None and estimator_kind(mode).navigation == "filter":
             return Predictions.of(self._multirate(architecture, tracking, k0))
         if sc.network is not None:
             setup = self.network(architecture, mode, tracking)
@@ -275,7 +277,7 @@ class PerVehicleSetup(RunSetup):
         reason = ("no prediction for the multi-rate Kalman filter of [sensors] with the "
                   "centralized architecture")
         if architecture == "distributed":
-            loop = distributed_loop_of(sc, "kalman", tracking, sc.distributed)
+            loop = distributed_loop_of(sc, NAVIGATION_FILTER, tracking, sc.distributed)
             try:
                 stat = predict_multirate_cost(sc, loop, sensors)
                 if k0 is None:
@@ -286,7 +288,7 @@ class PerVehicleSetup(RunSetup):
             except ModelError as exc:
                 reason = f"no prediction for the multi-rate Kalman filter: {exc}"
         # the steady filter's window and margin
-        pred0, _, _, k0 = self._perfect(architecture, "kalman", tracking, k0)
+        pred0, _, _, k0 = self._perfect(architecture, NAVIGATION_FILTER, tracking, k0)
         pred = Prediction(rms_e=None, rms_u=None, cost_rate=None,
                           spectral_radius=pred0.spectral_radius,
                           settling_time=pred0.settling_time,
@@ -299,12 +301,14 @@ class PerVehicleSetup(RunSetup):
         sc = self.sc
         if architecture == "centralized":            # the stacked loop's predictions
             self._check_centralized()
-            cost = design_estimate(stacked_states(sc), mode == "kalman", True)
+            kind = estimator_kind(mode)
+            cost = design_estimate(stacked_states(sc), kind.solves_riccati, True)
             self.announce(f"solving {stacked_phase(sc, cost)} and predicting the "
                           f"centralized loop: {cost.text()} ...", cost.seconds)
             model = discretize(sc.system, sc.h)
-            return method_predictions(sc, model, make_estimator(sc.system, model, mode),
-                                      tracking_law(sc.system, tracking).Ks, k0)
+            return kind.predict(sc, model, make_estimator(sc.system, model, mode,
+                                                          sc.estimator_options),
+                                tracking_law(sc.system, tracking).Ks, k0)
         loop = distributed_loop_of(sc, mode, tracking, sc.distributed)
         pred0 = predict_cost(loop)
         if k0 is None:

@@ -7,6 +7,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from estimator_fmu.registry import estimator_kind
+
 from ..cosim.system import SystemDescription
 from ..scenario import Scenario
 from .memory import DesignEstimate, check_design, design_estimate, stacked_states
@@ -100,7 +102,8 @@ class StackedSetup(RunSetup):
         return self._model
 
     def _estimate(self, method: Method, predict: bool) -> DesignEstimate:
-        return design_estimate(stacked_states(self.sc), method.estimator == "kalman", predict)
+        return design_estimate(stacked_states(self.sc),
+                               estimator_kind(method.estimator).solves_riccati, predict)
 
     def phase(self, method: Method) -> str:
         """``the stacked design (80 vehicles, 726 states)``."""
@@ -115,23 +118,28 @@ class StackedSetup(RunSetup):
             est = self._estimate(method, False)
             self.announce(f"solving {self.phase(method)}: {est.text()} ...", est.seconds)
         self._law = tracking_law(self.sc.system, method.tracking)
-        make_estimator(self.sc.system, self.model(), method.estimator)
+        make_estimator(self.sc.system, self.model(), method.estimator, self.sc.estimator_options)
 
     def _predict(self, method: Method, k0: int | None = None) -> Predictions:
         from controller_fmu.regulator import tracking_law
         from estimator_fmu.estimators import make_estimator
 
-        from ..analysis.prediction import method_predictions
         sc = self.sc
         cost = self._estimate(method, True)
         self.announce(f"solving {self.phase(method)} and predicting {method.name}: "
                       f"{cost.text()} ...", cost.seconds)
-        est = make_estimator(sc.system, self.model(), method.estimator)
+        kind = estimator_kind(method.estimator)
+        est = make_estimator(sc.system, self.model(), method.estimator, sc.estimator_options)
         self._law = law = tracking_law(sc.system, method.tracking)
         Ks = law.Ks
-        parts = Predictions.of(method_predictions(sc, self.model(), est, Ks, k0))
+        parts = Predictions.of(kind.predict(sc, self.model(), est, Ks, k0))
         if self.coupling != "jacobi":
             return parts
+        if kind.time_varying:
+            pred = dataclasses.replace(parts.stationary, rms_e=None, rms_u=None, cost_rate=None,
+                                       reason="no prediction of the Jacobi coupling for the "
+                                       "time-varying Kalman filter")
+            return Predictions(pred, pred, None, parts.k0)
         from ..analysis.jacobi import predict_stationary_jacobi
         pj = predict_stationary_jacobi(sc.system, self.model(), est, Ks)
         pred = dataclasses.replace(parts.stationary, rms_e=pj["rms_e"], rms_u=pj["rms_u"],

@@ -13,6 +13,8 @@ import json
 import math
 from typing import Any
 
+from estimator_fmu.registry import DEFAULT_ESTIMATOR
+
 __all__ = ["grid_fleet", "on_remus", "survey_grid_fleet", "scenario_toml"]
 
 #: the second-order consensus coupling of formation-4: acceleration from relative
@@ -53,7 +55,8 @@ def grid_fleet(N: int, *, columns: int = 5, spacing: float = 10.0, T: float = 30
     return {
         "name": name or f"grid-{N}",
         "description": f"{N} REMUS 100 AUVs in a {cols}-wide grid behind a leader on a circle",
-        "simulation": {"T": T, "h": h, "seed": 0, "estimator": "kalman", "tracking": "regulator"},
+        "simulation": {"T": T, "h": h, "seed": 0, "estimator": DEFAULT_ESTIMATOR,
+                       "tracking": "regulator"},
         "leader": {"path": "circle", "radius": 150.0, "speed": 1.5, "center": [150.0, 0.0, 20.0],
                    "clockwise": True, "start_angle_deg": 180.0, "noise": 0.0},
         "vehicles": {"count": N, "model": "remus100", "params": {"cruise_speed": 1.5},
@@ -129,7 +132,8 @@ def survey_grid_fleet(N: int = 100, *, columns: int = 10, spacing: float = 10.0,
         "name": name or f"survey-{N}",
         "description": (f"{N} REMUS 100 AUVs in a {cols}-wide grid behind a leader on a "
                         "lawnmower survey; the front row hears the leader"),
-        "simulation": {"T": T, "h": h, "seed": 0, "estimator": "kalman", "tracking": "regulator",
+        "simulation": {"T": T, "h": h, "seed": 0, "estimator": DEFAULT_ESTIMATOR,
+                       "tracking": "regulator",
                        "deployment": "per-vehicle", "architecture": "distributed"},
         "leader": {"path": "lawnmower", **leader, "noise": 0.0},
         "vehicles": {"count": N, "model": "remus100", "params": {"cruise_speed": 1.5},

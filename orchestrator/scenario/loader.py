@@ -74,6 +74,10 @@ class Scenario:
     #: the navigation sensors' [sensors] table (plant_model.navigation; None: a position
     #: fix every step)
     sensors: dict[str, Any] | None = None
+    #: [estimator] P0 as given (the time-varying Kalman filter's start covariance on the
+    #: filter's state: [x; w; z], or one vehicle's [x; w] in a fleet; None: 0, the known
+    #: start), checked against the system when the scenario is built
+    estimator_P0: Any = None
     #: what [design] chose and found (orchestrator.analysis.weight_search.DesignResult;
     #: None without a [design] section)
     design: Any = None
@@ -114,6 +118,12 @@ class Scenario:
                        tracking=self.tracking, deployment=self.deployment,
                        architecture=self.architecture, distributed=self.distributed,
                        network=self.network, fmus=self.fmus)
+
+    @property
+    def estimator_options(self) -> dict[str, Any]:
+        """What the estimator builders take besides the model (estimator_fmu.registry):
+        ``P0`` (None: 0) and ``fleet`` (P0 is one vehicle's)."""
+        return {"P0": self.estimator_P0, "fleet": self.fleet is not None}
 
     @property
     def steps(self) -> int:
@@ -220,12 +230,8 @@ def check_deployment(sc: Scenario, network: bool = True) -> None:
                                 "\"per-vehicle\" (acoustic links join the vehicles' own "
                                 f"FMUs), not {sc.deployment!r}")
         return
-    if network and sc.architecture == "distributed" and sc.estimator == "classical":
-        raise ScenarioError(f"{sc.source}: the distributed per-vehicle loop needs estimator "
-                            "kalman or ideal, not 'classical' (its analysis and predictions "
-                            "cover those two)"
-                            + (" and [sensors] give no position fix every step"
-                               if sc.sensors is not None else ""))
+    if network:
+        check_estimator(sc)
     if sc.fleet is None:
         raise ScenarioError(f"{sc.source}: [simulation] deployment = \"per-vehicle\" needs a "
                             "fleet scenario (a [vehicles] count, a [graph] and a [leader]); "
@@ -236,6 +242,27 @@ def check_deployment(sc: Scenario, network: bool = True) -> None:
                             f"[graph] consensus = \"protocol\" (the protocol as a force each "
                             f"controller applies), not {form!r}: a vehicle's plant holds only "
                             "its own physics")
+
+
+def check_estimator(sc: Scenario) -> None:
+    """The scenario's estimator is accepted where it runs (its registry row): by the
+    distributed law, over acoustic links, with [sensors]; else one line naming both."""
+    from estimator_fmu.registry import ESTIMATORS, estimator_kind
+    kind = estimator_kind(sc.estimator)
+    where = (("the distributed per-vehicle loop", "distributed",
+              "its analysis and predictions cover a vehicle's own steady filter or the truth")
+             if sc.architecture == "distributed" else None,
+             ("[network] (acoustic links)", "over_links",
+              "the links' message-form predictions need a time-invariant estimator")
+             if sc.network is not None else None,
+             ("[sensors] (navigation at their own rates)", "navigation",
+              "it needs a position fix every step")
+             if sc.sensors is not None else None)
+    for what, attr, why in filter(None, where):
+        if not getattr(kind, attr):
+            ok = [k for k, e in ESTIMATORS.items() if getattr(e, attr)]
+            raise ScenarioError(f"{sc.source}: {what} needs estimator {' or '.join(ok)}, not "
+                                f"{sc.estimator!r} ({why})")
 
 
 def builtin_scenarios() -> list[str]:
@@ -267,9 +294,26 @@ def _scenario(file: ScenarioFile, where: str, system: LinearSystem,
         sc = replace(sc, network=dict(file.network))
     if getattr(file, "sensors", None) is not None:
         sc = replace(sc, sensors=dict(file.sensors))
+    if file.estimator is not None and file.estimator.P0 is not None:
+        sc = replace(sc, estimator_P0=_initial_covariance(sc, file.estimator.P0, where))
     _check_step(sc)
     check_deployment(sc, network=False)
     return sc
+
+
+def _initial_covariance(sc: Scenario, value: Any, where: str) -> np.ndarray:
+    """[estimator] P0 as a matrix on the filter's state (one vehicle's in a fleet), refused
+    in one line naming the matrix and its shape or least eigenvalue."""
+    from estimator_fmu.kalman_tv import check_initial_covariance, stacked_initial_covariance
+    try:
+        if sc.fleet is None:
+            return check_initial_covariance(value, sc.system.n + sc.system.r + sc.system.l)
+        N = len(sc.fleet["vehicles"])
+        P0 = check_initial_covariance(value, (sc.system.n + sc.system.r) // N)
+        stacked_initial_covariance(sc.system, P0, per_vehicle=P0.shape[0])
+        return P0
+    except ModelError as exc:
+        raise ScenarioError(f"{where}: {exc}") from None
 
 
 def _design(fleet: Any, spec: dict[str, Any], where: str) -> Any:

@@ -34,7 +34,7 @@ from pydantic import (
 
 from controller_fmu.regulator import TRACKING_MODES
 from controller_fmu.vehicle_law import ARCHITECTURES, DEPLOYMENTS
-from estimator_fmu.estimators import ESTIMATOR_MODES
+from estimator_fmu.registry import DEFAULT_ESTIMATOR, ESTIMATOR_MODES
 from fmu_common.native_form import FMU_IMPLEMENTATIONS
 from plant_model.linalg_checks import (
     as_matrix,
@@ -49,8 +49,8 @@ from plant_model.vehicles import VehicleModel, generic
 from .errors import bad_value, unknown_choice
 
 __all__ = ["Section", "SimulationSection", "RunSettings", "CostSection", "ScenarioFile",
-           "SystemScenario", "Matrix", "Seconds", "expect", "one_of", "square_matrix",
-           "check_covariance"]
+           "SystemScenario", "EstimatorSection", "Matrix", "Seconds", "expect", "one_of",
+           "square_matrix", "check_covariance"]
 
 #: a number or nested lists: checked by plant_model.linalg_checks in the section's validator
 Matrix = Any
@@ -112,7 +112,7 @@ class SimulationSection(Section):
     seed: Annotated[int, Ge(0), Le(2**31 - 1),
                     expect("must be a non-negative integer below 2^31 (the FMUs' seed is a "
                            "32-bit FMI Integer)")] = 0
-    estimator: Annotated[str, one_of(ESTIMATOR_MODES)] = "kalman"
+    estimator: Annotated[str, one_of(ESTIMATOR_MODES)] = DEFAULT_ESTIMATOR
     tracking: Annotated[str, one_of(TRACKING_MODES)] = "lq"
     #: fleets: one set of FMUs for the stacked fleet, or one per vehicle
     deployment: Annotated[str, one_of(DEPLOYMENTS)] = "stacked"
@@ -159,12 +159,27 @@ class CostSection(Section):
         check_symmetric_pd(f"{prefix}R", square_matrix(f"{prefix}R", self.R, inputs))
 
 
+class EstimatorSection(Section):
+    """[estimator]: the options of the estimators that take some (estimator_fmu.registry).
+
+    ``P0``: the time-varying Kalman filter's start covariance (``kalman-tv``): a number
+    (times I) or a symmetric positive semidefinite matrix on the filter's state, [x; w; z]
+    ((n + r + l) square) for a single system, one vehicle's [x; w] for a fleet (every
+    vehicle starts from it); its shape and eigenvalues are checked when the scenario is
+    built (:func:`estimator_fmu.kalman_tv.check_initial_covariance`). Default 0: the
+    known start."""
+
+    P0: Matrix = None
+
+
 class ScenarioFile(Section):
-    """The keys common to every scenario file: name, description and [simulation]."""
+    """The keys common to every scenario file: name, description, [simulation] and the
+    optional [estimator]."""
 
     name: str | None = None
     description: str = ""
     simulation: SimulationSection
+    estimator: EstimatorSection | None = None
 
     @field_validator("name")
     @classmethod

@@ -1,10 +1,16 @@
 """Find the places that test a registry name (a vehicle model, an estimator, a link model)
-outside the modules allowed to: ``x == "name"``, ``"name" != x``, ``x in ("name", ...)``,
-``"name" in xs``. A registry keeps its promise ("a new entry is one module and one row")
-only while the rest of the code asks the entry instead of testing its name."""
+outside the modules allowed to. A registry keeps its promise ("a new entry is one module
+and one row") only while the rest of the code asks the entry instead of testing its name.
+
+Two strengths: :func:`name_tests` finds comparisons (``x == "name"``, ``"name" != x``,
+``x in ("name", ...)``, ``"name" in xs``); :func:`name_literals` finds every string literal
+whose value is a name (a comparison, a dict key, a default)."""
 from __future__ import annotations
 
+import ast
+import io
 import re
+import tokenize
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -37,3 +43,20 @@ def name_tests(names: Iterable[str], allowed: Iterable[str]) -> list[str]:
                 if any(p.search(code) for p in pats):
                     found.append(f"{rel}:{k}: {line.strip()}")
     return found
+
+
+def name_literals(text: str, names: Iterable[str]) -> list[tuple[int, str]]:
+    """(line, name) of every string literal of the Python source ``text`` whose value is one
+    of ``names`` (an f-string is never a bare name)."""
+    names = set(names)
+    out = []
+    for tok in tokenize.generate_tokens(io.StringIO(text).readline):
+        if tok.type != tokenize.STRING:
+            continue
+        try:
+            value = ast.literal_eval(tok.string)
+        except (ValueError, SyntaxError):
+            continue
+        if isinstance(value, str) and value in names:
+            out.append((tok.start[0], value))
+    return out

@@ -38,6 +38,7 @@ from ..distributed import (
     _assemble,
     add_vehicle_rows,
     estimate_rows,
+    filtered,
 )
 
 __all__ = ["MessageForm", "Sender", "Link", "RECEIVERS", "centralized_message_form",
@@ -172,7 +173,7 @@ def distributed_message_form(loop: DistributedLoop, H: Any, offsets: Sequence[An
     MessageForm
         The cut loop (``perfect_links`` of it is ``loop``, to rounding).
     """
-    LG, kalman = loop.LG, loop.estimator == "kalman"
+    LG, kalman = loop.LG, filtered(loop.estimator)
     N = LG.shape[0]
     g = np.array([LG[i].sum() for i in range(N)])          # (L + G) 1 = g
     local = _assemble(loop.sampled, loop.laws, np.diag(np.diag(LG)), np.zeros(N),
@@ -234,7 +235,7 @@ def _eps_rows(loop: DistributedLoop, j: int) -> tuple[np.ndarray, np.ndarray]:
     """eps_j = Ex X + En zeta (the regulation error vehicle j computes and sends)."""
     sa, law, idx = loop.sampled[j], loop.laws[j], loop.index
     nX, nZ = loop.Phi.shape[0], loop.Gam.shape[1]
-    kalman = loop.estimator == "kalman"
+    kalman = filtered(loop.estimator)
     Est, Esn = estimate_rows(sa, idx["s"][j], idx["q"][j] if kalman else None,
                              idx["zeta_n"][j], nX, nZ)
     T = np.hstack([np.eye(law.Kx.shape[1]), -law.Xw])
@@ -269,7 +270,7 @@ def centralized_message_form(loop: DistributedLoop, rows: Sequence[tuple[np.ndar
         The cut loop.
     """
     N = len(loop.sampled)
-    kalman = loop.estimator == "kalman"
+    kalman = filtered(loop.estimator)
     idx = loop.index
     keep = np.ones(loop.Phi.shape[0], dtype=bool)
     for sl in idx["eta"]:
