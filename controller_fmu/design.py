@@ -16,7 +16,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import LinAlgError, solve_continuous_are, solve_sylvester
 
-from plant_model.linalg_checks import ModelError, uncontrollable_modes, unobservable_modes
+from plant_model.linalg_checks import (
+    ModelError,
+    fmt_complex,
+    uncontrollable_modes,
+    unobservable_modes,
+)
 from plant_model.system import LinearSystem
 
 __all__ = ["TrackingDesign", "lq_riccati_gain", "lq_tracking_design", "uncontrollable_modes",
@@ -71,11 +76,6 @@ def sylvester_resonances(Acl: np.ndarray, G: np.ndarray) -> list[tuple[complex, 
     return [(complex(a), complex(b)) for a in la for b in mu if abs(a + b) <= 1e-8 * scale]
 
 
-def _fmt(z: complex) -> str:
-    z = complex(z)
-    return f"{z.real:.6g}" if abs(z.imag) < 1e-12 else f"{z.real:.6g}{z.imag:+.6g}j"
-
-
 def _rel(res: np.ndarray, *terms: np.ndarray) -> float:
     scale = sum(float(np.linalg.norm(t)) for t in terms) or 1.0
     return float(np.linalg.norm(res)) / scale
@@ -84,7 +84,7 @@ def _rel(res: np.ndarray, *terms: np.ndarray) -> float:
 def _refuse_modes(bad: list, what: str, why: str) -> None:
     """ModelError "<what>: the mode(s) <eigenvalues> of A are not stable and <why>"."""
     if bad:
-        raise ModelError(f"{what}: the mode(s) {', '.join(_fmt(z) for z in bad)} of A are "
+        raise ModelError(f"{what}: the mode(s) {', '.join(fmt_complex(z) for z in bad)} of A are "
                          f"not stable and {why}")
 
 
@@ -157,7 +157,7 @@ def lq_riccati_gain(A: np.ndarray, B1: np.ndarray, C: np.ndarray, Q: np.ndarray,
     if np.max(poles.real) >= -margin:
         raise ModelError(
             f"{where}the Riccati solution of (13) is not stabilizing: A - S P has the "
-            "eigenvalue " + _fmt(poles[np.argmax(poles.real)])
+            "eigenvalue " + fmt_complex(poles[np.argmax(poles.real)])
         )
     residual = _rel(A.T @ P + P @ A - P @ S @ P + CQC, A.T @ P, P @ S @ P, CQC)
     return P, Rinv @ B1.T @ P, poles, residual
@@ -199,7 +199,7 @@ def lq_tracking_design(system: LinearSystem) -> TrackingDesign:
             eq = "(14)" if name == "F" else "(15)"
             raise ModelError(
                 f"the Sylvester equation {eq} has no unique solution: eigenvalue "
-                f"{_fmt(lam)} of A - S P plus eigenvalue {_fmt(mu)} of {name} is zero"
+                f"{fmt_complex(lam)} of A - S P plus eigenvalue {fmt_complex(mu)} of {name} is zero"
             )
     CQH = C.T @ Q @ H
     P1 = solve_sylvester(Acl.T, F, CQH - P @ Bz)

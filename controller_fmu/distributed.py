@@ -100,7 +100,7 @@ from typing import Any
 import numpy as np
 
 from plant_model.discretization import check_step, zoh
-from plant_model.linalg_checks import ModelError, as_matrix, as_vector
+from plant_model.linalg_checks import ModelError, as_matrix, as_vector, fmt_complex
 
 from .design import lq_riccati_gain
 from .distributed_observer import (
@@ -143,11 +143,6 @@ __all__ = [
 #: ``tracking = "regulator"`` law); ``sampled``: of the ZOH-sampled vehicle (zero error at
 #: the samples on every path).
 REGULATOR_FORMS = ("continuous", "sampled")
-
-
-def _fmt(z: complex) -> str:
-    z = complex(z)
-    return f"{z.real:.6g}" if abs(z.imag) < 1e-12 else f"{z.real:.6g}{z.imag:+.6g}j"
 
 
 # ------------------------------------------------------------------------------------
@@ -221,7 +216,8 @@ def _solve(A: np.ndarray, B: np.ndarray, C: np.ndarray, S: np.ndarray, Pv: np.nd
                 worst, fk = s, f
         raise ModelError(
             f"{where}the sampled regulator equations have no solution: at eigenvalue "
-            f"{_fmt(fk)} of the leader's F (exp(f h) = {_fmt(np.exp(fk * h))}) the vehicle "
+            f"{fmt_complex(fk)} of the leader's F (exp(f h) = {fmt_complex(np.exp(fk * h))}) "
+            "the vehicle "
             f"sampled at h = {h:g} s has a transmission zero ({exc})") from None
 
 

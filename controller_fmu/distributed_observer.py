@@ -17,7 +17,7 @@ import numpy as np
 
 from plant_model.discretization import check_step, zoh
 from plant_model.graph import CommunicationGraph, communication_graph
-from plant_model.linalg_checks import ModelError, as_matrix, as_vector
+from plant_model.linalg_checks import ModelError, as_matrix, as_vector, fmt_complex
 
 __all__ = [
     "SampledObserver",
@@ -32,11 +32,6 @@ __all__ = [
     "sampled_observer_eigenvalues",
     "sampled_observer_gain_range",
 ]
-
-
-def _fmt(z: complex) -> str:
-    z = complex(z)
-    return f"{z.real:.6g}" if abs(z.imag) < 1e-12 else f"{z.real:.6g}{z.imag:+.6g}j"
 
 
 # ------------------------------------------------------------------------------------
@@ -140,7 +135,8 @@ def consensus_eigenvalues(LG: Any) -> np.ndarray:
     lam = lam[np.lexsort((lam.imag, lam.real))]
     tol = 1e-12 * max(1.0, float(np.abs(LG).max(initial=0.0)))
     if lam.size and lam[0].real <= tol:
-        raise ModelError(f"L + G has the eigenvalue {_fmt(lam[0])} with no positive real part: "
+        raise ModelError(f"L + G has the eigenvalue {fmt_complex(lam[0])} with no positive "
+                         "real part: "
                          "some vehicle has no directed path from the leader")
     return lam
 
@@ -213,8 +209,9 @@ def check_observer_gain(F: Any, LG: Any, mu: float) -> float:
     if worst >= 0.0:
         lam, fk = where
         raise ModelError(
-            f"observer gain mu = {mu:g} 1/s is too small: at eigenvalue {_fmt(lam)} of L + G "
-            f"the observer mode {_fmt(fk - mu * lam)} (eigenvalue {_fmt(fk)} of F minus mu "
+            f"observer gain mu = {mu:g} 1/s is too small: at eigenvalue {fmt_complex(lam)} of "
+            f"L + G the observer mode {fmt_complex(fk - mu * lam)} (eigenvalue "
+            f"{fmt_complex(fk)} of F minus mu "
             f"lambda) does not decay; need mu > {min_observer_gain(F, LG):.6g} 1/s")
     return worst
 
@@ -435,6 +432,6 @@ def check_sampled_observer(F: Any, LG: Any, h: float, mu: float) -> float:
               else "no gain works at this step")
         raise ModelError(
             f"observer gain mu = {mu:g} 1/s makes the sampled observer unstable at h = {h:g} s: "
-            f"at eigenvalue {_fmt(where)} of L + G the block expm(F h) - mu lambda "
+            f"at eigenvalue {fmt_complex(where)} of L + G the block expm(F h) - mu lambda "
             f"int_0^h expm(F t) dt has spectral radius {worst:.6g} >= 1; {ok}")
     return worst

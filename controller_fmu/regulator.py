@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.linalg import lu_factor, lu_solve, schur
 
-from plant_model.linalg_checks import ModelError
+from plant_model.linalg_checks import ModelError, fmt_complex
 from plant_model.memo import DesignCache
 from plant_model.system import LinearSystem
 
@@ -38,11 +38,6 @@ TRACKING_MODES = ("lq", "regulator")
 
 #: tracking laws of this process, by the numbers they come from (plant_model.memo)
 _LAW_CACHE = DesignCache("tracking_law")
-
-
-def _fmt(z: complex) -> str:
-    z = complex(z)
-    return f"{z.real:.6g}" if abs(z.imag) < 1e-12 else f"{z.real:.6g}{z.imag:+.6g}j"
 
 
 def _pencil(A: np.ndarray, B1: np.ndarray, C: np.ndarray, lam: complex) -> np.ndarray:
@@ -121,9 +116,10 @@ def solve_regulator_equations(A: np.ndarray, B1: np.ndarray, C: np.ndarray, S: n
                 sv = np.linalg.svd(Mk, compute_uv=False)
                 if sv[-1] <= 1e-10 * max(sv[0], scale):
                     raise ModelError(
-                        f"the regulator equations have no solution: at eigenvalue {_fmt(lam)} "
+                        "the regulator equations have no solution: at eigenvalue "
+                        f"{fmt_complex(lam)} "
                         f"of the exosystem {exosystem}, [[A - lambda I, B1], [C, 0]] is "
-                        f"singular (a transmission zero of (A, B1, C) at {_fmt(lam)})")
+                        f"singular (a transmission zero of (A, B1, C) at {fmt_complex(lam)})")
                 factors[key] = lu_factor(Mk)
             sol = lu_solve(factors[key], rhs)
         else:
@@ -132,7 +128,7 @@ def solve_regulator_equations(A: np.ndarray, B1: np.ndarray, C: np.ndarray, S: n
             res = np.linalg.norm(Mk @ sol - rhs)
             if res > 1e-8 * (1.0 + np.linalg.norm(rhs)):
                 raise ModelError(
-                    f"the regulator equations have no solution: at eigenvalue {_fmt(lam)} "
+                    f"the regulator equations have no solution: at eigenvalue {fmt_complex(lam)} "
                     f"of the exosystem {exosystem}, [[A - lambda I, B1], [C, 0]] loses row "
                     f"rank (residual {res:.3g})")
         Pi_t[:, k] = sol[:n]

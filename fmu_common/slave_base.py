@@ -47,15 +47,14 @@ if TYPE_CHECKING:
 
 # the state names are re-exported: slaves and tests import them from here
 __all__ = ["STATE_FORMAT", "STATE_MAGIC", "ArraySlave", "DelegatedStateSlave", "FmuState",
-           "StateError",
-           "decode_state", "encode_state", "load_config"]
+           "StateError", "decode_state", "encode_state", "load_config"]
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input,
               "output": Fmi2Causality.output}
-_VARIABILITY = {"fixed": Fmi2Variability.fixed, "tunable": Fmi2Variability.tunable,
-                "continuous": Fmi2Variability.continuous,
-                "discrete": Fmi2Variability.discrete}
+_VARIABILITY = {v: getattr(Fmi2Variability, v) for v in ("fixed", "tunable", "continuous",
+                                                         "discrete")}
 _TYPES = {"Real": Real, "Integer": Integer, "String": String}
+
 
 def load_config(resources: str | None, filename: str) -> dict[str, Any]:
     """The build-time configuration (dimensions and start values) shipped in resources/.
@@ -77,10 +76,9 @@ def load_config(resources: str | None, filename: str) -> dict[str, Any]:
     FileNotFoundError
         If the file is not in the folder.
     """
-    here = Path(resources) if resources else Path(__file__).resolve().parent.parent
-    path = here / filename
+    path = (Path(resources) if resources else Path(__file__).resolve().parent.parent) / filename
     if not path.exists():
-        raise FileNotFoundError(f"FMU configuration {filename} not found in {here}")
+        raise FileNotFoundError(f"FMU configuration {filename} not found in {path.parent}")
     return json.loads(path.read_text())
 
 

@@ -1,4 +1,4 @@
 """``python -m orchestrator`` is the ``auv-cosim`` command."""
-from .launch import console
+from .cli.launch import console
 
 console()

@@ -18,11 +18,12 @@ Paths:
 * :func:`lawnmower` -- a boustrophedon survey with rounded turns, as a Fourier-truncated
   exosystem (state order and accuracy in its docstring).
 * :func:`explicit` -- any F, H, z0.
+
+By name from a scenario table: :func:`plant_model.leader_paths.make_leader`.
 """
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -33,7 +34,6 @@ from .bounds import Bound
 from .linalg_checks import ModelError, as_matrix, as_number, as_positive, as_vector
 
 __all__ = [
-    "LEADER_PATHS",
     "LEADER_SPEED",
     "MAX_LEADER_SPEED",
     "MAX_TURN_PER_STEP",
@@ -43,13 +43,8 @@ __all__ = [
     "explicit",
     "lawnmower",
     "lawnmower_turn_error",
-    "make_leader",
     "straight",
 ]
-
-#: Names accepted by :func:`make_leader`.
-LEADER_PATHS = ("straight", "circle", "lawnmower", "explicit")
-
 
 #: the fastest a leader path may go (m/s, horizontal or vertical): faster than any
 #: underwater vehicle (a supercavitating torpedo makes about 100 m/s)
@@ -453,58 +448,3 @@ def explicit(F: Any, H: Any, z0: Any) -> LeaderPath:
         state_names=tuple(f"z{i + 1}" for i in range(l_)),
         description=f"explicit exosystem with {l_} states and {H.shape[0]} outputs",
     )
-
-
-_BUILDERS: dict[str, tuple[Callable[..., LeaderPath], tuple[str, ...], tuple[str, ...]]] = {
-    # kind: (builder, required keys, optional keys)
-    "straight": (straight, ("speed",), ("heading_deg", "start", "climb_rate")),
-    "circle": (circle, ("radius", "speed"), ("center", "clockwise", "start_angle_deg")),
-    "lawnmower": (lawnmower, ("leg_length", "spacing", "speed"),
-                  ("harmonics", "start", "depth")),
-    "explicit": (explicit, ("F", "H", "z0"), ()),
-}
-
-
-def make_leader(kind: str, params: Mapping[str, Any]) -> LeaderPath:
-    """Build a leader path by name from a parameter mapping (e.g. a scenario table).
-
-    Parameters
-    ----------
-    kind : str
-        One of :data:`LEADER_PATHS`.
-    params : Mapping[str, Any]
-        The keyword arguments of the matching function.
-
-    Returns
-    -------
-    LeaderPath
-        The path.
-
-    Raises
-    ------
-    ModelError
-        If the kind or a parameter is unknown, a required parameter is missing or a value
-        is invalid; every message starts with "leader: ".
-    """
-    if kind not in _BUILDERS:
-        raise ModelError(
-            f"leader: unknown path {kind!r}; known paths: {', '.join(LEADER_PATHS)}"
-        )
-    if not isinstance(params, Mapping):
-        raise ModelError(f"leader: the {kind} parameters must be a table, got {params!r}")
-    build, required, optional = _BUILDERS[kind]
-    accepted = required + optional
-    unknown = sorted(str(k) for k in params if k not in accepted)
-    if unknown:
-        raise ModelError(
-            f"leader: unknown {kind} parameter(s) {', '.join(unknown)}; "
-            f"accepted: {', '.join(accepted)}"
-        )
-    missing = [k for k in required if k not in params]
-    if missing:
-        raise ModelError(f"leader: {kind} path needs {', '.join(missing)}")
-    try:
-        return build(**dict(params))
-    except ModelError as exc:
-        msg = str(exc)
-        raise ModelError(msg if msg.startswith("leader: ") else f"leader: {msg}") from None

@@ -13,6 +13,7 @@ import numpy as np
 
 __all__ = [
     "ModelError",
+    "fmt_complex",
     "as_float",
     "as_matrix",
     "as_nonnegative",
@@ -336,3 +337,10 @@ def as_nonnegative(name: str, value: Any, unit: str) -> float:
     if x < 0.0:
         raise ModelError(f"{name} = {x:g} {unit} must not be negative")
     return x
+
+
+def fmt_complex(z: complex) -> str:
+    """An eigenvalue as the error messages print it: ``0.5`` when real (imaginary part under
+    1e-12), else ``0.5+0.25j``; 6 significant digits."""
+    z = complex(z)
+    return f"{z.real:.6g}" if abs(z.imag) < 1e-12 else f"{z.real:.6g}{z.imag:+.6g}j"

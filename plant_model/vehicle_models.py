@@ -21,8 +21,8 @@ A new model is one module (its constructor from parameters) and one entry of
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
 import dataclasses
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 

@@ -8,9 +8,9 @@ import pytest
 from orchestrator.analysis.summary import trace_stats
 from orchestrator.campaign.engine_numpy import numpy_unsupported, run_batch
 from orchestrator.campaign.tasks import point_design
-from orchestrator.cosim.master import run_cosimulation
 from plant_model.discretization import discretize
 from plant_model.plant import NoiseStream
+from support.loop import run_cosimulation
 
 
 def test_next_rows_is_the_row_by_row_stream(paper):

@@ -149,3 +149,14 @@ def test_a_huge_seed_range_is_refused_before_it_is_made():
     with pytest.raises(argparse.ArgumentTypeError, match="2000000001 seeds is too many"):
         parse_seeds("0-2000000000")
     assert len(parse_seeds("0-99999")) == 100_000
+
+
+@pytest.mark.parametrize("modes", [("--native", "--phases"), ("--tools", "--campaign"),
+                                   ("--remus", "--fleet", "4")])
+def test_two_bench_modes_are_refused(capsys, modes):
+    """bench's modes are one mutually exclusive group: two of them is a usage error."""
+    with pytest.raises(SystemExit) as exit_:
+        main(["bench", *modes])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "not allowed with argument" in err and modes[0].lstrip("-") in err

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from fmu_common.interface import ArraySpec
-from orchestrator.cosim.master import CosimError, run_cosimulation, run_system
+from orchestrator.cosim.master import CosimError, run_system
 from orchestrator.cosim.system import (
     AlgebraicLoopError,
     Component,
@@ -19,6 +19,7 @@ from orchestrator.cosim.system import (
     closed_loop_system,
     evaluation_order,
 )
+from support.loop import run_cosimulation
 
 
 def _spec(name, causality, depends=()):

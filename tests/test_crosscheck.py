@@ -15,7 +15,6 @@ from fmpy import read_model_description, simulate_fmu
 from fmpy.cross_check.validate_vendor_repo import validate_test_fmu
 from fmpy.util import read_csv, read_ref_opt_file
 
-from orchestrator.cosim.master import run_cosimulation
 from orchestrator.interop.crosscheck import (
     EPS_FRACTION,
     compare,
@@ -26,6 +25,7 @@ from orchestrator.interop.crosscheck import (
     write_csv,
 )
 from orchestrator.running import scenario_config
+from support.loop import run_cosimulation
 
 TOL = 1e-12
 STEPS = 500

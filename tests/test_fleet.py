@@ -19,12 +19,12 @@ from scipy.linalg import block_diag, solve_sylvester
 
 from controller_fmu.regulator import tracking_law
 from orchestrator.analysis.reference import run_monolithic
-from orchestrator.cosim.master import run_cosimulation
 from orchestrator.running import build, scenario_config
 from orchestrator.scenario import SCENARIO_DIR, load_scenario
 from orchestrator.scenario.fleet import fleet_spec_from_dict
 from plant_model.fleet import fleet_info, fleet_system, resolve_fleet_spec
 from plant_model.linalg_checks import ModelError
+from support.loop import run_cosimulation
 
 MATRICES = ("A", "B1", "B2", "Bz", "C", "F", "H", "K", "x0", "w0", "z0", "Q", "R",
             "W_x", "W_w", "W_z", "V_y", "V_ybar")

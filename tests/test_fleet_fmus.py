@@ -11,11 +11,11 @@ from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
 from orchestrator.analysis.reference import run_monolithic
-from orchestrator.cosim.master import run_cosimulation
 from orchestrator.running import build, scenario_config
 from orchestrator.scenario import scenario_from_dict
 from orchestrator.scenario.generator import grid_fleet
 from plant_model.fleet import fleet_system
+from support.loop import run_cosimulation
 
 
 @pytest.fixture(scope="module")

@@ -11,11 +11,11 @@ from estimator_fmu.estimators import make_estimator
 from orchestrator.analysis.prediction import predict_stationary
 from orchestrator.analysis.reference import run_monolithic
 from orchestrator.cosim.build import build_fmus
-from orchestrator.cosim.master import run_cosimulation
 from orchestrator.running import scenario_config
 from orchestrator.scenario import SCENARIO_DIR, ScenarioError, load_scenario
 from plant_model.discretization import discretize
 from plant_model.fleet import ConsensusProtocol, fleet_graph, fleet_vehicles
+from support.loop import run_cosimulation
 
 
 def _scenario(tmp_path, consensus="protocol", text=None):

@@ -14,12 +14,11 @@ import pytest
 from controller_fmu.regulator import tracking_law
 from orchestrator.analysis.reference import run_monolithic
 from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
-from orchestrator.cosim.master import run_cosimulation
 from orchestrator.running import build, scenario_config
 from orchestrator.scenario import SCENARIO_DIR, ScenarioError, load_scenario
 from orchestrator.scenario.generator import scenario_toml as dumps
 from plant_model.linalg_checks import ModelError
-from support.loop import fmu_parameters
+from support.loop import fmu_parameters, run_cosimulation
 
 BASE = tomllib.loads((SCENARIO_DIR / "formation-4.toml").read_text())
 EDGES = BASE["graph"]["edges"]           # [[1, 2, 1.0], [1, 3, 1.0], [2, 4, 0.5], [3, 4, 0.5]]

@@ -426,7 +426,7 @@ def test_a_refusal_in_a_per_vehicle_fleet_names_the_instance_and_the_cause(tmp_p
 
 @needs_cc
 def test_the_c_host_prints_the_fmus_reason_and_the_status(paper, tmp_path):
-    """tests/c_host/c_host.c (no Python) on the paper's native system: a GUID that is not
+    """orchestrator/interop/native_host/c_host.c (no Python) on the paper's native system: a GUID that is not
     the controller's and a NaN input step: the FMU's own message through the logger (its
     instance in brackets), then one line naming the instance, the call, t and the status;
     exit status 1."""

@@ -9,8 +9,8 @@ import pytest
 
 from orchestrator.analysis.formation import formation_stats, formation_summary
 from orchestrator.analysis.summary import run_stats
-from orchestrator.cosim.master import run_cosimulation
 from orchestrator.running import fleet_layout
+from support.loop import run_cosimulation
 
 
 def test_a_constructed_formation():

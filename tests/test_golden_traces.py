@@ -18,7 +18,8 @@ DATA = Path(__file__).resolve().parent / "data"
 sys.path.insert(0, str(DATA))
 from make_golden import blas_kernel, golden_runs, matches  # noqa: E402
 
-from orchestrator.cosim.master import CosimError, run_cosimulation  # noqa: E402
+from orchestrator.cosim.master import CosimError  # noqa: E402
+from support.loop import run_cosimulation  # noqa: E402
 
 META = json.loads((DATA / "golden_traces.json").read_text())
 _NPZ = DATA / "golden_traces.npz"

@@ -14,11 +14,11 @@ from estimator_fmu.registry import estimator_kind
 from orchestrator.analysis.prediction import predict_stationary
 from orchestrator.analysis.reference import run_monolithic
 from orchestrator.analysis.tv_prediction import tv_window_moments
-from orchestrator.cosim.master import run_cosimulation
 from orchestrator.running import scenario_config
 from orchestrator.scenario import ScenarioError, load_scenario
 from plant_model.discretization import discretize
 from plant_model.linalg_checks import ModelError
+from support.loop import run_cosimulation
 
 TV = "kalman-tv"
 

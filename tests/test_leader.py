@@ -9,14 +9,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from plant_model.leader import (
-    LEADER_PATHS,
     circle,
     explicit,
     lawnmower,
     lawnmower_turn_error,
-    make_leader,
     straight,
 )
+from plant_model.leader_paths import LEADER_PATHS, make_leader
 from plant_model.linalg_checks import ModelError
 
 T_GRID = np.linspace(0.0, 200.0, 41)

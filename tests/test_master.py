@@ -11,9 +11,8 @@ import pytest
 from estimator_fmu.estimators import ESTIMATOR_MODES
 from orchestrator.analysis.reference import run_monolithic
 from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
-from orchestrator.cosim.master import run_cosimulation
 from orchestrator.running import scenario_config
-from support.loop import fmu_parameters
+from support.loop import fmu_parameters, run_cosimulation
 
 
 @pytest.fixture(scope="module")

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from controller_fmu.regulator import tracking_law
-from orchestrator.cosim.master import run_cosimulation
 from plant_model.discretization import discretize
 from plant_model.memo import cache_stats, clear_caches, content_key
+from support.loop import run_cosimulation
 
 
 def test_content_key():

@@ -381,7 +381,7 @@ def _c_host_run(exe, sysfile, steps, h, out, valgrind=False):
 
 @pytest.mark.slow
 def test_the_c_host_runs_the_all_native_system_like_our_master(tmp_path):
-    """tests/c_host/c_host.c (libc, libdl; no Python, an empty environment) runs formation-4
+    """orchestrator/interop/native_host/c_host.c (libc, libdl; no Python, an empty environment) runs formation-4
     per vehicle, every FMU native, unzipped under a folder with a space, a percent sign and
     non-ASCII letters: every recorded output equals our Jacobi master's bit for bit. A NaN
     gain is one line naming the instance and the call, exit status 1."""

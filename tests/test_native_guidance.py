@@ -261,7 +261,7 @@ def test_a_bad_parameter_fails_initialization_with_an_error_naming_it(
 
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
 def test_the_c_host_runs_guidance_into_autopilot_cleanly_under_valgrind(fmus, tmp_path):
-    """tests/c_host/c_host.c (no Python in the process, an empty environment) runs the two
+    """orchestrator/interop/native_host/c_host.c (no Python in the process, an empty environment) runs the two
     native FMUs, the guidance's set-points wired into the autopilot, under valgrind
     (memcheck, full leak check): no invalid access, no definitely lost block; the guidance
     slows from its start velocity with no force (v' = -D v / M) and the autopilot follows."""

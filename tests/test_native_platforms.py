@@ -1,5 +1,5 @@
 """The native FMUs' binaries for other platforms (orchestrator.cosim.platforms): win64
-(MinGW-w64) and aarch64-linux beside linux64, run for real. The C host of tests/c_host is
+(MinGW-w64) and aarch64-linux beside linux64, run for real. The C host of orchestrator/interop/native_host is
 cross-compiled too and run under wine (win64) and qemu-aarch64 (aarch64-linux) on the
 exported FMUs of the paper loop (plant, estimator, controller: the noise of numpy's
 generator, exp and log1p in its ziggurat's wedges and tail) and of a guided REMUS 100

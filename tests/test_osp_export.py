@@ -18,14 +18,13 @@ from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
 from estimator_fmu.registry import estimator_kind
 from orchestrator.analysis.jacobi import jacobi_closed_loop
 from orchestrator.cosim.build import FMU_KINDS, interface_of
-from orchestrator.cosim.master import run_cosimulation
 from orchestrator.interop.common import ExportError
 from orchestrator.interop.osp import OSP_MD_NS, OSP_SYSTEM_NS, export_osp, validate_osp_file
 from orchestrator.running import scenario_config, scenario_system
 from orchestrator.scenario import load_scenario
 from plant_model.discretization import discretize
 from plant_model.plant import NoiseStream
-from support.loop import fmu_parameters
+from support.loop import fmu_parameters, run_cosimulation
 
 SYS = f"{{{OSP_SYSTEM_NS}}}"
 COMPONENTS = ("plant", "estimator", "controller")

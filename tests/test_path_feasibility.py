@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from plant_model.leader import make_leader
+from plant_model.leader_paths import make_leader
 from plant_model.path_feasibility import path_findings
 
 LIMITS = [SimpleNamespace(max_speed=2.5, min_turn_radius=20.0, max_depth_rate=1.0, source="x")]

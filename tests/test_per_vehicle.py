@@ -14,7 +14,7 @@ from controller_fmu.vehicle_law import DistributedSettings
 from orchestrator.analysis.per_vehicle import distributed_loop_of, distributed_reference
 from orchestrator.cli import main
 from orchestrator.cosim.build import build_fmus
-from orchestrator.cosim.master import run_cosimulation, run_system
+from orchestrator.cosim.master import run_system
 from orchestrator.cosim.per_vehicle import (
     build_configs,
     fleet_slots,
@@ -28,6 +28,7 @@ from plant_model.discretization import discretize
 from plant_model.per_vehicle import sample_vehicle, vehicle_views
 from plant_model.plant import NoiseStream
 from support.cli import assert_one_line_error
+from support.loop import run_cosimulation
 
 
 def _rel(a: np.ndarray, b: np.ndarray) -> float:

@@ -23,14 +23,13 @@ from lxml import etree
 
 from controller_fmu.regulator import tracking_law
 from estimator_fmu.estimators import make_estimator
-from orchestrator.cosim.master import run_cosimulation
 from orchestrator.cosim.system import Connection
 from orchestrator.interop.common import ExportError
 from orchestrator.interop.ssp import SSC_NS, SSD_NS, SSV_NS, export_ssp, fmpy_parameter_set
 from orchestrator.running import scenario_config, scenario_system
 from plant_model.discretization import discretize
 from plant_model.plant import NoiseStream
-from support.loop import fmu_parameters
+from support.loop import fmu_parameters, run_cosimulation
 
 fmpy_ssp = pytest.importorskip("fmpy.ssp.simulation")
 from fmpy.ssp.ssd import read_ssd, read_ssv  # noqa: E402 - after the importorskip

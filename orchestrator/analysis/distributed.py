@@ -76,11 +76,6 @@ def filtered(estimator: str) -> bool:
     return estimator_kind(estimator).distributed == "steady"
 
 
-def _fmt(z: complex) -> str:
-    z = complex(z)
-    return f"{z.real:.6g}" if abs(z.imag) < 1e-12 else f"{z.real:.6g}{z.imag:+.6g}j"
-
-
 @dataclass(frozen=True, eq=False)
 class Agent:
     """One vehicle as plain arrays: model, own disturbance, noise intensities, cost, offset."""

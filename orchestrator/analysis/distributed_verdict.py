@@ -19,10 +19,10 @@ from functools import lru_cache
 import numpy as np
 
 from controller_fmu.distributed import consensus_eigenvalues, min_observer_gain
-from plant_model.linalg_checks import ModelError
+from plant_model.linalg_checks import ModelError, fmt_complex
 
 from .block_stein import stein, triangular_order
-from .distributed import DistributedLoop, _assemble, _fmt, filtered
+from .distributed import DistributedLoop, _assemble, filtered
 from .prediction import window_average_covariance
 
 #: samples of the mean motion per block in :func:`predict_cost` (a block of a 3417-state
@@ -137,11 +137,11 @@ def stability_verdict(loop: DistributedLoop, *, check: bool = False) -> Stabilit
             lam, rb = max(verdict.blocks, key=lambda b: b[1])
             raise ModelError(
                 f"the sampled distributed loop is unstable ({gains}): at eigenvalue "
-                f"{_fmt(lam)} of L + G the vehicle block has spectral radius {rb:.6g} >= 1 "
+                f"{fmt_complex(lam)} of L + G the vehicle block has spectral radius {rb:.6g} >= 1 "
                 f"(continuous-time bound: mu > {verdict.observer_mu_min:.6g} 1/s, any c >= 0)")
         raise ModelError(
             f"the sampled distributed loop is unstable ({gains}): eigenvalue "
-            f"{_fmt(verdict.stacked_eigenvalue)} "
+            f"{fmt_complex(verdict.stacked_eigenvalue)} "
             f"of the stacked loop (|.| = {rho:.6g} >= 1); the vehicles differ, so it is not "
             "attributed to one eigenvalue of L + G")
     return verdict

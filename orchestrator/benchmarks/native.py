@@ -8,7 +8,8 @@ Measured in one run, on one machine, for the same scenario and number of steps:
   step);
 - ``native_compiled``: every FMU native, in our compiled master (the same step plan in
   C, :mod:`orchestrator.cosim.native_master`; target at most 3 us/step);
-- ``native_c_host``: every FMU native, in the C host of tests/c_host (no Python at all);
+- ``native_c_host``: every FMU native, in the C host of orchestrator/interop/native_host
+  (no Python at all);
 - ``native_ecos``: every FMU native, in the ecos engine (C++), its own loop timer, no CSV;
 - ``fused_numpy``: the same closed loop as one matrix-vector product per step
   ([Phi Gam] [X; eta], orchestrator.analysis.prediction.closed_loop), the lower bound of
@@ -33,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from ..cosim.master import run_system
+from ..interop.c_host import C_HOST_SOURCE
 from ..interop.native import export_native, native_system
 from ..scenario import Scenario
 
@@ -40,7 +42,7 @@ __all__ = ["benchmark_native", "benchmark_native_fleet", "c_host_binary", "fused
            "write_c_host_system"]
 
 ROOT = Path(__file__).resolve().parents[2]
-C_HOST = ROOT / "tests" / "c_host" / "c_host.c"
+C_HOST = C_HOST_SOURCE
 
 
 def fused_loop_us(sc: Scenario, steps: int) -> float:
@@ -68,7 +70,8 @@ def fused_loop_us(sc: Scenario, steps: int) -> float:
 
 
 def c_host_binary(out_dir: Path) -> Path:
-    """tests/c_host/c_host.c compiled into ``out_dir`` (cc, -O2, FMI headers from fmpy)."""
+    """orchestrator/interop/native_host/c_host.c compiled into ``out_dir`` (cc, -O2, FMI
+    headers from fmpy)."""
     import fmpy
     exe = Path(out_dir) / "c_host"
     inc = Path(fmpy.__file__).parent / "c-code"
@@ -79,8 +82,9 @@ def c_host_binary(out_dir: Path) -> Path:
 
 def write_c_host_system(system: Any, fmus: dict[str, Path], unzip_root: Path,
                         record: list[tuple[str, str]] | None = None) -> Path:
-    """The C host's system file for ``system`` (tests/c_host/README.md): every FMU unzipped
-    under ``unzip_root``, the parameters, the connections, the recorded variables.
+    """The C host's system file for ``system`` (orchestrator/interop/native_host/README.md):
+    every FMU unzipped under ``unzip_root``, the parameters, the connections, the recorded
+    variables.
 
     Parameters
     ----------

@@ -3,6 +3,7 @@
 Every error a user can cause (a bad scenario, an impossible design, an FMU that
 refuses a call) is printed as one line naming the problem, with exit status 2.
 
+- :mod:`.launch`: the console script (starts the .rrd writer, then :mod:`.entry`);
 - :mod:`.entry`: :func:`main` and :func:`console` (the ``auv-cosim`` command);
 - :mod:`.parser`: the argument parser, assembled from the command modules' sub-parsers;
 - :mod:`.run` (run, compare, envelope), :mod:`.fmus` (build, validate, export),
@@ -10,11 +11,22 @@ refuses a call) is printed as one line naming the problem, with exit status 2.
 - :mod:`.common`: the scenario options, the options of the commands that run FMUs, the
   printed summary; :mod:`.args`: argument types; :mod:`.errors`: failures and exit status.
 """
-from .args import parse_floats, parse_seeds, positive_metres
-from .common import viewer_command
-from .entry import console, main
-from .errors import UsageError
-from .parser import build_parser
+from __future__ import annotations
+
+import importlib
+from typing import Any
 
 __all__ = ["UsageError", "build_parser", "console", "main", "parse_floats", "parse_seeds",
            "positive_metres", "viewer_command"]
+
+#: where each name lives; imported on first use, so that :mod:`.launch` (the console
+#: script) starts the .rrd writer before numpy and scipy are imported
+_HOMES = {"parse_floats": "args", "parse_seeds": "args", "positive_metres": "args",
+          "viewer_command": "common", "console": "entry", "main": "entry",
+          "UsageError": "errors", "build_parser": "parser"}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _HOMES:
+        return getattr(importlib.import_module(f".{_HOMES[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

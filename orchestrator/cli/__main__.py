@@ -1,4 +1,4 @@
 """``python -m orchestrator.cli`` is the ``auv-cosim`` command."""
-from ..launch import console
+from .launch import console
 
 console()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Callable
 
 from controller_fmu.regulator import TRACKING_MODES
 from estimator_fmu.registry import DEFAULT_ESTIMATOR, ESTIMATOR_MODES
@@ -110,7 +111,7 @@ def cmd_bench_native(args: argparse.Namespace) -> int:
             ("native_ctrl_est", "native controller + estimator, pythonfmu plant, our master"),
             ("native_master", "all native, our Python master (fmpy, ctypes)"),
             ("native_compiled", "all native, our compiled master (C loop; target <= 3)"),
-            ("native_c_host", "all native, C host (tests/c_host)"),
+            ("native_c_host", "all native, C host (orchestrator/interop/native_host)"),
             ("native_ecos", "all native, ecos (C++), no CSV"),
             ("fused_numpy", "fused numpy loop, one gemv per step"))
     for key, label in rows:
@@ -252,29 +253,26 @@ def cmd_bench_phases(args: argparse.Namespace) -> int:
     return 0
 
 
+#: bench's modes (one at most: a mutually exclusive group) -> the command that times it;
+#: none: the paper loop against the monolithic one
+MODES: dict[str, Callable[[argparse.Namespace], int]] = {
+    "phases": cmd_bench_phases, "predictions": cmd_bench_predictions,
+    "campaign": cmd_bench_campaign, "fleet": cmd_bench_fleet, "tools": cmd_bench_tools,
+    "startup": cmd_bench_startup, "native": cmd_bench_native, "remus": cmd_bench_remus}
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from ..benchmarks.paper import benchmark
-    if getattr(args, "phases", False):
-        return cmd_bench_phases(args)
-    if getattr(args, "predictions", False):
-        return cmd_bench_predictions(args)
+    mode = next((m for m in MODES if getattr(args, m, None)), None)
+    if mode in ("phases", "predictions"):       # these take a per-vehicle scenario as is
+        return MODES[mode](args)
     if getattr(args, "deployment", None) == "per-vehicle":
         if not args.fleet:
             raise UsageError("bench --deployment per-vehicle times fleets of several sizes: "
                              "give them with --fleet, e.g. --fleet 4,20,50,100")
         return cmd_bench_per_vehicle(args)
-    if args.campaign:
-        return cmd_bench_campaign(args)
-    if args.fleet:
-        return cmd_bench_fleet(args)
-    if args.tools:
-        return cmd_bench_tools(args)
-    if args.startup:
-        return cmd_bench_startup(args)
-    if getattr(args, "native", False):
-        return cmd_bench_native(args)
-    if getattr(args, "remus", False):
-        return cmd_bench_remus(args)
+    if mode is not None:
+        return MODES[mode](args)
     sc = scenario_of(args)
     r = benchmark(sc, mode=sc.estimator, seed=sc.seed)
     if _printed_as_json(args, r):
@@ -304,34 +302,35 @@ def add_bench(sub: argparse._SubParsersAction) -> None:
                     help=f"estimator mode (default: {DEFAULT_ESTIMATOR})")
     sp.add_argument("--seed", type=int, help="noise seed")
     sp.add_argument("--tracking", choices=TRACKING_MODES, help="tracking law")
-    sp.add_argument("--fleet", type=_fleet_sizes,
+    modes = sp.add_mutually_exclusive_group()       # one of MODES at most
+    modes.add_argument("--fleet", type=_fleet_sizes,
                     help="benchmark generated grid fleets of these sizes instead, e.g. 1,5,20,50 "
                          "(REMUS 100 vehicles, circle leader; --T sets the simulated time, "
                          "default 300 s)")
-    sp.add_argument("--tools", action="store_true",
+    modes.add_argument("--tools", action="store_true",
                     help="the same FMUs in our orchestrator, libcosim (libcosimpy) and fmpy's "
                          "simulate_ssp (--T sets the simulated time, default 50 s)")
-    sp.add_argument("--startup", action="store_true",
+    modes.add_argument("--startup", action="store_true",
                     help="'auv-cosim run' as a subprocess (start to exit, cold and warm FMU "
                          "cache) against the in-process monolithic loop")
-    sp.add_argument("--campaign", action="store_true",
+    modes.add_argument("--campaign", action="store_true",
                     help="campaign throughput: runs per hour of the paper scenario on 1 and 2 "
                          "local workers (FMU engine) and the numpy engine, overhead per task, "
                          "design-cache gain at N = 50")
-    sp.add_argument("--native", action="store_true",
+    modes.add_argument("--native", action="store_true",
                     help="us/step of the loop with native FMUs: in our Python master (with "
                          "the pythonfmu plant, all native), in our compiled master, in the C "
                          "host, in ecos, and a fused numpy loop (--T sets the simulated time, "
                          "default 200 s); ms/step of formation-100 per-vehicle native in both "
                          "masters")
-    sp.add_argument("--remus", action="store_true",
+    modes.add_argument("--remus", action="store_true",
                     help="the nonlinear REMUS 100: derivative and step in numpy and compiled, "
                          "vehicle FMU doStep against the linear one, compile time")
-    sp.add_argument("--predictions", action="store_true",
+    modes.add_argument("--predictions", action="store_true",
                     help="the predictions over acoustic links (per-vehicle fleet with "
                          "--latency/--period/--loss): the second moment and the critical-loss "
                          "search, cold and from the cache, per architecture")
-    sp.add_argument("--phases", action="store_true",
+    modes.add_argument("--phases", action="store_true",
                     help="a whole 'auv-cosim run' of the scenario options (a subprocess): "
                          "its time split into build, design, predictions, instantiate, loop, "
                          "statistics, recording, other and start-up, and outside the loop "

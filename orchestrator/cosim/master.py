@@ -48,10 +48,10 @@ from fmu_common.interface import element_names
 
 from .checks import connection_problems, fmu_variables
 from .instance import CosimError, Extracted, FmuInstance
-from .system import SystemDescription, closed_loop_system, evaluation_order
+from .system import SystemDescription, evaluation_order
 
 __all__ = ["COUPLINGS", "CosimError", "RunResult", "StepPlan", "compile_plan",
-           "initial_reads", "plan_steps", "run_system", "run_cosimulation"]
+           "initial_reads", "plan_steps", "run_system"]
 
 #: how the master couples the FMUs within a step (see the module docstring)
 COUPLINGS = ("gauss-seidel", "jacobi")
@@ -454,53 +454,3 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
                             "master": chosen, "master_reason": reason,
                             "calls_per_step": calls + [
         f"fmi2DoStep ({who.label})" for *_, who in plan.stepping]}
-
-
-def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str, seed: int,
-                     steps: int, progress: Any = False, tracking: str | None = None,
-                     coupling: str = "gauss-seidel", stop: Any = None) -> RunResult:
-    """Run the paper's loop (:func:`closed_loop_system`) of the three FMUs for ``steps`` steps.
-
-    Parameters
-    ----------
-    fmus : dict[str, Path]
-        'plant', 'estimator', 'controller' -> .fmu path, built for ``config``.
-    config : dict[str, Any]
-        The FMUs' configuration (:func:`orchestrator.cosim.build.fmu_config`); the
-        communication step is ``config['h']``, s.
-    mode : str
-        The estimator mode.
-    seed : int
-        Seed of the plant's noise.
-    steps : int
-        Number of communication steps.
-    progress : Any, optional
-        As in :func:`run_system`.
-    tracking : str or None, optional
-        The controller's law ('lq' or 'regulator'); default the configuration's.
-    coupling : str, optional
-        'gauss-seidel' (the exact discrete-time loop, default) or 'jacobi' (what libcosim
-        does; module docstring).
-    stop : StopFlag, optional
-        See :func:`run_system`.
-
-    Returns
-    -------
-    RunResult
-        The traces, timings and run information.
-
-    Raises
-    ------
-    CosimError
-        If an FMU refuses a call.
-    """
-    t0 = time.perf_counter()
-    cfg = dict(config, mode=mode, seed=int(seed),
-               tracking=tracking or config.get("tracking", "lq"))
-    system = closed_loop_system(cfg)
-    traces, loop_s, info = run_system(system, fmus, steps, coupling=coupling,
-                                      progress=progress, instance_suffix=f"_{mode}_{seed}",
-                                      stop=stop)
-    return RunResult(mode=mode, seed=int(seed), h=system.h, traces=traces,
-                     wall_s=time.perf_counter() - t0, loop_s=loop_s, coupling=coupling,
-                     info=info)

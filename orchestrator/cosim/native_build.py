@@ -20,7 +20,8 @@ from lxml import etree
 from fmu_common.interface import ArraySpec, element_names
 
 from ..atomic import copy_atomically, temporary_sibling
-from .build import FMU_KINDS, ROOT, fmu_cache_dir, patch_model_description, prune_cache
+from .build import FMU_KINDS, ROOT, fmu_cache_dir, prune_cache
+from .model_description import patch_model_description
 from .platforms import (
     HOST_CFLAGS,
     PLATFORMS,

@@ -1,4 +1,5 @@
-"""The system file of the C host (tests/c_host/c_host.c) from an exported OSP system.
+"""The system file of the C host (orchestrator/interop/native_host/c_host.c) from an exported
+OSP system.
 
 ``python -m orchestrator.interop.c_host OSP_SYSTEM_XML OUT_DIR`` unzips every FMU the OSP
 system names into ``OUT_DIR/<Model>/`` and writes ``OUT_DIR/system.txt``: one ``fmu`` line
@@ -16,7 +17,10 @@ from pathlib import Path
 
 from lxml import etree
 
-__all__ = ["OSP_NS", "main", "write_c_host_system_from_osp"]
+__all__ = ["C_HOST_SOURCE", "OSP_NS", "main", "write_c_host_system_from_osp"]
+
+#: the C host's source (C99: libc, libdl, libm; its system file format: README.md beside it)
+C_HOST_SOURCE = Path(__file__).resolve().with_name("native_host") / "c_host.c"
 
 OSP_NS = "http://opensimulationplatform.com/MSMI/OSPSystemStructure"
 
@@ -104,8 +108,8 @@ def _start(md: object, var: str) -> str | None:
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m orchestrator.interop.c_host OSP_SYSTEM_XML OUT_DIR``."""
     ap = argparse.ArgumentParser(prog="python -m orchestrator.interop.c_host",
-                                 description="write the C host's system file "
-                                             "(tests/c_host/c_host.c) for an OSP system")
+                                 description="write the C host's system file (orchestrator/"
+                                             "interop/native_host/c_host.c) for an OSP system")
     ap.add_argument("system", help="OspSystemStructure.xml (of auv-cosim export native)")
     ap.add_argument("out", help="folder for the unzipped FMUs and system.txt")
     args = ap.parse_args(argv)

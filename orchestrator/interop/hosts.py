@@ -7,7 +7,7 @@ docs/other-tools.md shows the same text for the paper scenario (``tests/test_hos
 checks that the docs equal :func:`host_commands` and runs the docs' text as written).
 
 Every command is meant to be run from the checkout (``.venv/bin/python``,
-``tests/c_host/c_host.c``). What each host needs, found on this machine:
+``orchestrator/interop/native_host/c_host.c``). What each host needs, found on this machine:
 
 - fmpy 0.3's ``fmpy.ssp.simulation.simulate_ssp`` ignores the archive's DefaultExperiment and
   parameter bindings: without arguments it runs 1 s with a step of stop_time / 100, so
@@ -22,8 +22,8 @@ Every command is meant to be run from the checkout (``.venv/bin/python``,
   Debian needs ``libtbb12``).
 - a host without Python of its own (cosim, ecos) loads pythonfmu FMUs only with libpython
   preloaded and the venv named (``LD_PRELOAD``, ``PYTHONEXECUTABLE``; docs/other-tools.md).
-- the C host (tests/c_host/c_host.c) takes native FMUs only; its system file is written by
-  ``python -m orchestrator.interop.c_host`` from the OSP system.
+- the C host (orchestrator/interop/native_host/c_host.c) takes native FMUs only; its system
+  file is written by ``python -m orchestrator.interop.c_host`` from the OSP system.
 """
 from __future__ import annotations
 
@@ -108,12 +108,13 @@ HOSTS: tuple[Host, ...] = (
          "{env_export}"
          " cd {results_sh}/ecos && \"$ECOS\" simulate "
          "--path \"$SSP\" --stopTime {T} --stepSize {h} --noParallel)"),
-    Host("c-host", "a C host with no Python (tests/c_host/c_host.c: libc, libdl, libm)",
+    Host("c-host", "a C host with no Python (orchestrator/interop/native_host/c_host.c: libc, "
+         "libdl, libm)",
          ("native",),
          "mkdir -p {results_sh}/c_host\n"
          "cc -O2 -std=c99 -I\"$(.venv/bin/python -c 'import fmpy, os; "
          "print(os.path.join(os.path.dirname(fmpy.__file__), \"c-code\"))')\" \\\n"
-         "   -o {results_sh}/c_host/c_host tests/c_host/c_host.c -ldl -lm\n"
+         "   -o {results_sh}/c_host/c_host orchestrator/interop/native_host/c_host.c -ldl -lm\n"
          ".venv/bin/python -m orchestrator.interop.c_host {system_sh} {results_sh}/c_host\n"
          "{results_sh}/c_host/c_host {results_sh}/c_host/system.txt {steps} {h} "
          "{results_sh}/c_host.csv"),

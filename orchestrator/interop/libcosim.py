@@ -2,7 +2,8 @@
 
 libcosim's fixed-step algorithm steps every simulator, then transfers outputs to inputs:
 every FMU sees the other FMUs' outputs of the previous communication point, which
-``run_cosimulation(..., coupling="jacobi")`` reproduces bit for bit.
+:func:`orchestrator.cosim.master.run_system` with ``coupling="jacobi"`` reproduces bit for
+bit.
 """
 from __future__ import annotations
 
@@ -87,7 +88,7 @@ def run_libcosim(system_file: Path | str, system: SystemDescription, steps: int,
         ``traces``: {trace name: (steps, size) array} for every output of every component,
         named as :meth:`SystemDescription.trace_names` (None without ``record``);
         ``loop_s``: seconds of stepping over steps 2..steps (the first ``step()`` also
-        initializes the FMUs and is left out, as run_cosimulation's loop_s leaves out
+        initializes the FMUs and is left out, as run_system's loop_s leaves out
         initialization); ``setup_s``: seconds to load and connect the system; ``init_s``:
         seconds of the first step; ``loop_steps``: steps - 1.
 

@@ -102,7 +102,7 @@ def survey_grid_fleet(N: int = 100, *, columns: int = 10, spacing: float = 10.0,
     """
     if N < 1:
         raise ValueError(f"N = {N} must be at least 1")
-    from plant_model.leader import make_leader
+    from plant_model.leader_paths import make_leader
 
     leader = {"leg_length": 600.0, "spacing": 200.0, "speed": 1.5, "harmonics": 3,
               "start": [0.0, 0.0, 20.0]}

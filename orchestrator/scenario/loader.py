@@ -179,7 +179,8 @@ def _check_sampled(sc: Scenario, network_checked: bool = False) -> None:
     the [sensors] periods and cycle."""
     if sc.fleet is None:
         return
-    from plant_model.leader import check_turn_rate, make_leader
+    from plant_model.leader import check_turn_rate
+    from plant_model.leader_paths import make_leader
     from plant_model.navigation import NavigationSensors
     ld = sc.fleet["leader"]
     try:

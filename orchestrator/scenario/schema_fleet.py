@@ -5,7 +5,7 @@ checks what it knows, called from the validator of the section it belongs to:
 
 - [vehicles]: :func:`plant_model.fleet.fleet_vehicles` (known models and parameters, one
   state and output size for all), offsets / positions / x0 rows, per-vehicle overrides;
-- [leader]: :func:`plant_model.leader.make_leader` (known path, its parameters), then
+- [leader]: :func:`plant_model.leader_paths.make_leader` (known path, its parameters), then
   :func:`plant_model.vehicle_targets.leader_state_map` against every vehicle model;
 - [graph]: :func:`plant_model.graph.communication_graph` (weights, self-loops,
   duplicates, a path from the leader to every vehicle), the coupling p x p;
@@ -42,7 +42,8 @@ from plant_model.fleet import (
     fleet_vehicles,
 )
 from plant_model.graph import communication_graph
-from plant_model.leader import LeaderPath, check_turn_rate, make_leader
+from plant_model.leader import LeaderPath, check_turn_rate
+from plant_model.leader_paths import make_leader
 from plant_model.linalg_checks import (
     ModelError,
     as_matrix,
@@ -135,7 +136,7 @@ class FleetNoiseSection(VehicleNoise):
 
 class LeaderSection(BaseModel):
     """[leader]: ``path`` and that path's parameters, checked by
-    :func:`plant_model.leader.make_leader` (which refuses unknown parameters, naming the
+    :func:`plant_model.leader_paths.make_leader` (which refuses unknown parameters, naming the
     accepted ones: the only table whose keys the domain layer defines); ``noise`` the
     intensity W_z of the leader's state, a number or an l x l positive semidefinite matrix."""
 

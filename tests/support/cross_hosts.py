@@ -1,4 +1,4 @@
-"""The C host of tests/c_host/c_host.c on other platforms: compiled with the cross compilers
+"""The C host of orchestrator/interop/native_host/c_host.c on other platforms: compiled with the cross compilers
 of :mod:`orchestrator.cosim.platforms` and run under ``wine`` (win64) or ``qemu-aarch64 -L
 /usr/aarch64-linux-gnu`` (aarch64-linux), so the exported native FMUs' other binaries are
 run for real on this x86-64 Linux machine."""
@@ -11,11 +11,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from orchestrator.cosim.platforms import PLATFORMS, host_platform, platform_compiler
+from orchestrator.interop.c_host import C_HOST_SOURCE
 
 __all__ = ["AARCH64_SYSROOT", "CrossHost", "build_host", "host_system", "missing_tools",
            "stop_wine"]
 
-C_HOST = Path(__file__).resolve().parents[1] / "c_host" / "c_host.c"
+C_HOST = C_HOST_SOURCE
 #: the aarch64 C library of Debian's libc6-arm64-cross (qemu-aarch64 -L)
 AARCH64_SYSROOT = Path("/usr/aarch64-linux-gnu")
 
