@@ -33,6 +33,8 @@ from plant_model.discretization import DiscreteModel
 from plant_model.linalg_checks import ModelError
 from plant_model.system import LinearSystem
 
+from .covariance_filter import CovarianceFilter
+
 __all__ = ["NAME", "TimeVaryingKalman", "check_initial_covariance", "gain_sequence",
            "riccati_step", "stacked_initial_covariance", "tv_estimator", "tv_vehicle_estimator"]
 
@@ -137,15 +139,15 @@ def gain_sequence(P0: np.ndarray, Ad: np.ndarray, Mm: np.ndarray, Qd: np.ndarray
     return out
 
 
-class TimeVaryingKalman:
+class TimeVaryingKalman(CovarianceFilter):
     """The filter of the module docstring; ``estimate`` then ``update`` once per step.
 
     mvec = [meas; anything else] (the first Mm.shape[0] entries are read); est has the
     size of q.
     """
 
-    mode = NAME
-    uses_truth = False
+    mode = state_mode = NAME
+    label = repr(NAME)
 
     def __init__(self, Ad: np.ndarray, Bd: np.ndarray, Qd: np.ndarray, Rd: np.ndarray,
                  Mm: np.ndarray, P0: np.ndarray, q0: np.ndarray):
@@ -157,12 +159,6 @@ class TimeVaryingKalman:
         self.P0 = np.array(P0, dtype=float)
         self.q0 = np.array(q0, dtype=float)
         self.reset()
-
-    def reset(self) -> None:
-        """Restart from q0, P0."""
-        self.q = self.q0.copy()
-        self.P = self.P0.copy()
-        self._P_post = self.P0.copy()
 
     def gain(self) -> np.ndarray:
         """L_k of the current prior P_k."""
@@ -180,30 +176,6 @@ class TimeVaryingKalman:
             return est
         out[:] = est
         return out
-
-    def update(self, est: np.ndarray, u: np.ndarray) -> None:
-        """q[k+1] = Ad est[k] + Bd u[k];  P[k+1] = sym(Ad P+_k Ad' + Qd)."""
-        q = self.Ad.dot(est)
-        q += self.Bd.dot(u)
-        self.q = q
-        P = self.Ad @ self._P_post @ self.Ad.T + self.Qd
-        self.P = 0.5 * (P + P.T)
-
-    def get_state(self) -> dict:
-        """q, P and the last filtered covariance (copies)."""
-        return {"mode": NAME, "q": self.q.copy(), "P": self.P.copy(),
-                "P_post": self._P_post.copy()}
-
-    def set_state(self, state: dict) -> None:
-        """Restore :meth:`get_state` (validated first: on error nothing changes)."""
-        if state.get("mode") != NAME:
-            raise ValueError(f"the estimator state is of mode {state.get('mode')!r}, this "
-                             f"estimator is {NAME!r}")
-        q = np.array(state["q"], dtype=float)
-        P, Pp = np.array(state["P"], dtype=float), np.array(state["P_post"], dtype=float)
-        if q.shape != self.q0.shape or P.shape != self.P0.shape or Pp.shape != P.shape:
-            raise ValueError("the estimator state does not fit this filter")
-        self.q, self.P, self._P_post = q, P, Pp
 
 
 def tv_estimator(system: LinearSystem, model: DiscreteModel,

@@ -35,6 +35,7 @@ from plant_model.linalg_checks import ModelError
 from plant_model.navigation import NAV_SIZE, NavigationSensors
 from plant_model.system import LinearSystem
 
+from .covariance_filter import CovarianceFilter
 from .estimators import LinearEstimator, steady_kalman
 
 __all__ = ["SENSOR_ROWS", "MultiRateKalman", "navigation_estimator", "navigation_rows",
@@ -107,10 +108,11 @@ def periodic_filter(Ad: np.ndarray, Qd: np.ndarray, sensors: NavigationSensors, 
 
 
 
-class MultiRateKalman:
+class MultiRateKalman(CovarianceFilter):
     """The filter of the module docstring; ``estimate`` then ``update`` once per step."""
 
-    uses_truth = False
+    state_mode = "kalman-multirate"
+    label = "the multi-rate Kalman filter"
 
     @property
     def mode(self) -> str:
@@ -136,12 +138,6 @@ class MultiRateKalman:
         self._eye = np.eye(ns)
         self.reset()
 
-    def reset(self) -> None:
-        """Restart from q0, P0."""
-        self.q = self.q0.copy()
-        self.P = self.P0.copy()
-        self._P_post = self.P0.copy()
-
     def estimate(self, mvec: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """est[k] from q[k], P[k] and the measurements present in mvec (module docstring);
         the filtered covariance is kept for :meth:`update` (the prior is not changed, so
@@ -166,30 +162,6 @@ class MultiRateKalman:
             return est
         out[:] = est
         return out
-
-    def update(self, est: np.ndarray, u: np.ndarray) -> None:
-        """q[k+1] = Ad est[k] + Bd u[k];  P[k+1] = Ad P+[k] Ad' + Qd."""
-        q = self.Ad.dot(est)
-        q += self.Bd.dot(u)
-        self.q = q
-        P = self.Ad @ self._P_post @ self.Ad.T + self.Qd
-        self.P = 0.5 * (P + P.T)
-
-    def get_state(self) -> dict:
-        """q, P and the last filtered covariance (copies)."""
-        return {"mode": "kalman-multirate", "q": self.q.copy(), "P": self.P.copy(),
-                "P_post": self._P_post.copy()}
-
-    def set_state(self, state: dict) -> None:
-        """Restore :meth:`get_state` (validated first: on error nothing changes)."""
-        if state.get("mode") != "kalman-multirate":
-            raise ValueError(f"the estimator state is of mode {state.get('mode')!r}, this "
-                             "estimator is the multi-rate Kalman filter")
-        q = np.array(state["q"], dtype=float)
-        P, Pp = np.array(state["P"], dtype=float), np.array(state["P_post"], dtype=float)
-        if q.shape != self.q0.shape or P.shape != self.P0.shape or Pp.shape != P.shape:
-            raise ValueError("the estimator state does not fit this vehicle")
-        self.q, self.P, self._P_post = q, P, Pp
 
 
 def navigation_estimator(system: LinearSystem, model: DiscreteModel, mode: str,
