@@ -189,6 +189,10 @@ def check_network(table: Any, N: int, h: float) -> dict[str, Any]:
     schedule = resolve_schedule(table, [(j, i) for j, i, _ in every] +
                                 [("leader", i) for i, _ in pins], h, N)
     check_cycle(links, schedule.period if schedule is not None else 0, h)
+    if schedule is not None and any(t.bursts is not None for t in links.values()):
+        raise ModelError("[network] loss_model = \"gilbert-elliott\" with a schedule is not "
+                         "supported (a down link's channel would step without an arrival, "
+                         "which the predictions do not carry)")
     return dict(table)
 
 
