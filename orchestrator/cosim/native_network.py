@@ -2,10 +2,10 @@
 
 Its C model (fmu_common/native/network_fmu.c, on the shared FMI plumbing fmu_core.c and
 numpy's generator numpy_random.c) steps the links as plant_model.acoustic.links does: the
-same send steps, arrival steps, loss draws (numpy's ``Generator.random()`` of the PCG64
-seeded ``[seed, 1000000 + key]``, independent or Gilbert-Elliott as
-plant_model.acoustic.link_models draws them), schedule, modem range and receiver (held, or propagated
-by M). The native FMU is made from the pythonfmu FMU it replaces:
+same send steps, arrival steps, loss draws (numpy's ``Generator.random()`` of the
+PCG64 seeded ``[seed, 1000000 + key]``, independent or Gilbert-Elliott as
+plant_model.acoustic.link_models draws them), schedule, modem range and receiver (held,
+or propagated by M). The native FMU is made from the pythonfmu FMU it replaces:
 
 - its ``modelDescription.xml`` is the pythonfmu FMU's (the same variables in the same order,
   names, causalities, units, start values, descriptions and ModelStructure), with the
@@ -164,7 +164,8 @@ def _header(config: Mapping[str, Any], reals: list[Var], ints: list[Var], vr: di
         '#include "network_model.h"',
         "#ifdef NATIVE_MODEL_TABLES",
         "static const LinkInfo LINKS[NLINKS > 0 ? NLINKS : 1] = {",
-        *(rows or ['    {"", "", 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, -1, 0, -1, -1, -1, -1, -1, -1},']), "};",
+        *(rows or ['    {"", "", 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, -1, 0, -1, '
+                   '-1, -1, -1, -1, -1},']), "};",
         f"static const int POSITION_INDEX[3] = {{{pos[0]}, {pos[1]}, {pos[2]}}};",
         "static const char *const REAL_NAMES[ALLOC(NREAL)] = {", strings([n for n, _, _ in reals]),
         "};",

@@ -22,6 +22,7 @@ from controller_fmu.vehicle_law import centralized_rows
 from plant_model.acoustic.schedule import connectivity, resolve_schedule
 from plant_model.fleet import fleet_vehicles
 
+from ..analysis.acoustic.bursty import bursty_radius, bursty_window, critical_burst
 from ..analysis.acoustic.loop import NetworkedLoop
 from ..analysis.acoustic.message_form import (
     MessageForm,
@@ -29,7 +30,6 @@ from ..analysis.acoustic.message_form import (
     distributed_message_form,
     without_leader_links,
 )
-from ..analysis.acoustic.bursty import bursty_radius, bursty_window, critical_burst
 from ..analysis.acoustic.prediction import predict_window
 from ..analysis.acoustic.stability import critical_loss, ms_spectral_radius
 from ..analysis.per_vehicle import distributed_initial_state, distributed_loop_of, distributed_noise

@@ -115,8 +115,8 @@ class AuvNetwork(Fmi2Slave):
     math_name = "inbox"
     evolving_name = "s"
     description = ("Acoustic modem inbox of one AUV: the links it hears (message schedule, "
-                   "latency, losses independent or in bursts), the receiver holding or propagating the "
-                   "newest message")
+                   "latency, losses independent or in bursts), the receiver holding or "
+                   "propagating the newest message")
 
     @staticmethod
     def interface(config: dict[str, Any]) -> list[ArraySpec]:

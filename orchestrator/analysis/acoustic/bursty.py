@@ -22,7 +22,8 @@ kappa = q_B - q_G, sigma2 = pi_B pi_G, lambda = 1 - p_gb - p_bg and Abar = A0 + 
 a step with arrivals maps
 
     X+   = [the independent-loss step at the mean loss](X)
-           + sum_(m bursty, arriving) kappa_m (D_m U_m Abar' + Abar U_m D_m' + (1 - 2 q_m) D_m U_m D_m')
+           + sum_(m bursty, arriving)
+               kappa_m (D_m U_m Abar' + Abar U_m D_m' + (1 - 2 q_m) D_m U_m D_m')
     U_l+ = [the same step without noise](U_l)                                  (l not arriving)
     U_l+ = lambda_l ([the same step without noise](U_l)
            + sigma2 kappa (D Xe Abar' + Abar Xe D') + kappa (pi_G - pi_B)(D U Abar' + Abar U D')
@@ -163,13 +164,14 @@ class BurstyMoments:
             Az, arrivals = self._event(s)
             A = s.A
 
-            def step(Y0: np.ndarray, with_noise: bool) -> np.ndarray:
+            def step(Y0: np.ndarray, with_noise: bool, s: Event = s, A: Any = A
+                     ) -> np.ndarray:
                 Y = _sandwich(A, Y0) + (s.noise if with_noise else 0.0)
                 for term in s.terms:
                     term.add_to(Y, Y0)
                 return Y
 
-            def right(Dm: Any, Y: np.ndarray) -> np.ndarray:
+            def right(Dm: Any, Y: np.ndarray, A: Any = A) -> np.ndarray:
                 """Dm Y A' (Dm sparse, A sparse or dense)."""
                 return np.asarray(A @ np.asarray(Dm @ Y).T).T
 
