@@ -1,6 +1,8 @@
 """The composition matrix: formation-4 at a short horizon, every combination of deployment
 {stacked, per-vehicle centralized, per-vehicle distributed} x links {none, latency + loss} x
-vehicle {remus100, remus100-6dof, remus100-6dof-guided} x FMUs {python, native}, through `auv-cosim run`. Each cell
+vehicle {remus100, remus100-6dof, remus100-6dof-guided} x FMUs {python, native}, through `auv-cosim run`,
+and the bursty link model (a Gilbert-Elliott channel per link, from the scenario's
+[network]) per-vehicle centralized and distributed x FMUs {python, native}. Each cell
 either runs (finite figures, a .rrd that reads back with the expected entities, native equal
 to python where both run) or is refused before anything is written, in one line naming the
 combination and why. docs/composition.md holds the table this test checks."""
@@ -31,6 +33,17 @@ REFUSED = {("stacked", "links"): "[network] needs [simulation] deployment = \"pe
 #: the REMUS 100 vehicle kinds, native with --fmus native (orchestrator.cosim.native_remus)
 REMUS_KINDS = ("remus6dof", "remus6dof_actuated")
 T = "2.0"
+#: the bursty link model's cells: a Gilbert-Elliott channel per link (link_models)
+BURSTY_NETWORK = """
+[network]
+latency = 0.5
+period = 0.5
+loss_model = "gilbert-elliott"
+p_gb = 0.3
+p_bg = 0.4
+loss_good = 0.05
+loss_bad = 0.9
+"""
 
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler (cc) for the "
                               "native FMUs")
@@ -44,6 +57,8 @@ def scenarios(tmp_path_factory):
     for vehicle in VEHICLES:
         paths[vehicle] = folder / f"formation-4-{vehicle}.toml"
         paths[vehicle].write_text(text.replace('model = "remus100"', f'model = "{vehicle}"'))
+    paths["bursty"] = folder / "formation-4-bursty.toml"
+    paths["bursty"].write_text(text + BURSTY_NETWORK)
     return paths
 
 
@@ -196,6 +211,47 @@ def test_kalman_tv_cells_run_or_are_refused_in_one_line(tv_scenario, runs, tmp_p
     runs[("tv", dep, links, fmus)] = (scalars, m)
     if fmus == "native" and ("tv", dep, links, "python") in runs:
         ref, mref = runs[("tv", dep, links, "python")]
+        assert set(ref) == set(scalars)
+        for entity, (_, _, values) in ref.items():
+            got = scalars[entity][2]
+            scale = max(float(np.nanmax(np.abs(values))), 1e-300)
+            assert np.nanmax(np.abs(got - values)) <= 1e-12 * scale, entity
+        assert m["cost_rate"]["mean"] == pytest.approx(mref["cost_rate"]["mean"], rel=1e-12)
+
+
+BURSTY_CELLS = [(d, f) for d in ("centralized", "distributed") for f in FMUS]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("dep, fmus", BURSTY_CELLS, ids=["-".join(c) for c in BURSTY_CELLS])
+def test_bursty_link_cells_run_and_native_equals_python(scenarios, runs, tmp_path, capsys,
+                                                        dep, fmus):
+    """A Gilbert-Elliott channel per link (the link-model registry's second row): the
+    per-vehicle fleet runs through the network FMUs (python or native), its summary names
+    the model and its predictions, and the native cell's every recorded signal equals the
+    python cell's to 1e-12 of its scale."""
+    if fmus == "native" and shutil.which("cc") is None:
+        pytest.skip("no C compiler (cc) for the native FMUs")
+    out = tmp_path / f"{dep}-bursty-{fmus}"
+    code = main(["run", "--scenario", str(scenarios["bursty"]), "--T", T, "--seed", "3",
+                 "--quiet", "--out", str(out), "--fmus", fmus, *DEPLOYMENTS[dep]])
+    io = capsys.readouterr()
+    assert code == 0, io.err
+    summary = json.loads((out / "summary.json").read_text())
+    (m,) = summary["methods"].values()
+    assert math.isfinite(m["cost_rate"]["mean"]) and math.isfinite(m["cost_rate"]["predicted"])
+    net = m["network"]
+    assert net["loss_model"] == "gilbert-elliott" and len(net["bursty_links"]) == net["links"]
+    assert net["bursty_links"]["leader -> 1"]["mean_burst"] == pytest.approx(2.5)
+    kinds = {k: e["kind"] for k, e in summary["fmus"].items()}
+    assert kinds["network"] == fmus
+    scalars = read_rrd_scalars(out / f"{summary['scenario']}.rrd")
+    # network/links/{j}-{i}: delivered, lost, in flight
+    lost = [v[-1, 1] for e, (_, _, v) in scalars.items() if e.startswith("network/links/")]
+    assert len(lost) == net["links"] and sum(lost) > 0                  # messages were lost
+    runs[(dep, "bursty", fmus)] = (out, scalars, m)
+    if fmus == "native" and (dep, "bursty", "python") in runs:
+        _, ref, mref = runs[(dep, "bursty", "python")]
         assert set(ref) == set(scalars)
         for entity, (_, _, values) in ref.items():
             got = scalars[entity][2]

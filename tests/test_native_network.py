@@ -10,7 +10,7 @@ import shutil
 
 import numpy as np
 import pytest
-from test_network_fmu import CONFIG, SCHED_CONFIG, H, _drive, _names
+from test_network_fmu import BURSTY_CONFIG, CONFIG, SCHED_CONFIG, H, _drive, _names
 
 from orchestrator.cosim.build import build_fmus
 from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
@@ -30,7 +30,7 @@ OTHER = {"seed": 99, "link[1].key": link_key(4, 3), "link[2].latency": 5.0,
 NO_LEADER = dict(CONFIG, leader_size=0, leader=None, range=8.0, state_size=6,
                  position_index=[0, 1, 2])
 CONFIGS = {"plain": CONFIG, "sched": SCHED_CONFIG, "range": RANGE_CONFIG,
-           "no_leader": NO_LEADER}
+           "no_leader": NO_LEADER, "bursty": BURSTY_CONFIG}
 
 
 @pytest.fixture(scope="module")
@@ -158,6 +158,20 @@ def test_a_bad_parameter_fails_initialization_naming_it(pair, name, value, fragm
     with pytest.raises(CosimError) as exc:
         _open(pair, "plain", 1, f"bad_{name}", **{name: value})
     assert "initialization failed" in str(exc.value) and fragment in str(exc.value)
+
+
+@pytest.mark.parametrize("name, value, fragment", [
+    ("link[1].p_bg", 1.5, "link[1].p_bg: link[1] of vehicle 3: p_bg = 1.5 is not a "
+     "probability in (0, 1]"),
+    ("leader.loss_bad", 0.01, "leader.loss_bad: leader link of vehicle 3: loss_bad = 0.01 is "
+     "below loss_good = 0.05"),
+    ("link[2].loss_model", 2, "link[2].loss_model: link[2] of vehicle 3: loss_model = 2 is "
+     "not one of 0 (independent), 1 (gilbert-elliott)"),
+])
+def test_a_bad_bursty_parameter_fails_naming_it(pair, name, value, fragment):
+    with pytest.raises(CosimError) as exc:
+        _open(pair, "bursty", 1, f"bad_{name}", **{name: value})
+    assert fragment in str(exc.value)
 
 
 @pytest.mark.parametrize("name, value, fragment", [

@@ -9,6 +9,7 @@ import pytest
 from orchestrator.cosim.build import build_fmus
 from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
 from plant_model.acoustic.inbox import Inbox, LinkSettings
+from plant_model.acoustic.link_models import LINK_MODELS, MODEL_KEY, model_of_code
 from plant_model.acoustic.links import LinkChannel, check_link, link_key
 
 H, RECEIVER, SEED = 0.1, 3, 11
@@ -43,12 +44,26 @@ SCHEDULE = {"t": [0.0, 3.0], "period": 7.0}
 SCHED_CONFIG = dict(CONFIG, schedule=SCHEDULE,
                     links=[dict(CONFIG["links"][0], up=[1, 0]), dict(CONFIG["links"][1], up=[0, 1])],
                     leader=dict(CONFIG["leader"], up=[1, 1]))
+#: CONFIG with bursty links (plant_model.acoustic.link_models): link[1] and the leader's a
+#: Gilbert-Elliott channel each, link[2] independent
+GE = {MODEL_KEY: 1, "p_gb": 0.15, "p_bg": 0.3, "loss_good": 0.05, "loss_bad": 0.9}
+BURSTY_CONFIG = dict(CONFIG, loss_models=True,
+                     links=[dict(CONFIG["links"][0], **GE), CONFIG["links"][1]],
+                     leader=dict(CONFIG["leader"], **dict(GE, p_gb=0.4)))
+
+
+def _model(st):
+    """A link's loss model from its configuration entry (a row of link_models)."""
+    code = st.get(MODEL_KEY, 0)
+    row = list(LINK_MODELS.values())[code]
+    return model_of_code("ref", code, {k: st[k] for k in row.PARAMETERS})
 
 
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     paths = {}
-    for key, cfg in (("network", CONFIG), ("stats", STATS_CONFIG), ("sched", SCHED_CONFIG)):
+    for key, cfg in (("network", CONFIG), ("stats", STATS_CONFIG), ("sched", SCHED_CONFIG),
+                     ("bursty", BURSTY_CONFIG)):
         paths[key] = build_fmus(None, tmp_path_factory.mktemp(key),
                                 kinds={"network": cfg})["network"]
     ex = Extracted(paths)
@@ -91,7 +106,7 @@ def _reference(config, inputs):
     chans = []
     for st, _ in layout:
         M = np.array(st["M"])
-        chans.append(LinkChannel(check_link("ref", st["latency"], st["period"], st["loss"],
+        chans.append(LinkChannel(check_link("ref", st["latency"], st["period"], _model(st),
                                             st["offset"]), config["h"], config["seed"],
                                  st["key"], np.array(st["rx0"]),
                                  None if np.array_equal(M, np.eye(len(M))) else M))
@@ -156,6 +171,45 @@ def test_a_schedule_switches_the_links_in_the_fmu_as_in_link_channels(built):
     assert {"schedule.t[2]", "schedule.period", "link[1].up[2]", "leader.up[1]"} <= set(names)
     assert inst.types["link[2].up[1]"] == "Integer"
     inst.close()
+
+
+def test_bursty_links_in_the_fmu_equal_the_link_channels_bit_for_bit(built):
+    """Gilbert-Elliott links (link[1], leader) beside an independent one (link[2]): every
+    output equals LinkChannels drawing through the registry, and the draws differ from the
+    independent model's at the same mean loss."""
+    inst = _instance(built, "bursty", key="bursty")
+    inputs = np.random.default_rng(7).standard_normal((300, 12))
+    got = _drive(inst, inputs, 0)
+    want, chans = _reference(BURSTY_CONFIG, inputs)
+    assert got.shape == want.shape and np.array_equal(got, want)
+    assert all(ch.lost > 0 and ch.delivered > 0 for ch in chans)
+    assert chans[0].channel in (0, 1) and chans[1].channel == 0       # GE state, none
+    plain, _ = _reference(CONFIG, inputs)
+    assert np.array_equal(got[:, 9:18], plain[:, 9:18])          # link[2] untouched
+    assert not np.array_equal(got[:, :9], plain[:, :9])
+    assert inst.types["link[1].loss_model"] == "Integer"
+    state = inst.slave.getFMUState()                          # the channel state restored
+    first = _drive(inst, inputs[:100], 300)
+    inst.slave.setFMUState(state)
+    assert np.array_equal(_drive(inst, inputs[:100], 300), first)
+    inst.slave.freeFMUState(state)
+    inst.close()
+
+
+@pytest.mark.parametrize("name, value, fragment", [
+    ("link[1].p_gb", 0.0, "link[1] of vehicle 3: p_gb = 0 is not a probability in (0, 1]"),
+    ("leader.loss_bad", 0.01, "leader link of vehicle 3: loss_bad = 0.01 is below "
+     "loss_good = 0.05"),
+    ("link[2].loss_model", 1, "link[2] of vehicle 3: p_gb"),        # neutral: 0.5 each
+])
+def test_a_bad_bursty_parameter_fails_initialization_naming_it(built, name, value, fragment):
+    if name == "link[2].loss_model":            # neutral parameters are valid: it runs
+        inst = _instance(built, "ge_ok", key="bursty", **{name: value})
+        inst.close()
+        return
+    with pytest.raises(CosimError) as exc:
+        _instance(built, f"bad_{name}", key="bursty", **{name: value})
+    assert "initialization failed" in str(exc.value) and fragment in str(exc.value)
 
 
 @pytest.mark.parametrize("name, value, fragment", [

@@ -47,3 +47,9 @@ def test_every_linear_model_documents_each_parameter_it_takes():
         if not entry.nonlinear:
             assert set(entry.params) <= set(entry.param_docs), entry.name
             assert all(doc for _, doc in entry.param_docs.values())
+
+
+def test_no_link_model_name_is_tested_outside_the_link_model_registry():
+    from plant_model.acoustic.link_models import LINK_MODELS
+    found = name_tests(LINK_MODELS, ("plant_model/acoustic/link_models.py",))
+    assert not found, "link model names tested outside the registry:\n" + "\n".join(found)

@@ -9,10 +9,14 @@
  *
  *   1. the send steps skipped are passed (m: the next message's number; its send step is
  *      round(offset / h) + round(m period / h), rounding half to even as Python does);
- *   2. if k is a send step the tx inputs leave; the message is lost if a uniform draw of
- *      the link's stream is below `loss` (numpy's Generator.random(): (next_uint64 >> 11)
- *      2^-53 of PCG64 seeded by SeedSequence([seed, 1000000 + key])), or (drawn all the
- *      same) if the link is down in the schedule's graph at k or out of the modem's range;
+ *   2. if k is a send step the tx inputs leave; the message is lost as the link's loss
+ *      model draws it (plant_model/acoustic/link_models.py): independent, a uniform draw
+ *      of the link's stream below `loss` (numpy's Generator.random(): (next_uint64 >> 11)
+ *      2^-53 of PCG64 seeded by SeedSequence([seed, 1000000 + key])); Gilbert-Elliott, a
+ *      uniform u1 steps the channel state (s_0 = bad iff u1 < p_gb / (p_gb + p_bg); then
+ *      good -> bad iff u1 < p_gb, bad stays iff u1 < 1 - p_bg), a second u2 < loss_good or
+ *      loss_bad loses it; or (drawn all the same) if the link is down in the schedule's
+ *      graph at k or out of the modem's range;
  *      it arrives at max(k + 1, ceil((k h + latency) / h - 1e-9));
  *   3. the messages due at k + 1 leave the queue: a lost one is counted, another becomes
  *      rx (with its send step) and is counted as delivered;
@@ -72,6 +76,40 @@ static int whole_steps(Instance *in, const char *name, double value, double h, i
     return 0;
 }
 
+/* link_models.GilbertElliott.parse: the four parameters of a bursty link */
+static int check_bursts(Instance *in, const LinkInfo *L) {
+    const Data *d = &in->d;
+    double gb = R(d, L->p_gb), bg = R(d, L->p_bg), eg = R(d, L->loss_good);
+    double eb = R(d, L->loss_bad);
+    if (!(gb > 0.0 && gb <= 1.0)) {
+        fmu_log(in, fmi2Error, "parameter %s.p_gb: %s: p_gb = %g is not a probability in "
+                "(0, 1]", L->prefix, L->label, gb);
+        return -1;
+    }
+    if (!(bg > 0.0 && bg <= 1.0)) {
+        fmu_log(in, fmi2Error, "parameter %s.p_bg: %s: p_bg = %g is not a probability in "
+                "(0, 1]", L->prefix, L->label, bg);
+        return -1;
+    }
+    if (!(eg >= 0.0 && eg < 1.0)) {
+        fmu_log(in, fmi2Error, "parameter %s.loss_good: %s: loss_good = %g is not a "
+                "probability in [0, 1)", L->prefix, L->label, eg);
+        return -1;
+    }
+    if (!(eb >= 0.0 && eb <= 1.0)) {
+        fmu_log(in, fmi2Error, "parameter %s.loss_bad: %s: loss_bad = %g is not a "
+                "probability in [0, 1]", L->prefix, L->label, eb);
+        return -1;
+    }
+    if (eb < eg) {
+        fmu_log(in, fmi2Error, "parameter %s.loss_bad: %s: loss_bad = %g is below loss_good "
+                "= %g (the bad state loses at least as often as the good one)", L->prefix,
+                L->label, eb, eg);
+        return -1;
+    }
+    return 0;
+}
+
 /* a link's timing (links.check_link with h) and the capacity of its queue */
 static int check_link(Instance *in, const LinkInfo *L) {
     const Data *d = &in->d;
@@ -89,12 +127,19 @@ static int check_link(Instance *in, const LinkInfo *L) {
                 L->prefix, L->label, per);
         return -1;
     }
-    if (!(p >= 0.0 && p < 1.0)) {
+    int model = L->model >= 0 ? d->ints[L->model] : 0;
+    if (model != 0 && model != 1) {
+        fmu_log(in, fmi2Error, "parameter %s.loss_model: %s: loss_model = %d is not one of "
+                "0 (independent), 1 (gilbert-elliott)", L->prefix, L->label, model);
+        return -1;
+    }
+    if (model == 0 && !(p >= 0.0 && p < 1.0)) {
         fmu_log(in, fmi2Error, "parameter %s.loss: %s: loss = %g is not a probability in "
                 "[0, 1) (a link that loses every message carries nothing)", L->prefix,
                 L->label, p);
         return -1;
     }
+    if (model == 1 && check_bursts(in, L) != 0) return -1;
     if (!(off >= 0.0 && off < per)) {
         fmu_log(in, fmi2Error, "parameter %s.offset: %s: offset = %g s is not within "
                 "[0, period = %g s)", L->prefix, L->label, off, per);
@@ -203,6 +248,7 @@ void model_reset(Data *d) {
         ls->first = steps_of(R(d, L->offset), h);
         ls->every = R(d, L->period) / h;
         ls->hold = 1;
+        ls->channel = -1;
         for (int a = 0; a < L->w; a++) {
             ls->rx[a] = R(d, L->rx0 + a);
             for (int b = 0; b < L->w; b++)
@@ -251,6 +297,18 @@ static int64_t arrival_step(int64_t k, double h, double latency) {
     return a > k + 1 ? a : k + 1;
 }
 
+/* the loss model's draw of one message (link_models: Independent.draw, GilbertElliott.draw) */
+static int draw_loss(const Data *d, const LinkInfo *L, LinkState *ls) {
+    if (L->model < 0 || d->ints[L->model] == 0)
+        return npr_next_double(&ls->rng) < R(d, L->loss);
+    double gb = R(d, L->p_gb), bg = R(d, L->p_bg);
+    double u1 = npr_next_double(&ls->rng);
+    if (ls->channel < 0) ls->channel = u1 < gb / (gb + bg);
+    else if (ls->channel == 0) ls->channel = u1 < gb;
+    else ls->channel = u1 < 1.0 - bg;
+    return npr_next_double(&ls->rng) < R(d, ls->channel ? L->loss_bad : L->loss_good);
+}
+
 /* LinkChannel.advance: the transition of link j from step k to k + 1 */
 static void advance(Data *d, int j, int64_t k, int heard) {
     const LinkInfo *L = &LINKS[j];
@@ -260,7 +318,7 @@ static void advance(Data *d, int j, int64_t k, int heard) {
     if (next_send(ls) == k) {
         ls->m += 1;
         ls->sent += 1;
-        int lost = (npr_next_double(&ls->rng) < R(d, L->loss)) || !heard;
+        int lost = draw_loss(d, L, ls) || !heard;
         Msg *msg = &ls->q[(ls->head + ls->count) % QCAP];
         msg->arrival = arrival_step(k, R(d, VR_h), R(d, L->latency));
         msg->sent = k;

@@ -19,6 +19,8 @@ typedef struct {
     int leader;             /* 1: the leader link (position H z with a modem range) */
     int latency, period, loss, offset, M, rx0, tx, rx, age, delivered, lost, in_flight, txx;
     int key, up;            /* Integer value references (up: -1 without a schedule) */
+    int model;              /* Integer: its loss_model row (-1: independent, no variable) */
+    int p_gb, p_bg, loss_good, loss_bad;   /* Gilbert-Elliott parameters (-1: none) */
 } LinkInfo;
 
 /* a message in flight: arrival and send step, lost or not, its value (propagated) */
@@ -36,6 +38,7 @@ typedef struct {
     int64_t m;              /* the next message's number */
     int64_t rx_sent, sent, lost, delivered;
     int hold;               /* M is the identity: rx is held, not multiplied */
+    int channel;            /* Gilbert-Elliott state: -1 not drawn yet, 0 good, 1 bad */
     int head, count;        /* the queue of messages in flight: a ring of QCAP */
     double rx[WMAX];        /* what the receiver holds now */
     Msg q[QCAP];

@@ -2,9 +2,10 @@
 
 Its C model (fmu_common/native/network_fmu.c, on the shared FMI plumbing fmu_core.c and
 numpy's generator numpy_random.c) steps the links as plant_model.acoustic.links does: the
-same send steps, arrival steps, loss draws (numpy's ``Generator.random()`` of the PCG64
-seeded ``[seed, 1000000 + key]``), schedule, modem range and receiver (held, or propagated
-by M). The native FMU is made from the pythonfmu FMU it replaces:
+same send steps, arrival steps, loss draws (numpy's ``Generator.random()`` of the
+PCG64 seeded ``[seed, 1000000 + key]``, independent or Gilbert-Elliott as
+plant_model.acoustic.link_models draws them), schedule, modem range and receiver (held,
+or propagated by M). The native FMU is made from the pythonfmu FMU it replaces:
 
 - its ``modelDescription.xml`` is the pythonfmu FMU's (the same variables in the same order,
   names, causalities, units, start values, descriptions and ModelStructure), with the
@@ -126,11 +127,15 @@ def _header(config: Mapping[str, Any], reals: list[Var], ints: list[Var], vr: di
             raise NativeBuildError(f"AuvNetwork: the rx outputs of {p} are not contiguous")
         txx = need(f"{p}.tx.x[1]") if has_range and p != "leader" else -1
         up = need(f"{p}.up[1]") if G else -1
+        # a bursty link's model row and Gilbert-Elliott parameters (link_models)
+        bursty = ([need(f"{p}.{k}") for k in ("loss_model", "p_gb", "p_bg", "loss_good",
+                                             "loss_bad")]
+                  if config.get("loss_models") else [-1] * 5)
         rows.append(f'    {{"{label}", "{p}", {w}, {int(p == "leader")}, '
                     f'{need(f"{p}.latency")}, {need(f"{p}.period")}, {need(f"{p}.loss")}, '
                     f'{need(f"{p}.offset")}, {need(f"{p}.M[1,1]")}, {need(f"{p}.rx0[1]")}, '
                     f'{tx}, {rx}, {stats[0]}, {stats[1]}, {stats[2]}, {stats[3]}, {txx}, '
-                    f'{need(f"{p}.key")}, {up}}},')
+                    f'{need(f"{p}.key")}, {up}, {", ".join(str(v) for v in bursty)}}},')
     extra = [f"#define VR_h {need('h')}", f"#define IVR_seed {need('seed')}"]
     if has_range:
         extra += [f"#define VR_range {need('range')}", f"#define VR_x {need('x[1]')}"]
@@ -159,7 +164,8 @@ def _header(config: Mapping[str, Any], reals: list[Var], ints: list[Var], vr: di
         '#include "network_model.h"',
         "#ifdef NATIVE_MODEL_TABLES",
         "static const LinkInfo LINKS[NLINKS > 0 ? NLINKS : 1] = {",
-        *(rows or ['    {"", "", 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, -1, 0, -1},']), "};",
+        *(rows or ['    {"", "", 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, -1, 0, -1, '
+                   '-1, -1, -1, -1, -1},']), "};",
         f"static const int POSITION_INDEX[3] = {{{pos[0]}, {pos[1]}, {pos[2]}}};",
         "static const char *const REAL_NAMES[ALLOC(NREAL)] = {", strings([n for n, _, _ in reals]),
         "};",

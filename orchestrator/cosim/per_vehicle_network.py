@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from plant_model.acoustic.link_models import MODEL_KEY, model_code
 from plant_model.acoustic.links import LinkTiming, link_key
 from plant_model.acoustic.settings import resolve_links, timing_table
 
@@ -80,6 +81,9 @@ def _settings(sender: Any, timing: LinkTiming | None, key: int, M: np.ndarray,
     out = {"sender": sender, "latency": t.latency, "period": t.period, "loss": t.loss,
            "offset": t.offset, "key": int(key), "M": np.asarray(M, float).tolist(),
            "rx0": np.asarray(rx0, float).tolist()}
+    if t.bursts is not None:            # the row's own parameters (link_models)
+        out[MODEL_KEY] = model_code(t.bursts)
+        out.update(t.bursts.parameters())
     if up is not None:
         out["up"] = [int(bool(u)) for u in up]
     return out
@@ -127,6 +131,8 @@ def network_configs(senders: Mapping[Any, Any], links: Mapping[tuple[Any, int], 
     up = dict(schedule["up"]) if schedule else {}
     every = [1] * len(schedule["t"]) if schedule else None
     extra = dict(modem or {})
+    if any(t.bursts is not None for t in links.values()):
+        extra["loss_models"] = True
     if schedule:
         extra["schedule"] = {"t": [float(t) for t in schedule["t"]],
                              "period": float(schedule["period"])}

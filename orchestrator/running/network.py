@@ -22,6 +22,7 @@ from controller_fmu.vehicle_law import centralized_rows
 from plant_model.acoustic.schedule import connectivity, resolve_schedule
 from plant_model.fleet import fleet_vehicles
 
+from ..analysis.acoustic.bursty import bursty_radius, bursty_window, critical_burst
 from ..analysis.acoustic.loop import NetworkedLoop
 from ..analysis.acoustic.message_form import (
     MessageForm,
@@ -169,7 +170,7 @@ def network_predictions(sc: Any, setup: NetworkSetup, log: Log | None = None,
     if log is not None and net.n > SLOW_STATES:
         log(f"predicting the second moment over the links' message cycle (P = {net.period} "
             f"steps, {net.n} states): its radius and the expected cost over the window ...")
-    rho = ms_spectral_radius(net)
+    rho = bursty_radius(net) if net.bursty else ms_spectral_radius(net)
     cycle = net.period * net.h
     tau = -2.0 * cycle / math.log(rho) if 0.0 < rho < 1.0 else math.inf
     settling = 5.0 * tau
@@ -188,8 +189,9 @@ def network_predictions(sc: Any, setup: NetworkSetup, log: Log | None = None,
                           reason="a modem range makes the links depend on the vehicles' "
                                  "positions: simulation only, no prediction")
         return verdict, none, None, k0
-    win = predict_window(net, setup.Z0, k0, sc.steps, rho)
-    pred = Prediction(rms_e=None, rms_u=None, cost_rate=win.cost_rate, spectral_radius=rho,
+    cost = (bursty_window(net, setup.Z0, k0, sc.steps) if net.bursty else
+            predict_window(net, setup.Z0, k0, sc.steps, rho).cost_rate)
+    pred = Prediction(rms_e=None, rms_u=None, cost_rate=cost, spectral_radius=rho,
                       settling_time=settling,
                       reason="over acoustic links: the expected cost over the window from the "
                              "known start (second moment over the message cycle); no RMS "
@@ -219,6 +221,7 @@ def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True,
         "latency": float(table.get("latency", 0.0)),
         "period": float(table.get("period", sc.h)),
         "loss": float(table.get("loss", 0.0)),
+        "loss_model": table.get("loss_model", "independent"),
         "tdma": bool(table.get("tdma", False)),
         "receiver": setup.net.receiver,
         "links": len(setup.links),
@@ -226,6 +229,12 @@ def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True,
     }
     if "range" in table:
         out["range"] = float(table["range"])
+    if setup.net.bursty:
+        out["bursty_links"] = {f"{k[0]} -> {k[1]}": {**m.parameters(), "pi_bad": m.pi_bad,
+                                                      "mean_loss": m.mean_loss,
+                                                      "mean_burst": m.mean_burst}
+                               for k, m in setup.net.bursty.items()}
+        out["loss"] = float(np.mean([setup.net.loss[k] for k in setup.links]))
     if setup.net.schedule is not None:
         out["schedule"] = schedule_summary(setup, radius=critical and predict != "none")
     if predict == "none":
@@ -234,6 +243,10 @@ def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True,
         out["critical_loss"], out["critical_loss_note"] = None, (
             "not computed: the search evaluates the second-moment radius on a grid of losses "
             "and bisects (seconds for formation-4); --predict full computes it")
+    elif critical and setup.net.modem is None and setup.net.bursty:
+        out["critical_loss"], out["critical_loss_note"] = None, (
+            "bursty links: the critical figure is the mean burst length (critical_burst)")
+        out["critical_burst"], out["critical_burst_note"] = critical_burst(setup.net, log=log)
     elif critical and setup.net.modem is None:
         out["critical_loss"], out["critical_loss_note"] = critical_loss(setup.net, log=log)
     elif critical:
@@ -323,7 +336,8 @@ def age_summary(runs: list[tuple[list[str], np.ndarray]], k0: int, setup: Networ
         g = net.groups[net.link_group[key]]
         p = net.loss[key]
         w = np.concatenate(parts)
-        predicted = (None if net.schedule is not None else   # links switched on and off
+        predicted = (None if net.schedule is not None or key in net.bursty else  # switched,
+                     # or bursty (losses correlated: the formula is independent losses')
                      (g.D + (g.P - 1) / 2 + g.P * p / (1 - p)) * net.h)
         out.setdefault(i, {})[j] = {"mean": float(w.mean()), "max": float(w.max()),
                                     "predicted_mean": predicted}

@@ -255,6 +255,8 @@ class PerVehicleSetup(RunSetup):
                 self.log(f"predicting the expected cost over the window with the second "
                          f"moment in blocks ({setup.net.n} states, {len(setup.net.R)} links; "
                          f"the message cycle is {setup.net.period} steps) ...")
+            if setup.net.bursty:        # the blocks keep no tilt per bursty link
+                path = None
             cost = (predict_window_blocks(setup.net, setup.Z0, k0, sc.steps,
                                           float("nan")).cost_rate if path == "blocks" else None)
             pred = Prediction(rms_e=None, rms_u=None, cost_rate=cost,

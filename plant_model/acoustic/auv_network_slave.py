@@ -6,7 +6,10 @@ link ``leader`` (message z). Inputs ``<link>.tx.<field>``: what the sender sends
 outputs ``<link>.rx.<field>``: what the receiver uses at t_k (the newest message that has
 arrived, held or propagated by M, the launch value rx0 before the first arrival), the age
 of information ``<link>.age`` (s) and the counts ``delivered``, ``lost``, ``in_flight``.
-Timing, loss and the loss streams: plant_model.acoustic.links. With a switching schedule
+Timing, loss and the loss streams: plant_model.acoustic.links. With a bursty link in the
+configuration (``loss_models``) every link also has ``<link>.loss_model`` (Integer: the
+row of plant_model.acoustic.link_models, 0 independent with ``loss``, 1 Gilbert-Elliott
+with ``p_gb``, ``p_bg``, ``loss_good``, ``loss_bad``). With a switching schedule
 (``schedule`` in the configuration, plant_model.acoustic.schedule) the parameters
 ``schedule.t`` (the switch times, s), ``schedule.period`` (s; 0: no repetition) and per
 link ``<link>.up`` (1 if the link carries messages in each graph, else 0): a message sent
@@ -24,6 +27,12 @@ from fmu_common.interface import ArraySpec
 from fmu_common.slave_base import DelegatedStateSlave as Fmi2Slave
 from plant_model.acoustic.base import whole_steps
 from plant_model.acoustic.inbox import Inbox, LinkSettings
+from plant_model.acoustic.link_models import (
+    LINK_MODELS,
+    MODEL_KEY,
+    GilbertElliott,
+    model_of_code,
+)
 from plant_model.acoustic.links import check_link, in_range
 from plant_model.acoustic.schedule import LinkSchedule
 from plant_model.linalg_checks import ModelError
@@ -71,6 +80,24 @@ def link_layout(config: dict[str, Any]) -> list[tuple[str, str, list[tuple[str, 
     return out
 
 
+def _model_specs(config: dict[str, Any], p: str, label: str,
+                 st: dict[str, Any]) -> list[ArraySpec]:
+    """With bursty links in the configuration (``loss_models``): the link's model (its row
+    number in plant_model.acoustic.link_models) and the Gilbert-Elliott parameters (neutral
+    start values on a link of another model, which ignores them)."""
+    if not config.get("loss_models"):
+        return []
+    names = ", ".join(f"{c} {n}" for c, n in enumerate(LINK_MODELS))
+    out = [ArraySpec(f"{p}.{MODEL_KEY}", (), "parameter", f"{label}: how messages are lost "
+                     f"({names})", start=int(st.get(MODEL_KEY, 0)), type="Integer", min=0,
+                     max=len(LINK_MODELS) - 1)]
+    neutral = {"p_gb": 0.5, "p_bg": 0.5, "loss_good": 0.0, "loss_bad": 1.0}
+    out += [ArraySpec(f"{p}.{k}", (), "parameter", f"{label}: {GilbertElliott.DOCS[k]}",
+                      start=float(st.get(k, neutral[k])), min=0.0, max=1.0)
+            for k in GilbertElliott.PARAMETERS]
+    return out
+
+
 def _finite(name: str, value: np.ndarray) -> np.ndarray:
     """``value`` if finite, else a one-line ModelError naming the first bad FMI variable."""
     bad = np.argwhere(~np.isfinite(value))
@@ -88,8 +115,8 @@ class AuvNetwork(Fmi2Slave):
     math_name = "inbox"
     evolving_name = "s"
     description = ("Acoustic modem inbox of one AUV: the links it hears (message schedule, "
-                   "latency, independent losses), the receiver holding or propagating the "
-                   "newest message")
+                   "latency, losses independent or in bursts), the receiver holding or "
+                   "propagating the newest message")
 
     @staticmethod
     def interface(config: dict[str, Any]) -> list[ArraySpec]:
@@ -106,12 +133,14 @@ class AuvNetwork(Fmi2Slave):
                 ArraySpec(f"{p}.period", (), "parameter", f"{label}: one message per period",
                           start=st["period"], unit="s"),
                 ArraySpec(f"{p}.loss", (), "parameter", f"{label}: probability a message is "
-                          "lost, in [0, 1)", start=st["loss"], min=0.0, max=1.0),
+                          "lost, in [0, 1) (its loss model's mean loss)", start=st["loss"],
+                          min=0.0, max=1.0),
                 ArraySpec(f"{p}.offset", (), "parameter", f"{label}: time of the first "
                           "transmission, in [0, period)", start=st["offset"], unit="s"),
                 ArraySpec(f"{p}.key", (), "parameter", f"{label}: key of its loss stream "
                           "[seed, 1000000 + key]", start=st["key"], type="Integer", min=0,
                           max=2**31 - 1),
+                *_model_specs(config, p, label, st),
                 ArraySpec(f"{p}.M", (w, w), "parameter", f"{label}: the receiver propagates "
                           "the message it holds, rx <- M rx, every step (I: hold)",
                           start=st["M"]),
@@ -191,8 +220,12 @@ class AuvNetwork(Fmi2Slave):
             self._own = self._in[starts["x"]:starts["x"] + n]
         for p, label, fields, _ in link_layout(self.config):
             w = sum(n for _, n in fields)
-            timing = check_link(label, *(float(par[f"{p}.{v}"])
-                                         for v in ("latency", "period", "loss", "offset")))
+            code = int(par[f"{p}.{MODEL_KEY}"]) if self.config.get("loss_models") else 0
+            row = list(LINK_MODELS.values())[code] if 0 <= code < len(LINK_MODELS) else None
+            model = model_of_code(label, code, {} if row is None else {
+                k: float(par[f"{p}.{k}"]) for k in row.PARAMETERS})
+            timing = check_link(label, float(par[f"{p}.latency"]), float(par[f"{p}.period"]),
+                                model, float(par[f"{p}.offset"]))
             whole_steps(f"{label}: period", timing.period, h)
             M = _finite(f"{p}.M", par[f"{p}.M"])
             rx0 = _finite(f"{p}.rx0", par[f"{p}.rx0"])

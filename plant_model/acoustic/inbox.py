@@ -18,8 +18,9 @@ from .links import LinkChannel, LinkTiming
 
 __all__ = ["Inbox", "LinkSettings"]
 
-#: a LinkChannel's state: 6 counters, rx (size), per message in flight 3 + size, 10 RNG words
-_HEAD, _MSG, _RNG = 6, 3, 10
+#: a LinkChannel's state: 6 counters and the loss model's channel state, rx (size), per
+#: message in flight 3 + size, 10 RNG words
+_HEAD, _MSG, _RNG = 7, 3, 10
 
 
 class LinkSettings(NamedTuple):

@@ -7,8 +7,9 @@ the co-simulation's fixed step h, all times in seconds:
 - the sender transmits at t = offset + m period (m = 0, 1, ...), i.e. at the steps
   k = round((offset + m period) / h); with a TDMA schedule the senders take turns, sender
   number s of S transmitting at offset = s period / S (:func:`tdma_offsets`);
-- each message is lost independently with probability ``loss``, one uniform draw per
-  message from the link's own generator, seeded [seed, 1_000_000 + key] (apart from every
+- each message is lost as the link's model draws it (:mod:`.link_models`: independently
+  with probability ``loss``, one uniform draw per message, or a Gilbert-Elliott channel)
+  from the link's own generator, seeded [seed, 1_000_000 + key] (apart from every
   vehicle's noise stream, [seed, i]);
 - a message that is not lost arrives ``latency`` later, at the first step at or after
   t_send + latency and at the earliest the next step (:func:`arrival_step`: the co-simulation
@@ -39,6 +40,7 @@ import numpy as np
 
 from ..linalg_checks import ModelError
 from .base import _number, whole_steps
+from .link_models import Independent, LinkModel
 
 __all__ = ["LINK_KEY_BASE", "MAX_IN_FLIGHT", "LinkTiming", "LinkChannel", "arrival_step",
            "check_link", "in_range", "link_key", "link_sender", "propagate", "send_steps",
@@ -57,8 +59,15 @@ class LinkTiming:
 
     latency: float      #: s, >= 0
     period: float       #: s, > 0: one message per period
-    loss: float         #: probability in [0, 1)
+    loss: float         #: probability in [0, 1): the mean loss of its model
     offset: float = 0.0  #: s, in [0, period): the first transmission (TDMA slot)
+    #: how messages are lost (:mod:`.link_models`); None: independently with ``loss``
+    bursts: LinkModel | None = None
+
+    @property
+    def model(self) -> LinkModel:
+        """The link's loss model (a row of :data:`.link_models.LINK_MODELS`)."""
+        return self.bursts if self.bursts is not None else Independent(self.loss)
 
     @property
     def max_in_flight(self) -> int:
@@ -75,8 +84,9 @@ def check_link(name: str, latency: Any, period: Any, loss: Any,
     name : str
         The link, e.g. "link 2 -> 4" or "leader -> 1".
     latency, period, loss, offset : Any
-        Seconds (>= 0), seconds (> 0), a probability in [0, 1), seconds in [0, period);
-        at most :data:`MAX_IN_FLIGHT` periods of latency.
+        Seconds (>= 0), seconds (> 0), a probability in [0, 1) or a validated loss model
+        (:mod:`.link_models`), seconds in [0, period); at most :data:`MAX_IN_FLIGHT`
+        periods of latency.
     h : float, optional
         The step (s): the period is then a whole number of steps, at least one.
 
@@ -92,15 +102,16 @@ def check_link(name: str, latency: Any, period: Any, loss: Any,
     """
     lat = _number(f"{name}: latency", latency)
     per = _number(f"{name}: period", period)
-    p = _number(f"{name}: loss", loss)
+    model = loss if isinstance(loss, LinkModel) else Independent.parse(name, {"loss": loss})
+    p = model.mean_loss
     off = _number(f"{name}: offset", offset)
     if lat < 0.0:
         raise ModelError(f"{name}: latency = {lat:g} s is negative")
     if per <= 0.0:
         raise ModelError(f"{name}: period = {per:g} s must be positive")
-    if not 0.0 <= p < 1.0:
-        raise ModelError(f"{name}: loss = {p:g} is not a probability in [0, 1) (a link "
-                         "that loses every message carries nothing)")
+    if not p < 1.0:
+        raise ModelError(f"{name}: the mean loss of {model} is 1 (a link that loses every "
+                         "message carries nothing)")
     if not 0.0 <= off < per:
         raise ModelError(f"{name}: offset = {off:g} s is not within [0, period = {per:g} s)")
     if h is not None:
@@ -109,7 +120,8 @@ def check_link(name: str, latency: Any, period: Any, loss: Any,
         raise ModelError(f"{name}: latency = {lat:g} s is {lat / per:.3g} periods of {per:g} s: "
                          f"at most {MAX_IN_FLIGHT} messages may be in flight on a link "
                          f"(latency at most {MAX_IN_FLIGHT * per:g} s at this period)")
-    return LinkTiming(latency=lat, period=per, loss=p, offset=off)
+    return LinkTiming(latency=lat, period=per, loss=p, offset=off,
+                      bursts=None if isinstance(model, Independent) else model)
 
 
 def tdma_offsets(senders: Sequence[Any], period: float) -> dict[Any, float]:
@@ -215,6 +227,8 @@ class LinkChannel:
             raise ModelError(f"propagation matrix of shape {self.M.shape} for a message of "
                              f"{self.size} values")
         self.rng = np.random.default_rng([int(seed), LINK_KEY_BASE + int(key)])
+        self.model = timing.model
+        self.channel = self.model.start()            #: the loss model's channel state
         self._first = round(timing.offset / self.h)
         self._every = timing.period / self.h
         self._m = 0                                  # next message number
@@ -230,7 +244,8 @@ class LinkChannel:
         """The transition from step k to k + 1.
 
         1. if k is a send step: ``value`` (the sender's message at t_k) leaves, lost with
-           probability ``loss`` (one uniform draw of the link's stream per message), and
+           as the link's model draws it (:meth:`.link_models.Independent.draw`: one uniform
+           of the link's stream per message; a Gilbert-Elliott channel: two), and
            lost whatever the draw when the receiver is out of the modem's range
            (``in_range`` False; the draw is made all the same, so a range never shifts the
            other messages' draws);
@@ -251,7 +266,8 @@ class LinkChannel:
         if self._next_send() == k:
             self._m += 1
             self.sent += 1
-            lost = bool(self.rng.random() < self.timing.loss) or not in_range
+            drawn, self.channel = self.model.draw(self.rng, 1, self.channel)
+            lost = bool(drawn[0]) or not in_range
             self.in_flight.append((arrival_step(k, self.h, self.timing.latency), k, lost,
                                    np.array(value, dtype=float).reshape(self.size)))
         while self.in_flight and self.in_flight[0][0] <= k + 1:
@@ -273,16 +289,16 @@ class LinkChannel:
     def get_state(self) -> np.ndarray:
         """Everything that evolves, as one flat array (FMU state)."""
         head = [self._m, self.rx_sent, self.sent, self.lost, self.delivered,
-                len(self.in_flight)]
+                len(self.in_flight), self.channel]
         body = [np.r_[a, s, float(lo), v] for a, s, lo, v in self.in_flight]
         return np.concatenate([np.asarray(head, float), self.rx, *body, _rng_state(self.rng)])
 
     def set_state(self, state: np.ndarray) -> None:
         """Restore :meth:`get_state`."""
         s = np.asarray(state, dtype=float)
-        self._m, self.rx_sent, self.sent, self.lost, self.delivered, n = (
-            int(x) for x in s[:6])
-        pos = 6
+        self._m, self.rx_sent, self.sent, self.lost, self.delivered, n, self.channel = (
+            int(x) for x in s[:7])
+        pos = 7
         self.rx = s[pos:pos + self.size].copy()
         pos += self.size
         self.in_flight = deque()

@@ -13,6 +13,7 @@ from typing import Any
 
 from ..linalg_checks import ModelError
 from .base import MAX_MESSAGE_CYCLE_STEPS, _number, _vehicle
+from .link_models import DEFAULT_MODEL, MODEL_KEY, link_model, model_parameter_keys
 from .links import LinkTiming, check_link, tdma_offsets
 from .schedule import resolve_schedule
 
@@ -44,9 +45,13 @@ def resolve_links(N: int, edges: Sequence[tuple[int, int, float]],
     """The timing of every link that carries a message, from a ``[network]`` table.
 
     Links are the graph's edges j -> i and leader -> i for the pinned vehicles. The
-    table's ``latency``, ``period`` and ``loss`` are the fleet-wide defaults (without them:
-    no latency, a message every step h, no loss); ``links = [{from, to, latency, period,
-    loss}, ...]`` overrides single links (``from`` a vehicle number or "leader"); with
+    table's ``latency``, ``period`` and loss model (``loss_model``, default "independent",
+    with its parameters: ``loss``, or ``p_gb``, ``p_bg``, ``loss_good``, ``loss_bad`` for
+    "gilbert-elliott", :mod:`.link_models`) are the fleet-wide defaults (without them: no
+    latency, a message every step h, no loss); ``links = [{from, to, latency, period,
+    loss_model, <its parameters>}, ...]`` overrides single links (``from`` a vehicle number
+    or "leader"; an entry naming another model gives all of its parameters, one naming
+    none changes single parameters of the fleet's); with
     ``tdma = true`` the senders take turns within the period, the leader first, then
     vehicles 1..N (:func:`tdma_offsets`, rounded to whole steps), which needs one period
     for every link. Every period must be a whole number of steps h.
@@ -77,17 +82,19 @@ def resolve_links(N: int, edges: Sequence[tuple[int, int, float]],
         TDMA.
     """
     net = dict(network or {})
-    unknown = sorted(set(net) - {"latency", "period", "loss", "tdma", "links", "range"})
+    loss_keys = (MODEL_KEY, *model_parameter_keys())
+    unknown = sorted(set(net) - {"latency", "period", "tdma", "links", "range", *loss_keys})
     if unknown:
         raise ModelError(f"[network]: unknown key(s) {', '.join(unknown)} (expected latency, "
-                         "period, loss, tdma, links, range, receiver, schedule, "
-                         "schedule_period)")
+                         f"period, {', '.join(loss_keys)}, tdma, links, range, receiver, "
+                         "schedule, schedule_period)")
     if "range" in net:
         modem_range(net["range"])
+    fleet_loss = {k: net[k] for k in loss_keys if k in net}
     base = check_link("[network]", net.get("latency", 0.0), net.get("period", h),
-                      net.get("loss", 0.0), h=h)
+                      link_model("[network]", fleet_loss), h=h)
     keys = [(int(j), int(i)) for j, i, _ in edges] + [("leader", int(i)) for i, _ in pinning]
-    settings = {k: {"latency": base.latency, "period": base.period, "loss": base.loss}
+    settings = {k: {"latency": base.latency, "period": base.period, **fleet_loss}
                 for k in keys}
     entries = net.get("links", [])
     if not isinstance(entries, (list, tuple)):
@@ -96,17 +103,23 @@ def resolve_links(N: int, edges: Sequence[tuple[int, int, float]],
         where = f"[network] links entry {n}"
         if not isinstance(entry, dict) or "from" not in entry or "to" not in entry:
             raise ModelError(f"{where}: needs a table with from and to")
-        extra = sorted(set(entry) - {"from", "to", "latency", "period", "loss"})
+        extra = sorted(set(entry) - {"from", "to", "latency", "period", *loss_keys})
         if extra:
             raise ModelError(f"{where}: unknown key(s) {', '.join(extra)}")
+        link_model(where, {k: entry[k] for k in loss_keys if k in entry}
+                   if MODEL_KEY in entry else {})       # its own values: named in errors
         j = _vehicle(N, entry["from"], where)
         i = _vehicle(N, entry["to"], where)
         if (j, i) not in settings:
             heard = sorted({str(a) for a, b in keys if b == i}, key=str)
             raise ModelError(f"{_link_name(j, i)}: no such communication edge (vehicle {i} "
                              f"hears {', '.join(heard) or 'nobody'})")
-        settings[(j, i)].update({k: entry[k] for k in ("latency", "period", "loss")
-                                 if k in entry})
+        own = settings[(j, i)]
+        if entry.get(MODEL_KEY, own.get(MODEL_KEY, DEFAULT_MODEL)) != own.get(
+                MODEL_KEY, DEFAULT_MODEL):               # another model: its own parameters
+            for k in loss_keys:
+                own.pop(k, None)
+        own.update({k: entry[k] for k in ("latency", "period", *loss_keys) if k in entry})
     tdma = net.get("tdma", False)
     if not isinstance(tdma, bool):
         raise ModelError(f"[network] tdma = {tdma!r} must be true or false")
@@ -124,7 +137,8 @@ def resolve_links(N: int, edges: Sequence[tuple[int, int, float]],
                              f"{period:g} s")
         # each slot starts on a step of the co-simulation
         offsets = {v: round(o / h) * h for v, o in tdma_offsets(senders, period).items()}
-    return {k: check_link(_link_name(*k), s["latency"], s["period"], s["loss"],
+    return {k: check_link(_link_name(*k), s["latency"], s["period"],
+                          link_model(_link_name(*k), {x: s[x] for x in loss_keys if x in s}),
                           offsets.get(k[0], 0.0), h=h) for k, s in settings.items()}
 
 
@@ -175,6 +189,10 @@ def check_network(table: Any, N: int, h: float) -> dict[str, Any]:
     schedule = resolve_schedule(table, [(j, i) for j, i, _ in every] +
                                 [("leader", i) for i, _ in pins], h, N)
     check_cycle(links, schedule.period if schedule is not None else 0, h)
+    if schedule is not None and any(t.bursts is not None for t in links.values()):
+        raise ModelError("[network] loss_model = \"gilbert-elliott\" with a schedule is not "
+                         "supported (a down link's channel would step without an arrival, "
+                         "which the predictions do not carry)")
     return dict(table)
 
 

@@ -139,7 +139,7 @@ class _Compiler:
     """Segments and events of a networked loop, optionally with every link's loss set to p
     and restricted to the error coordinates."""
 
-    def __init__(self, net: NetworkedLoop, loss: float | None = None,
+    def __init__(self, net: NetworkedLoop, loss: float | dict[Any, float] | None = None,
                  error_only: bool = False):
         self.net = net
         self.loss = loss
@@ -152,6 +152,13 @@ class _Compiler:
         k = self.keep
         self.Qz = net.Qz[np.ix_(k, k)]
         self.c0 = 0.0 if error_only else net.c0
+
+    def loss_of(self, key: Any) -> float:
+        """The mean loss of link ``key`` this compiler uses: the loop's, the one given for
+        every link, or the link's own from a mapping."""
+        if self.loss is None:
+            return self.net.loss[key]
+        return float(self.loss[key]) if isinstance(self.loss, dict) else float(self.loss)
 
     def at_loss(self, loss: float) -> _Compiler:
         """The same loop with every link's loss set to ``loss``: the runs without arrivals
@@ -180,7 +187,7 @@ class _Compiler:
         else:
             Abar, terms, noise_terms = A0, [], []
             for key, Dl in D.items():
-                p = self.net.loss[key] if self.loss is None else self.loss
+                p = self.loss_of(key)
                 Abar = Abar + (1.0 - p) * Dl
                 DA, DG = self._restrict(Dl)
                 terms.append(LossTerm.of(p * (1.0 - p), DA))

@@ -110,7 +110,12 @@ class NetworkedLoop:
             self.R[key] = slice(pos, pos + w)
             pos += w
         self.n = pos
+        #: per link its mean loss (a Gilbert-Elliott link's stationary one: the independent
+        #: part of its second-moment terms, orchestrator.analysis.acoustic.bursty)
         self.loss = {k: float(timings[k].loss) for k in form.links}
+        #: the links whose losses are correlated in time (a Markov channel), by link
+        self.bursty = {k: timings[k].bursts for k in form.links
+                       if timings[k].bursts is not None}
         self.timings = dict(timings)
         self.period = int(np.lcm.reduce([g.P for g in groups.values()])) if groups else 1
         self.startup = max((g.first + g.D for g in groups.values()), default=0)
@@ -245,14 +250,16 @@ class NetworkedLoop:
 
     def deliveries(self, seed: int, steps: int) -> dict[tuple[Any, int], np.ndarray]:
         """Per link, whether each message gets through: the draws the network FMU makes,
-        one uniform per message from [seed, LINK_KEY_BASE + link_key(j, i)], and never
+        the link's loss model (:mod:`plant_model.acoustic.link_models`) on its stream
+        [seed, LINK_KEY_BASE + link_key(j, i)], and never
         while the schedule has the link down at its send step."""
         out = {}
         for key, g in self.link_group.items():
             grp = self.groups[g]
             count = max(0, math.ceil((steps - grp.first) / grp.P))
             rng = np.random.default_rng([int(seed), LINK_KEY_BASE + link_key(*key)])
-            out[key] = rng.random(count) >= self.loss[key]
+            model = self.timings[key].model
+            out[key] = ~model.draw(rng, count, model.start())[0]
             if self.schedule is not None:
                 out[key] &= np.array([self.schedule.is_up(key, grp.first + m * grp.P)
                                       for m in range(count)], dtype=bool)
