@@ -43,7 +43,7 @@ the FMUs' resources and rebuilt from their parameters):
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -304,7 +304,8 @@ def noise_blocks(N: int, p: int, r: int, s: int, l_: int) -> tuple[tuple[int, ..
     return tuple(blocks)
 
 
-def fleet_system(spec: Mapping[str, Any]) -> LinearSystem:
+def fleet_system(spec: Mapping[str, Any], *, models: Sequence[VehicleModel] | None = None,
+                 graph: CommunicationGraph | None = None) -> LinearSystem:
     """The stacked :class:`LinearSystem` of the fleet (see the module docstring).
 
     A = blkdiag(A_ii) - (L + G) kron Gamma, Bz = [(G kron Gamma) blkdiag(T_i),
@@ -315,6 +316,9 @@ def fleet_system(spec: Mapping[str, Any]) -> LinearSystem:
     ----------
     spec : Mapping[str, Any]
         The fleet spec (module docstring).
+    models, graph : optional
+        Its vehicle models and graph when already parsed
+        (:class:`plant_model.fleet_model.Fleet`).
 
     Returns
     -------
@@ -327,8 +331,8 @@ def fleet_system(spec: Mapping[str, Any]) -> LinearSystem:
     ModelError
         Naming the vehicle, graph or leader entry that is invalid.
     """
-    models = fleet_vehicles(spec)
-    graph = fleet_graph(spec)
+    models = list(models) if models is not None else fleet_vehicles(spec)
+    graph = graph if graph is not None else fleet_graph(spec)
     N, p = len(models), models[0].p
     leader = spec["leader"]
     F_l = as_matrix("leader F", leader["F"])

@@ -28,7 +28,7 @@ estimators are designed on it. Units as the stacked fleet: SI, NED positions in 
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -92,13 +92,16 @@ def vehicle_view(A: Any, B1: Any, B2: Any, C: Any, K: Any, F: Any, H: Any,
     return LinearSystem.from_mapping(mapping)
 
 
-def vehicle_views(spec: Mapping[str, Any]) -> list[LinearSystem]:
+def vehicle_views(spec: Mapping[str, Any], *,
+                  models: Sequence[Any] | None = None) -> list[LinearSystem]:
     """Every vehicle's :func:`vehicle_view` of a fleet spec (:mod:`plant_model.fleet`).
 
     Parameters
     ----------
     spec : Mapping[str, Any]
         The fleet spec; vehicle entries as :func:`plant_model.fleet.fleet_system` reads them.
+    models : sequence of VehicleModel, optional
+        Its vehicle models when already parsed (:class:`plant_model.fleet_model.Fleet`).
 
     Returns
     -------
@@ -107,7 +110,7 @@ def vehicle_views(spec: Mapping[str, Any]) -> list[LinearSystem]:
     """
     from .fleet import disturbance_of, fleet_system, fleet_vehicles
 
-    models = fleet_vehicles(spec)
+    models = list(models) if models is not None else fleet_vehicles(spec)
     # a resolved spec (plant_model.fleet.resolve_fleet_spec) holds every x0; else the
     # stacked system derives them (leader state plus offset)
     stacked = None if all("x0" in v for v in spec["vehicles"]) else fleet_system(spec)

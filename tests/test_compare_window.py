@@ -158,8 +158,7 @@ def test_window_predictions_over_a_given_window_in_every_deployment(
     common = setup.predictions(method, k0)
     assert common.k0 == k0 and common.stationary == own.stationary
     if sc.network is not None:
-        expected = network_predictions(sc, setup.network(architecture, method.estimator,
-                                                         method.tracking), None, k0)[1]
+        expected = network_predictions(sc, setup.network(method), None, k0)[1]
     elif architecture == "distributed":
         loop = distributed_loop_of(sc, method.estimator, method.tracking, sc.distributed)
         expected = predict_cost(loop, (k0, sc.steps), distributed_initial_state(sc, loop))

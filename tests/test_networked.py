@@ -387,10 +387,11 @@ def test_the_second_moment_in_blocks_equals_the_dense_one(f4, architecture, rece
     same expected window cost as the dense propagation."""
     from orchestrator.analysis.acoustic.blocks import predict_window_blocks
     from orchestrator.running.network import network_setup
+    from orchestrator.running.setup import Method
     sc = f4.with_run(T=60.0, deployment="per-vehicle", architecture=architecture,
                      network={"latency": 1.0, "period": 2.0, "loss": 0.2,
                               "receiver": receiver})
-    s = network_setup(sc, architecture, "kalman", "regulator")
+    s = network_setup(sc, Method("kalman", "kalman", "regulator", architecture))
     dense = predict_window(s.net, s.Z0, 400, 1200).cost_rate
     blocks = predict_window_blocks(s.net, s.Z0, 400, 1200, 0.0).cost_rate
     assert blocks == pytest.approx(dense, rel=1e-10)

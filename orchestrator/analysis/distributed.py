@@ -60,10 +60,12 @@ from estimator_fmu.registry import ESTIMATORS as _ROWS
 from estimator_fmu.registry import TRUTH, estimator_kind
 from plant_model.discretization import van_loan, zoh
 from plant_model.fleet import disturbance_of, fleet_graph, fleet_vehicles
+from plant_model.fleet_model import Fleet
 from plant_model.graph import CommunicationGraph
 from plant_model.linalg_checks import ModelError, as_matrix, as_vector
 
 __all__ = ["Agent", "DistributedLoop", "SampledAgent", "agents_from_fleet_spec",
+           "fleet_agents",
            "design_laws", "distributed_closed_loop", "filtered", "sample_agent"]
 
 #: the estimators the distributed law accepts (their registry rows' ``distributed``)
@@ -106,6 +108,16 @@ def _square(name: str, value: Any, size: int) -> np.ndarray:
     return as_matrix(name, value, (size, size))
 
 
+def fleet_agents(fleet: Fleet) -> tuple[list[Agent], CommunicationGraph,
+                                         dict[str, np.ndarray]]:
+    """:func:`agents_from_fleet_spec` of a parsed fleet, made once and kept with it (the
+    agents are not changed by their users: they are frozen dataclasses)."""
+    if "agents" not in fleet.memo:
+        fleet.memo["agents"] = _agents(fleet.spec, list(fleet.models), fleet.graph)
+    agents, graph, leader = fleet.memo["agents"]
+    return list(agents), graph, dict(leader)
+
+
 def agents_from_fleet_spec(spec: Mapping[str, Any]) -> tuple[list[Agent], CommunicationGraph,
                                                             dict[str, np.ndarray]]:
     """The vehicles, graph and leader of a fleet spec (:mod:`plant_model.fleet`).
@@ -124,8 +136,11 @@ def agents_from_fleet_spec(spec: Mapping[str, Any]) -> tuple[list[Agent], Commun
     leader : dict[str, np.ndarray]
         ``F``, ``H``, ``z0``.
     """
-    models = fleet_vehicles(spec)
-    graph = fleet_graph(spec)
+    return _agents(spec, fleet_vehicles(spec), fleet_graph(spec))
+
+
+def _agents(spec: Mapping[str, Any], models: list[Any], graph: CommunicationGraph
+            ) -> tuple[list[Agent], CommunicationGraph, dict[str, np.ndarray]]:
     ld = spec["leader"]
     F = as_matrix("leader F", ld["F"])
     H = as_matrix("leader H", ld["H"], (models[0].s, F.shape[0]))

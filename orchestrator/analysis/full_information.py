@@ -26,12 +26,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.linalg import expm, solve_discrete_are
 
-from plant_model.per_vehicle import sample_vehicle, vehicle_views
+from plant_model.per_vehicle import sample_vehicle
+
+if TYPE_CHECKING:
+    from ..scenario import Scenario
 
 __all__ = ["FullInformationBound", "full_information_bound", "best_steady_motion",
            "fleet_bound", "fleet_comparison"]
@@ -122,7 +125,7 @@ def best_steady_motion(Ad: np.ndarray, Bd: np.ndarray, C: np.ndarray, H: np.ndar
     return X, U, cost
 
 
-def full_information_bound(sc: Any, window: tuple[int, int]) -> FullInformationBound:
+def full_information_bound(sc: Scenario, window: tuple[int, int]) -> FullInformationBound:
     """J_FI of a fleet scenario over the statistics window (module docstring).
 
     Parameters
@@ -138,7 +141,7 @@ def full_information_bound(sc: Any, window: tuple[int, int]) -> FullInformationB
         The bound and its parts; ``cost_rate`` None (with the reason) for a leader with
         process noise.
     """
-    views = vehicle_views(sc.fleet)
+    views = sc.fleet_model.views
     if np.any(views[0].W_z != 0.0):
         return FullInformationBound(None, None, None, [], reason=(
             "the leader has process noise: its random motion has no finite full-information "
@@ -161,7 +164,7 @@ def full_information_bound(sc: Any, window: tuple[int, int]) -> FullInformationB
     return FullInformationBound(cost_rate=noise + mean, noise=noise, mean=mean, per_vehicle=per)
 
 
-def fleet_bound(sc: Any, k0: int) -> float | None:
+def fleet_bound(sc: Scenario, k0: int) -> float | None:
     """J_FI over the window [k0, K) of a fleet in the protocol form (None otherwise).
 
     Parameters
@@ -181,7 +184,7 @@ def fleet_bound(sc: Any, k0: int) -> float | None:
     return full_information_bound(sc, (k0, sc.steps)).cost_rate
 
 
-def fleet_comparison(sc: Any, methods: dict[str, Any]) -> dict[str, Any]:
+def fleet_comparison(sc: Scenario, methods: dict[str, Any]) -> dict[str, Any]:
     """Summary keys that compare a fleet's methods with each other and with the bound.
 
     ``cost_rate_full_information``: the bound over the first method's window;

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.linalg import solve_discrete_lyapunov
@@ -32,8 +32,11 @@ from estimator_fmu.multirate import navigation_rows, periodic_filter
 from plant_model.linalg_checks import ModelError
 from plant_model.navigation import NavigationSensors
 
-from .distributed import DistributedLoop, _assemble, agents_from_fleet_spec
+from .distributed import DistributedLoop, _assemble, fleet_agents
 from .distributed_verdict import DistributedPrediction
+
+if TYPE_CHECKING:
+    from ..scenario import Scenario
 
 __all__ = ["multirate_reference", "periodic_loop", "predict_multirate_cost"]
 
@@ -44,7 +47,7 @@ MAX_STATES = 800
 MAX_PHASE_BYTES = 1_000_000_000
 
 
-def periodic_loop(sc: Any, base: DistributedLoop, sensors: NavigationSensors
+def periodic_loop(sc: Scenario, base: DistributedLoop, sensors: NavigationSensors
                   ) -> list[dict[str, Any]]:
     """Per phase of the sensors' period the loop's matrices (Phi, Gam, W, Gx, Geta, ...) of
     :func:`orchestrator.analysis.distributed._assemble` with the periodic filter's rows
@@ -68,7 +71,7 @@ def periodic_loop(sc: Any, base: DistributedLoop, sensors: NavigationSensors
         raise ModelError(f"the periodic loop of the sensors' {cycle}-step cycle ({nX} states "
                          f"per phase) needs about {need / 1e9:.3g} GB, more than the "
                          f"{MAX_PHASE_BYTES / 1e9:g} GB this prediction builds")
-    agents, graph, leader = agents_from_fleet_spec(sc.fleet)
+    agents, graph, leader = fleet_agents(sc.fleet_model)
     g = np.diag(graph.pinning_matrix()).copy()
     n, r = agents[0].A.shape[0], agents[0].Kw.shape[0]
     cache: dict[bytes, list] = {}            # identical vehicles share one filter
@@ -90,7 +93,7 @@ def periodic_loop(sc: Any, base: DistributedLoop, sensors: NavigationSensors
     return phases
 
 
-def multirate_reference(sc: Any, base: DistributedLoop, sensors: NavigationSensors,
+def multirate_reference(sc: Scenario, base: DistributedLoop, sensors: NavigationSensors,
                         seed: int, steps: int) -> dict[str, np.ndarray]:
     """The periodic loop simulated as one recursion with the FMUs' noise: the vehicles'
     process noise from their streams [seed, i], the sensors' from theirs
@@ -122,7 +125,7 @@ def multirate_reference(sc: Any, base: DistributedLoop, sensors: NavigationSenso
     return {"x": np.array(xs), "u": np.array(us), "e": np.array(es)}
 
 
-def predict_multirate_cost(sc: Any, base: DistributedLoop, sensors: NavigationSensors,
+def predict_multirate_cost(sc: Scenario, base: DistributedLoop, sensors: NavigationSensors,
                            window: tuple[int, int] | None = None,
                            X0: np.ndarray | None = None) -> DistributedPrediction:
     """The periodic loop's stationary cost rate, and with ``window`` and ``X0`` the mean

@@ -17,22 +17,25 @@ FMUs must reproduce it to rounding.
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from controller_fmu.distributed import sampled_observer
 from controller_fmu.vehicle_law import observer_start, vehicle_law
-from plant_model.per_vehicle import sample_vehicle, vehicle_views
+from plant_model.per_vehicle import sample_vehicle
 from plant_model.plant import NoiseStream
 
-from .distributed import DistributedLoop, agents_from_fleet_spec, distributed_closed_loop
+from .distributed import DistributedLoop, distributed_closed_loop, fleet_agents
+
+if TYPE_CHECKING:
+    from ..scenario import Scenario
 
 __all__ = ["distributed_loop_of", "distributed_initial_state", "distributed_noise",
            "distributed_reference"]
 
 
-def distributed_loop_of(sc: Any, mode: str, tracking: str, settings: Any) -> DistributedLoop:
+def distributed_loop_of(sc: Scenario, mode: str, tracking: str, settings: Any) -> DistributedLoop:
     """The stacked sampled loop of a fleet scenario under the distributed law.
 
     Parameters
@@ -51,7 +54,7 @@ def distributed_loop_of(sc: Any, mode: str, tracking: str, settings: Any) -> Dis
     DistributedLoop
         Phi, Gam, W, Gx, Geta, Ce and the pieces.
     """
-    agents, graph, leader = agents_from_fleet_spec(sc.fleet)
+    agents, graph, leader = fleet_agents(sc.fleet_model)
     laws = [vehicle_law(A=a.A, B1=a.B, B2=a.E, C=a.C, K=a.Kw, Q=a.Q, R=a.R, F=leader["F"],
                         H=leader["H"], offset=a.offset, tracking=tracking,
                         regulator=settings.regulator, h=sc.h, where=f"vehicle {i}: ")
@@ -62,7 +65,7 @@ def distributed_loop_of(sc: Any, mode: str, tracking: str, settings: Any) -> Dis
                                    convention=sc.system.noise_convention)
 
 
-def distributed_initial_state(sc: Any, loop: DistributedLoop) -> np.ndarray:
+def distributed_initial_state(sc: Scenario, loop: DistributedLoop) -> np.ndarray:
     """X(0) of the loop as the FMUs start: leader z0, vehicles at x0, w0 (the stacked
     system's), Kalman q(0) = [x0; w0], observers at
     :func:`controller_fmu.vehicle_law.observer_start` (0, or z0 for a planned path: the
@@ -81,14 +84,14 @@ def distributed_initial_state(sc: Any, loop: DistributedLoop) -> np.ndarray:
     np.ndarray
         X(0).
     """
-    views = vehicle_views(sc.fleet)
+    views = sc.fleet_model.views
     z0 = np.asarray(sc.fleet["leader"].get("z0"), dtype=float)
     eta0 = observer_start(z0, sc.distributed)
     return loop.initial_state(z0, [v.x0 for v in views], [v.w0 for v in views],
                               [eta0] * len(views))
 
 
-def distributed_noise(sc: Any, seed: int, steps: int) -> np.ndarray:
+def distributed_noise(sc: Scenario, seed: int, steps: int) -> np.ndarray:
     """zeta[k] = [nu_1..N; n_1..N] of the loop: each vehicle's process and sensor noise,
     drawn from its own stream ([seed, i], :func:`plant_model.per_vehicle.sample_vehicle`).
 
@@ -107,7 +110,7 @@ def distributed_noise(sc: Any, seed: int, steps: int) -> np.ndarray:
         (steps, sum of the vehicles' (n + r) + sum of their s).
     """
     nu, nn = [], []
-    for i, view in enumerate(vehicle_views(sc.fleet), start=1):
+    for i, view in enumerate(sc.fleet_model.views, start=1):
         rows = NoiseStream.all_rows(sample_vehicle(view, sc.h, i), seed, steps)
         ns = view.n + view.r
         nu.append(rows[:, :ns])
@@ -115,7 +118,7 @@ def distributed_noise(sc: Any, seed: int, steps: int) -> np.ndarray:
     return np.hstack(nu + nn)
 
 
-def distributed_reference(sc: Any, loop: DistributedLoop, seed: int, steps: int,
+def distributed_reference(sc: Scenario, loop: DistributedLoop, seed: int, steps: int,
                           timing: dict[str, float] | None = None) -> dict[str, np.ndarray]:
     """The loop simulated as one recursion with the FMUs' noise: traces x, u, e, eta.
 

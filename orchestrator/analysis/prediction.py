@@ -26,7 +26,7 @@ a run of that length computes, which short runs can be compared with.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.linalg import block_diag, solve_discrete_lyapunov
@@ -34,6 +34,9 @@ from scipy.linalg import block_diag, solve_discrete_lyapunov
 from estimator_fmu.estimators import LinearEstimator
 from plant_model.discretization import DiscreteModel
 from plant_model.system import LinearSystem
+
+if TYPE_CHECKING:
+    from ..scenario import Scenario
 
 __all__ = ["Prediction", "closed_loop", "deterministic_states", "method_predictions",
            "predict_stationary", "window_average_covariance"]
@@ -265,7 +268,7 @@ def predict_stationary(system: LinearSystem, model: DiscreteModel, est: LinearEs
     )
 
 
-def method_predictions(sc: Any, model: DiscreteModel, est: LinearEstimator, Ks: np.ndarray,
+def method_predictions(sc: Scenario, model: DiscreteModel, est: LinearEstimator, Ks: np.ndarray,
                        k0: int | None = None
                        ) -> tuple[Prediction, Prediction, Prediction | None, int]:
     """The predictions a run's summary gives for one method of the stacked law.

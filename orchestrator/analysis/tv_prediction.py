@@ -29,7 +29,7 @@ prediction of a ``kalman-tv`` run is the steady ``kalman`` loop's.
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.linalg import block_diag, solve_discrete_lyapunov
@@ -40,6 +40,9 @@ from plant_model.discretization import DiscreteModel
 from plant_model.system import LinearSystem
 
 from .prediction import MARGINAL, Prediction, closed_loop, deterministic_states, predict_stationary
+
+if TYPE_CHECKING:
+    from ..scenario import Scenario
 
 __all__ = ["TOL", "tv_gain_estimator", "tv_method_predictions", "tv_window_moments"]
 
@@ -169,7 +172,7 @@ def _prediction(system: LinearSystem, m: dict[str, Any], stat: Prediction) -> Pr
                       rms_e_mean=np.sqrt(np.clip(np.diag(m["ee_mean"]), 0, None)).tolist())
 
 
-def tv_method_predictions(sc: Any, model: DiscreteModel, est: TimeVaryingKalman,
+def tv_method_predictions(sc: Scenario, model: DiscreteModel, est: TimeVaryingKalman,
                           Ks: np.ndarray, k0: int | None = None
                           ) -> tuple[Prediction, Prediction, Prediction | None, int]:
     """The predictions a run's summary gives for ``kalman-tv`` (the registry's form:

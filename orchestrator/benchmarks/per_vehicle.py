@@ -59,7 +59,7 @@ def benchmark_per_vehicle(N: int, *, architecture: str = "distributed", T: float
     """
     from controller_fmu.vehicle_law import vehicle_law
 
-    from ..analysis.distributed import agents_from_fleet_spec
+    from ..analysis.distributed import fleet_agents
     from ..running.setup import Method
     from ..running.systems import make_setup
     from ..scenario import scenario_from_dict
@@ -72,7 +72,7 @@ def benchmark_per_vehicle(N: int, *, architecture: str = "distributed", T: float
                            "T": sc.T, "mode": mode, "tracking": tracking}
     t = time.perf_counter()
     if architecture == "distributed":
-        agents, _, leader = agents_from_fleet_spec(sc.fleet)
+        agents, _, leader = fleet_agents(sc.fleet_model)
         for a in agents:
             vehicle_law(A=a.A, B1=a.B, B2=a.E, C=a.C, K=a.Kw, Q=a.Q, R=a.R, F=leader["F"],
                         H=leader["H"], offset=a.offset, tracking=tracking,

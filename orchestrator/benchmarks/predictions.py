@@ -17,11 +17,14 @@ import os
 import tempfile
 import time
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from estimator_fmu.registry import DEFAULT_ESTIMATOR
+
+if TYPE_CHECKING:
+    from ..scenario import Scenario
 
 __all__ = ["benchmark_predictions"]
 
@@ -32,7 +35,7 @@ def _timed(f: Any) -> tuple[Any, float]:
     return out, time.perf_counter() - t
 
 
-def benchmark_predictions(sc: Any, architectures: Sequence[str] = ("centralized",
+def benchmark_predictions(sc: Scenario, architectures: Sequence[str] = ("centralized",
                                                                    "distributed"),
                           mode: str = DEFAULT_ESTIMATOR, tracking: str = "regulator"
                           ) -> dict[str, Any]:
@@ -68,14 +71,16 @@ def benchmark_predictions(sc: Any, architectures: Sequence[str] = ("centralized"
     return out
 
 
-def _row(sc: Any, arch: str, mode: str, tracking: str) -> dict[str, Any]:
+def _row(sc: Scenario, arch: str, mode: str, tracking: str) -> dict[str, Any]:
     """One architecture's figures (the cache switched by the environment)."""
     from ..analysis.acoustic.cycle import _Compiler
     from ..analysis.acoustic.stability import CycleMap, critical_loss
     from ..running.network import network_predictions, network_setup
+    from ..running.setup import Method
 
+    method = Method(mode, mode, tracking, arch)
     os.environ["AUV_COSIM_PREDICTION_CACHE"] = "0"
-    setup, setup_s = _timed(lambda: network_setup(sc, arch, mode, tracking))
+    setup, setup_s = _timed(lambda: network_setup(sc, method))
     net = setup.net
     cmap = CycleMap(_Compiler(net, error_only=True))
     X = np.eye(cmap.n)
@@ -85,10 +90,10 @@ def _row(sc: Any, arch: str, mode: str, tracking: str) -> dict[str, Any]:
     (p, note), critical_s = _timed(lambda: critical_loss(net))
     with tempfile.TemporaryDirectory() as cache:
         os.environ["AUV_COSIM_PREDICTION_CACHE"] = cache
-        fill = network_setup(sc, arch, mode, tracking)
+        fill = network_setup(sc, method)
         network_predictions(sc, fill)
         critical_loss(fill.net)
-        again = network_setup(sc, arch, mode, tracking)          # a second run's loop
+        again = network_setup(sc, method)          # a second run's loop
         _, hit_s = _timed(lambda: (network_predictions(sc, again), critical_loss(again.net)))
     return {"architecture": arch, "states": net.n, "error_states": cmap.n,
             "links": len(net.R), "cycle_steps": net.period, "setup_s": setup_s,

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -44,8 +44,8 @@ from controller_fmu.vehicle_law import (
 )
 from estimator_fmu.registry import TRUTH
 from plant_model.acoustic.links import link_sender
-from plant_model.fleet import fleet_graph, fleet_vehicles
-from plant_model.per_vehicle import leader_system, vehicle_views
+from plant_model.fleet import fleet_graph
+from plant_model.per_vehicle import leader_system
 from plant_model.system import LinearSystem
 from plant_model.vehicle_models import REGISTRY, get
 
@@ -53,6 +53,9 @@ from .build import FMU_KINDS, interface_of
 from .guided import setpoint_traces, stack_configs, stack_connections
 from .per_vehicle_network import network_connections
 from .system import Component, Connection, SystemDescription, component_parameters
+
+if TYPE_CHECKING:
+    from ..scenario import Scenario
 
 __all__ = ["ARCHITECTURES", "DEPLOYMENTS", "DistributedSettings", "FleetSlots",
            "fleet_slots", "link_traces", "per_vehicle_configs", "per_vehicle_system",
@@ -118,7 +121,7 @@ def _mapping(view: LinearSystem, leader: Mapping[str, np.ndarray]) -> dict[str, 
     return out
 
 
-def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tracking: str,
+def per_vehicle_configs(sc: Scenario, architecture: str, *, mode: str, seed: int, tracking: str,
                         settings: DistributedSettings | None = None,
                         gain: np.ndarray | None = None,
                         network: list[dict[str, Any]] | None = None
@@ -156,7 +159,7 @@ def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tra
                          f"{', '.join(ARCHITECTURES)}")
     spec = sc.fleet
     settings = settings or DistributedSettings()
-    views = vehicle_views(spec)
+    views = sc.fleet_model.views
     leader = _leader(spec)
     l0 = leader["F"].shape[0]
     v0 = views[0]
@@ -168,7 +171,7 @@ def per_vehicle_configs(sc: Any, architecture: str, *, mode: str, seed: int, tra
     rows = (centralized_rows(gain, N, v0.n, v0.r, v0.m, l0)
             if architecture == "centralized" else None)
     eta0 = observer_start(leader["z0"], settings)
-    models = fleet_vehicles(spec)
+    models = sc.fleet_model.models
     out: list[dict[str, dict[str, Any]]] = [{"leader": dict(base, system=_mapping(v0, leader))}]
     design = getattr(sc, "design", None)
     limit = design.u_max if design is not None and design.clip else None
@@ -230,7 +233,7 @@ def _component(name: str, key: str, config: dict[str, Any]) -> Component:
     return Component(name, key, specs, component_parameters(specs))
 
 
-def per_vehicle_system(sc: Any, configs: list[dict[str, dict[str, Any]]],
+def per_vehicle_system(sc: Scenario, configs: list[dict[str, dict[str, Any]]],
                        architecture: str) -> SystemDescription:
     """The per-vehicle system of a fleet scenario (module docstring).
 
@@ -367,7 +370,7 @@ NONLINEAR_OUTPUTS = ("attitude", "rpm", "rudder", "stern", "saturated")
 LINK_STATISTICS = ("age", "delivered", "lost", "in_flight")
 
 
-def stacked_traces(sc: Any, system: SystemDescription,
+def stacked_traces(sc: Scenario, system: SystemDescription,
                    traces: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The per-vehicle traces in the stacked deployment's layout.
 

@@ -22,7 +22,7 @@ propagation matrices from the loop's message form
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -32,10 +32,13 @@ from plant_model.acoustic.settings import resolve_links, timing_table
 
 from .system import Connection
 
+if TYPE_CHECKING:
+    from ..scenario import Scenario
+
 __all__ = ["fleet_links", "network_configs", "network_connections", "receiver_slots"]
 
 
-def fleet_links(sc: Any, architecture: str) -> dict[tuple[Any, int], LinkTiming]:
+def fleet_links(sc: Scenario, architecture: str) -> dict[tuple[Any, int], LinkTiming]:
     """Every link that carries a message in this architecture, with its timing.
 
     Parameters
@@ -62,7 +65,7 @@ def fleet_links(sc: Any, architecture: str) -> dict[tuple[Any, int], LinkTiming]
     return resolve_links(N, edges, pins, timing_table(sc.network), sc.h)
 
 
-def receiver_slots(sc: Any, architecture: str, slots: Any) -> list[list[int | None]]:
+def receiver_slots(sc: Scenario, architecture: str, slots: Any) -> list[list[int | None]]:
     """Per vehicle, the sender of each neighbour slot (None: unused).
 
     distributed: the controller's slots (:func:`orchestrator.cosim.per_vehicle.fleet_slots`);

@@ -86,8 +86,7 @@ def _signal_layout(sc: Scenario, system: SystemDescription) -> dict[str, list[_E
     plain = {s: [_Element("", None, str(i + 1)) for i in range(n)] for s, n in sizes.items()}
     if sc.fleet is None:
         return plain
-    from plant_model.fleet import fleet_vehicles
-    models = fleet_vehicles(sc.fleet)
+    models = sc.fleet_model.models
     per = {"x": ("state_names", "state_units"), "u": ("input_names", "input_units"),
            "w": ("disturbance_names", "disturbance_units"),
            "y": ("output_names", "output_units")}

@@ -248,11 +248,10 @@ def _fleet_units(summary: dict[str, Any], error_names: tuple[str, ...]) -> dict[
         return {}
     try:
         from orchestrator.scenario import load_scenario
-        from plant_model.fleet import fleet_vehicles
         sc = load_scenario(spec)
         if sc.fleet is None:
             return {}
-        model = fleet_vehicles(sc.fleet)[0]
+        model = sc.fleet_model.models[0]
     except Exception:       # a file changed or gone since the run: no units, not an error
         return {}
     if error_names != tuple(model.output_names):

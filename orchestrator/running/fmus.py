@@ -160,18 +160,16 @@ def guidance_configs(sc: Scenario) -> dict[str, dict[str, Any]]:
     dict[str, dict[str, Any]]
         {} or {'guidance': config, 'autopilot': config} (keys of FMU_KINDS).
     """
-    from plant_model.fleet import fleet_vehicles
-    from plant_model.per_vehicle import vehicle_views
     from plant_model.vehicle_models import find
 
     from ..cosim.guided import stack_configs
     if sc.fleet is None:
         return {}
-    models = fleet_vehicles(sc.fleet)
+    models = sc.fleet_model.models
     entries = [find(m.name) for m in models]
     if any(e is None or not e.guidance for e in entries):
         return {}
-    return stack_configs(models[0], vehicle_views(sc.fleet)[0], sc.h, sc.T, sc.seed)
+    return stack_configs(models[0], sc.fleet_model.views[0], sc.h, sc.T, sc.seed)
 
 
 def fmu_readme(sc: Scenario) -> str:
@@ -221,7 +219,7 @@ def fleet_layout(sc: Scenario) -> FleetLayout | None:
     FleetLayout or None
         None for a single stacked system or a fleet whose vehicles have no NED positions.
     """
-    from plant_model.fleet import fleet_info, fleet_vehicles
+    from plant_model.fleet import fleet_info
 
     from ..recording import FleetLayout
     if sc.fleet is None:
@@ -241,7 +239,7 @@ def fleet_layout(sc: Scenario) -> FleetLayout | None:
         offsets=info.offsets, edges=info.edges, pinned=info.pinned,
         state_index=block(info.p), state_names=info.state_names,
         disturbance_index=block(info.r), disturbance_names=info.disturbance_names,
-        **_actuator_limits(fleet_vehicles(sc.fleet)[0].parameters),
+        **_actuator_limits(sc.fleet_model.models[0].parameters),
     )
 
 

@@ -13,14 +13,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from controller_fmu.regulator import tracking_law
 from controller_fmu.vehicle_law import centralized_rows
 from plant_model.acoustic.schedule import connectivity, resolve_schedule
-from plant_model.fleet import fleet_vehicles
 
 from ..analysis.acoustic.bursty import bursty_radius, bursty_window, critical_burst
 from ..analysis.acoustic.loop import NetworkedLoop
@@ -37,7 +36,10 @@ from ..analysis.prediction import Prediction
 from ..analysis.summary import stats_window
 from ..cosim.per_vehicle import fleet_slots
 from ..cosim.per_vehicle_network import fleet_links, receiver_slots
-from .setup import NO_PREDICTION
+from .setup import NO_PREDICTION, Method
+
+if TYPE_CHECKING:
+    from ..scenario import Scenario
 
 Log = Callable[[str], None]
 
@@ -68,22 +70,23 @@ class NetworkSetup:
         return self.net.initial_state(self.X0)
 
 
-def network_setup(sc: Any, architecture: str, mode: str, tracking: str) -> NetworkSetup:
+def network_setup(sc: Scenario, method: Method) -> NetworkSetup:
     """The loop of one method over the scenario's ``[network]``.
 
     Parameters
     ----------
     sc : Scenario
         A per-vehicle fleet scenario with a network.
-    architecture, mode, tracking : str
-        The method.
+    method : Method
+        Its architecture, estimator and tracking law.
 
     Returns
     -------
     NetworkSetup
         The pieces.
     """
-    loop = distributed_loop_of(sc, mode, tracking, sc.distributed)
+    architecture, tracking = method.architecture, method.tracking
+    loop = distributed_loop_of(sc, method.estimator, tracking, sc.distributed)
     X0 = distributed_initial_state(sc, loop)
     if architecture == "centralized":
         N = len(loop.sampled)
@@ -110,13 +113,13 @@ def network_setup(sc: Any, architecture: str, mode: str, tracking: str) -> Netwo
                         X0=form.state_of(X0), leader_size=loop.observer.Phi.shape[0])
 
 
-def modem_settings(sc: Any) -> dict[str, Any] | None:
+def modem_settings(sc: Scenario) -> dict[str, Any] | None:
     """The network FMUs' modem range settings (None without ``[network] range``): the range
     (m), the vehicles' state size and position states, the leader's position map H."""
     table = dict(sc.network or {})
     if "range" not in table:
         return None
-    mdl = fleet_vehicles(sc.fleet)[0]
+    mdl = sc.fleet_model.models[0]
     return {"range": float(table["range"]), "state_size": int(mdl.p),
             "position_index": [int(i) for i in mdl.position_states],
             "leader_H": np.asarray(sc.fleet["leader"]["H"], float).tolist()}
@@ -132,7 +135,7 @@ def schedule_settings(setup: NetworkSetup) -> dict[str, Any] | None:
             "up": {k: list(v) for k, v in sch.up.items()}}
 
 
-def _positions(sc: Any, loop: Any, form: MessageForm, net: NetworkedLoop,
+def _positions(sc: Scenario, loop: Any, form: MessageForm, net: NetworkedLoop,
                modem: dict[str, Any]) -> dict[Any, np.ndarray]:
     """Per vehicle and the leader the 3 x n matrix of its true NED position in Z."""
     keep = (np.flatnonzero(form.keep) if form.keep is not None
@@ -156,7 +159,7 @@ def _positions(sc: Any, loop: Any, form: MessageForm, net: NetworkedLoop,
 SLOW_STATES = 600
 
 
-def network_predictions(sc: Any, setup: NetworkSetup, log: Log | None = None,
+def network_predictions(sc: Scenario, setup: NetworkSetup, log: Log | None = None,
                         k0: int | None = None
                         ) -> tuple[Prediction, Prediction, Prediction | None, int]:
     """(verdict, window prediction, same, k0) in the shape the workflow takes.
@@ -210,7 +213,7 @@ def too_many_states(n: int, path: str | None, steps: int) -> str:
             "(the radius given is the perfect links')")
 
 
-def network_summary(sc: Any, setup: NetworkSetup, *, critical: bool = True,
+def network_summary(sc: Scenario, setup: NetworkSetup, *, critical: bool = True,
                     search: bool = True, predict: str = "full", log: Log | None = None
                     ) -> dict[str, Any]:
     """The summary's ``network`` entry of a method: the fleet-wide latency, period and loss,
@@ -276,7 +279,7 @@ def schedule_summary(setup: NetworkSetup, radius: bool = True) -> dict[str, Any]
     return out
 
 
-def network_reference(sc: Any, setup: NetworkSetup, seed: int, steps: int
+def network_reference(sc: Scenario, setup: NetworkSetup, seed: int, steps: int
                       ) -> dict[str, np.ndarray]:
     """The networked loop simulated as one recursion with the FMUs' noise and loss draws:
     traces x, u, e in the stacked layout.

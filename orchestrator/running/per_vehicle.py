@@ -10,8 +10,9 @@ or the Lyapunov prediction of the distributed loop (:mod:`orchestrator.analysis.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -53,6 +54,9 @@ from .phases import phase
 from .setup import Method, Predictions, RunSetup
 from .stacked import stacked_phase
 
+if TYPE_CHECKING:
+    from ..scenario import Scenario
+
 __all__ = ["DISTRIBUTED_REMEDY", "PerVehicleSetup", "TRANSIENT_LIMIT", "check_centralized"]
 
 #: largest loop state for which the window-average prediction from the start is computed
@@ -80,7 +84,7 @@ DISTRIBUTED_REMEDY = ("use --architecture distributed (designed per vehicle, ind
                       "of N)")
 
 
-def check_centralized(sc: Any, estimators: Sequence[str] = (),
+def check_centralized(sc: Scenario, estimators: Sequence[str] = (),
                       predict: str = "stationary") -> DesignEstimate:
     """Refuse, before trying, a centralized fleet whose stacked design (with its filter
     and predictions) would take too long or not fit in memory
@@ -119,7 +123,7 @@ class PerVehicleSetup(RunSetup):
 
     deployment = "per-vehicle"
 
-    def __init__(self, sc: Any, fmu_dir: Path | str, methods: Any = (), *,
+    def __init__(self, sc: Scenario, fmu_dir: Path | str, methods: Any = (), *,
                  coupling: str = "gauss-seidel", predict: str = "stationary"):
         super().__init__(sc, fmu_dir, methods, coupling=coupling, predict=predict)
         self._fmus: dict[str, dict[str, Path]] = {}
@@ -139,44 +143,43 @@ class PerVehicleSetup(RunSetup):
             stacked_states(self.sc), estimator_kind(method.estimator).solves_riccati,
             self.predict != "none"))
 
-    def _configs(self, architecture: str, mode: str, tracking: str,
-                 seed: int) -> list[dict[str, dict[str, Any]]]:
+    def _configs(self, method: Method, seed: int) -> list[dict[str, dict[str, Any]]]:
         with phase("design"):
-            return self._configs_of(architecture, mode, tracking, seed)
+            return self._configs_of(method, seed)
 
-    def _configs_of(self, architecture: str, mode: str, tracking: str,
-                    seed: int) -> list[dict[str, dict[str, Any]]]:
+    def _configs_of(self, method: Method, seed: int) -> list[dict[str, dict[str, Any]]]:
         """Every vehicle's FMU configurations (their designs solved here)."""
         sc = self.sc
         gain = None
-        if architecture == "centralized":
+        if method.architecture == "centralized":
             with self.interruptible(stacked_phase(sc, self._check_centralized())):
-                gain = tracking_law(sc.system, tracking).Ks
+                gain = tracking_law(sc.system, method.tracking).Ks
         net = None
         if sc.network is not None:
-            setup = self.network(architecture, mode, tracking)
+            setup = self.network(method)
             net = network_configs(setup.form.senders, setup.links, setup.slot_senders,
                                   setup.net.receiver, setup.launch, setup.leader_size,
                                   modem_settings(sc), schedule_settings(setup))
-        return per_vehicle_configs(sc, architecture, mode=mode, seed=seed, tracking=tracking,
-                                   settings=sc.distributed, gain=gain, network=net)
+        return per_vehicle_configs(sc, method.architecture, mode=method.estimator, seed=seed,
+                                   tracking=method.tracking, settings=sc.distributed,
+                                   gain=gain, network=net)
 
-    def network(self, architecture: str, mode: str, tracking: str) -> NetworkSetup:
-        """The loop over the scenario's acoustic links for one method (built once).
+    def network(self, method: Method) -> NetworkSetup:
+        """The loop over the scenario's acoustic links for one method (built once per
+        architecture, estimator and tracking law).
 
         Parameters
         ----------
-        architecture, mode, tracking : str
-            The method.
+        method : Method
 
         Returns
         -------
         NetworkSetup
             Its message form, networked loop, links and launch values.
         """
-        key = (architecture, mode, tracking)
+        key = (method.architecture, method.estimator, method.tracking)
         if key not in self._network:
-            self._network[key] = network_setup(self.sc, architecture, mode, tracking)
+            self._network[key] = network_setup(self.sc, method)
         return self._network[key]
 
     def python_fmus(self, method: Method) -> dict[str, Path]:
@@ -193,7 +196,8 @@ class PerVehicleSetup(RunSetup):
         if arch not in self._fmus:
             sc = self.sc
             several = len({m.architecture for m in self.methods}) > 1
-            cfgs = self._configs(arch, sc.estimator, sc.tracking, sc.seed)
+            cfgs = self._configs(replace(method, estimator=sc.estimator,
+                                         tracking=sc.tracking), sc.seed)
             self._fmus[arch] = build_fmus(None, self.fmu_dir / arch if several
                                           else self.fmu_dir, kinds=build_configs(cfgs))
         return self._fmus[arch]
@@ -202,7 +206,7 @@ class PerVehicleSetup(RunSetup):
         """The per-vehicle system of one method and seed (every vehicle's parameters):
         1 + 3 N components (and N network components over acoustic links)."""
         return per_vehicle_system(
-            self.sc, self._configs(method.architecture, method.estimator, method.tracking,
+            self.sc, self._configs(method,
                                    seed), method.architecture)
 
     def stacked(self, system: SystemDescription, traces: dict[str, Any],
@@ -240,17 +244,16 @@ class PerVehicleSetup(RunSetup):
             If the estimator or the design does not exist or the loop is unstable (named).
         """
         sc = self.sc
-        architecture, mode, tracking = method.architecture, method.estimator, method.tracking
-        if sc.sensors is not None and estimator_kind(mode).navigation == "filter":
-            return Predictions.of(self._multirate(architecture, tracking, k0))
+        if sc.sensors is not None and estimator_kind(method.estimator).navigation == "filter":
+            return Predictions.of(self._multirate(method, k0))
         if sc.network is not None:
-            setup = self.network(architecture, mode, tracking)
+            setup = self.network(method)
             path = prediction_path(setup.net, sc.steps)
             if path == "dense":
                 return Predictions.of(network_predictions(sc, setup, self.log, k0))
             # many links: the second moment in blocks (held values apart), or none when
             # even that is too long; the perfect links' window and margin
-            pred0, _, _, k0 = self._perfect(architecture, mode, tracking, k0)
+            pred0, _, _, k0 = self._perfect(method, k0)
             if path == "blocks" and self.log is not None:
                 self.log(f"predicting the expected cost over the window with the second "
                          f"moment in blocks ({setup.net.n} states, {len(setup.net.R)} links; "
@@ -264,9 +267,9 @@ class PerVehicleSetup(RunSetup):
                               settling_time=pred0.settling_time,
                               reason=too_many_states(setup.net.n, path, sc.steps))
             return Predictions(pred0, pred, pred if cost is not None else None, k0)
-        return Predictions.of(self._perfect(architecture, mode, tracking, k0))
+        return Predictions.of(self._perfect(method, k0))
 
-    def _multirate(self, architecture: str, tracking: str, k0: int | None = None
+    def _multirate(self, method: Method, k0: int | None = None
                    ) -> tuple[Prediction, Prediction, Prediction | None, int]:
         """:meth:`predictions` with the multi-rate filter of [sensors]: the periodic loop's
         (distributed, no dropouts; orchestrator.analysis.multirate_prediction), else the
@@ -278,8 +281,8 @@ class PerVehicleSetup(RunSetup):
         sensors = NavigationSensors.from_mapping(sc.sensors)
         reason = ("no prediction for the multi-rate Kalman filter of [sensors] with the "
                   "centralized architecture")
-        if architecture == "distributed":
-            loop = distributed_loop_of(sc, NAVIGATION_FILTER, tracking, sc.distributed)
+        if method.architecture == "distributed":
+            loop = distributed_loop_of(sc, NAVIGATION_FILTER, method.tracking, sc.distributed)
             try:
                 stat = predict_multirate_cost(sc, loop, sensors)
                 if k0 is None:
@@ -290,18 +293,18 @@ class PerVehicleSetup(RunSetup):
             except ModelError as exc:
                 reason = f"no prediction for the multi-rate Kalman filter: {exc}"
         # the steady filter's window and margin
-        pred0, _, _, k0 = self._perfect(architecture, NAVIGATION_FILTER, tracking, k0)
+        pred0, _, _, k0 = self._perfect(replace(method, estimator=NAVIGATION_FILTER), k0)
         pred = Prediction(rms_e=None, rms_u=None, cost_rate=None,
                           spectral_radius=pred0.spectral_radius,
                           settling_time=pred0.settling_time,
                           reason=reason + "; the figures are the simulation's")
         return pred0, pred, None, k0
 
-    def _perfect(self, architecture: str, mode: str, tracking: str, k0: int | None = None
+    def _perfect(self, method: Method, k0: int | None = None
                  ) -> tuple[Prediction, Prediction, Prediction | None, int]:
         """:meth:`predictions` with perfect links (the window from ``k0``, or the own)."""
-        sc = self.sc
-        if architecture == "centralized":            # the stacked loop's predictions
+        sc, mode, tracking = self.sc, method.estimator, method.tracking
+        if method.architecture == "centralized":            # the stacked loop's predictions
             self._check_centralized()
             kind = estimator_kind(mode)
             cost = design_estimate(stacked_states(sc), kind.solves_riccati, True)
@@ -344,7 +347,7 @@ class PerVehicleSetup(RunSetup):
         """
         if not runs:
             return {}
-        setup = self.network(method.architecture, method.estimator, method.tracking)
+        setup = self.network(method)
         return {"network": network_summary(self.sc, setup,
                                            critical=prediction_path(setup.net, self.sc.steps)
                                            == "dense", search=self.predict == "full",

@@ -24,6 +24,7 @@ from __future__ import annotations
 import copy
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -32,9 +33,9 @@ import numpy as np
 from controller_fmu.vehicle_law import DistributedSettings
 from plant_model.acoustic.settings import check_network
 from plant_model.discretization import check_step
+from plant_model.fleet_model import Fleet
 from plant_model.linalg_checks import ModelError
 from plant_model.system import LinearSystem
-from plant_model.vehicle_models import find
 
 from .errors import ScenarioError, validate_scenario
 from .fleet import fleet_spec, is_fleet_scenario
@@ -84,12 +85,18 @@ class Scenario:
     #: the parsed file the scenario was validated from (for variants of it)
     raw: Mapping[str, Any] | None = field(default=None, repr=False, compare=False)
 
+    @cached_property
+    def fleet_model(self) -> Fleet | None:
+        """The fleet parsed once (:class:`plant_model.fleet_model.Fleet`: models, graph,
+        views, stacked system); None for a single system. Kept with the scenario: every
+        consumer asks it instead of parsing :attr:`fleet` again."""
+        return None if self.fleet is None else Fleet.of(self.fleet)
+
     @property
     def nonlinear_vehicles(self) -> tuple[int, ...]:
         """The vehicles (1-based) of a nonlinear model (``remus100-6dof``), each its own FMU
         (plant_model.vehicle_models: ``nonlinear``)."""
-        return tuple(i for i, v in enumerate((self.fleet or {}).get("vehicles", []), start=1)
-                     if getattr(find(v.get("model")), "nonlinear", False))
+        return () if self.fleet_model is None else self.fleet_model.nonlinear
 
     def with_vehicle_model(self, model: str) -> Scenario:
         """The same fleet scenario with every vehicle of ``model`` (e.g. the nonlinear
