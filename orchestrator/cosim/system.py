@@ -218,8 +218,8 @@ class SystemDescription:
             src, dst = self.component(c.source), self.component(c.target)
             a, b = _find(src, c.output), _find(dst, c.input)
             shape_a = a.shape if a else (b.shape if b else ())
-            na = element_names(c.output, shape_a)
-            nb = element_names(c.input, b.shape if b else shape_a)
+            na = a.elements if a else element_names(c.output, shape_a)
+            nb = b.elements if b else element_names(c.input, shape_a)
             if len(na) != len(nb):
                 raise ValueError(f"connection {c}: {c.source}.{c.output} has {len(na)} "
                                  f"elements, {c.target}.{c.input} has {len(nb)}")
