@@ -38,8 +38,12 @@ import numpy as np
 from .linalg_checks import ModelError, as_positive
 from .vehicles import VehicleModel, _ned_axes_model, remus100
 
-__all__ = ["FMU_PARAMS", "FmuPorts", "SETPOINT_PORTS", "fmu_explicit_params", "fmu_ports",
-           "fmu_vehicle_from_params"]
+__all__ = ["FMU_PARAMS", "GUIDED_FMU_STACK", "FmuPorts", "SETPOINT_PORTS", "VehicleFmuPorts",
+           "fmu_explicit_params", "fmu_ports", "fmu_stack", "fmu_vehicle_from_params",
+           "guidance_model"]
+
+#: the per-vehicle FMU kinds between the controller and a set-point vehicle FMU
+GUIDED_FMU_STACK = ("guidance",)
 
 #: the parameters of a ``model = "fmu"`` vehicle
 FMU_PARAMS = ("fmu", "inputs", "outputs", "start", "cruise_speed", "step", "amplitude",
@@ -235,3 +239,67 @@ def fmu_explicit_params(model: VehicleModel) -> dict[str, Any]:
     spec = dict(model.parameters["spec"])
     spec["fmu"] = str(model.parameters["ports"].path)
     return spec
+
+
+def fmu_stack(model: VehicleModel) -> tuple[str, ...]:
+    """The guidance before a set-point vehicle FMU; nothing before a force one."""
+    return GUIDED_FMU_STACK if model.parameters["ports"].kind == "setpoints" else ()
+
+
+def fmu_port_config(ports: FmuPorts, mode: str, *, sensors: bool, where: str,
+                    first: list[Mapping[str, Any]]) -> dict[str, Any]:
+    """The port map as JSON-ready data (a per-vehicle FMU configuration's ``fmu``).
+
+    Raises
+    ------
+    ModelError
+        In one line naming the vehicle: the estimator mode ``ideal`` (the FMU has no
+        current to give as the truth), navigation ``[sensors]`` (the FMU outputs its
+        position, not REMUS navigation), or another FMU than vehicle 1's (one FMU file per
+        fleet: ``first`` is vehicle 1's configurations).
+    """
+    if mode == "ideal":
+        raise ModelError(f"{where}: estimator ideal needs the true current, which a vehicle "
+                         f"FMU ({ports.path.name}) does not give; use kalman or classical")
+    if sensors:
+        raise ModelError(f"{where}: [sensors] models REMUS navigation; a vehicle FMU "
+                         f"({ports.path.name}) gives its own position: leave [sensors] out")
+    for cfg in (c.get("vehicle_fmu") for c in first):
+        if cfg is not None and cfg["fmu"]["digest"] != ports.digest:
+            raise ModelError(f"{where}: its FMU {ports.path} differs from vehicle 1's "
+                             f"{cfg['fmu']['path']}; a fleet flies one vehicle FMU")
+    return {"path": str(ports.path), "digest": ports.digest, "kind": ports.kind,
+            "inputs": [list(p) for p in ports.inputs], "position": list(ports.position),
+            "velocity": list(ports.velocity), "start_position": list(ports.start_position),
+            "start_velocity": list(ports.start_velocity), "native": ports.native}
+
+
+class VehicleFmuPorts:
+    """The interface of a vehicle FMU's component in a per-vehicle system: the project's
+    arrays, each element named by the port map (:attr:`ArraySpec.scalars`)."""
+
+    @staticmethod
+    def interface(config: Mapping[str, Any]) -> list[Any]:
+        """Parameters ``start_position``, ``start_velocity`` (those the port map names,
+        start values the vehicle's x0); inputs ``u`` (force, N) or one per set-point
+        (the guidance's output names: speed, course, depth, ...); outputs ``y`` (position,
+        m), ``x`` (position and velocity, the design model's state), ``velocity`` (m/s)."""
+        from fmu_common.interface import ArraySpec
+        f = config["fmu"]
+        x0 = [float(v) for v in config["system"]["x0"]]
+        specs = []
+        for key, vals in (("start_position", x0[:3]), ("start_velocity", x0[3:6])):
+            if f[key]:
+                specs.append(ArraySpec(key, (3,), "parameter", f"the vehicle's {key[6:]}",
+                                       start=vals, scalars=tuple(f[key])))
+        if f["kind"] == "force":
+            specs.append(ArraySpec("u", (3,), "input", "NED force", start=[0.0] * 3,
+                                   unit="N", scalars=tuple(n for _, n in f["inputs"])))
+        else:
+            specs += [ArraySpec(SETPOINT_PORTS[p], (), "input", f"set-point {p}", start=0.0,
+                                scalars=(n,)) for p, n in f["inputs"]]
+        pos, vel = tuple(f["position"]), tuple(f["velocity"])
+        return specs + [
+            ArraySpec("y", (3,), "output", "NED position", unit="m", scalars=pos),
+            ArraySpec("x", (6,), "output", "NED position and velocity", scalars=pos + vel),
+            ArraySpec("velocity", (3,), "output", "NED velocity", unit="m/s", scalars=vel)]

@@ -375,7 +375,7 @@ def component_parameters(specs: list[ArraySpec] | tuple[ArraySpec, ...]) -> dict
             out[spec.name] = spec.start
             continue
         flat = np.asarray(spec.start).reshape(-1)
-        for name, value in zip(element_names(spec.name, spec.shape), flat):
+        for name, value in zip(spec.elements, flat):
             out[name] = value
     return out
 
