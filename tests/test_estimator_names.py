@@ -10,6 +10,7 @@ from __future__ import annotations
 from estimator_fmu.registry import ESTIMATOR_MODES
 from tests.support import name_tests
 from tests.support.name_tests import PACKAGES, ROOT
+
 REGISTRY = "estimator_fmu/registry.py"
 #: each estimator's own module (its mathematics)
 OWN = {"kalman": ("estimator_fmu/estimators.py",),

@@ -222,10 +222,18 @@ def torpedo_fmu(out: Path) -> Path:
     """``out/TorpedoSetpoint.fmu``: the example torpedo with its PID autopilot (pythonfmu).
     Inputs U_d (m/s), psi_d (rad), d_d (m); outputs n, e, d (m), v_n, v_e, v_d (m/s, over
     ground, no current); parameters n0, e0, d0, vn0, ve0, vd0 (start)."""
+    import sys
+
     from pythonfmu.builder import FmuBuilder
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         script = Path(tmp) / "torpedo_setpoint_slave.py"
         script.write_text(_TORPEDO_SLAVE)
-        fmu = FmuBuilder.build_FMU(script, dest=out, project_files=[EXAMPLES / "torpedo.py"])
+        sys.path.insert(0, str(EXAMPLES))         # the build imports the slave
+        try:
+            fmu = FmuBuilder.build_FMU(script, dest=out,
+                                       project_files=[EXAMPLES / "torpedo.py"])
+        finally:
+            sys.path.remove(str(EXAMPLES))
+            sys.modules.pop("torpedo_setpoint_slave", None)
     return Path(fmu)
