@@ -53,6 +53,16 @@ class ArraySpec:
     depends_on: tuple[str, ...] = ()     #: outputs: inputs with direct feedthrough
     min: float | None = None             #: smallest value a parameter accepts
     max: float | None = None             #: largest value a parameter accepts
+    #: the FMI names of its elements when they are not the structured names ``name[i]``
+    #: (a vehicle FMU of the user's, its scalar variables through the port map); None: those
+    scalars: tuple[str, ...] | None = None
+
+    @property
+    def elements(self) -> list[str]:
+        """The FMI names of its elements, row major: :attr:`scalars`, else
+        :func:`element_names` of its name and shape."""
+        return list(self.scalars) if self.scalars is not None else \
+            element_names(self.name, self.shape)
 
     @property
     def size(self) -> int:

@@ -37,6 +37,13 @@ from .remus100.models import (
     remus100_fitted_from_params,
     remus_from_parameters,
 )
+from .vehicle_fmu import (
+    FMU_PARAMS,
+    GUIDED_FMU_STACK,
+    fmu_explicit_params,
+    fmu_stack,
+    fmu_vehicle_from_params,
+)
 from .vehicles import (
     GENERIC_PARAMS,
     REMUS100_MAX_SPEED,
@@ -103,6 +110,13 @@ class ModelEntry:
     #: its design model drives the guidance and autopilot FMUs (exported beside a fleet's
     #: FMUs: docs/guidance.md)
     guidance: bool = False
+    #: the stack of one vehicle when it depends on its parameters (a vehicle FMU's port
+    #: map: set-points go through the guidance, a force does not); None: :attr:`stack`
+    stack_of: Callable[[VehicleModel], tuple[str, ...]] | None = None
+
+    def stack_for(self, model: VehicleModel) -> tuple[str, ...]:
+        """The FMU kinds between the controller and the vehicle FMU of ``model``."""
+        return self.stack_of(model) if self.stack_of is not None else self.stack
 
     def __post_init__(self) -> None:
         if not self.nonlinear and set(self.params) - set(self.param_docs):
@@ -174,6 +188,12 @@ REGISTRY: dict[str, ModelEntry] = {e.name: e for e in (
                nonlinear=True, fmu_kind="remus6dof_actuated", native=False,
                design="remus100", stack=("guidance", "autopilot"),
                variant_of="remus100-6dof", limits=_remus6dof_limits, guidance=True),
+    ModelEntry("fmu", "a vehicle the user brings as an FMI 2.0 co-simulation FMU, with a "
+               "port map; its design model identified from the FMU's frequency responses; "
+               "per-vehicle deployment only (plant_model.vehicle_fmu, docs/scenarios.md)",
+               fmu_vehicle_from_params, FMU_PARAMS, fmu_explicit_params, family="fmu",
+               layout="ned", nonlinear=True, fmu_kind="vehicle_fmu", native=False,
+               design="fmu", stack=GUIDED_FMU_STACK, stack_of=fmu_stack),
 )}
 
 #: the model names, in the registry's order

@@ -20,9 +20,9 @@ from plant_model.vehicle_models import (
 
 def test_one_entry_per_model_name_with_its_facts():
     assert VEHICLE_MODELS == ("remus100", "remus100-6dof", "remus100-fitted", "generic",
-                              "remus100-6dof-guided")
+                              "remus100-6dof-guided", "fmu")
     assert [n for n in VEHICLE_MODELS if get(n).nonlinear] == ["remus100-6dof",
-                                                               "remus100-6dof-guided"]
+                                                               "remus100-6dof-guided", "fmu"]
     six = get("remus100-6dof")
     assert (six.fmu_kind, six.native, six.design, six.family, six.stack) == (
         "remus6dof", False, "remus100", "remus100", ())
@@ -36,7 +36,7 @@ def test_one_entry_per_model_name_with_its_facts():
     assert {get(n).fmu_kind for n in ("remus100", "remus100-fitted", "generic")} == {"vehicle"}
     assert family_of("remus100-fitted") == "remus100" and family_of("generic") == "generic"
     assert [n for n in VEHICLE_MODELS if get(n).layout == "ned"] == [
-        "remus100", "remus100-6dof", "remus100-fitted", "remus100-6dof-guided"]
+        "remus100", "remus100-6dof", "remus100-fitted", "remus100-6dof-guided", "fmu"]
     assert get("remus100").params == ("mass", "added_mass", "time_constant",
                                       "drag_coefficient", "cruise_speed")
     assert get("remus100-fitted").params == ()

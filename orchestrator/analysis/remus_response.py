@@ -22,6 +22,8 @@ from plant_model.remus100.dynamics import STATE_SIZE, Remus100
 from plant_model.remus100.rigid_body import rotation_ned_body
 from plant_model.vehicles import remus100
 
+from .first_order_fit import fit_first_order_response, sine_response
+
 __all__ = ["FIT_OMEGAS", "VALID_GAIN", "VALID_PHASE", "fit_first_order",
            "force_frequency_response", "valid_band"]
 
@@ -83,9 +85,8 @@ def force_frequency_response(axis: int, omegas: list[float], *, U0: float = 1.5,
             vel[k] = (rotation_ned_body(*x[3:6]) @ x[6:9])[axis]
             kernel.force_commanded_step(p, g, x, v_ref, integ, F, current, M, D, h, 1, cmd)
         keep = t >= T
-        X = np.column_stack([np.ones(keep.sum()), np.sin(w * t[keep]), np.cos(w * t[keep])])
-        _, a, b = np.linalg.lstsq(X, vel[keep], rcond=None)[0]
-        gain, phase = math.hypot(a, b) / amplitude, math.atan2(b, a)
+        resp = sine_response(t[keep], vel[keep], w, amplitude)
+        gain, phase = abs(resp), math.atan2(resp.imag, resp.real)
         G = 1.0 / complex(D[axis], M[axis] * w)
         out.append({"omega": w, "gain": gain, "phase": phase, "linear_gain": abs(G),
                     "linear_phase": math.atan2(G.imag, G.real),
@@ -101,23 +102,14 @@ def fit_first_order(axes: list[int], omegas: tuple[float, ...] = FIT_OMEGAS, *,
     nonlinear vehicle's velocity per force G on ``axes`` (stacked) in relative error,
     sum |G - G_f|^2 / |G|^2 = sum |1/G - (D + j w M)|^2 / |D + j w M|^2, by
     Sanathanan-Koerner iteration: linear least squares on the inverse response, each pass
-    weighted by the previous pass's 1 / |D + j w M| (:func:`force_frequency_response`)."""
-    inv, om = [], []
+    weighted by the previous pass's 1 / |D + j w M| (:func:`force_frequency_response`;
+    :func:`orchestrator.analysis.first_order_fit.fit_first_order_response`)."""
+    G, om = [], []
     for axis in axes:
         for r in force_frequency_response(axis, list(omegas), U0=U0, h=h):
-            inv.append(1.0 / (r["gain"] * complex(math.cos(r["phase"]), math.sin(r["phase"]))))
+            G.append(r["gain"] * complex(math.cos(r["phase"]), math.sin(r["phase"])))
             om.append(r["omega"])
-    inv_a, om_a = np.array(inv), np.array(om)
-    weight = np.ones(len(om_a))
-    for _ in range(20):
-        rows = np.zeros((2 * len(om_a), 2))
-        rows[0::2, 0] = weight
-        rows[1::2, 1] = weight * om_a
-        rhs = np.empty(2 * len(om_a))
-        rhs[0::2], rhs[1::2] = weight * inv_a.real, weight * inv_a.imag
-        (D, M), *_ = np.linalg.lstsq(rows, rhs, rcond=None)
-        weight = 1.0 / np.abs(D + 1j * om_a * M)
-    return float(M), float(D)
+    return fit_first_order_response(np.array(om), np.array(G))
 
 
 #: the design model is valid where the vehicle's velocity per force stays within this

@@ -44,6 +44,8 @@ class FmuKind:
     packages: tuple[str, ...]       #: project packages copied into resources/
     config_file: str
     variable_step: bool             #: canHandleVariableCommunicationStepSize
+    #: not built here: the user's own FMU (its configuration's ``fmu.path``), copied
+    external: bool = False
 
     @property
     def script(self) -> Path:
@@ -94,6 +96,10 @@ FMU_KINDS: dict[str, FmuKind] = {
                         "auv_guidance_config.json", True),
     "autopilot": FmuKind("AuvAutopilot", "plant_model.remus100.auv_autopilot_slave",
                          ("plant_model", "fmu_common"), "auv_autopilot_config.json", True),
+    # a vehicle the user brings as an FMU (model "fmu"): its file, its interface through
+    # the port map (plant_model.vehicle_fmu.VehicleFmuPorts)
+    "vehicle_fmu": FmuKind("VehicleFmuPorts", "plant_model.vehicle_fmu", (), "", False,
+                           external=True),
 }
 
 #: the guidance interface: built beside a scenario's system for a host's own vehicle stack,
@@ -358,7 +364,11 @@ def build_fmus(config: dict[str, Any], out_dir: Path | str, *,
     for name, cfg in todo.items():
         kind = FMU_KINDS[name]
         dst = out / f"{kind.model}.fmu"
-        if cache:
+        if kind.external:                   # the user's FMU, under its own name
+            src = Path(cfg["fmu"]["path"])
+            dst = out / src.name
+            copy_atomically(src, dst)
+        elif cache:
             copy_atomically(cached_fmu(kind, cfg), dst)
         else:
             with tempfile.TemporaryDirectory(prefix="auv_build_") as tmp:

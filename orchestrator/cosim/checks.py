@@ -14,8 +14,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fmu_common.interface import element_names
-
 from .system import Component, ScalarConnection, SystemDescription
 
 __all__ = ["Variable", "fmu_variables", "interface_variables", "connection_problems",
@@ -68,7 +66,7 @@ def interface_variables(component: Component) -> dict[str, Variable]:
         FMI scalar name -> causality, type and unit.
     """
     return {name: Variable(spec.causality, spec.type, spec.unit)
-            for spec in component.interface for name in element_names(spec.name, spec.shape)}
+            for spec in component.interface for name in spec.elements}
 
 
 def system_variables(system: SystemDescription) -> dict[str, dict[str, Variable]]:

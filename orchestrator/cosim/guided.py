@@ -82,15 +82,18 @@ def stack_configs(model: VehicleModel, view: LinearSystem, h: float, T: float,
     gains = dict(par.get("autopilot", {}))
     v0 = np.asarray(view.x0, float)[3:6] - np.asarray(view.w0, float)[:3]
     base = {"dims": {}, "h": float(h), "T": float(T), "seed": int(seed)}
-    guidance = {"M": [float(v) for v in par["total_mass"]],
-                "D": [float(v) for v in par["damping"]], "v_ref0": v0.tolist(),
+    # a set-point vehicle FMU names the guidance's own M, D (plant_model.vehicle_fmu)
+    guidance = {"M": [float(v) for v in par.get("guidance_mass", par["total_mass"])],
+                "D": [float(v) for v in par.get("guidance_damping", par["damping"])],
+                "v_ref0": v0.tolist(),
                 "depth0": float(view.x0[2]),
                 "course0": float(math.atan2(v0[1], v0[0])),
                 "U_min": float(AutopilotGains(**gains).U_min)}
     return {"guidance": dict(base, guidance=guidance), "autopilot": dict(base, autopilot=gains)}
 
 
-def stack_connections(i: int, stack: tuple[str, ...]) -> list[Connection]:
+def stack_connections(i: int, stack: tuple[str, ...],
+                      vehicle_inputs: tuple[str, ...] = ()) -> list[Connection]:
     """The connections of vehicle i's force through its stack to its vehicle FMU (module
     docstring); the controller's force to the estimator is the caller's.
 
@@ -100,7 +103,9 @@ def stack_connections(i: int, stack: tuple[str, ...]) -> list[Connection]:
         The vehicle (1-based): components ``controller_i``, ``guidance_i``,
         ``autopilot_i``, ``vehicle_i``.
     stack : tuple[str, ...]
-        The model's stack (:attr:`plant_model.vehicle_models.ModelEntry.stack`).
+        The model's stack (:meth:`plant_model.vehicle_models.ModelEntry.stack_for`):
+        :data:`GUIDED_STACK`, or ``("guidance",)`` before a set-point vehicle FMU, whose
+        inputs named after the guidance's outputs (``vehicle_inputs``) it feeds.
 
     Returns
     -------
@@ -109,11 +114,14 @@ def stack_connections(i: int, stack: tuple[str, ...]) -> list[Connection]:
     Raises
     ------
     ValueError
-        For a stack other than :data:`GUIDED_STACK`.
+        For a stack other than those two.
     """
+    c, g, a, v = (f"{n}_{i}" for n in ("controller", "guidance", "autopilot", "vehicle"))
+    if tuple(stack) == ("guidance",):       # a set-point vehicle FMU: its inputs by name
+        return [Connection(c, "u", g, "u")] + [Connection(g, s, v, s) for s in vehicle_inputs
+                                               if s in SETPOINT_NAMES]
     if tuple(stack) != GUIDED_STACK:
         raise ValueError(f"no wiring for the stack {stack!r} (known: {GUIDED_STACK})")
-    c, g, a, v = (f"{n}_{i}" for n in ("controller", "guidance", "autopilot", "vehicle"))
     return ([Connection(c, "u", g, "u")]
             + [Connection(g, s, a, s) for s in SETPOINT_NAMES]
             + [Connection(v, out, a, inp) for out, inp in MEASURED]

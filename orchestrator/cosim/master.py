@@ -44,8 +44,6 @@ from typing import Any
 import numpy as np
 from fmpy import read_model_description
 
-from fmu_common.interface import element_names
-
 from .checks import connection_problems, fmu_variables
 from .instance import CosimError, Extracted, FmuInstance
 from .system import SystemDescription, evaluation_order
@@ -149,7 +147,7 @@ def plan_steps(system: SystemDescription, inst: Mapping[str, FmuInstance],
     for comp in system.components:
         cols[comp.name], names[comp.name], i = {}, [], 0
         for spec in comp.arrays("output"):
-            scal = element_names(spec.name, spec.shape)
+            scal = spec.elements
             cols[comp.name][spec.name] = list(range(i, i + len(scal)))
             names[comp.name] += scal
             i += len(scal)
@@ -176,7 +174,7 @@ def plan_steps(system: SystemDescription, inst: Mapping[str, FmuInstance],
             if c.source != source or c.output not in outputs:
                 continue
             tgt = system.component(c.target)
-            dst = element_names(c.input, tgt.array(c.input).shape)
+            dst = tgt.array(c.input).elements
             src_cols = cols[source][c.output]       # sizes match: checked before the plan
             per_target.setdefault(c.target, []).append(
                 [(col, name, c.input) for col, name in zip(src_cols, dst)])

@@ -129,8 +129,13 @@ def load_library() -> ctypes.CDLL:
 
 
 def is_native_fmu(model_description: Any) -> bool:
-    """True for an FMU of :mod:`orchestrator.cosim.native` (compiled C, no Python)."""
-    return (model_description.generationTool or "").startswith("auv-cosim native")
+    """True for compiled code with no Python inside: an FMU of
+    :mod:`orchestrator.cosim.native`, or another (a user's vehicle FMU) not made by
+    pythonfmu and not needing an execution tool."""
+    tool = model_description.generationTool or ""
+    cs = model_description.coSimulation
+    return tool.startswith("auv-cosim native") or (
+        "pythonfmu" not in tool.lower() and cs is not None and not cs.needsExecutionTool)
 
 
 def choose_master(requested: str, model_descriptions: Mapping[str, Any]) -> tuple[str, str]:

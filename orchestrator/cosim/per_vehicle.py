@@ -47,6 +47,7 @@ from plant_model.acoustic.links import link_sender
 from plant_model.fleet import fleet_graph
 from plant_model.per_vehicle import leader_system
 from plant_model.system import LinearSystem
+from plant_model.vehicle_fmu import fmu_port_config
 from plant_model.vehicle_models import REGISTRY, get
 
 from .build import FMU_KINDS, interface_of
@@ -183,14 +184,19 @@ def per_vehicle_configs(sc: Scenario, architecture: str, *, mode: str, seed: int
             cfg["P0"] = np.asarray(sc.estimator_P0, dtype=float).tolist()
         entry = get(models[i].name)
         one = {"vehicle": dict(cfg, vehicle=i + 1), "vehicle_estimator": cfg}
-        if entry.nonlinear:                  # a nonlinear REMUS 100 vehicle FMU
-            par = models[i].parameters
+        par = models[i].parameters
+        if entry.fmu_kind == "vehicle_fmu":  # the user's vehicle FMU through its port map
+            one = {entry.fmu_kind: dict(cfg, vehicle=i + 1, fmu=fmu_port_config(
+                       par["ports"], mode, sensors=sc.sensors is not None, where=f"vehicle "
+                       f"{i + 1}", first=out[1:2])), "vehicle_estimator": cfg}
+        elif entry.nonlinear:                # a nonlinear REMUS 100 vehicle FMU
             one = {entry.fmu_kind: dict(cfg, vehicle=i + 1, remus=par["nonlinear"],
                                         autopilot=par["autopilot"], substep=par["substep"]),
                    "vehicle_estimator": cfg}
-        if entry.stack:                      # the FMUs between its controller and vehicle
+        kinds = entry.stack_for(models[i])
+        if kinds:                            # the FMUs between its controller and vehicle
             stack = stack_configs(models[i], view, sc.h, sc.T, seed)
-            one.update({k: stack[k] for k in entry.stack})
+            one.update({k: stack[k] for k in kinds})
         ctrl = cfg if limit is None else dict(cfg, u_max=list(limit[i]))
         if rows is not None:
             K, u0 = rows[i]
@@ -266,13 +272,17 @@ def per_vehicle_system(sc: Scenario, configs: list[dict[str, dict[str, Any]]],
                   _component(e, "vehicle_estimator", configs[i]["vehicle_estimator"]),
                   _component(c, ctrl_key, configs[i][ctrl_key])]
         measured = "nav" if "sensors" in configs[i][vk] else "y"
+        # a vehicle FMU of the user's has no current: its velocity stands in for the truth
+        # w (mode ideal is refused for it), so that every input is connected
+        truth = (("x", "x"), ("velocity" if vk == "vehicle_fmu" else "w", "w"))
         conns += [Connection(v, measured, e, measured),
-                  *(Connection(v, s, e, s, (e, "mode", TRUTH)) for s in ("x", "w")),
+                  *(Connection(v, a, e, b, (e, "mode", TRUTH)) for a, b in truth),
                   Connection(c, "u", e, "u")]
         stack = stack_kinds(configs[i])
-        if stack:                           # force -> guidance -> autopilot -> actuators
+        if stack:                           # force -> guidance (-> autopilot) -> vehicle
             comps += [_component(f"{k}_{i}", k, configs[i][k]) for k in stack]
-            conns += stack_connections(i, stack)
+            conns += stack_connections(i, stack, tuple(
+                a.name for a in comps[-len(stack) - 3].arrays("input")))
         else:
             conns.append(Connection(c, "u", v, "u"))
         if networked:
@@ -395,12 +405,16 @@ def stacked_traces(sc: Scenario, system: SystemDescription,
     """
     names = system.trace_names()
     N = sum(1 for c in system.components if c.fmu in VEHICLE_KINDS)
+    z_l = traces[names[("leader", "z")]]
 
     def cat(prefix: str, out: str) -> np.ndarray:
         return np.hstack([traces[names[(f"{prefix}_{i}", out)]] for i in range(1, N + 1)])
 
-    z_l = traces[names[("leader", "z")]]
-    out = {"y": cat("vehicle", "y"), "x": cat("vehicle", "x"), "w": cat("vehicle", "w"),
+    out = {"y": cat("vehicle", "y"), "x": cat("vehicle", "x"),
+           # a vehicle FMU of the user's has no current (zero)
+           "w": np.hstack([traces[names[(f"vehicle_{i}", "w")]]
+                           if (f"vehicle_{i}", "w") in names
+                           else np.zeros((z_l.shape[0], 3)) for i in range(1, N + 1)]),
            "u": cat("controller", "u"), "xhat": cat("estimator", "xhat"),
            "what": cat("estimator", "what")}
     z = z_l

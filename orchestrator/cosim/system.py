@@ -218,8 +218,8 @@ class SystemDescription:
             src, dst = self.component(c.source), self.component(c.target)
             a, b = _find(src, c.output), _find(dst, c.input)
             shape_a = a.shape if a else (b.shape if b else ())
-            na = element_names(c.output, shape_a)
-            nb = element_names(c.input, b.shape if b else shape_a)
+            na = a.elements if a else element_names(c.output, shape_a)
+            nb = b.elements if b else element_names(c.input, shape_a)
             if len(na) != len(nb):
                 raise ValueError(f"connection {c}: {c.source}.{c.output} has {len(na)} "
                                  f"elements, {c.target}.{c.input} has {len(nb)}")
@@ -375,7 +375,7 @@ def component_parameters(specs: list[ArraySpec] | tuple[ArraySpec, ...]) -> dict
             out[spec.name] = spec.start
             continue
         flat = np.asarray(spec.start).reshape(-1)
-        for name, value in zip(element_names(spec.name, spec.shape), flat):
+        for name, value in zip(spec.elements, flat):
             out[name] = value
     return out
 

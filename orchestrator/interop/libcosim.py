@@ -13,8 +13,6 @@ from typing import Any
 
 import numpy as np
 
-from fmu_common.interface import element_names
-
 from ..cosim.instance import pythonfmu_safe_tempdir
 from ..cosim.system import SystemDescription
 
@@ -129,7 +127,7 @@ def _run(system_file: Path | str, system: SystemDescription, steps: int, record:
             sim = comp.name
             vr = {v.name.decode(): v.reference for v in execution.slave_variables(index[sim])}
             key = trace_names[(sim, spec.name)]
-            refs[key] = (index[sim], [vr[n] for n in element_names(spec.name, spec.shape)])
+            refs[key] = (index[sim], [vr[n] for n in spec.elements])
             for r in refs[key][1]:
                 observer.start_time_series(index[sim], r, CosimVariableType.REAL)
     setup_s = time.perf_counter() - t0

@@ -38,7 +38,7 @@ from pathlib import Path
 
 from lxml import etree
 
-from fmu_common.interface import ArraySpec, element_names
+from fmu_common.interface import ArraySpec
 
 from ..atomic import write_bytes_atomically
 from ..cosim.checks import Variable
@@ -144,7 +144,7 @@ def _osp_model_description(specs: tuple[ArraySpec, ...],
 
     groups = []
     for spec in specs:
-        names = element_names(spec.name, spec.shape)
+        names = spec.elements
         g = _md_element("Generic", name=spec.name)
         children: list[tuple[str, etree._Element]] = []
         if spec.causality != "parameter" and spec.name in layout:

@@ -379,7 +379,21 @@ def load_scenario(spec: str | Path = "paper") -> Scenario:
         raise ScenarioError(f"{where} is a folder; a scenario is a .toml file") from None
     except OSError as exc:
         raise ScenarioError(f"{where}: cannot be read: {exc.strerror}") from None
-    return scenario_from_dict(loads_scenario_toml(text, where), where)
+    return scenario_from_dict(_fmu_paths(loads_scenario_toml(text, where), path.parent), where)
+
+
+def _fmu_paths(data: dict[str, Any], folder: Path) -> dict[str, Any]:
+    """``[vehicles] params.fmu`` (and an override's) made absolute: a vehicle FMU's path
+    is relative to the scenario file's folder (plant_model.vehicle_fmu)."""
+    veh = data.get("vehicles")
+    if not isinstance(veh, dict):
+        return data
+    tables = [veh, *(o for o in veh.get("overrides", []) if isinstance(o, dict))]
+    for t in tables:
+        par = t.get("params")
+        if isinstance(par, dict) and isinstance(par.get("fmu"), str) and par["fmu"]:
+            par["fmu"] = str(folder / Path(par["fmu"]).expanduser())
+    return data
 
 
 def scenario_from_dict(data: Mapping[str, Any], where: str = "scenario") -> Scenario:
