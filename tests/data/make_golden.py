@@ -26,6 +26,7 @@ import numpy as np  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent.parent))
+sys.path.insert(0, str(HERE.parent))          # the tests' support package
 
 #: steps per built-in scenario (short: the traces are committed)
 HORIZONS = {"paper": 200, "formation-4": 60, "formation-20": 12}
@@ -84,7 +85,8 @@ def _scenario(name: str):
 
 def main() -> None:
     """Record the goldens with the current master."""
-    from orchestrator.cosim.master import CosimError, run_cosimulation
+    from orchestrator.cosim.master import CosimError
+    from support.loop import run_cosimulation
     from orchestrator.running import build, scenario_config
     from plant_model.noise_factor import NOISE_STREAM
 
