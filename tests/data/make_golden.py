@@ -86,9 +86,9 @@ def _scenario(name: str):
 def main() -> None:
     """Record the goldens with the current master."""
     from orchestrator.cosim.master import CosimError
-    from support.loop import run_cosimulation
     from orchestrator.running import build, scenario_config
     from plant_model.noise_factor import NOISE_STREAM
+    from support.loop import run_cosimulation
 
     arrays: dict[str, np.ndarray] = {}
     refused: dict[str, str] = {}
