@@ -17,7 +17,7 @@ guidance FMU (controller_fmu/guidance.py) computes from the controller's force. 
 NED position (m) and velocity over ground (m/s). ``start``: the FMU parameters that take
 the vehicle's start position (m) and velocity (m/s) from the scenario.
 
-The design model is identified from the FMU (:mod:`orchestrator.analysis.vehicle_fmu`):
+The design model is identified from the FMU (:mod:`plant_model.vehicle_fmu_identification`):
 per NED axis M_a v_a' = u_a - D_a v_a (M kg, D kg/s) from its frequency responses at a
 trim, the registry's ``ned`` layout. The FMU is checked here, before anything runs: a
 missing file, a file that is not a co-simulation FMU, a port naming a variable the FMU
@@ -223,7 +223,7 @@ def fmu_vehicle_from_params(params: Mapping[str, Any]) -> VehicleModel:
     ports = fmu_ports(params)
     # the identification runs the FMU through fmpy (and the guidance law for set-points):
     # orchestration, imported here so that the registry stays importable without it
-    from orchestrator.analysis.vehicle_fmu import identified
+    from .vehicle_fmu_identification import identified
     fit = identified(ports)
     parameters: dict[str, Any] = {
         "total_mass": list(fit.M), "damping": list(fit.D), "cruise_speed": ports.cruise_speed,

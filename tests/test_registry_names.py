@@ -12,9 +12,7 @@ from tests.support.name_tests import name_tests
 #: the registry and the models' own modules
 VEHICLE_MODULES = ("plant_model/vehicle_models.py", "plant_model/vehicles.py",
                    "plant_model/remus100/", "plant_model/vehicle_fmu.py",
-                   # the campaign's engine "fmu" (not the vehicle model "fmu") is tested
-                   # there: the scanner cannot tell the two names apart
-                   "orchestrator/campaign/runner.py")
+                   "plant_model/vehicle_fmu_identification.py")
 
 
 def test_no_vehicle_model_name_is_tested_outside_its_module_and_the_registry():

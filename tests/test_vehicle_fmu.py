@@ -1,5 +1,5 @@
 """model = "fmu": a vehicle the user brings as an FMU (plant_model/vehicle_fmu.py,
-orchestrator/analysis/vehicle_fmu.py), with a C mass-damper FMU the test compiles: its M
+plant_model/vehicle_fmu_identification.py), with a C mass-damper FMU the test compiles: its M
 and D are the identification's independent reference."""
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from orchestrator.analysis import vehicle_fmu as ident
 from orchestrator.cli import main
+from plant_model import vehicle_fmu_identification as ident
 from plant_model.linalg_checks import ModelError
 from plant_model.vehicle_models import make_vehicle
 from tests.support.vehicle_fmus import mass_damper_fmu

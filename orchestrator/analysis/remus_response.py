@@ -16,19 +16,16 @@ from typing import Any
 
 import numpy as np
 
+from plant_model.first_order_fit import FIT_OMEGAS, fit_first_order_response, sine_response
 from plant_model.remus100 import kernel
 from plant_model.remus100.autopilot import AutopilotGains
 from plant_model.remus100.dynamics import STATE_SIZE, Remus100
 from plant_model.remus100.rigid_body import rotation_ned_body
 from plant_model.vehicles import remus100
 
-from .first_order_fit import fit_first_order_response, sine_response
-
 __all__ = ["FIT_OMEGAS", "VALID_GAIN", "VALID_PHASE", "fit_first_order",
            "force_frequency_response", "valid_band"]
 
-#: the frequencies the first-order fit uses, rad/s: periods from 21 s to 5 minutes
-FIT_OMEGAS = tuple(float(w) for w in np.geomspace(0.02, 0.3, 8))
 
 
 def force_frequency_response(axis: int, omegas: list[float], *, U0: float = 1.5,
@@ -103,7 +100,7 @@ def fit_first_order(axes: list[int], omegas: tuple[float, ...] = FIT_OMEGAS, *,
     sum |G - G_f|^2 / |G|^2 = sum |1/G - (D + j w M)|^2 / |D + j w M|^2, by
     Sanathanan-Koerner iteration: linear least squares on the inverse response, each pass
     weighted by the previous pass's 1 / |D + j w M| (:func:`force_frequency_response`;
-    :func:`orchestrator.analysis.first_order_fit.fit_first_order_response`)."""
+    :func:`plant_model.first_order_fit.fit_first_order_response`)."""
     G, om = [], []
     for axis in axes:
         for r in force_frequency_response(axis, list(omegas), U0=U0, h=h):

@@ -37,7 +37,7 @@ from ..running.naming import campaign_out
 from ..swap import CAMPAIGN
 from .points import DesignPoint, resolve_points, run_key
 from .results import ResultStore, unfinished_campaign
-from .spec import ENGINES, SpecError, load_spec
+from .spec import ENGINES, FMU_ENGINE, SpecError, load_spec
 from .tasks import Task, error_rows, run_task
 
 __all__ = ["run_campaign", "plan_tasks", "split_tasks", "numpy_batches", "NUMPY_BATCH",
@@ -74,7 +74,7 @@ def plan_tasks(points: list[DesignPoint], seeds: list[int], engine: str,
         if engine == "numpy" and pt.scenario is not None:
             note = numpy_unsupported(pt.coupling, pt.sections, pt.scenario)
             if note:
-                eng = "fmu"
+                eng = FMU_ENGINE
         keys = tuple(run_key(pt, s, eng, ver) for s in seeds)
         tasks.append(Task(pt.index, pt.params, pt.scenario, pt.coupling, eng, tuple(seeds),
                           keys, error=pt.error, note=note))
@@ -128,9 +128,9 @@ def split_tasks(tasks: list[Task], workers: int, seeds_per_task: int | None = No
     -------
     list[Task]
     """
-    total = sum(len(t.seeds) for t in tasks if t.engine == "fmu")
+    total = sum(len(t.seeds) for t in tasks if t.engine == FMU_ENGINE)
     per = seeds_per_task or max(1, math.ceil(total / (2 * max(1, workers))))
-    return [b for t in tasks for b in (_batches(t, per) if t.engine == "fmu" else [t])]
+    return [b for t in tasks for b in (_batches(t, per) if t.engine == FMU_ENGINE else [t])]
 
 
 def check_sample(tasks: list[Task], count: int, ver: dict[str, str],
@@ -159,8 +159,8 @@ def check_sample(tasks: list[Task], count: int, ver: dict[str, str],
     for idx in chosen:
         t = next(t for t in tasks if t.point == idx)
         seed = min(t.seeds)
-        key = run_key(points[idx], seed, "fmu", ver, role="check")
-        out.append(Task(idx, t.params, t.scenario, t.coupling, "fmu", (seed,), (key,),
+        key = run_key(points[idx], seed, FMU_ENGINE, ver, role="check")
+        out.append(Task(idx, t.params, t.scenario, t.coupling, FMU_ENGINE, (seed,), (key,),
                         role="check"))
     return out
 

@@ -42,9 +42,11 @@ from ..scenario.loader import SCENARIO_DIR, _resolve
 from ..scenario.nesting import loads_scenario_toml
 
 __all__ = ["SpecError", "CampaignSpec", "load_spec", "parse_seed_text", "base_mapping",
-           "COSIM_KEYS", "ENGINES"]
+           "COSIM_KEYS", "ENGINES", "FMU_ENGINE", "NUMPY_ENGINE"]
 
-ENGINES = ("fmu", "numpy")
+#: the engines: the FMU co-simulation (the reference) and the vectorised numpy loop
+FMU_ENGINE, NUMPY_ENGINE = "fmu", "numpy"
+ENGINES = (FMU_ENGINE, NUMPY_ENGINE)
 #: keys of the pseudo-section ``cosim``: settings of the master, not of the scenario
 COSIM_KEYS = {"coupling": ("gauss-seidel", "jacobi")}
 MAX_SEEDS = 100_000

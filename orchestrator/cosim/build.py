@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from fmu_common.cache import fmu_cache_dir
 from fmu_common.interface import ArraySpec
 
 from ..atomic import copy_atomically
@@ -233,26 +234,6 @@ def build_fmu(kind: FmuKind, config: dict[str, Any], out_dir: Path) -> Path:
     _rewrite_zip(fmu, {"modelDescription.xml": patch_model_description(
         xml, specs, T=config["T"], h=config["h"])})
     return fmu
-
-
-def fmu_cache_dir() -> Path:
-    """Where built FMUs are kept.
-
-    ``$AUV_COSIM_CACHE``, else ``$XDG_CACHE_HOME/auv-cosim/fmus``
-    (``~/.cache/auv-cosim/fmus``). Delete it at will; entries unused for 30 days are
-    removed when a new one is written. It also holds the compiled native libraries
-    (``native/``) and the FMUs unzipped for runs (``unpacked/``,
-    :mod:`orchestrator.cosim.unpacked`).
-
-    Returns
-    -------
-    Path
-        The cache folder (not created here).
-    """
-    env = os.environ.get("AUV_COSIM_CACHE")
-    if env:
-        return Path(env)
-    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "auv-cosim" / "fmus"
 
 
 def build_key(kind: FmuKind, config: dict[str, Any]) -> str:

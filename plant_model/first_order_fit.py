@@ -1,7 +1,7 @@
 """The first-order frequency-response fit of a vehicle behind a force interface, as plain
 numpy functions (no FMI, no vehicle): used on the nonlinear REMUS 100
 (:mod:`orchestrator.analysis.remus_response`, ``remus100-fitted``) and on a vehicle the user
-brings as an FMU (:mod:`orchestrator.analysis.vehicle_fmu`).
+brings as an FMU (:mod:`plant_model.vehicle_fmu_identification`).
 
 Per NED axis the design model is M v' = u - D v (M kg, D kg/s, u the force in N, v the
 velocity in m/s), whose velocity per force at frequency w (rad/s) is
@@ -21,7 +21,10 @@ import math
 
 import numpy as np
 
-__all__ = ["fit_errors", "fit_first_order_response", "sine_response"]
+__all__ = ["FIT_OMEGAS", "fit_errors", "fit_first_order_response", "sine_response"]
+
+#: the frequencies the first-order fit uses, rad/s: periods from 21 s to 5 minutes
+FIT_OMEGAS = tuple(float(w) for w in np.geomspace(0.02, 0.3, 8))
 
 
 def sine_response(t: np.ndarray, v: np.ndarray, omega: float, amplitude: float) -> complex:

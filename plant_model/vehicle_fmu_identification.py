@@ -8,9 +8,9 @@ period, the velocity over ground on that axis is fitted over two periods to
 c + a_s sin(w t) + b_s cos(w t); G_a(w) = (a_s + j b_s) / A (m/s per N), divided by
 the zero-order hold's sinc(w h / 2) exp(-j w h / 2) (the force is held over each step h:
 the design model is discretized the same way in the run), at the eight
-frequencies :data:`~orchestrator.analysis.remus_response.FIT_OMEGAS` (0.02 to 0.3 rad/s).
+frequencies :data:`~plant_model.first_order_fit.FIT_OMEGAS` (0.02 to 0.3 rad/s).
 Then M_a, D_a of G_f = 1 / (D_a + j w M_a) by the relative-error fit of
-:mod:`orchestrator.analysis.first_order_fit`, per axis (``horizontal = "separate"``) or with
+:mod:`plant_model.first_order_fit`, per axis (``horizontal = "separate"``) or with
 north and east together (``"together"``, the default, as ``remus100-fitted``: a vehicle
 steered by its heading turns the same whichever horizontal direction it flies).
 
@@ -29,7 +29,7 @@ steered by its heading turns the same whichever horizontal direction it flies).
   its autopilot's lag shows as extra inertia.
 
 The result is cached by the FMU file's SHA-256 and the experiment's settings in
-``<FMU cache>/identified/`` (:func:`orchestrator.cosim.build.fmu_cache_dir`): a second run
+``<FMU cache>/identified/`` (:func:`fmu_common.cache.fmu_cache_dir`): a second run
 reads it. The fit's quality, |G - G_f| / |G| over the frequencies, is printed on stderr
 once per process.
 """
@@ -46,11 +46,9 @@ from typing import Any
 
 import numpy as np
 
-from plant_model.linalg_checks import ModelError
-from plant_model.vehicle_fmu import FmuPorts, guidance_model
-
-from .first_order_fit import fit_errors, fit_first_order_response, sine_response
-from .remus_response import FIT_OMEGAS
+from .first_order_fit import FIT_OMEGAS, fit_errors, fit_first_order_response, sine_response
+from .linalg_checks import ModelError
+from .vehicle_fmu import FmuPorts, guidance_model
 
 __all__ = ["Identified", "identified", "identify", "response_of"]
 
@@ -268,7 +266,7 @@ def _cache_key(ports: FmuPorts, omegas: tuple[float, ...]) -> str:
 def identified(ports: FmuPorts, omegas: tuple[float, ...] = FIT_OMEGAS) -> Identified:
     """:func:`identify`, or its cached result for the same FMU bytes and settings; its
     :meth:`Identified.text` printed on stderr once per process."""
-    from ..cosim.build import fmu_cache_dir
+    from fmu_common.cache import fmu_cache_dir
     key = _cache_key(ports, omegas)
     if key in _memo:
         return _memo[key]
