@@ -39,7 +39,6 @@ import hashlib
 import json
 import math
 import shutil
-import sys
 import tempfile
 from dataclasses import dataclass
 from typing import Any
@@ -293,5 +292,5 @@ def identified(ports: FmuPorts, omegas: tuple[float, ...] = FIT_OMEGAS) -> Ident
     _memo[key] = fit
     if key not in _printed:
         _printed.add(key)
-        print(fit.text(), file=sys.stderr)
+        print(fit.text())          # part of the run's printout, on stdout
     return fit

@@ -258,3 +258,65 @@ def test_bursty_link_cells_run_and_native_equals_python(scenarios, runs, tmp_pat
             scale = max(float(np.nanmax(np.abs(values))), 1e-300)
             assert np.nanmax(np.abs(got - values)) <= 1e-12 * scale, entity
         assert m["cost_rate"]["mean"] == pytest.approx(mref["cost_rate"]["mean"], rel=1e-12)
+
+
+# --- a vehicle brought as an FMU (model = "fmu": the C mass-damper the tests compile) -----
+FMU_CELLS = [(d, ln, f) for d in DEPLOYMENTS for ln in LINKS for f in FMUS]
+
+
+@pytest.fixture(scope="module")
+def fmu_fleet(tmp_path_factory):
+    from tests.support.vehicle_fmus import mass_damper_fmu
+    folder = tmp_path_factory.mktemp("composition-fmu")
+    mass_damper_fmu(folder, (50.0, 60.0, 70.0), (10.0, 20.0, 30.0))
+    path = folder / "fmu-fleet.toml"
+    path.write_text((ROOT / "tests/data/vehicle-fmu-fleet.toml").read_text())
+    return path
+
+
+@pytest.mark.slow
+@needs_cc
+@pytest.mark.parametrize("dep, links, fmus", FMU_CELLS, ids=["-".join(c) for c in FMU_CELLS])
+def test_vehicle_fmu_cells_run_or_are_refused_in_one_line(fmu_fleet, runs, tmp_path, capsys,
+                                                          dep, links, fmus):
+    """The user's vehicle FMU in every deployment, links or not, with our FMUs python or
+    native: the stacked deployment refuses it in one line; the per-vehicle cells run with
+    the user's FMU copied beside ours (compiled code: "native" in the summary, and with
+    every other FMU native the compiled master runs the whole system), the native cell
+    equal to the python one to 1e-12 of each signal's scale."""
+    out = tmp_path / f"fmu-{dep}-{links}-{fmus}"
+    code = main(["run", "--scenario", str(fmu_fleet), "--T", T, "--seed", "3", "--quiet",
+                 "--out", str(out), "--fmus", fmus, *DEPLOYMENTS[dep], *LINKS[links]])
+    io = capsys.readouterr()
+    if dep == "stacked":
+        assert code == 2
+        lines = io.err.strip().splitlines()
+        assert len(lines) == 1 and ("deployment = \"per-vehicle\"" in lines[0]), io.err
+        assert not out.exists() or not any(out.iterdir())
+        return
+    assert code == 0, io.err
+    summary = json.loads((out / "summary.json").read_text())
+    (m,) = summary["methods"].values()
+    assert math.isfinite(m["cost_rate"]["mean"])
+    fmus_run = summary["fmus"]
+    assert fmus_run["vehicle_fmu"]["user"] is True and fmus_run["vehicle_fmu"]["kind"] == "native"
+    assert {e["kind"] for k, e in fmus_run.items() if k != "vehicle_fmu"} == {fmus}
+    if fmus == "native":
+        assert set(summary["master"].values()) == {"native"}
+    scalars = read_rrd_scalars(out / f"{summary['scenario']}.rrd")
+    for i in range(1, 5):
+        assert any(e.startswith(f"vehicles/{i}/error/") for e in scalars), i
+    runs[("fmu", dep, links, fmus)] = (scalars, m)
+    if fmus == "native" and ("fmu", dep, links, "python") in runs:
+        ref, mref = runs[("fmu", dep, links, "python")]
+        assert set(ref) == set(scalars)
+        # 1e-12 of the vehicle's largest signal: with no current in this fleet the current
+        # estimates are rounding noise of 1e-7 m/s, whose own scale means nothing
+        group: dict[str, float] = {}
+        for entity, (_, _, values) in ref.items():
+            g = "/".join(entity.split("/")[:2])
+            group[g] = max(group.get(g, 0.0), float(np.nanmax(np.abs(values))))
+        for entity, (_, _, values) in ref.items():
+            got = scalars[entity][2]
+            scale = max(group["/".join(entity.split("/")[:2])], 1e-300)
+            assert np.nanmax(np.abs(got - values)) <= 1e-12 * scale, entity

@@ -93,6 +93,7 @@ def workspace(tmp_path_factory) -> dict:
     ws = tmp_path_factory.mktemp("hosts")
     (ws / ".venv").symlink_to(ROOT / ".venv")
     (ws / "tests").symlink_to(ROOT / "tests")
+    (ws / "orchestrator").symlink_to(ROOT / "orchestrator")     # the C host's source
     printed = {}
     for fmt in FORMATS:
         r = subprocess.run([str(ROOT / ".venv" / "bin" / "auv-cosim"), "export", fmt],

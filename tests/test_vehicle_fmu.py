@@ -37,13 +37,13 @@ def test_mass_damper_is_identified_to_its_own_mass_and_damping(fmu, capsys):
     fit = model.parameters["fit"]
     assert fit["M"] == pytest.approx(M, rel=2e-3) and fit["D"] == pytest.approx(D, rel=2e-3)
     assert fit["max_error"] < 0.01
-    err = capsys.readouterr().err
-    assert "MassDamper.fmu: design model identified" in err and "fit error RMS" in err
+    printed = capsys.readouterr().out
+    assert "MassDamper.fmu: design model identified" in printed and "fit error RMS" in printed
     assert model.A[3, 3] == pytest.approx(-D[0] / M[0], rel=2e-3)
     ident._memo.clear()
     ident._printed.clear()
     again = make_vehicle("fmu", dict(PORTS, fmu=str(fmu)), "vehicle 1")
-    assert "from the cache" in capsys.readouterr().err
+    assert "from the cache" in capsys.readouterr().out
     assert again.parameters["fit"]["M"] == fit["M"]
 
 
@@ -110,3 +110,62 @@ def test_the_stacked_deployment_refuses_a_vehicle_fmu_in_one_line(fmu, tmp_path,
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1
     assert "vehicle model fmu needs [simulation] deployment = \"per-vehicle\"" in err[0]
+
+
+@pytest.mark.slow
+def test_the_native_export_with_the_vehicle_fmu_runs_in_the_c_host(fmu, tmp_path):
+    """`auv-cosim export native` of the fleet carries the user's FMU beside ours; the C host
+    (no Python anywhere) runs the 200 s and every vehicle ends at the leader plus its
+    offset (the leader at 1.5 m/s north from (0, 0, 20))."""
+    import csv
+    import subprocess
+
+    from orchestrator.benchmarks.native import c_host_binary
+    from orchestrator.interop.c_host import write_c_host_system_from_osp
+    out = tmp_path / "export"
+    assert main(["export", "native", "--scenario", str(_fleet(tmp_path, fmu)), "--quiet",
+                 "--out", str(out)]) == 0
+    assert (out / "MassDamper.fmu").is_file()
+    system = write_c_host_system_from_osp(out / "OspSystemStructure.xml", tmp_path / "host")
+    exe = c_host_binary(tmp_path / "bin")
+    r = subprocess.run([str(exe), str(system), "4000", "0.05", str(tmp_path / "host.csv")],
+                       capture_output=True, text=True, env={})
+    assert r.returncode == 0, r.stderr
+    rows = list(csv.reader((tmp_path / "host.csv").open()))
+    head, last = rows[0], [float(x) for x in rows[-1]]
+    t = last[0]
+    offsets = [(10.0, 0.0, 0.0), (0.0, -10.0, 0.0), (0.0, 10.0, 0.0), (-10.0, 0.0, 0.0)]
+    for i, off in enumerate(offsets, start=1):
+        # the mass-damper's outputs n, e, d are its value references 3, 4, 5
+        pos = [last[head.index(f"vehicle_{i}.{vr}")] for vr in (3, 4, 5)]
+        want = (1.5 * t + off[0], off[1], 20.0 + off[2])
+        assert max(abs(p - w) for p, w in zip(pos, want)) < 0.1, (i, pos, want)
+
+
+TORPEDO_INPUTS = 'inputs = { speed = "U_d", heading = "psi_d", depth = "d_d", depth_rate = "dd_d" }'
+
+
+@pytest.mark.slow
+def test_a_fleet_of_four_torpedo_fmus_holds_its_formation(tmp_path, capsys):
+    """docs/examples/torpedo.py (Prestero's equations, a PID autopilot with the depth rate fed
+    forward) as a pythonfmu set-point FMU: identified through the guidance (fit printed),
+    then four of them on a straight leader at 1.5 m/s hold within 3 m max and 1.5 m RMS
+    after the transient, through our guidance FMU and the distributed law."""
+    from tests.support.vehicle_fmus import torpedo_fmu
+    torpedo_fmu(tmp_path)
+    text = FLEET.read_text().replace('fmu = "MassDamper.fmu"', 'fmu = "TorpedoSetpoint.fmu"')
+    text = text.replace('inputs = { force = ["F_n", "F_e", "F_d"] }', TORPEDO_INPUTS)
+    scenario = tmp_path / "torpedoes.toml"
+    scenario.write_text(text.replace('horizontal = "separate"\n', ""))
+    out = tmp_path / "out"
+    code = main(["run", "--scenario", str(scenario), "--out", str(out)])
+    io = capsys.readouterr()
+    assert code == 0, io.err
+    fit = [line for line in (io.out + io.err).splitlines()
+           if "TorpedoSetpoint.fmu: design model identified (set-points" in line]
+    assert fit and "fit error RMS" in fit[0]
+    summary = json.loads((out / "summary.json").read_text())
+    m = summary["methods"]["kalman"]
+    assert m["max_error"] < 3.0 and max(m["rms_e"]["mean"]) < 1.5
+    assert summary["fmus"]["vehicle_fmu"] == {**summary["fmus"]["vehicle_fmu"],
+                                              "kind": "python", "user": True}

@@ -71,8 +71,9 @@ def fused_loop_us(sc: Scenario, steps: int) -> float:
 
 def c_host_binary(out_dir: Path) -> Path:
     """orchestrator/interop/native_host/c_host.c compiled into ``out_dir`` (cc, -O2, FMI
-    headers from fmpy)."""
+    headers from fmpy; the folder is created if missing)."""
     import fmpy
+    Path(out_dir).mkdir(parents=True, exist_ok=True)
     exe = Path(out_dir) / "c_host"
     inc = Path(fmpy.__file__).parent / "c-code"
     subprocess.run(["cc", "-O2", "-std=c99", "-Wall", "-Wextra", f"-I{inc}", "-o", str(exe),

@@ -38,9 +38,10 @@ from .systems import check_run, make_setup
 __all__ = ["NONLINEAR_NOTE", "common_window", "simulate"]
 
 #: the prediction of a fleet of nonlinear vehicles is the linear design model's
-NONLINEAR_NOTE = ("predicted on the linear design model: the vehicles are the nonlinear "
-                  "remus100-6dof, so simulation and prediction differ by what the design "
-                  "model leaves out (docs/remus100-6dof.md)")
+NONLINEAR_NOTE = ("predicted on the linear design model: the vehicles are nonlinear (the "
+                  "6-DOF REMUS 100, docs/remus100-6dof.md, or a vehicle FMU of your own, "
+                  "identified: docs/scenarios.md), so simulation and prediction differ by "
+                  "what the design model leaves out")
 
 
 def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], out_dir: Path | str,

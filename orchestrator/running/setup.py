@@ -291,11 +291,21 @@ class RunSetup:
 
     def fmu_report(self, method: Method) -> dict[str, dict[str, Any]]:
         """Per FMU key of ``method``: its path, size and which kind ran ("python" for a
-        pythonfmu slave, "native" for a compiled one)."""
+        pythonfmu slave, "native" for compiled code: ours, or a user's vehicle FMU that
+        needs no Python), and ``user`` true for a user's own FMU."""
+        from fmpy import read_model_description
+
+        from ..cosim.build import FMU_KINDS
+        from ..cosim.native_master import is_native_fmu
         ns = self._native_system(method) if self.sc.fmus == "native" else None
         native = set() if ns is None else ns.native_keys
-        return {k: {"path": str(p), "bytes": Path(p).stat().st_size,
-                    "kind": "native" if k in native else "python"}
+
+        def kind(k: str, p: Path) -> str:
+            if k in FMU_KINDS and FMU_KINDS[k].external:
+                return "native" if is_native_fmu(read_model_description(str(p))) else "python"
+            return "native" if k in native else "python"
+        return {k: {"path": str(p), "bytes": Path(p).stat().st_size, "kind": kind(k, Path(p)),
+                    **({"user": True} if k in FMU_KINDS and FMU_KINDS[k].external else {})}
                 for k, p in self.fmus(method).items()}
 
     def run(self, method: Method, seed: int, *, progress: Any = False, stop: Any = None,

@@ -176,17 +176,30 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from torpedo import PidAutopilot, Torpedo
 
 
+class FeedForwardAutopilot(PidAutopilot):
+    """The example's PID autopilot with the depth rate fed forward: the pitch that makes
+    d' = -u sin(theta) equal the commanded depth rate is added to its depth loop's pitch
+    (as a vehicle's autopilot that takes rate set-points does)."""
+
+    def command(self, setpoint, sensors, h):
+        U_d, psi_d, d_d, dd_d = setpoint
+        u = max(float(sensors[0]), 0.5)
+        ff = math.asin(min(max(-dd_d / u, -0.34), 0.34))        # at most 20 deg
+        rudder, stern, rpm = super().command([U_d, psi_d, d_d], sensors, h)
+        return [rudder, stern - 2.0 * ff, rpm]
+
+
 class TorpedoSetpoint(Fmi2Slave):
     author = "auv-cosim tests"
     description = "Prestero REMUS-like torpedo with a PID speed/heading/depth autopilot"
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.U_d, self.psi_d, self.d_d = 1.5, 0.0, 20.0
+        self.U_d, self.psi_d, self.d_d, self.dd_d = 1.5, 0.0, 20.0, 0.0
         self.n0, self.e0, self.d0, self.vn0, self.ve0, self.vd0 = 0.0, 0.0, 20.0, 1.5, 0.0, 0.0
         self.out = [0.0] * 6
         self.car = None
-        for name in ("U_d", "psi_d", "d_d"):
+        for name in ("U_d", "psi_d", "d_d", "dd_d"):
             self.register_variable(Real(name, causality=Fmi2Causality.input))
         for name in ("n0", "e0", "d0", "vn0", "ve0", "vd0"):
             self.register_variable(Real(name, causality=Fmi2Causality.parameter,
@@ -207,11 +220,12 @@ class TorpedoSetpoint(Fmi2Slave):
     def exit_initialization_mode(self):
         self.car = Torpedo([self.n0, self.e0, self.d0], [self.vn0, self.ve0, self.vd0],
                            [0.0, 0.0, 0.0], fix_sigma=0.0)
-        self.pid = PidAutopilot()
+        self.pid = FeedForwardAutopilot()
         self._read()
 
     def do_step(self, t, h):
-        cmd = self.pid.command([self.U_d, self.psi_d, self.d_d], self.car.sensors(), h)
+        cmd = self.pid.command([self.U_d, self.psi_d, self.d_d, self.dd_d],
+                               self.car.sensors(), h)
         self.car.step(cmd, h)
         self._read()
         return True
@@ -219,8 +233,8 @@ class TorpedoSetpoint(Fmi2Slave):
 
 
 def torpedo_fmu(out: Path) -> Path:
-    """``out/TorpedoSetpoint.fmu``: the example torpedo with its PID autopilot (pythonfmu).
-    Inputs U_d (m/s), psi_d (rad), d_d (m); outputs n, e, d (m), v_n, v_e, v_d (m/s, over
+    """``out/TorpedoSetpoint.fmu``: the example torpedo with its PID autopilot (pythonfmu),
+    the depth rate fed forward. Inputs U_d (m/s), psi_d (rad), d_d (m), dd_d (m/s); outputs n, e, d (m), v_n, v_e, v_d (m/s, over
     ground, no current); parameters n0, e0, d0, vn0, ve0, vd0 (start)."""
     import sys
 
