@@ -6,8 +6,7 @@ FMU state: the estimator's q (LinearEstimator.get_state), plus what the base cla
 """
 from typing import Any
 
-from estimator_fmu.estimators import make_estimator
-from estimator_fmu.registry import ESTIMATOR_MODES, options_of, parameter_specs
+from estimator_fmu.registry import ESTIMATOR_MODES, make_estimator, options_of, parameter_specs
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from estimator_fmu.slave_common import EstimatorSlave as Fmi2Slave

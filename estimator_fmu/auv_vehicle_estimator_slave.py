@@ -8,9 +8,13 @@ saves.
 """
 from typing import Any
 
-from estimator_fmu.estimators import make_vehicle_estimator
 from estimator_fmu.multirate import navigation_estimator
-from estimator_fmu.registry import ESTIMATOR_MODES, options_of, parameter_specs
+from estimator_fmu.registry import (
+    ESTIMATOR_MODES,
+    make_vehicle_estimator,
+    options_of,
+    parameter_specs,
+)
 
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from estimator_fmu.slave_common import EstimatorSlave as Fmi2Slave

@@ -23,7 +23,6 @@ Modes:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from scipy.linalg import LinAlgError, solve_discrete_are
@@ -33,18 +32,10 @@ from plant_model.linalg_checks import ModelError, unobservable_modes
 from plant_model.memo import DesignCache
 from plant_model.system import LinearSystem
 
-__all__ = ["LinearEstimator", "SteadyKalman", "steady_kalman", "make_estimator",
-           "make_vehicle_estimator", "kalman_estimator", "classical_estimator",
-           "ideal_estimator", "kalman_vehicle_estimator", "classical_vehicle_estimator",
-           "ideal_vehicle_estimator"]
+__all__ = ["LinearEstimator", "SteadyKalman", "steady_kalman", "kalman_estimator",
+           "classical_estimator", "ideal_estimator", "kalman_vehicle_estimator",
+           "classical_vehicle_estimator", "ideal_vehicle_estimator"]
 
-
-def __getattr__(name: str) -> object:
-    # the estimator names live in the registry (estimator_fmu.registry), which imports this
-    if name == "ESTIMATOR_MODES":
-        from .registry import ESTIMATOR_MODES
-        return ESTIMATOR_MODES
-    raise AttributeError(name)
 
 #: filter gains of this process, by the numbers they come from (plant_model.memo)
 _KALMAN_CACHE = DesignCache("steady_kalman")
@@ -218,36 +209,6 @@ def _one_based(idx: np.ndarray) -> str:
     return "[" + ",".join(str(i + 1) for i in idx) + "]"
 
 
-def make_estimator(system: LinearSystem, model: DiscreteModel, mode: str,
-                   options: dict | None = None) -> Any:
-    """Build the estimator of ``mode`` for ``system`` sampled as ``model``.
-
-    Parameters
-    ----------
-    system : LinearSystem
-        The validated model.
-    model : DiscreteModel
-        ``system`` sampled at the communication step h.
-    mode : str
-        An estimator of the registry (:mod:`estimator_fmu.registry`).
-    options : dict or None, optional
-        The row's options (``P0`` of the time-varying filter).
-
-    Returns
-    -------
-    LinearEstimator or TimeVaryingKalman
-        The estimator, reset to its initial internal state.
-
-    Raises
-    ------
-    ModelError
-        If the mode is unknown, a Kalman filter does not exist (:func:`steady_kalman`), or
-        ``classical`` meets a C or H without full column rank.
-    """
-    from .registry import estimator_kind
-    return estimator_kind(mode).make(system, model, options)
-
-
 def kalman_estimator(system: LinearSystem, model: DiscreteModel) -> LinearEstimator:
     """``kalman``: the steady filter on the stacked s (module docstring)."""
     n, r, p, ns = system.n, system.r, system.p, model.ns
@@ -311,53 +272,9 @@ def ideal_estimator(system: LinearSystem, model: DiscreteModel) -> LinearEstimat
                            np.zeros((0, system.m)), np.zeros(0), uses_truth=True)
 
 
-def make_vehicle_estimator(system: LinearSystem, model: DiscreteModel, mode: str,
-                           where: str = "vehicle", options: dict | None = None) -> Any:
-    """One vehicle's own estimator of s = [x; w] from its own y (per-vehicle deployment).
-
-    ``model`` is the vehicle alone (:func:`plant_model.per_vehicle.sample_vehicle`); the
-    measurement vector is mvec = [y; x; w] (the truth read only by ``ideal``):
-
-    - ``kalman``: est = q + L (y - [C, 0] q), q[k+1] = Ad est + Bd u, L the steady gain of
-      the pair (Ad, [C, 0]) with Qd and V_y / h (:func:`steady_kalman`); q(0) = [x0; w0];
-    - ``classical``: xhat = C^+ y, what = expm(K h)^k w0;
-    - ``ideal``: est = [x; w].
-
-    With the consensus protocol as a force the stacked filter on [x; w] of the whole fleet
-    is block diagonal, so it equals the N vehicle filters (to the Riccati solver's
-    precision).
-
-    Parameters
-    ----------
-    system : LinearSystem
-        The vehicle's view (:func:`plant_model.per_vehicle.vehicle_view`).
-    model : DiscreteModel
-        The vehicle sampled alone (l = 0).
-    mode : str
-        An estimator of the registry (:mod:`estimator_fmu.registry`).
-    where : str, optional
-        Names the vehicle in error messages.
-    options : dict or None, optional
-        The row's options (``P0`` of the time-varying filter).
-
-    Returns
-    -------
-    LinearEstimator
-        As :func:`make_estimator`.
-
-    Raises
-    ------
-    ModelError
-        If the mode is unknown, the Kalman filter does not exist or C lacks full column
-        rank for ``classical``.
-    """
-    from .registry import estimator_kind
-    return estimator_kind(mode).make_vehicle(system, model, where, options)
-
-
 def kalman_vehicle_estimator(system: LinearSystem, model: DiscreteModel,
                              where: str = "vehicle") -> LinearEstimator:
-    """``kalman`` of one vehicle (:func:`make_vehicle_estimator`)."""
+    """``kalman`` of one vehicle (:func:`estimator_fmu.registry.make_vehicle_estimator`)."""
     s, ns = system.p, model.ns
     nm = s + ns
     M = np.ascontiguousarray(model.M[:s])
@@ -372,7 +289,7 @@ def kalman_vehicle_estimator(system: LinearSystem, model: DiscreteModel,
 
 def classical_vehicle_estimator(system: LinearSystem, model: DiscreteModel,
                                 where: str = "vehicle") -> LinearEstimator:
-    """``classical`` of one vehicle (:func:`make_vehicle_estimator`)."""
+    """``classical`` of one vehicle (:func:`estimator_fmu.registry.make_vehicle_estimator`)."""
     n, r, s, ns = system.n, system.r, system.p, model.ns
     nm = s + ns
     rank = np.linalg.matrix_rank(system.C)
@@ -391,7 +308,7 @@ def classical_vehicle_estimator(system: LinearSystem, model: DiscreteModel,
 
 def ideal_vehicle_estimator(system: LinearSystem, model: DiscreteModel,
                             where: str = "vehicle") -> LinearEstimator:
-    """``ideal`` of one vehicle (:func:`make_vehicle_estimator`)."""
+    """``ideal`` of one vehicle (:func:`estimator_fmu.registry.make_vehicle_estimator`)."""
     s, ns = system.p, model.ns
     nm = s + ns
     Dm = np.zeros((ns, nm))

@@ -33,7 +33,8 @@ from . import kalman_tv as _tv
 
 __all__ = ["COMPARED_BY_DEFAULT", "DEFAULT_ESTIMATOR", "NAVIGATION_FILTER", "STEADY_FILTER",
            "TRUTH", "TRUTH_MODES", "ESTIMATORS", "ESTIMATOR_MODES", "EstimatorKind",
-           "estimator_kind", "options_of", "parameter_specs"]
+           "estimator_kind", "make_estimator", "make_vehicle_estimator", "options_of",
+           "parameter_specs"]
 
 #: FMU parameter names an estimator row may add (the FMUs' configuration key is the same)
 OPTION_KEYS = ("P0",)
@@ -199,3 +200,75 @@ def estimator_kind(name: str) -> EstimatorKind:
     except (KeyError, TypeError):
         raise ModelError(f"unknown estimator mode {name!r}; expected one of "
                          f"{', '.join(ESTIMATOR_MODES)}") from None
+
+
+def make_estimator(system: LinearSystem, model: DiscreteModel, mode: str,
+                   options: dict | None = None) -> Any:
+    """Build the estimator of ``mode`` for ``system`` sampled as ``model``.
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The validated model.
+    model : DiscreteModel
+        ``system`` sampled at the communication step h.
+    mode : str
+        An estimator of the registry (:mod:`estimator_fmu.registry`).
+    options : dict or None, optional
+        The row's options (``P0`` of the time-varying filter).
+
+    Returns
+    -------
+    LinearEstimator or TimeVaryingKalman
+        The estimator, reset to its initial internal state.
+
+    Raises
+    ------
+    ModelError
+        If the mode is unknown, a Kalman filter does not exist (:func:`steady_kalman`), or
+        ``classical`` meets a C or H without full column rank.
+    """
+    return estimator_kind(mode).make(system, model, options)
+
+
+def make_vehicle_estimator(system: LinearSystem, model: DiscreteModel, mode: str,
+                           where: str = "vehicle", options: dict | None = None) -> Any:
+    """One vehicle's own estimator of s = [x; w] from its own y (per-vehicle deployment).
+
+    ``model`` is the vehicle alone (:func:`plant_model.per_vehicle.sample_vehicle`); the
+    measurement vector is mvec = [y; x; w] (the truth read only by ``ideal``):
+
+    - ``kalman``: est = q + L (y - [C, 0] q), q[k+1] = Ad est + Bd u, L the steady gain of
+      the pair (Ad, [C, 0]) with Qd and V_y / h (:func:`steady_kalman`); q(0) = [x0; w0];
+    - ``classical``: xhat = C^+ y, what = expm(K h)^k w0;
+    - ``ideal``: est = [x; w].
+
+    With the consensus protocol as a force the stacked filter on [x; w] of the whole fleet
+    is block diagonal, so it equals the N vehicle filters (to the Riccati solver's
+    precision).
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The vehicle's view (:func:`plant_model.per_vehicle.vehicle_view`).
+    model : DiscreteModel
+        The vehicle sampled alone (l = 0).
+    mode : str
+        An estimator of the registry (:mod:`estimator_fmu.registry`).
+    where : str, optional
+        Names the vehicle in error messages.
+    options : dict or None, optional
+        The row's options (``P0`` of the time-varying filter).
+
+    Returns
+    -------
+    LinearEstimator
+        As :func:`make_estimator`.
+
+    Raises
+    ------
+    ModelError
+        If the mode is unknown, the Kalman filter does not exist or C lacks full column
+        rank for ``classical``.
+    """
+    return estimator_kind(mode).make_vehicle(system, model, where, options)

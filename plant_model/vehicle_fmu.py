@@ -36,10 +36,10 @@ from typing import Any
 import numpy as np
 
 from .linalg_checks import ModelError, as_positive
-from .vehicles import VehicleModel, _ned_axes_model, remus100
+from .vehicles import VehicleModel, remus100
 
 __all__ = ["FMU_PARAMS", "GUIDED_FMU_STACK", "FmuPorts", "SETPOINT_PORTS", "VehicleFmuPorts",
-           "fmu_explicit_params", "fmu_ports", "fmu_stack", "fmu_vehicle_from_params",
+           "fmu_explicit_params", "fmu_ports", "fmu_stack",
            "guidance_model"]
 
 #: the per-vehicle FMU kinds between the controller and a set-point vehicle FMU
@@ -210,30 +210,6 @@ def guidance_model(ports: FmuPorts) -> tuple[np.ndarray, np.ndarray]:
             np.array(lin.parameters["damping"], float))
 
 
-def fmu_vehicle_from_params(params: Mapping[str, Any]) -> VehicleModel:
-    """The design model of a vehicle FMU: its ports checked, the model identified (or read
-    from the identification cache by the FMU's digest), M v' = u - D v per NED axis
-    (:func:`plant_model.vehicles._ned_axes_model`, model name ``fmu``).
-
-    Raises
-    ------
-    ModelError
-        A bad port map or FMU (one line), or an identification that fails.
-    """
-    ports = fmu_ports(params)
-    # the identification runs the FMU through fmpy (and the guidance law for set-points):
-    # orchestration, imported here so that the registry stays importable without it
-    from .vehicle_fmu_identification import identified
-    fit = identified(ports)
-    parameters: dict[str, Any] = {
-        "total_mass": list(fit.M), "damping": list(fit.D), "cruise_speed": ports.cruise_speed,
-        "ports": ports, "fit": fit.summary(), "spec": dict(params)}
-    if ports.kind == "setpoints":
-        M0, D0 = guidance_model(ports)
-        parameters.update(guidance_mass=M0.tolist(), guidance_damping=D0.tolist())
-    return _ned_axes_model("fmu", np.asarray(fit.M), np.asarray(fit.D), parameters)
-
-
 def fmu_explicit_params(model: VehicleModel) -> dict[str, Any]:
     """The parameters of a vehicle FMU as given, its path made absolute."""
     spec = dict(model.parameters["spec"])
@@ -246,21 +222,22 @@ def fmu_stack(model: VehicleModel) -> tuple[str, ...]:
     return GUIDED_FMU_STACK if model.parameters["ports"].kind == "setpoints" else ()
 
 
-def fmu_port_config(ports: FmuPorts, mode: str, *, sensors: bool, where: str,
+def fmu_port_config(ports: FmuPorts, mode: str, *, truth: bool, sensors: bool, where: str,
                     first: list[Mapping[str, Any]]) -> dict[str, Any]:
     """The port map as JSON-ready data (a per-vehicle FMU configuration's ``fmu``).
 
     Raises
     ------
     ModelError
-        In one line naming the vehicle: the estimator mode ``ideal`` (the FMU has no
-        current to give as the truth), navigation ``[sensors]`` (the FMU outputs its
-        position, not REMUS navigation), or another FMU than vehicle 1's (one FMU file per
-        fleet: ``first`` is vehicle 1's configurations).
+        In one line naming the vehicle: an estimator ``mode`` that reads the truth
+        (``truth``: its registry row's ``uses_truth``; the FMU has no current to give),
+        navigation ``[sensors]`` (the FMU outputs its position, not REMUS navigation), or
+        another FMU than vehicle 1's (one FMU file per fleet: ``first`` is vehicle 1's
+        configurations).
     """
-    if mode == "ideal":
-        raise ModelError(f"{where}: estimator ideal needs the true current, which a vehicle "
-                         f"FMU ({ports.path.name}) does not give; use kalman or classical")
+    if truth:
+        raise ModelError(f"{where}: estimator {mode} needs the true current, which a vehicle "
+                         f"FMU ({ports.path.name}) does not give; use a filter")
     if sensors:
         raise ModelError(f"{where}: [sensors] models REMUS navigation; a vehicle FMU "
                          f"({ports.path.name}) gives its own position: leave [sensors] out")

@@ -40,6 +40,7 @@ import json
 import math
 import shutil
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -47,9 +48,10 @@ import numpy as np
 
 from .first_order_fit import FIT_OMEGAS, fit_errors, fit_first_order_response, sine_response
 from .linalg_checks import ModelError
-from .vehicle_fmu import FmuPorts, guidance_model
+from .vehicle_fmu import FmuPorts, fmu_ports, guidance_model
+from .vehicles import VehicleModel, _ned_axes_model
 
-__all__ = ["Identified", "identified", "identify", "response_of"]
+__all__ = ["Identified", "fmu_vehicle_from_params", "identified", "identify", "response_of"]
 
 #: bump when the experiment changes: cached identifications then no longer match
 EXPERIMENT_VERSION = 1
@@ -294,3 +296,24 @@ def identified(ports: FmuPorts, omegas: tuple[float, ...] = FIT_OMEGAS) -> Ident
         _printed.add(key)
         print(fit.text())          # part of the run's printout, on stdout
     return fit
+
+
+def fmu_vehicle_from_params(params: Mapping[str, Any]) -> VehicleModel:
+    """The design model of a vehicle FMU: its ports checked, the model identified (or read
+    from the identification cache by the FMU's digest), M v' = u - D v per NED axis
+    (:func:`plant_model.vehicles._ned_axes_model`, model name ``fmu``).
+
+    Raises
+    ------
+    ModelError
+        A bad port map or FMU (one line), or an identification that fails.
+    """
+    ports = fmu_ports(params)
+    fit = identified(ports)
+    parameters: dict[str, Any] = {
+        "total_mass": list(fit.M), "damping": list(fit.D), "cruise_speed": ports.cruise_speed,
+        "ports": ports, "fit": fit.summary(), "spec": dict(params)}
+    if ports.kind == "setpoints":
+        M0, D0 = guidance_model(ports)
+        parameters.update(guidance_mass=M0.tolist(), guidance_damping=D0.tolist())
+    return _ned_axes_model("fmu", np.asarray(fit.M), np.asarray(fit.D), parameters)

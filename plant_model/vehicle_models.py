@@ -37,13 +37,8 @@ from .remus100.models import (
     remus100_fitted_from_params,
     remus_from_parameters,
 )
-from .vehicle_fmu import (
-    FMU_PARAMS,
-    GUIDED_FMU_STACK,
-    fmu_explicit_params,
-    fmu_stack,
-    fmu_vehicle_from_params,
-)
+from .vehicle_fmu import FMU_PARAMS, GUIDED_FMU_STACK, fmu_explicit_params, fmu_stack
+from .vehicle_fmu_identification import fmu_vehicle_from_params
 from .vehicles import (
     GENERIC_PARAMS,
     REMUS100_MAX_SPEED,

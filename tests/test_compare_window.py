@@ -66,7 +66,7 @@ def _window_prediction(sc, mode: str, k0: int):
     """The expected statistics over [k0 h, T) from the known start, straight from the
     analysis function (orchestrator.analysis.prediction.predict_stationary)."""
     from controller_fmu.regulator import tracking_law
-    from estimator_fmu.estimators import make_estimator
+    from estimator_fmu.registry import make_estimator
     from orchestrator.analysis.prediction import predict_stationary
     from plant_model.discretization import discretize
     model = discretize(sc.system, sc.h)
@@ -164,7 +164,7 @@ def test_window_predictions_over_a_given_window_in_every_deployment(
         expected = predict_cost(loop, (k0, sc.steps), distributed_initial_state(sc, loop))
     else:
         from controller_fmu.regulator import tracking_law
-        from estimator_fmu.estimators import make_estimator
+        from estimator_fmu.registry import make_estimator
         model = discretize(sc.system, sc.h)
         expected = method_predictions(sc, model, make_estimator(sc.system, model,
                                                                 method.estimator),

@@ -8,7 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.linalg import expm
 
-from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator, steady_kalman
+from estimator_fmu.estimators import steady_kalman
+from estimator_fmu.registry import ESTIMATOR_MODES, make_estimator
 from plant_model.discretization import discretize
 from plant_model.linalg_checks import ModelError
 from plant_model.plant import Plant, plant_output_layout

@@ -7,7 +7,7 @@ import pytest
 from scipy.linalg import block_diag
 
 from controller_fmu.regulator import tracking_law
-from estimator_fmu.estimators import make_estimator
+from estimator_fmu.registry import make_estimator
 from orchestrator.analysis.prediction import predict_stationary
 from orchestrator.analysis.reference import run_monolithic
 from orchestrator.cosim.build import build_fmus

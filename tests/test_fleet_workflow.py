@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from controller_fmu.regulator import tracking_law
-from estimator_fmu.estimators import make_estimator
+from estimator_fmu.registry import make_estimator
 from orchestrator.analysis.prediction import predict_stationary
 from orchestrator.analysis.reference import run_monolithic
 from orchestrator.analysis.summary import stats_window, trace_stats

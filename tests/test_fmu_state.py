@@ -262,7 +262,7 @@ def test_plant_state_across_a_noise_block_boundary(hosts, cfg, k):
 
 # ------------------------------------------------- the math modules, without FMI
 def test_plant_and_estimator_state_round_trip_without_fmi(paper):
-    from estimator_fmu.estimators import make_estimator
+    from estimator_fmu.registry import make_estimator
     from plant_model.discretization import discretize
     from plant_model.plant import Plant
 

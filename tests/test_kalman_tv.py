@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from controller_fmu.regulator import tracking_law
-from estimator_fmu.estimators import kalman_estimator, make_estimator
+from estimator_fmu.estimators import kalman_estimator
 from estimator_fmu.kalman_tv import check_initial_covariance, gain_sequence
-from estimator_fmu.registry import estimator_kind
+from estimator_fmu.registry import estimator_kind, make_estimator
 from orchestrator.analysis.prediction import predict_stationary
 from orchestrator.analysis.reference import run_monolithic
 from orchestrator.analysis.tv_prediction import tv_window_moments

@@ -8,7 +8,7 @@ from contextlib import contextmanager
 import numpy as np
 import pytest
 
-from estimator_fmu.estimators import ESTIMATOR_MODES
+from estimator_fmu.registry import ESTIMATOR_MODES
 from orchestrator.analysis.reference import run_monolithic
 from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
 from orchestrator.running import scenario_config

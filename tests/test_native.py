@@ -139,7 +139,7 @@ def test_the_all_native_loop_gives_the_predicted_cost(tmp_path):
     """The paper's loop, every FMU native (the plant's noise drawn in C, seeded by the host
     through the plant's seed parameter): the cost rate over 8 seeds agrees with the Lyapunov prediction within 4 standard errors."""
     from controller_fmu.regulator import tracking_law
-    from estimator_fmu.estimators import make_estimator
+    from estimator_fmu.registry import make_estimator
     from orchestrator.analysis.prediction import method_predictions
     from orchestrator.analysis.summary import run_stats
     from plant_model.discretization import discretize

@@ -10,7 +10,7 @@ from scipy.linalg import solve_discrete_lyapunov
 
 from controller_fmu.regulator import tracking_law
 from controller_fmu.vehicle_law import centralized_rows
-from estimator_fmu.estimators import make_estimator
+from estimator_fmu.registry import make_estimator
 from orchestrator.analysis.acoustic.cycle import _Compiler
 from orchestrator.analysis.acoustic.loop import NetworkedLoop
 from orchestrator.analysis.acoustic.message_form import (

@@ -14,8 +14,7 @@ import pytest
 from lxml import etree
 
 from controller_fmu.regulator import tracking_law
-from estimator_fmu.estimators import ESTIMATOR_MODES, make_estimator
-from estimator_fmu.registry import estimator_kind
+from estimator_fmu.registry import ESTIMATOR_MODES, estimator_kind, make_estimator
 from orchestrator.analysis.jacobi import jacobi_closed_loop
 from orchestrator.cosim.build import FMU_KINDS, interface_of
 from orchestrator.interop.common import ExportError

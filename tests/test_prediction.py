@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 from controller_fmu.design import lq_tracking_design
-from estimator_fmu.estimators import make_estimator
-from estimator_fmu.registry import ESTIMATORS
+from estimator_fmu.registry import ESTIMATORS, make_estimator
 from orchestrator.analysis.prediction import closed_loop, predict_stationary
 from plant_model.discretization import discretize
 from plant_model.plant import Plant, plant_output_layout

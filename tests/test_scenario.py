@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from estimator_fmu.estimators import ESTIMATOR_MODES
+from estimator_fmu.registry import ESTIMATOR_MODES
 from orchestrator.scenario import (
     SCENARIO_DIR,
     Scenario,

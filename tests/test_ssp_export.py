@@ -22,7 +22,7 @@ import pytest
 from lxml import etree
 
 from controller_fmu.regulator import tracking_law
-from estimator_fmu.estimators import make_estimator
+from estimator_fmu.registry import make_estimator
 from orchestrator.cosim.system import Connection
 from orchestrator.interop.common import ExportError
 from orchestrator.interop.ssp import SSC_NS, SSD_NS, SSV_NS, export_ssp, fmpy_parameter_set

@@ -48,7 +48,7 @@ C_HOST = C_HOST_SOURCE
 def fused_loop_us(sc: Scenario, steps: int) -> float:
     """us/step of X+ = [Phi Gam] [X; eta] (one gemv per step, the noise drawn beforehand)."""
     from controller_fmu.regulator import tracking_law
-    from estimator_fmu.estimators import make_estimator
+    from estimator_fmu.registry import make_estimator
     from plant_model.discretization import discretize
     from plant_model.plant import NoiseStream
 

@@ -138,7 +138,7 @@ def benchmark_fleet(N: int, *, T: float = 300.0, mode: str = DEFAULT_ESTIMATOR,
     design and filter-gain time, FMU build time and modelDescription size, instantiate +
     initialize time, and the co-simulation loop against the monolithic loop (same process)."""
     from controller_fmu.regulator import tracking_law
-    from estimator_fmu.estimators import make_estimator
+    from estimator_fmu.registry import make_estimator
     from plant_model.discretization import discretize
 
     from ..scenario import scenario_from_dict

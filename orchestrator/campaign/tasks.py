@@ -102,7 +102,7 @@ def point_design(sc: Scenario, coupling: str = "gauss-seidel") -> PointDesign:
         If the design or the estimator does not exist.
     """
     from controller_fmu.regulator import tracking_law
-    from estimator_fmu.estimators import make_estimator
+    from estimator_fmu.registry import make_estimator
     from plant_model.discretization import discretize
 
     from ..analysis.prediction import predict_stationary

@@ -309,7 +309,7 @@ def native_system(system: SystemDescription, fmus: Mapping[str, Path], out_dir: 
                           for c in mine})
         except NotImplementedError:         # not linear in this system (navigation sensors)
             if kind in ("estimator", "vehicle_estimator"):  # a Kalman filter in C of its own
-                from .native_multirate import filter_components
+                from .native_filters import filter_components
                 built[kind], more = filter_components(kind, mine, fmus[kind], out_dir,
                                                       system.T, platforms)
                 filters.update(more)

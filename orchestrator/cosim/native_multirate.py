@@ -177,26 +177,6 @@ def native_multirate_fmu(fmu: Path | str, parameters: Mapping[str, Any], out_dir
     return path, specs, kf
 
 
-def filter_components(kind: str, components: list[Any], fmu: Path | str, out_dir: Path | str,
-                      T: float, platforms: Sequence[str] | None = None
-                      ) -> tuple[Path, dict[str, tuple[tuple[ArraySpec, ...], dict[str, float]]]]:
-    """The native FMU of estimator components whose filter has no linear form: the
-    multi-rate navigation filter, or the time-varying Kalman filter from P0 (by the filter
-    the first component's slave makes); the arguments and result as
-    :func:`multirate_components`."""
-    from estimator_fmu.kalman_tv import TimeVaryingKalman
-
-    from .native_template import component_slave
-    with component_slave(kind, Path(fmu), components[0].parameters) as slave:
-        tv = isinstance(slave.estimator, TimeVaryingKalman)
-    if tv:
-        from .native_tvkf import tv_components
-        return tv_components(kind, components, fmu, out_dir, T, platforms)
-    if kind != KIND:
-        raise ModelError(f"the {kind} FMU's estimator has no native form")
-    return multirate_components(components, fmu, out_dir, T, platforms)
-
-
 def multirate_components(components: list[Any], fmu: Path | str, out_dir: Path | str,
                          T: float, platforms: Sequence[str] | None = None
                          ) -> tuple[Path, dict[str, tuple[tuple[ArraySpec, ...],

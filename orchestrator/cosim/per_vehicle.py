@@ -42,7 +42,7 @@ from controller_fmu.vehicle_law import (
     centralized_rows,
     observer_start,
 )
-from estimator_fmu.registry import TRUTH
+from estimator_fmu.registry import TRUTH, estimator_kind
 from plant_model.acoustic.links import link_sender
 from plant_model.fleet import fleet_graph
 from plant_model.per_vehicle import leader_system
@@ -187,7 +187,8 @@ def per_vehicle_configs(sc: Scenario, architecture: str, *, mode: str, seed: int
         par = models[i].parameters
         if entry.fmu_kind == "vehicle_fmu":  # the user's vehicle FMU through its port map
             one = {entry.fmu_kind: dict(cfg, vehicle=i + 1, fmu=fmu_port_config(
-                       par["ports"], mode, sensors=sc.sensors is not None, where=f"vehicle "
+                       par["ports"], mode, truth=estimator_kind(mode).uses_truth,
+                       sensors=sc.sensors is not None, where=f"vehicle "
                        f"{i + 1}", first=out[1:2])), "vehicle_estimator": cfg}
         elif entry.nonlinear:                # a nonlinear REMUS 100 vehicle FMU
             one = {entry.fmu_kind: dict(cfg, vehicle=i + 1, remus=par["nonlinear"],

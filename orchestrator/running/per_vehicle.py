@@ -17,8 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from controller_fmu.regulator import tracking_law
-from estimator_fmu.estimators import make_estimator
-from estimator_fmu.registry import NAVIGATION_FILTER, estimator_kind
+from estimator_fmu.registry import NAVIGATION_FILTER, estimator_kind, make_estimator
 from plant_model.discretization import discretize
 from plant_model.linalg_checks import ModelError
 

@@ -113,7 +113,7 @@ class StackedSetup(RunSetup):
         """The sampled model, the tracking law and the estimator the FMUs solve in their
         initialization (then found in the process's design cache), announced when long."""
         from controller_fmu.regulator import tracking_law
-        from estimator_fmu.estimators import make_estimator
+        from estimator_fmu.registry import make_estimator
         if self._law is None:
             est = self._estimate(method, False)
             self.announce(f"solving {self.phase(method)}: {est.text()} ...", est.seconds)
@@ -122,7 +122,7 @@ class StackedSetup(RunSetup):
 
     def _predict(self, method: Method, k0: int | None = None) -> Predictions:
         from controller_fmu.regulator import tracking_law
-        from estimator_fmu.estimators import make_estimator
+        from estimator_fmu.registry import make_estimator
 
         sc = self.sc
         cost = self._estimate(method, True)
