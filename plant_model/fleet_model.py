@@ -59,9 +59,10 @@ class Fleet:
         """The leader table of the spec (F, H, z0, ...)."""
         return self.spec["leader"]
 
-    @cached_property
+    @property
     def entries(self) -> tuple[ModelEntry, ...]:
-        """Each vehicle's registry entry (plant_model.vehicle_models)."""
+        """Each vehicle's registry entry (plant_model.vehicle_models; not kept: an entry
+        holds functions, and a fleet goes to worker processes)."""
         return tuple(get(m.name) for m in self.models)
 
     @cached_property

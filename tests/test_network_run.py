@@ -41,7 +41,7 @@ def test_the_network_fmus_reproduce_the_monolithic_loop(tmp_path, architecture, 
     sc = _scenario(architecture, receiver, schedule, T=30.0)
     pv = make_setup(sc, tmp_path / "fmus")
     res = pv.run(Method("kalman", "kalman", "regulator", architecture), 3)
-    setup = pv.network(architecture, "kalman", "regulator")
+    setup = pv.network(Method("kalman", "kalman", "regulator", architecture))
     ref = network_reference(sc, setup, 3, sc.steps)
     for key in ("u", "e"):
         scale = np.abs(ref[key]).max()
@@ -245,7 +245,7 @@ def test_a_modem_range_loses_what_is_sent_out_of_range(tmp_path, architecture):
         network={"latency": 1.0, "period": 2.0, "loss": 0.1, "range": 14.5})
     pv = make_setup(sc, tmp_path / "fmus")
     res = pv.run(Method("kalman", "kalman", "regulator", architecture), 3)
-    setup = pv.network(architecture, "kalman", "regulator")
+    setup = pv.network(Method("kalman", "kalman", "regulator", architecture))
     ref = network_reference(sc, setup, 3, sc.steps)
     assert np.abs(res.traces["u"] - ref["u"]).max() <= 1e-9 * np.abs(ref["u"]).max()
     limit, pos = setup.net.modem
@@ -272,7 +272,7 @@ def test_a_long_latency_at_a_message_every_step_is_not_predicted_and_does_not_cr
         T=1.0, deployment="per-vehicle", architecture="distributed",
         network={"latency": 5.0})
     pv = make_setup(sc, tmp_path / "fmus")
-    setup = pv.network("distributed", "kalman", "regulator")
+    setup = pv.network(Method("kalman", "kalman", "regulator", "distributed"))
     assert setup.net.n > 30000
     p = pv.predictions(Method("kalman", "kalman", "regulator", "distributed"))
     pred, window = p.window, p.window_from_start

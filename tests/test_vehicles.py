@@ -164,7 +164,7 @@ def test_generic_shape_errors_name_matrix_and_shape(args, words):
 # make_vehicle -----------------------------------------------------------------------
 def test_make_vehicle_dispatches_with_the_same_numbers():
     assert VEHICLE_MODELS == ("remus100", "remus100-6dof", "remus100-fitted", "generic",
-                              "remus100-6dof-guided")
+                              "remus100-6dof-guided", "fmu")
     V = make_vehicle("remus100", {"cruise_speed": 1.5}, "vehicle 2")
     np.testing.assert_array_equal(V.A, remus100(cruise_speed=1.5).A)
     G = make_vehicle("generic", {"A": [[0.0]], "B1": [[1.0]], "B2": [[1.0]], "C": [[1.0]]},
@@ -177,7 +177,7 @@ def test_make_vehicle_unknown_model():
         make_vehicle("nautilus", {}, "vehicle 3")
     assert str(exc.value) == ("vehicle 3: unknown vehicle model 'nautilus'; "
                               "known models: remus100, remus100-6dof, remus100-fitted, generic, "
-                              "remus100-6dof-guided")
+                              "remus100-6dof-guided, fmu")
 
 
 def test_make_vehicle_unknown_key_lists_accepted_keys():
