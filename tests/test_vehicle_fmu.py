@@ -169,3 +169,33 @@ def test_a_fleet_of_four_torpedo_fmus_holds_its_formation(tmp_path, capsys):
     assert m["max_error"] < 3.0 and max(m["rms_e"]["mean"]) < 1.5
     assert summary["fmus"]["vehicle_fmu"] == {**summary["fmus"]["vehicle_fmu"],
                                               "kind": "python", "user": True}
+
+
+@pytest.mark.slow
+def test_compare_and_a_campaign_run_the_vehicle_fmu_fleet_from_its_files(fmu, tmp_path, capsys):
+    """No code: `compare` of the two tracking laws and a campaign over both architectures
+    (its base the fleet file, the FMU beside it) run the user's FMU; every row is whole
+    and the campaign's rows equal a plain `run` of the same point."""
+    fleet = _fleet(tmp_path, fmu)
+    out = tmp_path / "compare"
+    assert main(["compare", "--scenario", str(fleet), "--T", "10", "--quiet", "--out",
+                 str(out)]) == 0, capsys.readouterr().err
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["methods"]) == {"lq", "regulator"}
+    assert all(m["max_error"] < 3.0 for m in summary["methods"].values())
+    spec = tmp_path / "campaign.toml"
+    spec.write_text('base = "fleet.toml"\nseeds = "0-1"\nengine = "fmu"\n\n[sweep]\n'
+                    '"simulation.architecture" = ["centralized", "distributed"]\n'
+                    '"simulation.T" = [10.0]\n')
+    assert main(["campaign", str(spec), "--workers", "1", "--quiet", "--out",
+                 str(tmp_path / "campaign")]) == 0, capsys.readouterr().err
+    import pyarrow.parquet as pq
+    rows = pq.read_table(tmp_path / "campaign" / "results.parquet").to_pylist()
+    assert len(rows) == 4 and all(r["status"] == "ok" and r["error"] is None for r in rows)
+    run_out = tmp_path / "run"
+    assert main(["run", "--scenario", str(fleet), "--T", "10", "--seed", "1", "--quiet",
+                 "--architecture", "centralized", "--out", str(run_out)]) == 0
+    one = json.loads((run_out / "summary.json").read_text())["methods"]["kalman"]
+    (row,) = [r for r in rows if r["seed"] == 1
+              and r["param:simulation.architecture"] == "centralized"]
+    assert row["cost_rate"] == pytest.approx(one["cost_rate"]["mean"], rel=1e-12)

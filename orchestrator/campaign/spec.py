@@ -38,7 +38,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from ..scenario.errors import ScenarioError, _model_at, validate_scenario
 from ..scenario.fleet import is_fleet_scenario
-from ..scenario.loader import SCENARIO_DIR, _resolve
+from ..scenario.loader import SCENARIO_DIR, _resolve, relative_paths
 from ..scenario.nesting import loads_scenario_toml
 
 __all__ = ["SpecError", "CampaignSpec", "load_spec", "parse_seed_text", "base_mapping",
@@ -148,7 +148,8 @@ def base_mapping(base: str, spec_dir: Path | None = None) -> tuple[dict[str, Any
     path = _resolve(candidate if candidate.exists() else base)
     where = str(path) if path.parent != SCENARIO_DIR else f"built-in scenario '{path.stem}'"
     try:
-        return loads_scenario_toml(path.read_text(encoding="utf-8"), where), where
+        return relative_paths(loads_scenario_toml(path.read_text(encoding="utf-8"), where),
+                              path.parent), where
     except (UnicodeDecodeError, OSError) as exc:
         raise ScenarioError(f"{where}: cannot be read as TOML: {exc}") from None
 

@@ -44,7 +44,7 @@ from .schema import RunSettings, ScenarioFile, SystemScenario
 from .size import check_fleet_model
 
 __all__ = ["Scenario", "ScenarioError", "load_scenario", "builtin_scenarios", "SCENARIO_DIR",
-           "scenario_from_dict"]
+           "relative_paths", "scenario_from_dict"]
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "builtin"
 
@@ -379,12 +379,13 @@ def load_scenario(spec: str | Path = "paper") -> Scenario:
         raise ScenarioError(f"{where} is a folder; a scenario is a .toml file") from None
     except OSError as exc:
         raise ScenarioError(f"{where}: cannot be read: {exc.strerror}") from None
-    return scenario_from_dict(_fmu_paths(loads_scenario_toml(text, where), path.parent), where)
+    return scenario_from_dict(relative_paths(loads_scenario_toml(text, where), path.parent), where)
 
 
-def _fmu_paths(data: dict[str, Any], folder: Path) -> dict[str, Any]:
-    """``[vehicles] params.fmu`` (and an override's) made absolute: a vehicle FMU's path
-    is relative to the scenario file's folder (plant_model.vehicle_fmu)."""
+def relative_paths(data: dict[str, Any], folder: Path) -> dict[str, Any]:
+    """The file paths a parsed scenario names made absolute, from the scenario file's
+    ``folder``: ``[vehicles] params.fmu`` (and an override's; plant_model.vehicle_fmu).
+    Every reader of a scenario file passes through here (the loader, a campaign's base)."""
     veh = data.get("vehicles")
     if not isinstance(veh, dict):
         return data
