@@ -239,7 +239,7 @@ def build_native_fmu(form: NativeForm, model: str, out_dir: Path | str, T: float
     Returns
     -------
     Path
-        The .fmu.
+        The linear form's FMU, ``<model>.fmu`` in ``out_dir``.
 
     Raises
     ------

@@ -184,7 +184,7 @@ def compile_fmu(model: str, sources: tuple[Path, ...], headers: tuple[Path, ...]
     Returns
     -------
     Path
-        The .fmu.
+        ``out_dir/<model>.fmu``, sources and binaries inside.
 
     Raises
     ------

@@ -123,7 +123,7 @@ def native_guidance_fmu(kind: str, fmu: Path | str, out_dir: Path | str,
     Returns
     -------
     Path
-        The .fmu.
+        ``AuvGuidanceNative.fmu`` or ``AuvAutopilotNative.fmu`` in ``out_dir``.
 
     Raises
     ------

@@ -222,7 +222,7 @@ def native_network_fmu(fmu: Path | str, out_dir: Path | str,
     Returns
     -------
     Path
-        The .fmu.
+        ``AuvNetworkNative.fmu`` in ``out_dir``.
 
     Raises
     ------

@@ -158,7 +158,7 @@ def native_remus_fmu(kind: str, fmu: Path | str, out_dir: Path | str,
     Returns
     -------
     Path
-        The .fmu.
+        The REMUS 100 vehicle's ``<Model>Native.fmu`` in ``out_dir``.
 
     Raises
     ------
