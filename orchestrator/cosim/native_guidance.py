@@ -28,7 +28,13 @@ from pathlib import Path
 from lxml import etree
 
 from .build import GUIDANCE_KINDS
-from .native_build import NATIVE_DIR, NativeBuildError, compile_fmu, native_model
+from .native_build import (
+    NATIVE_DIR,
+    NativeBuildError,
+    compile_fmu,
+    native_identity,
+    native_model,
+)
 
 __all__ = ["GUIDANCE_C", "native_guidance_fmu"]
 
@@ -88,12 +94,7 @@ def _header(kind: str, variables: list[tuple[str, str, float]], guid: str) -> st
 
 def _model_description(root: etree._Element, kind: str, model: str, guid: str) -> bytes:
     """The pythonfmu FMU's modelDescription as the native FMU's (module docstring)."""
-    md = etree.fromstring(etree.tostring(root))
-    md.set("modelName", model)
-    md.set("guid", guid)
-    md.set("generationTool", "auv-cosim native")
-    md.set("description", md.get("description", "") + " (native C build, no Python)")
-    md.attrib.pop("generationDateAndTime", None)
+    md = native_identity(root, model, guid)
     old = md.find("CoSimulation")
     cs = etree.Element("CoSimulation", modelIdentifier=model, needsExecutionTool="false",
                        canHandleVariableCommunicationStepSize="true",

@@ -34,7 +34,13 @@ from lxml import etree
 from fmu_common.interface import element_names
 from plant_model.acoustic.auv_network_slave import link_layout
 
-from .native_build import NATIVE_DIR, NativeBuildError, compile_fmu, native_model
+from .native_build import (
+    NATIVE_DIR,
+    NativeBuildError,
+    compile_fmu,
+    native_identity,
+    native_model,
+)
 
 __all__ = ["NETWORK_C", "native_network_fmu"]
 
@@ -182,12 +188,7 @@ def _header(config: Mapping[str, Any], reals: list[Var], ints: list[Var], vr: di
 def _model_description(root: etree._Element, vr: dict[str, int], model: str,
                        guid: str) -> bytes:
     """The pythonfmu FMU's modelDescription as the native FMU's (module docstring)."""
-    md = etree.fromstring(etree.tostring(root))
-    md.set("modelName", model)
-    md.set("guid", guid)
-    md.set("generationTool", "auv-cosim native")
-    md.set("description", md.get("description", "") + " (native C build, no Python)")
-    md.attrib.pop("generationDateAndTime", None)
+    md = native_identity(root, model, guid)
     for sv in md.iterfind("ModelVariables/ScalarVariable"):
         sv.set("valueReference", str(vr[sv.get("name")]))
     old = md.find("CoSimulation")

@@ -33,7 +33,13 @@ from lxml import etree
 
 from plant_model.remus100.native_constants import RemusConst, remus_constants
 
-from .native_build import NATIVE_DIR, NativeBuildError, compile_fmu, native_model
+from .native_build import (
+    NATIVE_DIR,
+    NativeBuildError,
+    compile_fmu,
+    native_identity,
+    native_model,
+)
 
 __all__ = ["REMUS_KINDS", "RUNTIME_PARAMETERS", "VehiclesDiffer", "native_remus_components",
            "native_remus_fmu", "runtime_parameter"]
@@ -112,12 +118,7 @@ def _model_description(root: etree._Element, model: str, guid: str,
     """The pythonfmu FMU's modelDescription, every variable kept, as the native FMU's:
     its identity, the native capabilities and sources, value references numbered per type
     in order (as fmu_core.c serves them), ``starts`` (name -> start text) set."""
-    md = etree.fromstring(etree.tostring(root))
-    md.set("modelName", model)
-    md.set("guid", guid)
-    md.set("generationTool", "auv-cosim native")
-    md.set("description", md.get("description", "") + " (native C build, no Python)")
-    md.attrib.pop("generationDateAndTime", None)
+    md = native_identity(root, model, guid)
     cs = etree.Element("CoSimulation", modelIdentifier=model, needsExecutionTool="false",
                        canHandleVariableCommunicationStepSize="false",
                        canGetAndSetFMUstate="true", canSerializeFMUstate="true")
