@@ -51,8 +51,9 @@ def export_native(sc: Scenario, out_dir: Path | str,
         FMU key -> .fmu, ``"system"`` -> OspSystemStructure.xml, ``"ssp"`` -> the archive.
     """
     from ..running.systems import build, scenario_system
-    from .osp import export_osp
-    from .ssp import export_ssp
+    from .export_set import export_set
+    from .osp import write_osp
+    from .ssp import write_ssp
 
     out = Path(out_dir)
     system = scenario_system(sc)
@@ -64,7 +65,7 @@ def export_native(sc: Scenario, out_dir: Path | str,
             target = out / Path(p).name
             target.write_bytes(Path(p).read_bytes())
             ns.fmus[k] = target
-        paths = export_osp(sc, out, system=ns.system, fmus=ns.fmus)
-        paths["ssp"] = export_ssp(sc, out / f"{file_stem(sc.name)}-native.ssp",
-                                  fmus=ns.fmus, system=ns.system)
+        export = export_set(sc, out, system=ns.system, fmus=ns.fmus)
+        paths = write_osp(export, out)
+        paths["ssp"] = write_ssp(export, out / f"{file_stem(sc.name)}-native.ssp")
     return paths

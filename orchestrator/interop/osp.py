@@ -33,7 +33,6 @@ the README there for where they come from). :mod:`.libcosim` runs the result.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 
 from lxml import etree
@@ -45,9 +44,10 @@ from ..cosim.checks import Variable
 from ..cosim.system import SystemDescription
 from ..scenario import Scenario
 from .common import ExportError, append_units, check_system, unit_definitions, value_text
+from .export_set import ExportSet, SignalElement, export_set, signal_layout
 
 __all__ = ["SCHEMA_DIR", "OSP_SYSTEM_NS", "OSP_MD_NS", "export_osp", "validate_osp_file",
-           "typed_groups_used", "TYPED_GROUP_OF_UNIT"]
+           "typed_groups_used", "write_osp", "TYPED_GROUP_OF_UNIT"]
 
 SCHEMA_DIR = Path(__file__).resolve().parent / "osp_schemas"
 OSP_SYSTEM_NS = "http://opensimulationplatform.com/MSMI/OSPSystemStructure"
@@ -71,36 +71,8 @@ _GROUP_ORDER = ("Variable", "Generic", "Force", "Torque", "Voltage", "Pressure",
 
 # ----------------------------------------------------------------------------- groups
 
-@dataclass(frozen=True)
-class _Element:
-    unit: str            #: "" when the quantity has no unit
-    vehicle: int | None  #: 1-based vehicle, None outside a fleet
-    component: str       #: e.g. "n", "v_e", "X_d"
-
-
-def _signal_layout(sc: Scenario, system: SystemDescription) -> dict[str, list[_Element]]:
-    """Per element of each input and output array of the system's FMUs: its unit and
-    vehicle (fleets of vehicle models with units), else unit-less elements."""
-    sizes = {spec.name: spec.size for comp in system.components for spec in comp.interface
-             if spec.causality in ("input", "output")}
-    plain = {s: [_Element("", None, str(i + 1)) for i in range(n)] for s, n in sizes.items()}
-    if sc.fleet is None:
-        return plain
-    models = sc.fleet_model.models
-    per = {"x": ("state_names", "state_units"), "u": ("input_names", "input_units"),
-           "w": ("disturbance_names", "disturbance_units"),
-           "y": ("output_names", "output_units")}
-    per.update({"xhat": per["x"], "what": per["w"], "e": per["y"], "ybar": per["y"]})
-    out = dict(plain)
-    for sig, (nattr, uattr) in per.items():
-        elems = [_Element(u, i, nm) for i, mdl in enumerate(models, start=1)
-                 for nm, u in zip(getattr(mdl, nattr), getattr(mdl, uattr))]
-        if len(elems) == sizes.get(sig):      # else: keep the unit-less layout
-            out[sig] = elems
-    return out
-
-
-def _typed_groups(sig: str, names: list[str], elems: list[_Element]) -> list[tuple[str, str, list]]:
+def _typed_groups(sig: str, names: list[str], elems: list[SignalElement]
+                  ) -> list[tuple[str, str, list]]:
     """(group type, group name, [(variable, unit, axis)]) of the typed groups of one
     signal: per vehicle, runs of consecutive elements of one unit that OSP-IS has a type
     for, at most 3 per group, named ``<signal>.vehicle[i].<displacement|velocity|force>``;
@@ -131,7 +103,7 @@ def _md_element(tag: str, **attrs: str) -> etree._Element:
 
 
 def _osp_model_description(specs: tuple[ArraySpec, ...],
-                           layout: dict[str, list[_Element]]) -> tuple[bytes, list[str]]:
+                           layout: dict[str, list[SignalElement]]) -> tuple[bytes, list[str]]:
     """An OspModelDescription for one FMU's interface; returns the bytes and the typed
     group types used."""
     units_used: list[str] = []
@@ -251,7 +223,8 @@ def validate_osp_file(path: Path | str) -> list[str]:
 def export_osp(sc: Scenario, out_dir: Path | str,
                system: SystemDescription | None = None,
                fmus: Mapping[str, Path] | None = None) -> dict[str, Path]:
-    """Build the scenario's FMUs into ``out_dir`` and write the OSP system beside them.
+    """Build the scenario's FMUs into ``out_dir`` and write the OSP system beside them:
+    :func:`write_osp` of :func:`orchestrator.interop.export_set.export_set`.
 
     Parameters
     ----------
@@ -270,6 +243,30 @@ def export_osp(sc: Scenario, out_dir: Path | str,
     Returns
     -------
     dict[str, Path]
+        As :func:`write_osp`.
+
+    Raises
+    ------
+    ExportError
+        If the wiring does not match the FMUs (before anything is built) or a written
+        file does not validate against OSP's schemas.
+    """
+    return write_osp(export_set(sc, out_dir, system=system, fmus=fmus), out_dir)
+
+
+def write_osp(export: ExportSet, out_dir: Path | str) -> dict[str, Path]:
+    """Write the OSP system of ``export`` beside its FMUs (which are in ``out_dir``).
+
+    Parameters
+    ----------
+    export : ExportSet
+        The system, its FMUs, those beside it, the signals' units.
+    out_dir : Path or str
+        The folder of the FMUs.
+
+    Returns
+    -------
+    dict[str, Path]
         ``{"system": OspSystemStructure.xml, <FMU key>: the .fmu,
         "<FMU key>_osp": its <model>_OspModelDescription.xml}``; for REMUS 100 vehicles
         also ``guidance`` and ``autopilot`` (AuvGuidance, AuvAutopilot): FMUs beside the
@@ -279,33 +276,21 @@ def export_osp(sc: Scenario, out_dir: Path | str,
     Raises
     ------
     ExportError
-        If the wiring does not match the FMUs (before anything is built) or a written
-        file does not validate against OSP's schemas.
+        If the wiring does not match the FMUs or a written file does not validate
+        against OSP's schemas.
     """
-    from ..running.systems import build, scenario_system
-
     out = Path(out_dir)
-    system = system or scenario_system(sc)
-    check_system(system)            # nothing is built or written for a bad wiring
-    fmus = dict(fmus) if fmus is not None else build(sc, out)
+    system, fmus, layout = export.system, export.fmus, export.elements
     fmu_files = {c.name: Path(fmus[c.fmu]).name for c in system.components}
     variables = check_system(system, fmus)          # the FMUs as built
     paths: dict[str, Path] = {}
-    layout = _signal_layout(sc, system)
     written: list[Path] = []
-    for key in dict.fromkeys(c.fmu for c in system.components):
-        comp = next(c for c in system.components if c.fmu == key)
-        xml, _ = _osp_model_description(comp.interface, layout)
-        p = out / f"{Path(fmus[key]).stem}_OspModelDescription.xml"
-        write_bytes_atomically(p, xml)
-        paths[key] = Path(fmus[key])
-        paths[f"{key}_osp"] = p
-        written.append(p)
-    in_system = {c.fmu for c in system.components}
-    for key, specs in _standalone_interfaces(sc, fmus).items():   # not in the system
-        if key in in_system:        # a vehicle flown through them: written above
-            continue
-        xml, _ = _osp_model_description(specs, {})
+    interfaces: dict[str, tuple] = {}
+    for c in system.components:                     # an FMU's first component's interface
+        interfaces.setdefault(c.fmu, (c.interface, layout))
+    interfaces.update({k: (specs, {}) for k, specs in export.beside.items()})
+    for key, (specs, elements) in interfaces.items():
+        xml, _ = _osp_model_description(specs, elements)
         p = out / f"{Path(fmus[key]).stem}_OspModelDescription.xml"
         write_bytes_atomically(p, xml)
         paths[key] = Path(fmus[key])
@@ -320,18 +305,6 @@ def export_osp(sc: Scenario, out_dir: Path | str,
         raise ExportError(["the exported OSP files do not validate against OSP's schemas",
                            *problems])
     return paths
-
-
-def _standalone_interfaces(sc: Scenario, fmus: Mapping[str, Path]
-                           ) -> dict[str, tuple[ArraySpec, ...]]:
-    """The interfaces of the FMUs built beside the system for a host's own vehicle stack
-    (AuvGuidance, AuvAutopilot: :func:`orchestrator.running.fmus.guidance_configs`) that
-    are among ``fmus``."""
-    from ..cosim.build import FMU_KINDS, GUIDANCE_KINDS, interface_of
-    from ..running.fmus import guidance_configs
-    configs = guidance_configs(sc)
-    return {k: tuple(interface_of(FMU_KINDS[k], configs[k])) for k in GUIDANCE_KINDS
-            if k in fmus and k in configs}
 
 
 def typed_groups_used(sc: Scenario) -> dict[str, list[str]]:
@@ -349,5 +322,5 @@ def typed_groups_used(sc: Scenario) -> dict[str, list[str]]:
     """
     from ..running.systems import scenario_system
     system = scenario_system(sc)
-    layout = _signal_layout(sc, system)
+    layout = signal_layout(sc, system)
     return {c.fmu: _osp_model_description(c.interface, layout)[1] for c in system.components}

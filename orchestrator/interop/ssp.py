@@ -50,16 +50,17 @@ from typing import TYPE_CHECKING
 from lxml import etree
 
 from ..atomic import temporary_sibling
-from ..cosim.build import FMU_KINDS, GUIDANCE_KINDS
+from ..cosim.build import FMU_KINDS
 from ..cosim.checks import Variable, fmu_variables
 from ..cosim.system import SystemDescription, evaluation_order
 from ..scenario import Scenario
 from .common import ExportError, append_units, check_system, unit_definitions, value_text
+from .export_set import ExportSet, export_set
 
 if TYPE_CHECKING:
     from fmpy.ssp.ssd import ParameterSet
 
-__all__ = ["SSC_NS", "SSD_NS", "SSV_NS", "export_ssp", "fmpy_parameter_set",
+__all__ = ["SSC_NS", "SSD_NS", "SSV_NS", "export_ssp", "write_ssp", "fmpy_parameter_set",
            "parameter_set_path"]
 
 SSD_NS = "http://ssp-standard.org/SSP1/SystemStructureDescription"
@@ -168,9 +169,9 @@ def _system_structure_xml(system: SystemDescription, fmu_files: Mapping[str, str
 def export_ssp(sc: Scenario, out_path: Path | str, *,
                fmus: Mapping[str, Path] | None = None,
                system: SystemDescription | None = None) -> Path:
-    """Write the scenario's FMUs and system structure as an SSP archive at ``out_path``.
-
-    The archive is written under a temporary name and renamed when complete.
+    """Write the scenario's FMUs and system structure as an SSP archive at ``out_path``:
+    :func:`write_ssp` of :func:`orchestrator.interop.export_set.export_set` (the FMUs built
+    into a temporary folder unless given).
 
     Parameters
     ----------
@@ -195,34 +196,70 @@ def export_ssp(sc: Scenario, out_path: Path | str, *,
         Naming every problem, if the connections do not match the FMUs' variables
         (before anything is written).
     """
-    from ..running.systems import build, scenario_system
-
-    out_path = Path(out_path)
+    from ..running.systems import scenario_system
     system = system or scenario_system(sc)
-    models = {k: Path(f).stem for k, f in fmus.items()} if fmus is not None else {
-        c.fmu: FMU_KINDS[c.fmu].model for c in system.components}
-    fmu_files = {c.name: f"resources/{models[c.fmu]}.fmu" for c in system.components}
-    labels = {c: Path(f).name for c, f in fmu_files.items()}
-    check_system(system, fmu_files=labels)
+    models = _models(system, fmus)
+    check_system(system, fmu_files=_labels(system, models))     # before anything is built
     with tempfile.TemporaryDirectory(prefix="auv_ssp_") as tmp:
-        fmus = dict(fmus) if fmus is not None else build(sc, Path(tmp) / "fmus")
-        variables = check_system(system, fmus, fmu_files=labels)
-        ssv = {c.name: _parameter_set_xml(
-                   f"{system.name}.{c.name}",
-                   [(n, variables[c.name][n], v) for n, v in c.parameters.items()])
-               for c in system.components}
-        ssd = _system_structure_xml(system, fmu_files, variables)
-        with temporary_sibling(out_path) as tmp_out, \
-                zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as z:
-            z.writestr("SystemStructure.ssd", ssd)
-            for key in dict.fromkeys(c.fmu for c in system.components):
-                z.write(fmus[key], f"resources/{models[key]}.fmu")
-            for comp in system.names:
-                z.writestr(parameter_set_path(comp), ssv[comp])
-            in_system = {c.fmu for c in system.components}
-            for key in GUIDANCE_KINDS:       # beside the system: for a host's own vehicle
-                if key in fmus and key not in in_system:
-                    z.write(fmus[key], f"resources/{Path(fmus[key]).stem}.fmu")
+        export = export_set(sc, Path(tmp) / "fmus", system=system, fmus=fmus)
+        return write_ssp(export, out_path, models=models)
+
+
+def _models(system: SystemDescription, fmus: Mapping[str, Path] | None) -> dict[str, str]:
+    """FMU key -> the model name its archive entry takes (the file's stem, else the kind's)."""
+    return ({k: Path(f).stem for k, f in fmus.items()} if fmus is not None else
+            {c.fmu: FMU_KINDS[c.fmu].model for c in system.components})
+
+
+def _labels(system: SystemDescription, models: Mapping[str, str]) -> dict[str, str]:
+    """Component -> the .fmu file name it has in the archive (for messages)."""
+    return {c.name: f"{models[c.fmu]}.fmu" for c in system.components}
+
+
+def write_ssp(export: ExportSet, out_path: Path | str, *,
+              models: Mapping[str, str] | None = None) -> Path:
+    """Write ``export`` as an SSP archive at ``out_path`` (under a temporary name, renamed
+    when complete): SystemStructure.ssd, one parameter set per component, the FMUs in
+    resources/ (those beside the system too).
+
+    Parameters
+    ----------
+    export : ExportSet
+        The system, its FMUs and those beside it.
+    out_path : Path or str
+        The ``.ssp`` file to write.
+    models : Mapping[str, str] or None, optional
+        FMU key -> the model name of its archive entry (default: the .fmu file's stem).
+
+    Returns
+    -------
+    Path
+        ``out_path``.
+
+    Raises
+    ------
+    ExportError
+        Naming every problem, if the connections do not match the FMUs' variables.
+    """
+    out_path = Path(out_path)
+    system, fmus = export.system, export.fmus
+    models = dict(models) if models is not None else _models(system, fmus)
+    fmu_files = {c.name: f"resources/{models[c.fmu]}.fmu" for c in system.components}
+    variables = check_system(system, fmus, fmu_files=_labels(system, models))
+    ssv = {c.name: _parameter_set_xml(
+               f"{system.name}.{c.name}",
+               [(n, variables[c.name][n], v) for n, v in c.parameters.items()])
+           for c in system.components}
+    ssd = _system_structure_xml(system, fmu_files, variables)
+    with temporary_sibling(out_path) as tmp_out, \
+            zipfile.ZipFile(tmp_out, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("SystemStructure.ssd", ssd)
+        for key in dict.fromkeys(c.fmu for c in system.components):
+            z.write(fmus[key], f"resources/{models[key]}.fmu")
+        for comp in system.names:
+            z.writestr(parameter_set_path(comp), ssv[comp])
+        for key in export.beside:       # beside the system: for a host's own vehicle
+            z.write(fmus[key], f"resources/{Path(fmus[key]).stem}.fmu")
     return out_path
 
 
