@@ -275,3 +275,31 @@ def test_libcosim_runs_a_per_vehicle_export_like_our_jacobi_master(libcosim, tmp
         assert np.array_equal(arr, traces[key]), key
     # the vehicles differ (their own parameters reached libcosim): vehicle 1 is not vehicle 2
     assert not np.allclose(lc["traces"]["vehicle_1.x"], lc["traces"]["vehicle_2.x"])
+
+
+def test_the_writers_take_a_system_and_its_fmus_not_a_scenario(tmp_path):
+    """write_osp and write_ssp work from an ExportSet alone: the paper's system and FMUs,
+    the signals unit-less (no scenario at hand), give schema-valid OSP files and an SSP
+    archive whose system fmpy reads, with every component's FMU inside."""
+    import zipfile
+    from pathlib import Path
+
+    from orchestrator.interop.export_set import ExportSet, SignalElement
+    from orchestrator.interop.osp import write_osp
+    from orchestrator.interop.ssp import write_ssp
+    from orchestrator.running import build
+    sc = load_scenario("paper")
+    system = scenario_system(sc)
+    fmus = build(sc, tmp_path)
+    elements = {s.name: [SignalElement("", None, str(i + 1)) for i in range(s.size)]
+                for c in system.components for s in c.interface
+                if s.causality in ("input", "output")}
+    export = ExportSet(system, fmus, {}, elements)
+    paths = write_osp(export, tmp_path)
+    assert all(validate_osp_file(p) == [] for k, p in paths.items()
+               if k == "system" or k.endswith("_osp"))
+    ssp = write_ssp(export, tmp_path / "paper.ssp")
+    with zipfile.ZipFile(ssp) as z:
+        names = set(z.namelist())
+    assert "SystemStructure.ssd" in names
+    assert {f"resources/{Path(p).stem}.fmu" for p in fmus.values()} <= names
