@@ -89,7 +89,12 @@ def multirate_specs(kf: tuple, inputs: list[ArraySpec], outputs: list[ArraySpec]
 
 def native_parameters(kf: tuple, base: tuple) -> dict[str, float]:
     """A component's parameter values (FMI names) that differ from the FMU's start values."""
-    specs, ref = multirate_specs(kf, [], []), multirate_specs(base, [], [])
+    return changed_starts(multirate_specs(kf, [], []), multirate_specs(base, [], []))
+
+
+def changed_starts(specs: list[ArraySpec], ref: list[ArraySpec]) -> dict[str, float]:
+    """The parameter values (FMI names) of ``specs`` that differ from those of ``ref`` (the
+    same arrays: one component's design against the FMU's start values)."""
     out = {}
     for s, r in zip(specs, ref):
         for nm, v, w in zip(element_names(s.name, s.shape), np.ravel(s.start),

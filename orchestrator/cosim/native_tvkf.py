@@ -27,7 +27,7 @@ from fmu_common.interface import ArraySpec, element_names
 from plant_model.linalg_checks import ModelError
 
 from .native_build import arrays_model_description, compile_fmu, native_model
-from .native_multirate import MULTIRATE_H, TVKF_C, _header
+from .native_multirate import MULTIRATE_H, TVKF_C, _header, changed_starts
 
 __all__ = ["tv_components", "tv_specs"]
 
@@ -115,11 +115,4 @@ def tv_components(kind: str, components: list[Any], fmu: Path | str, out_dir: Pa
 
 
 def _changed(kf: tuple, base: tuple) -> dict[str, float]:
-    specs, ref = tv_specs(kf, [], []), tv_specs(base, [], [])
-    out = {}
-    for s, r in zip(specs, ref):
-        for nm, v, w in zip(element_names(s.name, s.shape), np.ravel(s.start),
-                            np.ravel(r.start)):
-            if v != w:
-                out[nm] = float(v)
-    return out
+    return changed_starts(tv_specs(kf, [], []), tv_specs(base, [], []))
