@@ -4,13 +4,15 @@
  * The Python side resolves a system into raw FMI calls once (plan_steps: function
  * pointers, component pointers, value-reference arrays, counts, trace-buffer addresses in
  * row 0 and row strides in bytes) and hands them here as arrays of Call and Step; this file
- * runs steps k0 <= k < k1 exactly as compile_plan's Python loop does:
+ * runs steps k0 <= k < k1 exactly as compile_plan's Python loop does, step k on buffer row
+ * k - row0 (row0 = 0: one buffer row per step of the run; row0 = k0: a buffer of one chunk
+ * of steps, reused chunk after chunk):
  *
  *   for k: t = k * h (computed, never accumulated)
- *          every exchange call on row k (Gauss-Seidel: gets and sets in evaluation order;
- *          Jacobi: the sets from row k)
+ *          every exchange call on row k - row0 (Gauss-Seidel: gets and sets in evaluation
+ *          order; Jacobi: the sets from that row)
  *          fmi2DoStep(component, t, h, fmi2True) on every FMU in order
- *          if k + 1 < last: every `after` call on row k + 1 (Jacobi's gets)
+ *          if k + 1 < last: every `after` call on row k + 1 - row0 (Jacobi's gets)
  *
  * The FMUs read and write the caller's numpy trace arrays in place, so the traces are the
  * Python master's bit for bit. Before each step the loop reads *stop (set by the Python
@@ -26,7 +28,7 @@
 typedef int (*RealIO)(void *component, const unsigned int *vr, size_t n, double *values);
 typedef int (*DoStep)(void *component, double t, double h, int no_prior);
 
-/* one fmi2GetReal / fmi2SetReal: values at base + k * stride (bytes) in step k */
+/* one fmi2GetReal / fmi2SetReal: values at base + (k - row0) * stride (bytes) in step k */
 typedef struct {
     RealIO fn;
     void *component;
@@ -63,21 +65,21 @@ static int calls(const Call *c, int32_t n, int64_t row, Failure *fail, int32_t p
 }
 
 /*
- * Run steps k0 <= k < k1 of h seconds; `last` is the number of steps of the whole run
- * (Jacobi reads no outputs after the last one). Returns the number of steps done: k1, or
+ * Run steps k0 <= k < k1 of h seconds on buffer rows k - row0; `last` is the number of
+ * steps of the whole run (Jacobi reads no outputs after the last one). Returns the number of steps done: k1, or
  * the k at which *stop was found set, or the k of the step whose call failed (then
  * fail->phase != 0).
  */
 int64_t auv_master_run(const Call *exchange, int32_t nx, const Step *steps, int32_t ns,
                        const Call *after, int32_t na, int64_t k0, int64_t k1, double h,
-                       int64_t last, const volatile int32_t *stop, volatile int64_t *reached,
-                       Failure *fail)
+                       int64_t last, int64_t row0, const volatile int32_t *stop,
+                       volatile int64_t *reached, Failure *fail)
 {
     fail->phase = 0;
     for (int64_t k = k0; k < k1; k++) {
         if (*stop) return k;
         double t = (double)k * h;
-        if (calls(exchange, nx, k, fail, 1)) return k;
+        if (calls(exchange, nx, k - row0, fail, 1)) return k;
         for (int32_t i = 0; i < ns; i++) {
             int st = steps[i].fn(steps[i].component, t, h, 1);
             if (st != 0) {
@@ -87,7 +89,7 @@ int64_t auv_master_run(const Call *exchange, int32_t nx, const Step *steps, int3
                 return k;
             }
         }
-        if (na && k + 1 < last && calls(after, na, k + 1, fail, 3)) return k;
+        if (na && k + 1 < last && calls(after, na, k + 1 - row0, fail, 3)) return k;
         *reached = k + 1;
     }
     return k1;

@@ -29,10 +29,10 @@ from .setup import (
     Predictions,
     RunSetup,
     method_list,
-    run_statistics,
     stats_context,
     window_dependent,
 )
+from .statistics import RunRecorder, RunStatistics
 from .systems import check_run, make_setup
 
 __all__ = ["NONLINEAR_NOTE", "common_window", "simulate"]
@@ -220,15 +220,19 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
             if stop:
                 break
             if seed in pooled:
-                stats, loop_s = pooled[seed].result()
+                stats, loop_s, ages = pooled[seed].result()
                 if bar is not None:
                     bar.update(sc.steps)
                 loop_us.append(loop_s / sc.steps * 1e6)
                 per_seed.append(stats)
+                if ages:
+                    link_ages.append(ages)
                 log(f"{name:>9s} seed {seed}: cost rate {stats['cost_rate']:.4g} (worker "
                     f"process), {loop_s:.2f} s")
                 continue
-            res = setup.run(method, seed, progress=bar, stop=stop)
+            recorder = RunRecorder(RunStatistics(sc, k0, formation),
+                                   keep=name not in rrd_runs)
+            res = setup.run(method, seed, progress=bar, stop=stop, recorder=recorder)
             masters[name] = res.info["master"]
             if name not in rrd_runs and res.steps:
                 rrd_runs[name] = res.traces
@@ -241,9 +245,9 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
                 break
             loop_us.append(res.loop_s / sc.steps * 1e6)
             with phases.phase("statistics"):
-                per_seed.append(run_statistics(sc, res, k0, formation))
-            if "link_age" in res.traces:
-                link_ages.append((res.info["links"], res.traces["link_age"]))
+                per_seed.append(recorder.statistics.result())
+            if "links" in res.info:
+                link_ages.append(recorder.statistics.link_ages(res.info["links"]))
             log(f"{name:>9s} seed {seed}: cost rate {per_seed[-1]['cost_rate']:.4g}"
                 + ("" if predicted is None else f" (predicted {predicted:.4g})")
                 + f", {res.loop_s:.2f} s")
@@ -253,7 +257,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
             entry.update(formation_summary([st["formation"] for st in per_seed],
                                            list(seeds[:len(per_seed)])))
             entry.update(segment_summary([st["segments"] for st in per_seed]))
-        entry.update(setup.method_entries(method, link_ages, k0))
+        entry.update(setup.method_entries(method, link_ages))
         if per_seed and pred.window_from_start is not None:
             entry["cost_rate"]["predicted_window"] = pred.window_from_start.cost_rate
             entry["rms_e"]["predicted_window"] = pred.window_from_start.rms_e
