@@ -106,3 +106,52 @@ def test_a_stop_hands_on_the_steps_that_ran(paper, master):
     got = sink.joined()
     for key in ref:
         assert _bits_equal(ref[key][:20], got[key]), key
+
+
+class SaveAt:
+    """Checkpoints due at one step; keeps the state (pickled and back: it goes to a file)."""
+
+    def __init__(self, step: int):
+        self.step, self.state = step, None
+
+    def due(self, step: int) -> bool:
+        return step == self.step
+
+    def save(self, state) -> None:
+        import pickle
+        self.state = pickle.loads(pickle.dumps(state))
+
+
+@pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
+@pytest.mark.parametrize("master", ["python", "native"])
+def test_a_run_resumed_from_a_saved_state_continues_bit_for_bit(paper, coupling, master):
+    sc, system, fmus, native = paper
+    if master == "native":
+        if native is None:
+            pytest.skip("no C compiler (cc) for the native FMUs and the compiled master")
+        system, fmus = native.system, native.fmus
+    whole, save = Gather(50), SaveAt(250)
+    run_system(system, fmus, sc.steps, coupling=coupling, master=master, sink=whole,
+               checkpoints=save)
+    assert save.state is not None and save.state.step == 250
+    assert set(save.state.fmus) == {c.name for c in system.components}
+    assert all(len(b) > 0 for b in save.state.fmus.values())
+    assert (save.state.next_row is not None) == (coupling == "jacobi")
+    tail = Gather(50)
+    _, _, info = run_system(system, fmus, sc.steps, coupling=coupling, master=master,
+                            sink=tail, start=save.state)
+    assert [k0 for k0, _ in tail.parts] == list(range(250, sc.steps, 50))
+    ref, got = whole.joined(), tail.joined()
+    for key in ref:
+        assert _bits_equal(ref[key][250:], got[key]), key
+    # the noise went on: the resumed part is not a repeat of the start
+    assert not np.array_equal(got["y"][:50], ref["y"][:50])
+
+
+def test_a_state_of_another_system_is_refused_naming_the_components(paper):
+    from orchestrator.cosim.master import CosimError, MasterState
+    sc, system, fmus, _ = paper
+    bad = MasterState(50, {"plant": b"x", "rudder": b"y"})
+    with pytest.raises(CosimError, match="not in this system: rudder; without a saved state: "
+                                         "controller, estimator"):
+        run_system(system, fmus, sc.steps, sink=Gather(50), start=bad)

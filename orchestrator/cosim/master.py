@@ -51,7 +51,8 @@ from .instance import CosimError, Extracted, FmuInstance
 from .plan import StepPlan, compile_plan, initial_reads, plan_steps
 from .system import SystemDescription
 
-__all__ = ["COUPLINGS", "CosimError", "RunResult", "StepPlan", "TraceSink", "chunk_rows",
+__all__ = ["COUPLINGS", "Checkpoints", "CosimError", "MasterState", "RunResult", "StepPlan",
+           "TraceSink", "chunk_rows",
            "compile_plan", "initial_reads", "plan_steps", "run_system"]
 
 #: how the master couples the FMUs within a step (see the module docstring)
@@ -133,6 +134,27 @@ class TraceSink(Protocol):
         arrays are views of buffers the next chunk overwrites: copy what is kept."""
 
 
+@dataclass
+class MasterState:
+    """Where a run stands between two chunks: what a checkpoint holds of the master, and
+    what a resumed run starts from (:func:`run_system` ``start``)."""
+
+    step: int                           #: the next step to run (steps 0 .. step - 1 ran)
+    fmus: dict[str, bytes]              #: component -> its FMU's serialized state
+    #: Jacobi: component -> its outputs read after step - 1 (what step ``step`` is fed)
+    next_row: dict[str, np.ndarray] | None = None
+
+
+class Checkpoints(Protocol):
+    """Asked after every chunk whether to save the run's state (:func:`run_system`)."""
+
+    def due(self, step: int) -> bool:
+        """Whether to save now, ``step`` steps done."""
+
+    def save(self, state: MasterState) -> None:
+        """Keep ``state`` (write it, atomically)."""
+
+
 def _split(system: SystemDescription, rec: Mapping[str, np.ndarray],
            rows: int) -> dict[str, np.ndarray]:
     """The first ``rows`` rows of each component's buffer, split into its outputs (keyed by
@@ -149,16 +171,18 @@ def _split(system: SystemDescription, rec: Mapping[str, np.ndarray],
 
 def _run_chunks(loop: Callable[..., int], plan: StepPlan, rec: Mapping[str, np.ndarray],
                 steps: int, chunk: int, h: float, bar: Any, stop: Any,
-                give: Callable[[int, int], None] | None) -> int:
-    """Steps 0 .. steps - 1 in chunks of ``chunk`` steps on buffers of chunk (+ 1) rows:
-    chunk [k0, k1) on rows 0 .. k1 - k0 - 1, handed to ``give(k0, rows)``; Jacobi's reads
-    after the chunk's last step (row k1 - k0) move to row 0 for the next chunk. Returns the
+                give: Callable[[int, int], None] | None, start: int = 0,
+                saved: Callable[[int], None] | None = None) -> int:
+    """Steps start .. steps - 1 in chunks of ``chunk`` steps (the grid k = 0, chunk, 2
+    chunk, ...) on buffers of chunk (+ 1) rows: chunk [k0, k1) on rows 0 .. k1 - k0 - 1,
+    handed to ``give(k0, rows)``; Jacobi's reads after the chunk's last step (row k1 - k0)
+    move to row 0 for the next chunk; then ``saved(k1)`` (a checkpoint, if due). Returns the
     step reached (fewer than ``steps`` when stopped)."""
-    k0 = 0
+    k0 = start
     while k0 < steps:
         if stop:
             return k0
-        k1 = min(k0 + chunk, steps)
+        k1 = min((k0 // chunk + 1) * chunk, steps)
         done = loop(plan, k0, k1, h, steps, bar, stop, k0 if give is not None else 0)
         if give is not None and done > k0:
             give(k0, done - k0)
@@ -167,8 +191,36 @@ def _run_chunks(loop: Callable[..., int], plan: StepPlan, rec: Mapping[str, np.n
         if give is not None and plan.after:
             for buf in rec.values():
                 buf[0] = buf[k1 - k0]
+        if saved is not None and k1 < steps:
+            saved(k1)
         k0 = k1
     return steps
+
+
+def _state(step: int, inst: Mapping[str, FmuInstance], rec: Mapping[str, np.ndarray],
+           jacobi: bool) -> MasterState:
+    """The run's :class:`MasterState` between chunks, ``step`` steps done."""
+    return MasterState(step, {name: fmu.serialized_state() for name, fmu in inst.items()},
+                       {name: buf[0].copy() for name, buf in rec.items()} if jacobi else None)
+
+
+def _restore(start: MasterState, inst: Mapping[str, FmuInstance],
+             system: SystemDescription) -> None:
+    """Every instance set to its saved state.
+
+    Raises
+    ------
+    CosimError
+        If the saved states are not those of this system's components, or an FMU refuses
+        its state.
+    """
+    if set(start.fmus) != set(inst):
+        extra, missing = sorted(set(start.fmus) - set(inst)), sorted(set(inst) - set(start.fmus))
+        raise CosimError(f"system {system.name!r}: the saved run's components differ "
+                         f"(not in this system: {', '.join(extra) or 'none'}; without a saved "
+                         f"state: {', '.join(missing) or 'none'})")
+    for name, fmu in inst.items():
+        fmu.restore_state(start.fmus[name])
 
 
 def chunk_rows(sink: TraceSink | None, steps: int) -> int:
@@ -179,7 +231,8 @@ def chunk_rows(sink: TraceSink | None, steps: int) -> int:
 def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, *,
                coupling: str = "gauss-seidel", progress: Any = False,
                instance_suffix: str = "", stop: Any = None,
-               master: str = "auto", sink: TraceSink | None = None
+               master: str = "auto", sink: TraceSink | None = None,
+               start: MasterState | None = None, checkpoints: Checkpoints | None = None
                ) -> tuple[dict[str, np.ndarray], float, dict[str, Any]]:
     """Co-simulate ``system`` for ``steps`` communication steps of ``system.h``.
 
@@ -210,6 +263,13 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
         Takes the traces chunk by chunk as the run goes (:class:`TraceSink`): the buffers
         then hold one chunk, whatever the horizon; the returned traces are empty. The
         traces it takes are those returned without it, bit for bit.
+    start : MasterState, optional
+        Resume there (with a ``sink``): every FMU initialized as for a new run, then set to
+        its saved state; the sink takes steps ``start.step`` onwards, the same as the
+        uninterrupted run's bit for bit (FMUs that serialize their state whole).
+    checkpoints : Checkpoints, optional
+        Asked after every chunk but the last (with a ``sink``): when due, given the
+        :class:`MasterState` there (every FMU's serialized state).
 
     Returns
     -------
@@ -234,6 +294,8 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
     """
     if coupling not in COUPLINGS:
         raise ValueError(f"coupling {coupling!r} is not one of {', '.join(COUPLINGS)}")
+    if sink is None and (start is not None or checkpoints is not None):
+        raise ValueError("resuming or checkpointing a run needs a sink (its chunks)")
     h = float(system.h)
     used = {c.fmu for c in system.components}
     missing = sorted(used - set(fmus))
@@ -260,6 +322,8 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
                                           f"{comp.name}{instance_suffix}", mds[comp.fmu])
             with np.errstate(over="ignore", invalid="ignore"):      # as in the loop below
                 inst[comp.name].initialize(dict(comp.parameters), T=steps * h)
+        if start is not None:
+            _restore(start, inst, system)
         chunk = chunk_rows(sink, steps)
         rows = chunk + (1 if sink is not None else 0)       # Jacobi reads one row ahead
         rec = {c.name: np.zeros((rows, sum(s.size for s in c.arrays("output"))))
@@ -275,11 +339,19 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
             # the slaves run in this thread: numpy's overflow warnings are not printed (the
             # FMU refuses a non-finite output itself, naming it, in one logged line)
             with np.errstate(over="ignore", invalid="ignore"):
-                initial_reads(plan)
+                if start is None:
+                    initial_reads(plan)
+                elif plan.after:                    # Jacobi: what the next step is fed
+                    for name, row in (start.next_row or {}).items():
+                        rec[name][0] = row
                 give = None if sink is None else (
                     lambda k0, n: sink.take(k0, _split(system, rec, n)))
+                saved = None if checkpoints is None else (
+                    lambda k: checkpoints.save(_state(k, inst, rec, bool(plan.after)))
+                    if checkpoints.due(k) else None)
                 done = _run_chunks(run_native_loop if chosen == "native" else _step_loop,
-                                   plan, rec, steps, chunk, h, bar, stop, give)
+                                   plan, rec, steps, chunk, h, bar, stop, give,
+                                   0 if start is None else start.step, saved)
         except CosimError as exc:
             first = [o.split(".")[0] for o in plan.order] + list(system.names)
             raise _with_origin(exc, [inst[c] for c in dict.fromkeys(first) if c in inst]) \
