@@ -14,6 +14,7 @@ import pytest
 from orchestrator.running.setup import Method, run_statistics, stats_context
 from orchestrator.running.statistics import (
     CHUNK_BYTES,
+    MAX_CHUNK_STEPS,
     MIN_CHUNK_STEPS,
     RunRecorder,
     RunStatistics,
@@ -89,5 +90,6 @@ def test_chunked_saturation_and_turns_equal_the_whole_runs(tmp_path):
 def test_the_chunk_length_is_a_power_of_two_within_the_budget():
     for width in (1, 7, 20, 3001, 10 ** 6):
         n = chunk_steps(width)
-        assert n >= MIN_CHUNK_STEPS and n & (n - 1) == 0
-        assert n == MIN_CHUNK_STEPS or n * 8 * width <= CHUNK_BYTES < 2 * n * 8 * width
+        assert MIN_CHUNK_STEPS <= n <= MAX_CHUNK_STEPS and n & (n - 1) == 0
+        assert n in (MIN_CHUNK_STEPS, MAX_CHUNK_STEPS) or \
+            n * 8 * width <= CHUNK_BYTES < 2 * n * 8 * width

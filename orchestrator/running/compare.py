@@ -19,10 +19,12 @@ from ..analysis.full_information import fleet_bound, fleet_comparison
 from ..analysis.summary import method_summary, stationarity_note, stationary_horizon, versions
 from ..analysis.tracking_segments import segment_summary
 from ..atomic import write_text_atomically
+from ..cosim.master import MasterState, RunResult
 from ..interrupt import StopFlag, stop_on_signals
 from ..outputs import file_stem
 from ..scenario import Scenario
 from . import phases
+from .checkpoint import RunCheckpoint, Saver
 from .fmus import fleet_layout, record_stride
 from .setup import (
     Method,
@@ -50,7 +52,8 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
              record_hz: float | None = None, workers: int | None = None,
              architectures: Sequence[str] | None = None,
              predict: str = "stationary", master: str = "auto",
-             window_from_step: int = 0) -> dict[str, Any]:
+             window_from_step: int = 0, checkpoint_every: float | None = None,
+             resume: RunCheckpoint | None = None) -> dict[str, Any]:
     """Co-simulate each method (estimator ``modes`` x tracking laws ``trackings`` x
     ``architectures``, each default the scenario's) on each seed; write
     ``<out>/<scenario>.rrd`` and summary.json.
@@ -100,6 +103,11 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     window_from_step : int, optional
         The statistics window starts at this sample or later (``compare --what plants``:
         the common window of the plants, each a run of its own).
+    checkpoint_every : float, optional
+        Write a checkpoint of the run in this process every so many wall-clock seconds
+        (:mod:`orchestrator.running.checkpoint`; None or 0: none).
+    resume : RunCheckpoint, optional
+        Go on from this checkpoint: its method and seed resume at its step.
 
     Returns
     -------
@@ -120,9 +128,59 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     # the runs between steps and keep what was simulated
     with BackgroundWriter.take() as writer, stop_on_signals() as stop, \
             seed_pool(sc.steps, len(seeds), len(methods), workers) as pool:
+        options = {"modes": modes, "seeds": list(seeds), "trackings": trackings,
+                   "record_hz": record_hz, "architectures": architectures,
+                   "predict": predict, "master": master, "window_from_step": window_from_step}
+        keeper = _Keeper(out, checkpoint_every, options, resume)
         return _simulate(setup, methods, seeds, out, writer, t0, progress=progress, log=log,
                          record_hz=record_hz, stop=stop, pool=pool,
-                         window_from_step=window_from_step)
+                         window_from_step=window_from_step, keeper=keeper)
+
+
+class _Keeper:
+    """The checkpoints of a command's runs in this process, and the one it resumes
+    (:mod:`orchestrator.running.checkpoint`)."""
+
+    def __init__(self, out: Path, every_s: float | None, options: dict[str, Any],
+                 resume: RunCheckpoint | None):
+        self.out, self.every_s, self.options, self.resume = out, every_s, options, resume
+        self.written = 0                        #: checkpoints written
+        self.seconds = 0.0                      #: spent writing them
+        self.resumed_at: float | None = None    #: the time the resumed run went on from, s
+        self.before = 0.0                       #: loop seconds of the resumed run before
+
+    def prepare(self, sc: Scenario, name: str, seed: int, recorder: RunRecorder
+                ) -> tuple[RunRecorder, MasterState | None, Saver | None]:
+        """The recorder, the master state to start from and the saver of one run."""
+        start = None
+        ck = self.resume
+        if ck is not None and ck.method == name and ck.seed == seed:
+            recorder, start = ck.recorder, ck.master
+            self.resumed_at, self.before = start.step * sc.h, ck.loop_s
+            self.resume = None
+        if not self.every_s:
+            return recorder, start, None
+        t_run = time.perf_counter()
+        before = self.before if start is not None else 0.0
+
+        def make(state: MasterState) -> RunCheckpoint:
+            return RunCheckpoint(sc, self.options, name, seed, state, recorder,
+                                 before + time.perf_counter() - t_run)
+        return recorder, start, Saver(self.out, self.every_s, make)
+
+    def done(self, res: RunResult, saver: Saver | None) -> None:
+        """Count what ``saver`` wrote; a resumed run's loop seconds include those before."""
+        if saver is not None:
+            self.written += saver.count
+            self.seconds += saver.seconds
+        if self.resumed_at is not None and res.info.get("resumed_from_s") is None:
+            res.info["resumed_from_s"] = self.resumed_at
+            res.loop_s += self.before
+
+    def summary(self) -> dict[str, Any]:
+        """summary.json's ``checkpoints``."""
+        return {"every_s": self.every_s or None, "written": self.written,
+                "seconds": self.seconds, "resumed_from_s": self.resumed_at}
 
 
 def _bar(sc: Scenario, runs: int, progress: bool) -> Any:
@@ -177,8 +235,9 @@ def _predictions(setup: RunSetup, methods: list[Method], results: dict[str, Any]
 def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out: Path,
               writer: Any, t0: float, *, progress: bool, log: Callable[[str], None],
               record_hz: float | None, stop: StopFlag, pool: Any = None,
-              window_from_step: int = 0) -> dict[str, Any]:
+              window_from_step: int = 0, keeper: _Keeper | None = None) -> dict[str, Any]:
     sc = setup.sc
+    keeper = keeper or _Keeper(out, None, {}, None)
     for m in methods:
         setup.fmus(m)                       # every FMU in place before the first step
     results: dict[str, Any] = {}
@@ -232,7 +291,10 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
                 continue
             recorder = RunRecorder(RunStatistics(sc, k0, formation),
                                    keep=name not in rrd_runs)
-            res = setup.run(method, seed, progress=bar, stop=stop, recorder=recorder)
+            recorder, start, saver = keeper.prepare(sc, name, seed, recorder)
+            res = setup.run(method, seed, progress=bar, stop=stop, recorder=recorder,
+                            start=start, checkpoints=saver)
+            keeper.done(res, saver)
             masters[name] = res.info["master"]
             if name not in rrd_runs and res.steps:
                 rrd_runs[name] = res.traces
@@ -329,6 +391,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
                    # where the command's time went (orchestrator.running.phases)
                    "phases_s": phases.split(time.perf_counter() - t0)},
         "fmus": _fmu_entries(setup, methods),
+        "checkpoints": keeper.summary(),
         "wall_s": time.perf_counter() - t0,
         "versions": versions(),
     }

@@ -310,7 +310,8 @@ class RunSetup:
 
     def run(self, method: Method, seed: int, *, progress: Any = False, stop: Any = None,
             system: SystemDescription | None = None,
-            recorder: RunRecorder | None = None) -> RunResult:
+            recorder: RunRecorder | None = None, start: Any = None,
+            checkpoints: Any = None) -> RunResult:
         """Co-simulate ``method`` on ``seed`` for the scenario's T; traces in the stacked
         layout, whole, or chunk by chunk to a ``recorder`` as the run goes.
 
@@ -329,6 +330,10 @@ class RunSetup:
             stream, what is kept): the master's buffers hold one chunk
             (:func:`orchestrator.running.statistics.chunk_steps`) whatever T; the result's
             traces are then what the recorder kept.
+        start, checkpoints : optional
+            With a ``recorder``: resume from a saved
+            :class:`~orchestrator.cosim.master.MasterState`, and save one when
+            ``checkpoints`` says it is due (:func:`orchestrator.cosim.master.run_system`).
 
         Returns
         -------
@@ -357,7 +362,8 @@ class RunSetup:
             traces, loop_s, info = run_system(system, fmus, self.sc.steps,
                                               coupling=self.coupling, progress=progress,
                                               stop=stop, master=self.master, sink=sink,
-                                              instance_suffix=f"_{method.estimator}_{seed}")
+                                              instance_suffix=f"_{method.estimator}_{seed}",
+                                              start=start, checkpoints=checkpoints)
             add_phase("loop", loop_s - (sink.seconds if sink is not None else 0.0))
         if recorder is not None:
             add_phase("statistics", sink.seconds)

@@ -31,20 +31,26 @@ from ..analysis.tracking_segments import (
 if TYPE_CHECKING:
     from ..scenario import Scenario
 
-__all__ = ["CHUNK_BYTES", "RunRecorder", "RunStatistics", "chunk_steps"]
+__all__ = ["CHUNK_BYTES", "MAX_CHUNK_STEPS", "MIN_CHUNK_STEPS", "RunRecorder", "RunStatistics",
+           "chunk_steps"]
 
 #: bytes of one chunk of a run's trace buffers (the master's, and each copy made of a
 #: chunk: the stacked layout, what goes to the .rrd writer)
 CHUNK_BYTES = 64 * 2 ** 20
 #: the fewest steps in a chunk
 MIN_CHUNK_STEPS = 64
+#: the most steps in a chunk (checkpoints fall between chunks: a few seconds of a small
+#: system's run)
+MAX_CHUNK_STEPS = 2 ** 14
 
 
 def chunk_steps(width: int) -> int:
     """Steps per chunk of a system of ``width`` values per step: the largest power of two
-    whose chunk stays within :data:`CHUNK_BYTES`, at least :data:`MIN_CHUNK_STEPS`."""
+    whose chunk stays within :data:`CHUNK_BYTES`, between :data:`MIN_CHUNK_STEPS` and
+    :data:`MAX_CHUNK_STEPS`."""
     rows = CHUNK_BYTES // (8 * max(1, int(width)))
-    return max(MIN_CHUNK_STEPS, 1 << max(0, int(rows).bit_length() - 1))
+    return min(MAX_CHUNK_STEPS,
+               max(MIN_CHUNK_STEPS, 1 << max(0, int(rows).bit_length() - 1)))
 
 
 class RunStatistics:
@@ -140,12 +146,23 @@ class RunRecorder:
         rows = len(next(iter(traces.values())))
         if self.keep:
             for k, v in traces.items():
-                if k not in self.kept:
-                    self.kept[k] = np.empty((max(self.planned, k0 + rows),) + v.shape[1:],
-                                            v.dtype)
-                self.kept[k][k0:k0 + rows] = v
+                have = self.kept.get(k)
+                if have is None or have.shape[0] < k0 + rows:
+                    grown = np.empty((max(self.planned, k0 + rows),) + v.shape[1:], v.dtype)
+                    if have is not None:
+                        grown[:self.steps] = have[:self.steps]
+                    self.kept[k] = have = grown
+                have[k0:k0 + rows] = v
         self.steps = k0 + rows
 
     def traces(self) -> dict[str, np.ndarray]:
         """The kept traces (``keep``): every step taken."""
         return {k: v[:self.steps] for k, v in self.kept.items()}
+
+    def __getstate__(self) -> dict[str, Any]:
+        """What a checkpoint holds: the statistics, the steps taken, the kept traces up to
+        there (not the stream: it is saved by its own position)."""
+        state = dict(self.__dict__)
+        state["kept"] = self.traces()
+        state["stream"] = None
+        return state
