@@ -61,7 +61,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                        kind=RUN if every else "") as st:
         summary = simulate(sc, [sc.estimator], [sc.seed], st.path, progress=not args.quiet,
                            log=_log(args, st), predict=options["predict"],
-                           master=options["master"], checkpoint_every=every, resume=resume)
+                           master=options["master"], checkpoint_every=every, resume=resume,
+                           realtime=args.realtime)
         complete = not summary.get("interrupted")
         if complete:                    # a finished run needs no checkpoint
             remove_tree(st.path / CHECKPOINT_DIR)
@@ -236,6 +237,10 @@ def add_run(sub: argparse._SubParsersAction) -> None:
     long.add_argument("--checkpoint-every", type=_seconds, metavar="S",
                       help="write a checkpoint every S wall-clock seconds (default 60: a "
                            "run shorter than a minute writes none; 0: none)")
+    long.add_argument("--realtime", type=_factor, metavar="FACTOR",
+                      help="pace the run to the wall clock: FACTOR simulated seconds per "
+                           "second (1: real time); the overruns (steps that ended late) "
+                           "and the worst lateness are reported")
     long.add_argument("--resume", metavar="OUT",
                       help="go on with the run in OUT from its last checkpoint (after a "
                            "kill or an interruption); the traces and summary equal an "
@@ -251,6 +256,18 @@ def _seconds(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
     if not value >= 0 or math.isinf(value):
         raise argparse.ArgumentTypeError(f"{text!r}: give seconds >= 0 (0: no checkpoints)")
+    return value
+
+
+def _factor(text: str) -> float:
+    """A real-time factor > 0 (argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not value > 0 or math.isinf(value):
+        raise argparse.ArgumentTypeError(f"{text!r}: give simulated seconds per wall-clock "
+                                         "second, a number > 0 (1: real time)")
     return value
 
 

@@ -48,6 +48,7 @@ from fmpy import read_model_description
 
 from .checks import connection_problems, fmu_variables
 from .instance import CosimError, Extracted, FmuInstance
+from .pacing import Pacer
 from .plan import StepPlan, compile_plan, initial_reads, plan_steps
 from .system import SystemDescription
 
@@ -90,16 +91,24 @@ class RunResult:
 
 
 def _step_loop(plan: StepPlan, k0: int, k1: int, h: float, last: int, bar: Any,
-               stop: Any = None, row0: int = 0) -> int:
+               stop: Any = None, row0: int = 0, pacer: Pacer | None = None) -> int:
     """Run macro steps k0 <= k < k1 of the plan (t = k h; step k on buffer row k - row0)
-    in slices of 200 (progress bar, ``stop`` checked between slices); returns the step
+    in slices of 200 (progress bar, ``stop`` checked between slices; with a ``pacer``,
+    one step at a time, each waiting for its wall-clock deadline); returns the step
     reached."""
     run = plan.compiled()
+    if pacer is not None:
+        pacer.begin(k0)
     for a in range(k0, k1, _SLICE):
         if stop:
             return a
         b = min(a + _SLICE, k1)
-        run(a, b, h, last, row0)
+        if pacer is None:
+            run(a, b, h, last, row0)
+        else:
+            for k in range(a, b):
+                run(k, k + 1, h, last, row0)
+                pacer.after(k)
         if bar is not None:
             bar.update(b - a)
     return k1
@@ -172,7 +181,8 @@ def _split(system: SystemDescription, rec: Mapping[str, np.ndarray],
 def _run_chunks(loop: Callable[..., int], plan: StepPlan, rec: Mapping[str, np.ndarray],
                 steps: int, chunk: int, h: float, bar: Any, stop: Any,
                 give: Callable[[int, int], None] | None, start: int = 0,
-                saved: Callable[[int], None] | None = None) -> int:
+                saved: Callable[[int], None] | None = None,
+                pacer: Pacer | None = None) -> int:
     """Steps start .. steps - 1 in chunks of ``chunk`` steps (the grid k = 0, chunk, 2
     chunk, ...) on buffers of chunk (+ 1) rows: chunk [k0, k1) on rows 0 .. k1 - k0 - 1,
     handed to ``give(k0, rows)``; Jacobi's reads after the chunk's last step (row k1 - k0)
@@ -183,7 +193,7 @@ def _run_chunks(loop: Callable[..., int], plan: StepPlan, rec: Mapping[str, np.n
         if stop:
             return k0
         k1 = min((k0 // chunk + 1) * chunk, steps)
-        done = loop(plan, k0, k1, h, steps, bar, stop, k0 if give is not None else 0)
+        done = loop(plan, k0, k1, h, steps, bar, stop, k0 if give is not None else 0, pacer)
         if give is not None and done > k0:
             give(k0, done - k0)
         if done < k1:
@@ -232,7 +242,8 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
                coupling: str = "gauss-seidel", progress: Any = False,
                instance_suffix: str = "", stop: Any = None,
                master: str = "auto", sink: TraceSink | None = None,
-               start: MasterState | None = None, checkpoints: Checkpoints | None = None
+               start: MasterState | None = None, checkpoints: Checkpoints | None = None,
+               realtime: float | None = None
                ) -> tuple[dict[str, np.ndarray], float, dict[str, Any]]:
     """Co-simulate ``system`` for ``steps`` communication steps of ``system.h``.
 
@@ -270,6 +281,9 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
     checkpoints : Checkpoints, optional
         Asked after every chunk but the last (with a ``sink``): when due, given the
         :class:`MasterState` there (every FMU's serialized state).
+    realtime : float, optional
+        Pace the steps to the wall clock, ``realtime`` simulated seconds per second
+        (:mod:`orchestrator.cosim.pacing`); ``info["realtime"]`` then reports the overruns.
 
     Returns
     -------
@@ -325,6 +339,7 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
         if start is not None:
             _restore(start, inst, system)
         chunk = chunk_rows(sink, steps)
+        pacer = None if realtime is None else Pacer(realtime, h)
         rows = chunk + (1 if sink is not None else 0)       # Jacobi reads one row ahead
         rec = {c.name: np.zeros((rows, sum(s.size for s in c.arrays("output"))))
                for c in system.components}
@@ -351,7 +366,9 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
                     if checkpoints.due(k) else None)
                 done = _run_chunks(run_native_loop if chosen == "native" else _step_loop,
                                    plan, rec, steps, chunk, h, bar, stop, give,
-                                   0 if start is None else start.step, saved)
+                                   0 if start is None else start.step, saved, pacer)
+                if pacer is not None:
+                    pacer.finish()
         except CosimError as exc:
             first = [o.split(".")[0] for o in plan.order] + list(system.names)
             raise _with_origin(exc, [inst[c] for c in dict.fromkeys(first) if c in inst]) \
@@ -364,8 +381,11 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
             fmu.close()
         ex.cleanup()
     traces = {} if sink is not None else _split(system, rec, done)
+    more: dict[str, Any] = {}
     calls = [op[7] for op in plan.exchange + plan.after]
-    return traces, loop_s, {"order": plan.order, "steps_done": done,
+    if pacer is not None:
+        more["realtime"] = pacer.report(done)
+    return traces, loop_s, {**more, "order": plan.order, "steps_done": done,
                             "interrupted_by": getattr(stop, "name", None) if stop else None,
                             "master": chosen, "master_reason": reason,
                             "calls_per_step": calls + [

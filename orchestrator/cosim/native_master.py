@@ -123,7 +123,7 @@ def load_library() -> ctypes.CDLL:
         fn.argtypes = [P(_Call), ctypes.c_int32, P(_Step), ctypes.c_int32, P(_Call),
                        ctypes.c_int32, ctypes.c_int64, ctypes.c_int64, ctypes.c_double,
                        ctypes.c_int64, ctypes.c_int64, P(ctypes.c_int32), P(ctypes.c_int64),
-                       P(_Failure)]
+                       P(_Failure), ctypes.c_void_p]
         fn.restype = ctypes.c_int64
         _LIBRARY = lib
         return lib
@@ -193,7 +193,7 @@ def _calls(ops: list[tuple]) -> ctypes.Array:
 
 
 def run_native_loop(plan: Any, k0: int, k1: int, h: float, last: int, bar: Any = None,
-                    stop: Any = None, row0: int = 0) -> int:
+                    stop: Any = None, row0: int = 0, pacer: Any = None) -> int:
     """Run macro steps k0 <= k < k1 of ``plan`` (t = k h, h in s) in the compiled loop,
     step k on buffer row k - ``row0``.
 
@@ -215,6 +215,8 @@ def run_native_loop(plan: Any, k0: int, k1: int, h: float, last: int, bar: Any =
     row0 : int, optional
         The step whose values are in row 0 of the trace buffers (0: a row per step of the
         run; k0: a buffer of one chunk).
+    pacer : Pacer, optional
+        Paces the steps to the wall clock in C (:mod:`orchestrator.cosim.pacing`).
 
     Returns
     -------
@@ -232,13 +234,17 @@ def run_native_loop(plan: Any, k0: int, k1: int, h: float, last: int, bar: Any =
     for i, (do_step, comp, _) in enumerate(plan.stepping):
         stepping[i] = _Step(ctypes.cast(do_step, ctypes.c_void_p).value, comp)
     flag, reached, fail = ctypes.c_int32(0), ctypes.c_int64(k0), _Failure()
+    pace = None
+    if pacer is not None:
+        pacer.begin(k0)
+        pace = ctypes.addressof(pacer.pace)
     out: dict[str, Any] = {}
 
     def work() -> None:
         try:
             out["k"] = fn(exchange, len(plan.exchange), stepping, len(plan.stepping), after,
                           len(plan.after), k0, k1, h, last, row0, ctypes.byref(flag),
-                          ctypes.byref(reached), ctypes.byref(fail))
+                          ctypes.byref(reached), ctypes.byref(fail), pace)
         except BaseException as exc:            # pragma: no cover - ctypes argument errors
             out["error"] = exc
 

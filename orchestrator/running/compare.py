@@ -53,7 +53,8 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
              architectures: Sequence[str] | None = None,
              predict: str = "stationary", master: str = "auto",
              window_from_step: int = 0, checkpoint_every: float | None = None,
-             resume: RunCheckpoint | None = None) -> dict[str, Any]:
+             resume: RunCheckpoint | None = None,
+             realtime: float | None = None) -> dict[str, Any]:
     """Co-simulate each method (estimator ``modes`` x tracking laws ``trackings`` x
     ``architectures``, each default the scenario's) on each seed; write
     ``<out>/<scenario>.rrd`` and summary.json.
@@ -108,6 +109,10 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
         (:mod:`orchestrator.running.checkpoint`; None or 0: none).
     resume : RunCheckpoint, optional
         Go on from this checkpoint: its method and seed resume at its step.
+    realtime : float, optional
+        Pace the runs in this process to the wall clock, ``realtime`` simulated seconds per
+        second (:mod:`orchestrator.cosim.pacing`); the summary's ``realtime`` reports the
+        overruns.
 
     Returns
     -------
@@ -131,7 +136,7 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
         options = {"modes": modes, "seeds": list(seeds), "trackings": trackings,
                    "record_hz": record_hz, "architectures": architectures,
                    "predict": predict, "master": master, "window_from_step": window_from_step}
-        keeper = _Keeper(out, checkpoint_every, options, resume)
+        keeper = _Keeper(out, checkpoint_every, options, resume, realtime)
         return _simulate(setup, methods, seeds, out, writer, t0, progress=progress, log=log,
                          record_hz=record_hz, stop=stop, pool=pool,
                          window_from_step=window_from_step, keeper=keeper)
@@ -142,8 +147,10 @@ class _Keeper:
     (:mod:`orchestrator.running.checkpoint`)."""
 
     def __init__(self, out: Path, every_s: float | None, options: dict[str, Any],
-                 resume: RunCheckpoint | None):
+                 resume: RunCheckpoint | None, realtime: float | None = None):
         self.out, self.every_s, self.options, self.resume = out, every_s, options, resume
+        self.realtime = realtime                #: the pace of the runs (None: as fast as can)
+        self.paced: list[dict[str, Any]] = []   #: each paced run's report
         self.written = 0                        #: checkpoints written
         self.seconds = 0.0                      #: spent writing them
         self.resumed_at: float | None = None    #: the time the resumed run went on from, s
@@ -173,6 +180,8 @@ class _Keeper:
         if saver is not None:
             self.written += saver.count
             self.seconds += saver.seconds
+        if "realtime" in res.info:
+            self.paced.append(res.info["realtime"])
         if self.resumed_at is not None and res.info.get("resumed_from_s") is None:
             res.info["resumed_from_s"] = self.resumed_at
             res.loop_s += self.before
@@ -181,6 +190,18 @@ class _Keeper:
         """summary.json's ``checkpoints``."""
         return {"every_s": self.every_s or None, "written": self.written,
                 "seconds": self.seconds, "resumed_from_s": self.resumed_at}
+
+    def realtime_summary(self) -> dict[str, Any] | None:
+        """summary.json's ``realtime``: the factor, the overruns (steps that ended after
+        their wall-clock deadline) and the worst lateness over the paced runs, their
+        wall-clock and planned seconds; None when not paced."""
+        if not self.paced:
+            return None
+        return {"factor": self.realtime, "runs": len(self.paced),
+                "overruns": sum(p["overruns"] for p in self.paced),
+                "worst_lateness_s": max(p["worst_lateness_s"] for p in self.paced),
+                "wall_s": sum(p["wall_s"] for p in self.paced),
+                "planned_s": sum(p["planned_s"] for p in self.paced)}
 
 
 def _bar(sc: Scenario, runs: int, progress: bool) -> Any:
@@ -293,7 +314,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
                                    keep=name not in rrd_runs)
             recorder, start, saver = keeper.prepare(sc, name, seed, recorder)
             res = setup.run(method, seed, progress=bar, stop=stop, recorder=recorder,
-                            start=start, checkpoints=saver)
+                            start=start, checkpoints=saver, realtime=keeper.realtime)
             keeper.done(res, saver)
             masters[name] = res.info["master"]
             if name not in rrd_runs and res.steps:
@@ -392,6 +413,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
                    "phases_s": phases.split(time.perf_counter() - t0)},
         "fmus": _fmu_entries(setup, methods),
         "checkpoints": keeper.summary(),
+        "realtime": keeper.realtime_summary(),
         "wall_s": time.perf_counter() - t0,
         "versions": versions(),
     }

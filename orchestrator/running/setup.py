@@ -311,7 +311,7 @@ class RunSetup:
     def run(self, method: Method, seed: int, *, progress: Any = False, stop: Any = None,
             system: SystemDescription | None = None,
             recorder: RunRecorder | None = None, start: Any = None,
-            checkpoints: Any = None) -> RunResult:
+            checkpoints: Any = None, realtime: float | None = None) -> RunResult:
         """Co-simulate ``method`` on ``seed`` for the scenario's T; traces in the stacked
         layout, whole, or chunk by chunk to a ``recorder`` as the run goes.
 
@@ -334,6 +334,8 @@ class RunSetup:
             With a ``recorder``: resume from a saved
             :class:`~orchestrator.cosim.master.MasterState`, and save one when
             ``checkpoints`` says it is due (:func:`orchestrator.cosim.master.run_system`).
+        realtime : float, optional
+            Pace the loop to the wall clock (:mod:`orchestrator.cosim.pacing`).
 
         Returns
         -------
@@ -363,7 +365,8 @@ class RunSetup:
                                               coupling=self.coupling, progress=progress,
                                               stop=stop, master=self.master, sink=sink,
                                               instance_suffix=f"_{method.estimator}_{seed}",
-                                              start=start, checkpoints=checkpoints)
+                                              start=start, checkpoints=checkpoints,
+                                              realtime=realtime)
             add_phase("loop", loop_s - (sink.seconds if sink is not None else 0.0))
         if recorder is not None:
             add_phase("statistics", sink.seconds)
