@@ -93,16 +93,17 @@ class RunResult:
 def _step_loop(plan: StepPlan, k0: int, k1: int, h: float, last: int, bar: Any,
                stop: Any = None, row0: int = 0, pacer: Pacer | None = None) -> int:
     """Run macro steps k0 <= k < k1 of the plan (t = k h; step k on buffer row k - row0)
-    in slices of 200 (progress bar, ``stop`` checked between slices; with a ``pacer``,
-    one step at a time, each waiting for its wall-clock deadline); returns the step
-    reached."""
+    in slices ending at multiples of 200 (progress bar, ``stop`` checked between slices;
+    with a ``pacer``, one step at a time, each waiting for its wall-clock deadline);
+    returns the step reached."""
     run = plan.compiled()
     if pacer is not None:
         pacer.begin(k0)
-    for a in range(k0, k1, _SLICE):
+    a = k0
+    while a < k1:                       # slices on the grid of multiples of _SLICE
         if stop:
             return a
-        b = min(a + _SLICE, k1)
+        b = min((a // _SLICE + 1) * _SLICE, k1)
         if pacer is None:
             run(a, b, h, last, row0)
         else:
@@ -111,6 +112,7 @@ def _step_loop(plan: StepPlan, k0: int, k1: int, h: float, last: int, bar: Any,
                 pacer.after(k)
         if bar is not None:
             bar.update(b - a)
+        a = b
     return k1
 
 
