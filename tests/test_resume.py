@@ -73,10 +73,18 @@ def _same_rrd(a: Path, b: Path) -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("args", [
     pytest.param(["--T", "600"], id="stacked-python"),
+    # the native FMUs and the compiled master are paced (--realtime) to be killed mid-run
+    pytest.param(["--T", "600", "--fmus", "native", "--realtime", "200"],
+                 id="stacked-native"),
+    pytest.param(["--scenario", "formation-4-links", "--T", "200"],
+                 id="per-vehicle-links-python"),
+    pytest.param(["--scenario", "formation-4-links", "--T", "200", "--fmus", "native",
+                  "--realtime", "50"], id="per-vehicle-links-native"),
 ])
 def test_a_killed_run_resumes_to_the_uninterrupted_result(tmp_path, args):
     whole = tmp_path / "whole"
-    done = _cli("run", *args, "--quiet", "--out", str(whole), "--checkpoint-every", "0")
+    fast = args[:args.index("--realtime")] if "--realtime" in args else args
+    done = _cli("run", *fast, "--quiet", "--out", str(whole), "--checkpoint-every", "0")
     assert done.returncode == 0, done.stderr
     out = tmp_path / "killed"
     step = _killed_after_a_checkpoint(out, args, seed=len(str(tmp_path)))
@@ -84,6 +92,8 @@ def test_a_killed_run_resumes_to_the_uninterrupted_result(tmp_path, args):
     resumed = _cli("run", "--resume", str(out))
     assert resumed.returncode == 0, resumed.stderr
     assert f"resuming at t = {step * 0.01:g} s" in resumed.stdout
+    if "--fmus" in args:
+        assert "FMUs: native" in resumed.stdout and "master: compiled" in resumed.stdout
     assert _figures(out) == _figures(whole)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["checkpoints"]["resumed_from_s"] == pytest.approx(step * 0.01)
