@@ -5,15 +5,11 @@ with uneven chunks and a chunk of one step; a sink that keeps nothing sees every
 in order; a stop mid-run hands on what ran."""
 from __future__ import annotations
 
-import shutil
-
 import numpy as np
 import pytest
 
 from orchestrator.cosim.master import run_system
-from orchestrator.interop.native import native_system
-from orchestrator.running import build, scenario_system
-from orchestrator.scenario import load_scenario
+from support.masters import on_master, paper_systems
 
 
 class Gather:
@@ -45,13 +41,7 @@ class Stopper:
 
 @pytest.fixture(scope="module")
 def paper(tmp_path_factory):
-    sc = load_scenario("paper").with_run(T=6.0)
-    tmp = tmp_path_factory.mktemp("chunks")
-    system = scenario_system(sc)
-    fmus = build(sc, tmp / "py")
-    native = (native_system(system, fmus, tmp / "native")
-              if shutil.which("cc") is not None else None)
-    return sc, system, fmus, native
+    return paper_systems(tmp_path_factory.mktemp("chunks"), 6.0)
 
 
 def _bits_equal(a: np.ndarray, b: np.ndarray) -> bool:
@@ -63,11 +53,8 @@ def _bits_equal(a: np.ndarray, b: np.ndarray) -> bool:
 @pytest.mark.parametrize("chunk", [1, 7, 64])
 def test_a_chunked_run_gives_the_whole_runs_traces_bit_for_bit(paper, coupling, master,
                                                                chunk):
-    sc, system, fmus, native = paper
-    if master == "native":
-        if native is None:
-            pytest.skip("no C compiler (cc) for the native FMUs and the compiled master")
-        system, fmus = native.system, native.fmus
+    sc = paper[0]
+    system, fmus = on_master(paper, master)
     steps = sc.steps
     ref, _, _ = run_system(system, fmus, steps, coupling=coupling, master=master)
     sink = Gather(chunk)
@@ -86,11 +73,8 @@ def test_a_chunked_run_gives_the_whole_runs_traces_bit_for_bit(paper, coupling, 
 
 @pytest.mark.parametrize("master", ["python", "native"])
 def test_a_stop_hands_on_the_steps_that_ran(paper, master):
-    sc, system, fmus, native = paper
-    if master == "native":
-        if native is None:
-            pytest.skip("no C compiler (cc) for the native FMUs and the compiled master")
-        system, fmus = native.system, native.fmus
+    sc = paper[0]
+    system, fmus = on_master(paper, master)
     stop = Stopper()
 
     class StopAfterTwo(Gather):
@@ -125,11 +109,8 @@ class SaveAt:
 @pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
 @pytest.mark.parametrize("master", ["python", "native"])
 def test_a_run_resumed_from_a_saved_state_continues_bit_for_bit(paper, coupling, master):
-    sc, system, fmus, native = paper
-    if master == "native":
-        if native is None:
-            pytest.skip("no C compiler (cc) for the native FMUs and the compiled master")
-        system, fmus = native.system, native.fmus
+    sc = paper[0]
+    system, fmus = on_master(paper, master)
     whole, save = Gather(50), SaveAt(250)
     run_system(system, fmus, sc.steps, coupling=coupling, master=master, sink=whole,
                checkpoints=save)

@@ -5,7 +5,6 @@ lateness reported; ``run --realtime`` prints and writes it. Real FMUs, both mast
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 import sys
 import time
@@ -14,29 +13,19 @@ import pytest
 
 from orchestrator.cosim.master import run_system
 from orchestrator.cosim.pacing import Pacer
-from orchestrator.interop.native import native_system
-from orchestrator.running import build, scenario_system
-from orchestrator.scenario import load_scenario
+from support.masters import on_master, paper_systems
 
 
 @pytest.fixture(scope="module")
 def paper(tmp_path_factory):
-    sc = load_scenario("paper").with_run(T=2.0)
-    tmp = tmp_path_factory.mktemp("pacing")
-    system, fmus = scenario_system(sc), build(sc, tmp / "py")
-    native = (native_system(system, fmus, tmp / "native")
-              if shutil.which("cc") is not None else None)
-    return sc, system, fmus, native
+    return paper_systems(tmp_path_factory.mktemp("pacing"), 2.0)
 
 
 @pytest.mark.parametrize("master", ["python", "native"])
 @pytest.mark.parametrize("factor", [1.0, 4.0])
 def test_a_paced_run_keeps_to_the_wall_clock(paper, master, factor):
-    sc, system, fmus, native = paper
-    if master == "native":
-        if native is None:
-            pytest.skip("no C compiler (cc) for the native FMUs and the compiled master")
-        system, fmus = native.system, native.fmus
+    sc = paper[0]
+    system, fmus = on_master(paper, master)
     t0 = time.monotonic()
     _, _, info = run_system(system, fmus, sc.steps, master=master, realtime=factor)
     elapsed = time.monotonic() - t0

@@ -79,23 +79,9 @@ class FormationSums:
 
 def formation_stats(x: np.ndarray, position_index: np.ndarray, offsets: np.ndarray,
                     edges: Any, k0: int, h: float) -> dict[str, Any]:
-    """Formation figures of one run (module docstring): :class:`FormationSums` over the
-    whole run at once.
-
-    Parameters
-    ----------
-    x : np.ndarray
-        Stacked vehicle states, shape (steps, n).
-    position_index : np.ndarray
-        (N, 3) int: the columns of x holding vehicle i's north, east, down position.
-    offsets : np.ndarray
-        (N, 3): formation offsets delta_i, m.
-    edges : Any
-        Communication edges (j, i), 1-based: vehicle i hears vehicle j.
-    k0 : int
-        First sample of the statistics window.
-    h : float
-        Sampling period, s (for the time of the closest approach).
+    """Formation figures of one run (module docstring): :class:`FormationSums` (its
+    parameters) over the whole run at once, ``x`` the stacked vehicle states, shape
+    (steps, n).
 
     Returns
     -------

@@ -19,14 +19,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..analysis import tracking_segments as segments
 from ..analysis.formation import FormationSums
 from ..analysis.summary import TraceSums
-from ..analysis.tracking_segments import (
-    TURN_RATE,
-    SegmentSums,
-    force_saturation,
-    leader_turn_rate,
-)
 
 if TYPE_CHECKING:
     from ..scenario import Scenario
@@ -74,7 +69,7 @@ class RunStatistics:
         if formation is not None:
             index, offsets, edges, h = formation
             self.formation = FormationSums(index, offsets, edges, k0, h)
-            self.segments = SegmentSums()
+            self.segments = segments.SegmentSums()
             leader = sc.fleet["leader"]
             self.F, self.H = (np.asarray(leader[k], float) for k in ("F", "H"))
             self.u_max = (sc.design.u_max if sc.design is not None and sc.design.clip
@@ -91,8 +86,9 @@ class RunStatistics:
             self.formation.add(start, traces["x"])
             sat = traces.get("saturated")
             if self.u_max is not None:                   # the controllers' force limit
-                sat = force_saturation(traces["u"], self.u_max, sat)
-            turning = np.abs(leader_turn_rate(traces["z"], self.F, self.H)) > TURN_RATE
+                sat = segments.force_saturation(traces["u"], self.u_max, sat)
+            turning = (np.abs(segments.leader_turn_rate(traces["z"], self.F, self.H))
+                       > segments.TURN_RATE)
             self.segments.add(e[w:], turning[w:], None if sat is None else sat[w:])
         ages = traces.get("link_age")
         if ages is not None and ages.shape[0] > w:
