@@ -52,7 +52,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"resuming at t = {resume.master.step * sc.h:g} s of {sc.T:g} s "
               f"(checkpoint of {when})")
     options = resume.options if resume is not None else {"predict": args.predict,
-                                                         "master": args.master or "auto"}
+                                                         "master": args.master or "auto",
+                                                         "record_hz": args.record_hz}
     check_run(sc, predict=options["predict"])   # every check, before anything is created
     every = DEFAULT_EVERY_S if args.checkpoint_every is None else args.checkpoint_every
     out = args.resume or args.out or default_out(sc, sc.estimator, f"seed{sc.seed}")
@@ -62,7 +63,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         summary = simulate(sc, [sc.estimator], [sc.seed], st.path, progress=not args.quiet,
                            log=_log(args, st), predict=options["predict"],
                            master=options["master"], checkpoint_every=every, resume=resume,
-                           realtime=args.realtime)
+                           realtime=args.realtime, record_hz=options.get("record_hz"))
         complete = not summary.get("interrupted")
         if complete:                    # a finished run needs no checkpoint
             remove_tree(st.path / CHECKPOINT_DIR)
@@ -80,7 +81,7 @@ def _resumed(args: argparse.Namespace) -> Any:
     changed = [f"--{k.replace('_', '-')}" for k in ("estimator", "seed", "tracking", "fmus",
                                                     "master", "deployment", "architecture",
                                                     "latency", "period", "loss", "receiver",
-                                                    "T", "h", "out")
+                                                    "T", "h", "out", "record_hz")
                if getattr(args, k, None) is not None]
     if args.scenario != "paper":
         changed.insert(0, "--scenario")
@@ -124,7 +125,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         summary = simulate(sc, modes, args.seeds, st.path, progress=not args.quiet,
                            log=_log(args, st), trackings=trackings,
                            workers=args.workers, architectures=architectures,
-                           predict=args.predict, master=args.master or "auto")
+                           predict=args.predict, master=args.master or "auto",
+                           record_hz=args.record_hz)
         out = st.finish(complete=not summary.get("interrupted"))
     return print_summary(st.relocate(summary), out, st.note)
 
@@ -272,10 +274,14 @@ def _factor(text: str) -> float:
 
 
 def _add_run_outputs(sp: argparse.ArgumentParser, default_out: str) -> None:
-    """--out, --force and --predict of run and compare."""
+    """--out, --force, --predict and --record-hz of run and compare."""
     sp.add_argument("--out", help=f"output folder (default: {default_out})")
     add_force_option(sp)
     add_predict_option(sp)
+    sp.add_argument("--record-hz", type=_factor, metavar="HZ",
+                    help="samples per second of simulated time in the .rrd (default: every "
+                         "step for a single system, 20 for a fleet); every step is still "
+                         "simulated and in the statistics")
 
 
 def add_compare(sub: argparse._SubParsersAction) -> None:
