@@ -1,0 +1,474 @@
+"""Write a .rrd chunk by chunk as a run goes, in bounded memory: :class:`RrdStream`.
+
+A stream is opened on the run's methods; the master sends each method's traces in chunks of
+steps (every simulated step, the layout :func:`~orchestrator.recording.writer.write_rrd`
+takes), the methods one after the other, and closes it. Each chunk is written to the file at
+once, to a temporary name in the same folder (``.{name}.{pid}.part``) that :meth:`close`
+renames to the final one (``os.replace``): the final name never holds a half-written file,
+and an earlier run's file there stays until the rename. :meth:`abort` (or an exception in a
+``with`` block) removes the temporary file.
+
+What is recorded does not depend on the chunks: samples are chosen by global step (k % stride
+== 0 for the series and the 3D scene; edges, trails and the leader's path as
+:mod:`.scene` says), so the same traces sent in one chunk or in many give the same file
+contents. What needs the whole run is kept as it goes, bounded, and written at :meth:`close`:
+the default blueprint (its y ranges and camera from running minima and maxima of every trace
+column; in the paper layout, whose views also count how many estimate samples leave the true
+signal's range, from the traces themselves up to :data:`SAMPLE_ROWS` steps, then from every
+2nd, 4th, ... step plus the exact extremes), the legends, the actuator limits and the
+leader's whole path. The blueprint is sent at the close, not first: its ranges, the views it
+leaves an estimate out of, and its panels (actuators, links) are only known then, and a file
+is read whole by the viewer, so it makes no difference there; a live viewer sees the
+data at once and the blueprint at the end.
+
+Memory: the traces of one chunk (the caller's), a few rows per trace column, the sample of
+the paper layout (at most :data:`SAMPLE_ROWS` rows of its few columns per method) and the
+leader's path (at most :data:`~orchestrator.recording.scene.PATH_POINTS` points per method).
+Each chunk is flushed to the file before :meth:`send` returns, so nothing queues in Rerun's
+sink. The file's footer (a manifest of Rerun chunks that the reader and the viewer use)
+grows with the number of chunks x entities, about 100 bytes each.
+"""
+from __future__ import annotations
+
+import os
+import time
+import uuid
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rerun as rr
+
+from .actuators import DEFAULT_DELTA_MAX, DEFAULT_N_MAX, send_limits
+from .blueprint import LEGEND_ENTITY, _blueprint, _fleet_blueprint
+from .layout import FLEET_TRACE_KEYS, TRACE_KEYS, FleetLayout, _Fleet, method_color
+from .network import LINK_KEYS, LINKS_LEGEND_ENTITY, links_legend, send_links
+from .scene import WorldStream, leader_position, time_columns
+from .validation import (
+    _method_name,
+    _positive_int,
+    _positive_ns,
+    _step_ns,
+    _validate,
+    _validate_fleet,
+)
+from .writer import (
+    _ACTUATOR_KEYS,
+    _fleet_legend,
+    _paper_legend,
+    _send_fleet_series,
+    _send_paper,
+)
+
+__all__ = ["SAMPLE_ROWS", "RrdStream"]
+
+#: steps of every trace kept whole for the paper layout's blueprint; beyond, every 2nd,
+#: 4th, ... step (by global step, so the same whatever the chunks)
+SAMPLE_ROWS = 1 << 15
+
+
+class _StaticOnce:
+    """The recording, logging each entity's static style only the first time (the series
+    writers log it with every chunk)."""
+
+    def __init__(self, rec: rr.RecordingStream) -> None:
+        self.rec = rec
+        self._seen: set[tuple[str, type]] = set()
+
+    def log(self, entity: str, data: Any, *args: Any, static: bool = False,
+            **kwargs: Any) -> None:
+        if static:
+            key = (entity, type(data))
+            if key in self._seen:
+                return
+            self._seen.add(key)
+        self.rec.log(entity, data, *args, static=static, **kwargs)
+
+    def send_columns(self, *args: Any, **kwargs: Any) -> None:
+        self.rec.send_columns(*args, **kwargs)
+
+
+class _Summary:
+    """What the blueprint needs of one method's traces, kept as they come: per column the
+    minimum and maximum (NaN if any value is) and the minimum and maximum of the finite
+    values; with ``sample``, the rows of every ``every``-th step (global), ``every``
+    doubling while more than :data:`SAMPLE_ROWS` are kept."""
+
+    def __init__(self, sample: bool) -> None:
+        self.sample = sample
+        self.every = 1
+        self.ext: dict[str, list[np.ndarray]] = {}          # pmin, pmax, fmin, fmax, finite
+        self.rows: dict[str, list[np.ndarray]] = {}
+        self.ks: list[np.ndarray] = []
+        self.leader: list[np.ndarray] = []                   # leader (min, max), fleets
+
+    def add(self, k0: int, traces: Mapping[str, np.ndarray]) -> None:
+        for key, a in traces.items():
+            fin = np.isfinite(a)
+            new = [a.min(axis=0), a.max(axis=0), np.where(fin, a, np.inf).min(axis=0),
+                   np.where(fin, a, -np.inf).max(axis=0), fin.any(axis=0)]
+            old = self.ext.get(key)
+            self.ext[key] = new if old is None else [
+                np.minimum(old[0], new[0]), np.maximum(old[1], new[1]),
+                np.minimum(old[2], new[2]), np.maximum(old[3], new[3]), old[4] | new[4]]
+        if not self.sample:
+            return
+        ks = np.arange(k0, k0 + next(iter(traces.values())).shape[0], dtype=np.int64)
+        keep = ks % self.every == 0
+        self.ks.append(ks[keep])
+        for key, a in traces.items():
+            self.rows.setdefault(key, []).append(a[keep])
+        while sum(k.size for k in self.ks) > SAMPLE_ROWS:
+            self.every *= 2
+            ks = np.concatenate(self.ks)
+            keep = ks % self.every == 0
+            self.ks = [ks[keep]]
+            self.rows = {key: [np.concatenate(v)[keep]] for key, v in self.rows.items()}
+
+    def add_leader(self, lead: np.ndarray) -> None:
+        new = [lead.min(axis=0), lead.max(axis=0)]
+        self.leader = new if not self.leader else [np.minimum(self.leader[0], new[0]),
+                                                   np.maximum(self.leader[1], new[1])]
+
+    def extremes(self, key: str) -> np.ndarray:
+        """(4, dim): minimum, maximum, finite minimum, finite maximum (a column without a
+        finite value: its minimum and maximum), so that ``np.min``/``np.max`` and the finite
+        extremes of this array are those of the whole column."""
+        pmin, pmax, fmin, fmax, finite = self.ext[key]
+        return np.vstack([pmin, pmax, np.where(finite, fmin, pmin), np.where(finite, fmax, pmax)])
+
+    def compact(self) -> dict[str, np.ndarray]:
+        """Stand-ins for the whole traces: the traces themselves while every step is kept,
+        else the kept rows and the extremes."""
+        out = {}
+        for key in self.ext:
+            if self.sample and self.every == 1:
+                out[key] = np.concatenate(self.rows[key])
+            elif self.sample:
+                out[key] = np.vstack([np.concatenate(self.rows[key]), self.extremes(key)])
+            else:
+                out[key] = self.extremes(key)
+        return out
+
+
+class _Run:
+    """One method's state in the stream."""
+
+    def __init__(self, index: int, k0: int, dims: dict[str, int], sample: bool) -> None:
+        self.index, self.next_k, self.dims = index, k0, dims
+        self.summary = _Summary(sample)
+        self.world: WorldStream | None = None
+        self.counted = False
+        self.last_recorded = -1
+
+
+class RrdStream:
+    """A .rrd written chunk by chunk (module docstring).
+
+    Parameters
+    ----------
+    path : str or Path
+        The final .rrd file (replaced by :meth:`close`).
+    methods : Sequence[str]
+        The methods that may be sent, in their legend and colour order.
+    h : float
+        Step, s (> 0); times are stored as round(h * 1e9) integer nanoseconds.
+    recording_name, application_id, fleet, stride, scene_stride, trail_seconds, \
+trail_sample_seconds, links
+        As :func:`~orchestrator.recording.writer.write_rrd`.
+
+    Raises
+    ------
+    ValueError
+        A bad argument (as :func:`~orchestrator.recording.writer.write_rrd`); nothing is
+        written then.
+    RuntimeError
+        If Rerun logging is disabled (``RERUN=off``).
+    """
+
+    def __init__(self, path: str | Path, methods: Sequence[str], h: float, *,
+                 recording_name: str, fleet: FleetLayout | None = None, stride: int = 1,
+                 scene_stride: int | None = None, trail_seconds: float = 60.0,
+                 trail_sample_seconds: float = 0.5,
+                 links: Mapping[str, Sequence[str]] | None = None,
+                 application_id: str = "auv-cosim") -> None:
+        t0 = time.perf_counter()
+        self.methods = [_method_name(m) for m in methods]
+        if not self.methods or len(set(self.methods)) != len(self.methods):
+            raise ValueError(f"write_rrd: methods must be distinct names, at least one, got "
+                             f"{list(methods)!r}")
+        self.h_ns = _step_ns(h)
+        self.h = float(h)
+        self.stride = _positive_int(stride, "stride")
+        if scene_stride is not None:
+            scene_stride = _positive_int(scene_stride, "scene_stride")
+            if scene_stride % self.stride:
+                raise ValueError(f"write_rrd: scene_stride = {scene_stride} must be a multiple "
+                                 f"of stride = {self.stride}")
+        self.fleet_layout = fleet
+        self.keys = FLEET_TRACE_KEYS if fleet is not None else TRACE_KEYS
+        if fleet is not None:
+            self.trail_ns, sample_ns = (_positive_ns(v, name) for v, name in (
+                (trail_seconds, "trail_seconds"),
+                (trail_sample_seconds, "trail_sample_seconds")))
+            # ceil: the step range covers at least trail_seconds
+            self.trail_steps = -(-self.trail_ns // self.h_ns)
+            self.trail_stride = self.stride * max(1, round(sample_ns / (self.stride * self.h_ns)))
+            self.scene_stride = self.trail_stride if scene_stride is None else scene_stride
+        self.links = {m: list(v) for m, v in links.items()} if links else {}
+        self.colors = method_color(self.methods)
+        self.path = Path(path)
+        self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.part")
+        self._fleet: _Fleet | None = None
+        self._runs: dict[str, _Run] = {}
+        self._current: str | None = None
+        self.signals = 0
+        self._open = False
+        rec = rr.RecordingStream(application_id, recording_id=uuid.uuid4())
+        if not rec.is_enabled():
+            raise RuntimeError("write_rrd: Rerun logging is disabled (RERUN env var?); refusing "
+                               "to write an empty .rrd")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._rec = rec
+        self.rec = _StaticOnce(rec)
+        self._open = True
+        try:
+            rec.save(self.tmp)
+            rec.send_recording_name(recording_name)
+            if fleet is not None:
+                rec.log("world", rr.ViewCoordinates.FRD, static=True)
+        except BaseException:
+            self.abort()
+            raise
+        self.seconds = time.perf_counter() - t0
+
+    # -- sending --------------------------------------------------------------------------
+
+    def _clean(self, method: str, traces: Mapping[str, Any]) -> dict[str, np.ndarray] | None:
+        """The chunk's traces as float64 (the layout's keys, the actuator and link keys
+        present), checked; None for a chunk of no steps."""
+        if isinstance(traces, Mapping):
+            first = traces.get(self.keys[0])
+            if first is not None and np.ndim(first) == 2 and np.shape(first)[0] == 0:
+                return None
+        clean = _validate({method: traces}, self.h, self.keys)[0][method]
+        steps = clean[self.keys[0]].shape[0]
+        extra = [k for k in _ACTUATOR_KEYS if k in traces]
+        if method in self.links:
+            missing = [k for k in LINK_KEYS if k not in traces]
+            if missing:
+                raise ValueError(f"write_rrd: run {method!r} over links is missing trace "
+                                 f"key(s) {', '.join(map(repr, missing))}")
+            extra += list(LINK_KEYS)
+        for key in extra:
+            arr = np.asarray(traces[key], dtype=np.float64)
+            if arr.ndim != 2 or arr.shape[0] != steps:
+                raise ValueError(f"write_rrd: run {method!r} trace {key!r} has shape "
+                                 f"{arr.shape}, expected ({steps}, ...)")
+            clean[key] = arr
+        return clean
+
+    def send(self, method: str, k0: int, traces: Mapping[str, Any]) -> None:
+        """Write rows k0 .. k0 + n - 1 (every simulated step) of one method's traces.
+
+        Parameters
+        ----------
+        method : str
+            One of the stream's methods. All chunks of a method come before those of the
+            next; a method whose chunks ended (another was sent since) cannot be sent again.
+        k0 : int
+            Global step of the first row; the method's first chunk may start anywhere
+            (>= 0), each later one where the previous ended.
+        traces : Mapping[str, array]
+            Trace key -> array (n, dim), the keys and shapes of
+            :func:`~orchestrator.recording.writer.write_rrd` (the actuator traces and, for a
+            method over links, the link traces too); the same dims in every chunk.
+            A chunk of no rows is ignored.
+
+        Raises
+        ------
+        ValueError
+            A bad chunk (the stream stays usable), an unknown or finished method, or a gap.
+        RuntimeError
+            If the stream is closed or aborted.
+        """
+        if not self._open:
+            raise RuntimeError(f"RrdStream {self.path}: send after close or abort")
+        t0 = time.perf_counter()
+        if method not in self.colors:
+            raise ValueError(f"write_rrd: method {method!r} is not one of the stream's "
+                             f"{self.methods}")
+        if isinstance(k0, (bool, np.bool_)) or not isinstance(k0, (int, np.integer)) or k0 < 0:
+            raise ValueError(f"write_rrd: k0 must be a step number >= 0, got {k0!r}")
+        k0 = int(k0)
+        run = self._runs.get(method)
+        if run is not None and method != self._current:
+            raise ValueError(f"write_rrd: method {method!r} was finished (its chunks must "
+                             f"come before the next method's)")
+        if run is not None and k0 != run.next_k:
+            raise ValueError(f"write_rrd: method {method!r} chunk starts at step {k0}, the "
+                             f"previous one ended at {run.next_k - 1}")
+        clean = self._clean(method, traces)
+        if clean is None:
+            return
+        dims = {k: v.shape[1] for k, v in clean.items()}
+        if run is None:
+            fleet = None
+            if self.fleet_layout is not None:
+                fleet = _validate_fleet(self.fleet_layout, {method: clean})
+            self._finish_current()
+            run = _Run(self.methods.index(method), k0, dims, sample=fleet is None)
+            if fleet is not None:
+                self._fleet = self._fleet or fleet
+                run.world = WorldStream(self.rec, method, self._fleet, self.h_ns, self.stride,
+                                        self.scene_stride, self.trail_stride)
+            self._runs[method] = run
+            self._current = method
+        elif dims != run.dims:
+            raise ValueError(f"write_rrd: method {method!r} chunk has trace columns {dims}, "
+                             f"its first chunk had {run.dims}")
+        try:
+            self._write(method, run, k0, clean)
+        except BaseException:
+            self.abort()
+            raise
+        self.seconds += time.perf_counter() - t0
+
+    def _write(self, method: str, run: _Run, k0: int, clean: dict[str, np.ndarray]) -> None:
+        steps = clean[self.keys[0]].shape[0]
+        run.summary.add(k0, clean)
+        first = k0 + (-k0) % self.stride                      # first recorded step
+        ks = np.arange(first, k0 + steps, self.stride, dtype=np.int64)
+        if ks.size:
+            indexes = time_columns(ks, self.h_ns)
+            recorded = {k: v[first - k0:] for k, v in clean.items()}
+            if self._fleet is None:
+                lines = _send_paper(self.rec, method, recorded, self.colors, self.stride,
+                                    indexes)
+            else:
+                lines = _send_fleet_series(self.rec, method, recorded, self._fleet,
+                                           run.index, self.stride, indexes)
+                if method in self.links:
+                    lines += send_links(self.rec, method, recorded, self.links[method],
+                                        self.stride, indexes, run.index, n=self._fleet.n)
+            if not run.counted:
+                self.signals += lines
+                run.counted = True
+            run.last_recorded = int(ks[-1])
+        if run.world is not None:
+            assert self._fleet is not None
+            run.summary.add_leader(leader_position(clean["z"], self._fleet.leader_output))
+            run.world.send(k0, clean)
+        run.next_k = k0 + steps
+        self._rec.flush()
+
+    def _finish_current(self) -> None:
+        """The current method's scene rows that wait for its end (:meth:`WorldStream.close`)."""
+        run = self._runs.get(self._current) if self._current is not None else None
+        if run is not None and run.world is not None:
+            run.world.close()
+            run.world = None
+
+    # -- closing --------------------------------------------------------------------------
+
+    def close(self, last_step: int | None = None) -> dict[str, float]:
+        """Write what needs the whole run (blueprint, legends, limits, the scene's last rows)
+        and rename the file to its final name.
+
+        Parameters
+        ----------
+        last_step : int or None, optional
+            The run's last step, if known (>= every step sent): the actuator limits are drawn
+            up to the last recorded step at or before it. None: the last step sent.
+
+        Returns
+        -------
+        dict[str, float]
+            ``rrd_s`` (wall-clock seconds spent in the stream's calls), ``signals`` (scalar
+            series written, counted as :func:`~orchestrator.recording.writer.write_rrd`
+            does) and ``bytes`` (the file's size).
+
+        Raises
+        ------
+        ValueError
+            If nothing was sent, or ``last_step`` is before a step sent; the temporary file
+            is removed then.
+        RuntimeError
+            If the stream is closed or aborted.
+        """
+        if not self._open:
+            raise RuntimeError(f"RrdStream {self.path}: close after close or abort")
+        t0 = time.perf_counter()
+        try:
+            sent = [m for m in self.methods if m in self._runs
+                    and self._runs[m].last_recorded >= 0]
+            if not sent:
+                raise ValueError("write_rrd: no recorded step was sent; nothing to write")
+            last = max(r.next_k - 1 for r in self._runs.values())
+            if last_step is not None:
+                if int(last_step) < last:
+                    raise ValueError(f"write_rrd: last_step = {last_step} is before step "
+                                     f"{last}, which was sent")
+                last = int(last_step)
+            self._finish_current()
+            self._closing_rows(sent, last)
+            self._rec.flush()
+        except BaseException:
+            self.abort()
+            raise
+        # Dropping the file sink finishes the file (footer + manifest) before returning.
+        self._rec.disconnect()
+        del self._rec, self.rec
+        self._open = False
+        os.replace(self.tmp, self.path)
+        self.seconds += time.perf_counter() - t0
+        return {"rrd_s": self.seconds, "signals": self.signals,
+                "bytes": self.path.stat().st_size}
+
+    def _closing_rows(self, sent: list[str], last: int) -> None:
+        rec = self.rec
+        compact = {m: self._runs[m].summary.compact() for m in sent}
+        if self._fleet is None:
+            rec.log(LEGEND_ENTITY, rr.TextDocument(_paper_legend(sent, self.colors),
+                                                   media_type=rr.MediaType.MARKDOWN), static=True)
+            blueprint = _blueprint(compact)
+        else:
+            actuators = any("rpm" in compact[m] for m in sent)
+            rec.log(LEGEND_ENTITY, rr.TextDocument(_fleet_legend(sent, self._fleet, actuators),
+                                                   media_type=rr.MediaType.MARKDOWN), static=True)
+            with_links = [m for m in sent if m in self.links]
+            if with_links:
+                rec.log(LINKS_LEGEND_ENTITY, rr.TextDocument(
+                    links_legend(with_links), media_type=rr.MediaType.MARKDOWN), static=True)
+            if actuators:
+                ends = np.array([0, last // self.stride * self.stride], dtype=np.int64)
+                send_limits(rec, time_columns(ends, self.h_ns),
+                            self._fleet.n_max or DEFAULT_N_MAX,
+                            self._fleet.delta_max or DEFAULT_DELTA_MAX)
+            points = np.concatenate([np.vstack([
+                compact[m]["x"][:, self._fleet.position_index].reshape(-1, 3),
+                *self._runs[m].summary.leader]) for m in sent])
+            blueprint = _fleet_blueprint(sent, self._fleet, self.trail_ns, self.trail_steps,
+                                         compact, links={m: self.links[m] for m in with_links}
+                                         or None, points=points)
+        self._rec.send_blueprint(blueprint, make_active=False, make_default=True)
+
+    def abort(self) -> None:
+        """Stop writing and remove the temporary file (the final name is left as it was).
+        Does nothing after :meth:`close` or a first abort."""
+        if not self._open:
+            return
+        self._open = False
+        try:
+            self._rec.disconnect()
+        finally:
+            del self._rec, self.rec
+            self.tmp.unlink(missing_ok=True)
+
+    def __enter__(self) -> RrdStream:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        """Aborts a stream that was not closed (an exception, or no :meth:`close`)."""
+        self.abort()
