@@ -59,8 +59,10 @@ def contents(path):
     return {k: sorted(v, key=lambda r: r[0]) for k, v in temporal.items()}, static
 
 
-def send_in_chunks(path, runs, h, cuts, **kwargs):
-    with RrdStream(path, list(runs), h, **kwargs) as stream:
+def send_in_chunks(path, runs, h, cuts, chunk_rows=1, **kwargs):
+    """``runs`` sent in the chunks ``cuts`` makes; written as each is sent (chunk_rows=1) or
+    gathered into blocks of ``chunk_rows`` recorded rows."""
+    with RrdStream(path, list(runs), h, chunk_rows=chunk_rows, **kwargs) as stream:
         for method, traces in runs.items():
             steps = next(iter(traces.values())).shape[0]
             bounds = [0, *[c for c in cuts if c < steps], steps]
@@ -97,12 +99,12 @@ def fleet_runs_with_links_and_actuators():
     return runs
 
 
-@pytest.mark.parametrize("stride", [1, 3])
-def test_paper_layout_one_chunk_or_seven(tmp_path, stride):
+@pytest.mark.parametrize("stride,chunk_rows", [(1, 1), (3, 1), (3, 25)])
+def test_paper_layout_one_chunk_or_seven(tmp_path, stride, chunk_rows):
     runs = make_runs()
     kw = dict(recording_name="chunks", stride=stride)
     one = write_rrd(tmp_path / "one.rrd", runs, H, **kw)
-    many = send_in_chunks(tmp_path / "many.rrd", runs, H, PAPER_CUTS, **kw)
+    many = send_in_chunks(tmp_path / "many.rrd", runs, H, PAPER_CUTS, chunk_rows, **kw)
     assert one["signals"] == many["signals"]
     assert_same_files(tmp_path / "one.rrd", tmp_path / "many.rrd")
     got = read_rrd_scalars(tmp_path / "many.rrd")
@@ -111,14 +113,14 @@ def test_paper_layout_one_chunk_or_seven(tmp_path, stride):
         assert np.array_equal(got[name][2], values[::stride]), name
 
 
-@pytest.mark.parametrize("stride", [1, 3])
-def test_fleet_with_links_one_chunk_or_seven(tmp_path, stride):
+@pytest.mark.parametrize("stride,chunk_rows", [(1, 1), (3, 1), (3, 25)])
+def test_fleet_with_links_one_chunk_or_seven(tmp_path, stride, chunk_rows):
     runs = fleet_runs_with_links_and_actuators()
     kw = dict(recording_name="chunks", fleet=make_fleet(), trail_seconds=TRAIL_S,
               trail_sample_seconds=TRAIL_SAMPLE_S, stride=stride,
               links={m: LINKS for m in runs})
     one = write_rrd(tmp_path / "one.rrd", runs, FLEET_H, **kw)
-    many = send_in_chunks(tmp_path / "many.rrd", runs, FLEET_H, FLEET_CUTS, **kw)
+    many = send_in_chunks(tmp_path / "many.rrd", runs, FLEET_H, FLEET_CUTS, chunk_rows, **kw)
     assert one["signals"] == many["signals"]
     temporal, static = contents(tmp_path / "many.rrd")
     # the scene, links and actuators are there
@@ -146,7 +148,7 @@ def test_an_interrupted_run_records_what_was_sent(tmp_path):
     """The second method stops early: close() writes both, each as far as it was sent."""
     runs = make_fleet_runs()
     with RrdStream(tmp_path / "cut.rrd", list(runs), FLEET_H, recording_name="cut",
-                   fleet=make_fleet(), stride=2) as stream:
+                   fleet=make_fleet(), stride=2, chunk_rows=10) as stream:
         stream.send("kalman", 0, runs["kalman"])
         stream.send("classical", 0, {k: v[:50] for k, v in runs["classical"].items()})
         stream.send("classical", 50, {k: v[50:77] for k, v in runs["classical"].items()})
@@ -163,7 +165,7 @@ def test_the_final_name_holds_a_whole_file_or_the_earlier_one(tmp_path):
     path = tmp_path / "run.rrd"
     path.write_bytes(b"earlier run")
     runs = make_runs()
-    stream = RrdStream(path, list(runs), H, recording_name="atomic")
+    stream = RrdStream(path, list(runs), H, recording_name="atomic", chunk_rows=100)
     stream.send("kalman", 0, runs["kalman"])
     parts = [p for p in tmp_path.iterdir() if p.name.endswith(".part")]
     assert len(parts) == 1 and parts[0].stat().st_size > 0       # written as it goes
@@ -213,3 +215,19 @@ def test_misuse_is_refused(tmp_path):
         with pytest.raises(ValueError, match="nothing to write"):
             stream.close()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_gathered_rows_are_copies(tmp_path):
+    """Rows waiting to be written are the stream's own: a master that refills one buffer
+    for every chunk records what it sent."""
+    runs = make_runs()
+    buf = {k: np.empty((10, v.shape[1])) for k, v in runs["kalman"].items()}
+    with RrdStream(tmp_path / "buf.rrd", ["kalman"], H, recording_name="buf",
+                   chunk_rows=1000) as stream:
+        for k0 in range(0, 300, 10):
+            for k, v in runs["kalman"].items():
+                buf[k][:] = v[k0:k0 + 10]
+            stream.send("kalman", k0, buf)
+        stream.close()
+    got = read_rrd_scalars(tmp_path / "buf.rrd")
+    assert np.array_equal(got["error/1/kalman"][2], runs["kalman"]["e"][:300, 0])

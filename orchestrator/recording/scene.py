@@ -126,25 +126,23 @@ class WorldStream:
                                   positions=positions.reshape(rows * m, 3).astype(np.float32)
                               ).partition(np.full(rows, m)))
 
-    def send(self, k0: int, traces: dict[str, np.ndarray]) -> None:
-        """Rows k0 .. k0 + n - 1 of the run (every step): ``x``, ``z``, ``attitude`` if the
-        vehicle has one."""
+    def send(self, ks: np.ndarray, traces: dict[str, np.ndarray]) -> None:
+        """The recorded steps ``ks`` (increasing multiples of ``stride``, after those sent
+        before) and the traces' rows at those steps: ``x``, ``z``, ``attitude`` if the vehicle
+        has one."""
         fleet, n = self.fleet, self.fleet.n
-        steps = traces["x"].shape[0]
         if not self._styled:
             self._styles("attitude" in traces)
             self._styled = True
-        first = k0 + (-k0) % self.stride
-        ks = np.arange(first, k0 + steps, self.stride, dtype=np.int64)   # recorded steps
         if ks.size == 0:
             return
-        pos = traces["x"][ks - k0][:, fleet.position_index]               # (rows, N, 3)
-        leader = leader_position(traces["z"][ks - k0], fleet.leader_output)  # (rows, 3)
+        pos = traces["x"][:, fleet.position_index]                          # (rows, N, 3)
+        leader = leader_position(traces["z"], fleet.leader_output)          # (rows, 3)
         rows, root = ks.size, self.root
         self._points(f"{root}/vehicles", ks, pos)
         self._labels(ks, pos)
         if "attitude" in traces:
-            att = traces["attitude"][ks - k0].reshape(rows * n, 3)
+            att = traces["attitude"].reshape(rows * n, 3)
             self.rec.send_columns(f"{root}/hulls", indexes=time_columns(ks, self.h_ns),
                                   columns=rr.Ellipsoids3D.columns(
                                       centers=pos.reshape(rows * n, 3).astype(np.float32),

@@ -21,12 +21,16 @@ leaves an estimate out of, and its panels (actuators, links) are only known then
 is read whole by the viewer, so it makes no difference there; a live viewer sees the
 data at once and the blueprint at the end.
 
-Memory: the traces of one chunk (the caller's), a few rows per trace column, the sample of
-the paper layout (at most :data:`SAMPLE_ROWS` rows of its few columns per method) and the
-leader's path (at most :data:`~orchestrator.recording.scene.PATH_POINTS` points per method).
-Each chunk is flushed to the file before :meth:`send` returns, so nothing queues in Rerun's
-sink. The file's footer (a manifest of Rerun chunks that the reader and the viewer use)
-grows with the number of chunks x entities, about 100 bytes each.
+Memory: the traces of one chunk (the caller's), the recorded rows gathered until they are
+written (:data:`CHUNK_ROWS` rows, fewer for wide fleets: at most :data:`PENDING_BYTES`),
+a few rows per trace column, the sample of the paper layout (at most :data:`SAMPLE_ROWS`
+rows of its few columns per method) and the leader's path (at most
+:data:`~orchestrator.recording.scene.PATH_POINTS` points per method). Gathered rows are
+flushed to the file as they are written, so nothing queues in Rerun's sink. One thing grows
+with the run: the file's footer, a manifest of its Rerun chunks that Rerun's sink keeps in
+memory until the close (about 850 bytes per chunk, one chunk per entity per write: the
+gathering keeps it small; ``footer=False`` drops it, at the cost of the readers' random
+access, see ``rerun.RecordingStream.save``).
 """
 from __future__ import annotations
 
@@ -61,11 +65,15 @@ from .writer import (
     _send_paper,
 )
 
-__all__ = ["SAMPLE_ROWS", "RrdStream"]
+__all__ = ["CHUNK_ROWS", "PENDING_BYTES", "SAMPLE_ROWS", "RrdStream"]
 
 #: steps of every trace kept whole for the paper layout's blueprint; beyond, every 2nd,
 #: 4th, ... step (by global step, so the same whatever the chunks)
 SAMPLE_ROWS = 1 << 15
+#: recorded rows gathered before they are written (one Rerun chunk per entity), by default
+CHUNK_ROWS = 4096
+#: ... or fewer, once they hold this many bytes (a wide fleet's rows)
+PENDING_BYTES = 32 << 20
 
 
 class _StaticOnce:
@@ -161,6 +169,9 @@ class _Run:
         self.world: WorldStream | None = None
         self.counted = False
         self.last_recorded = -1
+        self.pending: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []   # recorded rows
+        self.pending_rows = 0
+        self.pending_bytes = 0
 
 
 class RrdStream:
@@ -177,6 +188,11 @@ class RrdStream:
     recording_name, application_id, fleet, stride, scene_stride, trail_seconds, \
 trail_sample_seconds, links
         As :func:`~orchestrator.recording.writer.write_rrd`.
+    chunk_rows : int, optional
+        Recorded rows gathered before they are written (one Rerun chunk per entity; fewer
+        when they reach :data:`PENDING_BYTES`); 1 writes every send at once (a live viewer).
+    footer : bool, optional
+        Write the file's footer (Rerun's chunk manifest, kept in memory until the close).
 
     Raises
     ------
@@ -192,8 +208,10 @@ trail_sample_seconds, links
                  scene_stride: int | None = None, trail_seconds: float = 60.0,
                  trail_sample_seconds: float = 0.5,
                  links: Mapping[str, Sequence[str]] | None = None,
-                 application_id: str = "auv-cosim") -> None:
+                 application_id: str = "auv-cosim", chunk_rows: int = CHUNK_ROWS,
+                 footer: bool = True) -> None:
         t0 = time.perf_counter()
+        self.chunk_rows = _positive_int(chunk_rows, "chunk_rows")
         self.methods = [_method_name(m) for m in methods]
         if not self.methods or len(set(self.methods)) != len(self.methods):
             raise ValueError(f"write_rrd: methods must be distinct names, at least one, got "
@@ -234,7 +252,7 @@ trail_sample_seconds, links
         self.rec = _StaticOnce(rec)
         self._open = True
         try:
-            rec.save(self.tmp)
+            rec.save(self.tmp, write_footer=bool(footer))
             rec.send_recording_name(recording_name)
             if fleet is not None:
                 rec.log("world", rr.ViewCoordinates.FRD, static=True)
@@ -270,7 +288,9 @@ trail_sample_seconds, links
         return clean
 
     def send(self, method: str, k0: int, traces: Mapping[str, Any]) -> None:
-        """Write rows k0 .. k0 + n - 1 (every simulated step) of one method's traces.
+        """Record rows k0 .. k0 + n - 1 (every simulated step) of one method's traces: its
+        recorded steps are written once ``chunk_rows`` of them are gathered (or the method
+        ends: the next method's first send, or :meth:`close`).
 
         Parameters
         ----------
@@ -338,35 +358,59 @@ trail_sample_seconds, links
     def _write(self, method: str, run: _Run, k0: int, clean: dict[str, np.ndarray]) -> None:
         steps = clean[self.keys[0]].shape[0]
         run.summary.add(k0, clean)
+        if self._fleet is not None:
+            run.summary.add_leader(leader_position(clean["z"], self._fleet.leader_output))
         first = k0 + (-k0) % self.stride                      # first recorded step
         ks = np.arange(first, k0 + steps, self.stride, dtype=np.int64)
-        if ks.size:
-            indexes = time_columns(ks, self.h_ns)
-            recorded = {k: v[first - k0:] for k, v in clean.items()}
-            if self._fleet is None:
-                lines = _send_paper(self.rec, method, recorded, self.colors, self.stride,
-                                    indexes)
-            else:
-                lines = _send_fleet_series(self.rec, method, recorded, self._fleet,
-                                           run.index, self.stride, indexes)
-                if method in self.links:
-                    lines += send_links(self.rec, method, recorded, self.links[method],
-                                        self.stride, indexes, run.index, n=self._fleet.n)
-            if not run.counted:
-                self.signals += lines
-                run.counted = True
-            run.last_recorded = int(ks[-1])
-        if run.world is not None:
-            assert self._fleet is not None
-            run.summary.add_leader(leader_position(clean["z"], self._fleet.leader_output))
-            run.world.send(k0, clean)
         run.next_k = k0 + steps
+        if not ks.size:
+            return
+        rows = {k: v[first - k0::self.stride] for k, v in clean.items()}
+        size = sum(v.nbytes for v in rows.values())
+        run.last_recorded = int(ks[-1])
+        if run.pending_rows + ks.size >= self.chunk_rows or \
+                run.pending_bytes + size >= PENDING_BYTES:
+            run.pending.append((ks, rows))                     # written now: no copy
+            self._flush(method, run)
+        else:                                                  # the caller may reuse its arrays
+            run.pending.append((ks, {k: v.copy() for k, v in rows.items()}))
+            run.pending_rows += ks.size
+            run.pending_bytes += size
+
+    def _flush(self, method: str, run: _Run) -> None:
+        """Write the method's pending recorded rows (one Rerun chunk per entity)."""
+        if not run.pending:
+            return
+        if len(run.pending) == 1:
+            ks, rows = run.pending[0]
+        else:
+            ks = np.concatenate([p[0] for p in run.pending])
+            rows = {k: np.concatenate([p[1][k] for p in run.pending]) for k in run.pending[0][1]}
+        run.pending, run.pending_rows, run.pending_bytes = [], 0, 0
+        indexes = time_columns(ks, self.h_ns)
+        if self._fleet is None:
+            lines = _send_paper(self.rec, method, rows, self.colors, 1, indexes)
+        else:
+            lines = _send_fleet_series(self.rec, method, rows, self._fleet, run.index, 1,
+                                       indexes)
+            if method in self.links:
+                lines += send_links(self.rec, method, rows, self.links[method], 1, indexes,
+                                    run.index, n=self._fleet.n)
+        if not run.counted:
+            self.signals += lines
+            run.counted = True
+        if run.world is not None:
+            run.world.send(ks, rows)
         self._rec.flush()
 
     def _finish_current(self) -> None:
-        """The current method's scene rows that wait for its end (:meth:`WorldStream.close`)."""
+        """The current method's pending rows and the scene rows that wait for its end
+        (:meth:`WorldStream.close`)."""
         run = self._runs.get(self._current) if self._current is not None else None
-        if run is not None and run.world is not None:
+        if run is None:
+            return
+        self._flush(self._current, run)
+        if run.world is not None:
             run.world.close()
             run.world = None
 
