@@ -231,3 +231,20 @@ def test_gathered_rows_are_copies(tmp_path):
         stream.close()
     got = read_rrd_scalars(tmp_path / "buf.rrd")
     assert np.array_equal(got["error/1/kalman"][2], runs["kalman"]["e"][:300, 0])
+
+
+def test_links_may_come_with_the_first_chunk(tmp_path):
+    """A method's link names known only once it ran: given with its first chunk, the file
+    is the one written with them given at the open."""
+    runs = fleet_runs_with_links_and_actuators()
+    kw = dict(recording_name="links", fleet=make_fleet(), trail_seconds=TRAIL_S,
+              trail_sample_seconds=TRAIL_SAMPLE_S, stride=2)
+    write_rrd(tmp_path / "one.rrd", runs, FLEET_H, links={m: LINKS for m in runs}, **kw)
+    with RrdStream(tmp_path / "late.rrd", list(runs), FLEET_H, chunk_rows=1, **kw) as stream:
+        for m, traces in runs.items():
+            stream.send(m, 0, {k: v[:100] for k, v in traces.items()}, links=LINKS)
+            with pytest.raises(ValueError, match="links"):
+                stream.send(m, 100, {k: v[100:] for k, v in traces.items()}, links=LINKS[:2])
+            stream.send(m, 100, {k: v[100:] for k, v in traces.items()})
+        stream.close()
+    assert_same_files(tmp_path / "one.rrd", tmp_path / "late.rrd")

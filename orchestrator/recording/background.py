@@ -213,10 +213,12 @@ class ChildStream:
         except (BrokenPipeError, ConnectionResetError):
             raise self._failure() from None
 
-    def send(self, method: str, k0: int, traces: Mapping[str, Any]) -> None:
+    def send(self, method: str, k0: int, traces: Mapping[str, Any],
+             links: Sequence[str] | None = None) -> None:
         """:meth:`~orchestrator.recording.stream.RrdStream.send` in the child (the chunk is
         copied into the pipe: the caller may reuse its arrays at once)."""
-        self._put(("send", method, int(k0), dict(traces)))
+        self._put(("send", method, int(k0), dict(traces),
+                   None if links is None else list(links)))
 
     def close(self, last_step: int | None = None) -> dict[str, Any]:
         """:meth:`~orchestrator.recording.stream.RrdStream.close` in the child; its figures."""

@@ -49,6 +49,7 @@ from .blueprint import LEGEND_ENTITY, _blueprint, _fleet_blueprint
 from .layout import FLEET_TRACE_KEYS, TRACE_KEYS, FleetLayout, _Fleet, method_color
 from .network import LINK_KEYS, LINKS_LEGEND_ENTITY, links_legend, send_links
 from .scene import WorldStream, leader_position, time_columns
+from .summary import SAMPLE_ROWS, RunSummary
 from .validation import (
     _method_name,
     _positive_int,
@@ -67,9 +68,6 @@ from .writer import (
 
 __all__ = ["CHUNK_ROWS", "PENDING_BYTES", "SAMPLE_ROWS", "RrdStream"]
 
-#: steps of every trace kept whole for the paper layout's blueprint; beyond, every 2nd,
-#: 4th, ... step (by global step, so the same whatever the chunks)
-SAMPLE_ROWS = 1 << 15
 #: recorded rows gathered before they are written (one Rerun chunk per entity), by default
 CHUNK_ROWS = 4096
 #: ... or fewer, once they hold this many bytes (a wide fleet's rows)
@@ -97,75 +95,12 @@ class _StaticOnce:
         self.rec.send_columns(*args, **kwargs)
 
 
-class _Summary:
-    """What the blueprint needs of one method's traces, kept as they come: per column the
-    minimum and maximum (NaN if any value is) and the minimum and maximum of the finite
-    values; with ``sample``, the rows of every ``every``-th step (global), ``every``
-    doubling while more than :data:`SAMPLE_ROWS` are kept."""
-
-    def __init__(self, sample: bool) -> None:
-        self.sample = sample
-        self.every = 1
-        self.ext: dict[str, list[np.ndarray]] = {}          # pmin, pmax, fmin, fmax, finite
-        self.rows: dict[str, list[np.ndarray]] = {}
-        self.ks: list[np.ndarray] = []
-        self.leader: list[np.ndarray] = []                   # leader (min, max), fleets
-
-    def add(self, k0: int, traces: Mapping[str, np.ndarray]) -> None:
-        for key, a in traces.items():
-            fin = np.isfinite(a)
-            new = [a.min(axis=0), a.max(axis=0), np.where(fin, a, np.inf).min(axis=0),
-                   np.where(fin, a, -np.inf).max(axis=0), fin.any(axis=0)]
-            old = self.ext.get(key)
-            self.ext[key] = new if old is None else [
-                np.minimum(old[0], new[0]), np.maximum(old[1], new[1]),
-                np.minimum(old[2], new[2]), np.maximum(old[3], new[3]), old[4] | new[4]]
-        if not self.sample:
-            return
-        ks = np.arange(k0, k0 + next(iter(traces.values())).shape[0], dtype=np.int64)
-        keep = ks % self.every == 0
-        self.ks.append(ks[keep])
-        for key, a in traces.items():
-            self.rows.setdefault(key, []).append(a[keep])
-        while sum(k.size for k in self.ks) > SAMPLE_ROWS:
-            self.every *= 2
-            ks = np.concatenate(self.ks)
-            keep = ks % self.every == 0
-            self.ks = [ks[keep]]
-            self.rows = {key: [np.concatenate(v)[keep]] for key, v in self.rows.items()}
-
-    def add_leader(self, lead: np.ndarray) -> None:
-        new = [lead.min(axis=0), lead.max(axis=0)]
-        self.leader = new if not self.leader else [np.minimum(self.leader[0], new[0]),
-                                                   np.maximum(self.leader[1], new[1])]
-
-    def extremes(self, key: str) -> np.ndarray:
-        """(4, dim): minimum, maximum, finite minimum, finite maximum (a column without a
-        finite value: its minimum and maximum), so that ``np.min``/``np.max`` and the finite
-        extremes of this array are those of the whole column."""
-        pmin, pmax, fmin, fmax, finite = self.ext[key]
-        return np.vstack([pmin, pmax, np.where(finite, fmin, pmin), np.where(finite, fmax, pmax)])
-
-    def compact(self) -> dict[str, np.ndarray]:
-        """Stand-ins for the whole traces: the traces themselves while every step is kept,
-        else the kept rows and the extremes."""
-        out = {}
-        for key in self.ext:
-            if self.sample and self.every == 1:
-                out[key] = np.concatenate(self.rows[key])
-            elif self.sample:
-                out[key] = np.vstack([np.concatenate(self.rows[key]), self.extremes(key)])
-            else:
-                out[key] = self.extremes(key)
-        return out
-
-
 class _Run:
     """One method's state in the stream."""
 
     def __init__(self, index: int, k0: int, dims: dict[str, int], sample: bool) -> None:
         self.index, self.next_k, self.dims = index, k0, dims
-        self.summary = _Summary(sample)
+        self.summary = RunSummary(sample)
         self.world: WorldStream | None = None
         self.counted = False
         self.last_recorded = -1
@@ -263,9 +198,10 @@ trail_sample_seconds, links
 
     # -- sending --------------------------------------------------------------------------
 
-    def _clean(self, method: str, traces: Mapping[str, Any]) -> dict[str, np.ndarray] | None:
-        """The chunk's traces as float64 (the layout's keys, the actuator and link keys
-        present), checked; None for a chunk of no steps."""
+    def _clean(self, method: str, traces: Mapping[str, Any],
+               with_links: bool) -> dict[str, np.ndarray] | None:
+        """The chunk's traces as float64 (the layout's keys, the actuator keys present, the
+        link keys if ``with_links``), checked; None for a chunk of no steps."""
         if isinstance(traces, Mapping):
             first = traces.get(self.keys[0])
             if first is not None and np.ndim(first) == 2 and np.shape(first)[0] == 0:
@@ -273,7 +209,7 @@ trail_sample_seconds, links
         clean = _validate({method: traces}, self.h, self.keys)[0][method]
         steps = clean[self.keys[0]].shape[0]
         extra = [k for k in _ACTUATOR_KEYS if k in traces]
-        if method in self.links:
+        if with_links:
             missing = [k for k in LINK_KEYS if k not in traces]
             if missing:
                 raise ValueError(f"write_rrd: run {method!r} over links is missing trace "
@@ -287,7 +223,8 @@ trail_sample_seconds, links
             clean[key] = arr
         return clean
 
-    def send(self, method: str, k0: int, traces: Mapping[str, Any]) -> None:
+    def send(self, method: str, k0: int, traces: Mapping[str, Any],
+             links: Sequence[str] | None = None) -> None:
         """Record rows k0 .. k0 + n - 1 (every simulated step) of one method's traces: its
         recorded steps are written once ``chunk_rows`` of them are gathered (or the method
         ends: the next method's first send, or :meth:`close`).
@@ -305,6 +242,9 @@ trail_sample_seconds, links
             :func:`~orchestrator.recording.writer.write_rrd` (the actuator traces and, for a
             method over links, the link traces too); the same dims in every chunk.
             A chunk of no rows is ignored.
+        links : Sequence[str] or None, optional
+            The method's link names ("j -> i", one per column of its ``link_*`` traces) if
+            they were not given when the stream was opened: with its first chunk only.
 
         Raises
         ------
@@ -329,9 +269,17 @@ trail_sample_seconds, links
         if run is not None and k0 != run.next_k:
             raise ValueError(f"write_rrd: method {method!r} chunk starts at step {k0}, the "
                              f"previous one ended at {run.next_k - 1}")
-        clean = self._clean(method, traces)
+        if links is not None:
+            links = list(links)
+            if self.links.get(method, links) != links or (run is not None
+                                                           and method not in self.links):
+                raise ValueError(f"write_rrd: method {method!r}: links {links} differ from "
+                                 "those given before (at the open or with its first chunk)")
+        clean = self._clean(method, traces, links is not None or method in self.links)
         if clean is None:
             return
+        if links is not None:
+            self.links[method] = links
         dims = {k: v.shape[1] for k, v in clean.items()}
         if run is None:
             fleet = None
