@@ -2,10 +2,11 @@
 
 A stream is opened on the run's methods; the master sends each method's traces in chunks of
 steps (every simulated step, the layout :func:`~orchestrator.recording.writer.write_rrd`
-takes), the methods one after the other, and closes it. Each chunk is written to the file at
-once, to a temporary name in the same folder (``.{name}.{pid}.part``) that :meth:`close`
-renames to the final one (``os.replace``): the final name never holds a half-written file,
-and an earlier run's file there stays until the rename. :meth:`abort` (or an exception in a
+takes), the methods one after the other, and closes it. The recorded rows are written to the
+file as they come (gathered into blocks of ``chunk_rows``), to a temporary name in the same
+folder (``.{name}.{pid}.part``) that :meth:`close` renames to the final one
+(``os.replace``): the final name never holds a half-written file, and an earlier run's
+file there stays until the rename. :meth:`abort` (or an exception in a
 ``with`` block) removes the temporary file.
 
 What is recorded does not depend on the chunks: samples are chosen by global step (k % stride
