@@ -55,6 +55,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                                                          "master": args.master or "auto",
                                                          "record_hz": args.record_hz}
     check_run(sc, predict=options["predict"])   # every check, before anything is created
+    live = _live(args)
     every = DEFAULT_EVERY_S if args.checkpoint_every is None else args.checkpoint_every
     out = args.resume or args.out or default_out(sc, sc.estimator, f"seed{sc.seed}")
     with staged_output(out, "run", identity=run_identity(sc, "run"),
@@ -63,12 +64,25 @@ def cmd_run(args: argparse.Namespace) -> int:
         summary = simulate(sc, [sc.estimator], [sc.seed], st.path, progress=not args.quiet,
                            log=_log(args, st), predict=options["predict"],
                            master=options["master"], checkpoint_every=every, resume=resume,
-                           realtime=args.realtime, record_hz=options.get("record_hz"))
+                           realtime=args.realtime, record_hz=options.get("record_hz"),
+                           live=live)
         complete = not summary.get("interrupted")
         if complete:                    # a finished run needs no checkpoint
             remove_tree(st.path / CHECKPOINT_DIR)
         out = st.finish(complete=complete)
     return print_summary(st.relocate(summary), out, st.note)
+
+
+def _live(args: argparse.Namespace) -> str | None:
+    """The URL of the viewer ``--live`` streams to (spawned if no URL was given), None
+    without it; one that cannot be reached is refused in one line, before the run."""
+    if args.live is None:
+        return None
+    from ..recording.live import LiveViewerError, live_url
+    try:
+        return live_url(args.live)
+    except LiveViewerError as exc:
+        raise UsageError(str(exc)) from None
 
 
 def _resumed(args: argparse.Namespace) -> Any:
@@ -118,6 +132,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     trackings = picked if what == "tracking" else None
     architectures = picked if what == "architectures" else None
     check_run(sc, method_list(sc, modes, trackings, architectures), predict=args.predict)
+    live = _live(args)
     tail = "compare" if args.what is None else f"compare-{what}"
     with staged_output(args.out or default_out(sc, tail), "compare",
                        identity=run_identity(sc, f"compare --what {what}"),
@@ -126,7 +141,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
                            log=_log(args, st), trackings=trackings,
                            workers=args.workers, architectures=architectures,
                            predict=args.predict, master=args.master or "auto",
-                           record_hz=args.record_hz)
+                           record_hz=args.record_hz, live=live)
         out = st.finish(complete=not summary.get("interrupted"))
     return print_summary(st.relocate(summary), out, st.note)
 
@@ -282,6 +297,10 @@ def _add_run_outputs(sp: argparse.ArgumentParser, default_out: str) -> None:
                     help="samples per second of simulated time in the .rrd (default: every "
                          "step for a single system, 20 for a fleet); every step is still "
                          "simulated and in the statistics")
+    sp.add_argument("--live", nargs="?", const="spawn", metavar="URL",
+                    help="watch the run in a Rerun viewer as it goes: one spawned (no URL) "
+                         "or the one at URL (rerun+http://HOST:PORT/proxy); the .rrd is "
+                         "written as without it (docs/long-runs.md)")
 
 
 def add_compare(sub: argparse._SubParsersAction) -> None:

@@ -59,6 +59,13 @@ def _series_view(name: str, origin: str, contents: list[str] | None = None,
         axis_y=None if y_range is None else rrb.ScalarAxis(range=y_range, zoom_lock=False))
 
 
+def _auto_view(name: str, origin: str, contents: list[str] | None = None,
+               y_range: tuple[float, float] | None = None) -> rrb.TimeSeriesView:
+    """:func:`_series_view` with an automatic y-axis (``y_range`` ignored): a live viewer's
+    views, whose data are still to come."""
+    return _series_view(name, origin, contents)
+
+
 def true_signal_range(true: np.ndarray) -> tuple[float, float]:
     """The y-axis of a view comparing estimates with ``true``: its range widened by 15 % of
     its span on each side, then to hold three labelled ticks (:func:`.ranges.tick_range`).
@@ -77,15 +84,22 @@ def true_signal_range(true: np.ndarray) -> tuple[float, float]:
 
 
 def _true_and_estimates(group: str, i: int, methods: list[str],
-                        clean: dict[str, dict[str, np.ndarray]]) -> tuple[rrb.TimeSeriesView,
-                                                                         rrb.TimeSeriesView]:
+                        clean: dict[str, dict[str, np.ndarray]], fixed: bool = True
+                        ) -> tuple[rrb.TimeSeriesView, rrb.TimeSeriesView]:
     """(fitted view, full-scale view) of component i of a true-vs-estimate group: the fitted
     view's y-axis fits the true signals and holds the estimates that stay (99 % of samples)
-    within it; the others are left to the full-scale view, and the name says so."""
+    within it; the others are left to the full-scale view, and the name says so. Not
+    ``fixed`` (a live viewer): every estimate in both, automatic y-axes."""
     true_key, est_key = _TRUE_GROUPS[group]
     # the state depends on each method's control: every method's; w and z are shared: once
     owners = methods if group == "state" else methods[:1]
     owners = [m for m in owners if clean[m][true_key].shape[1] >= i]
+    if not fixed:
+        every = [f"+ /{group}/{i}/{m}/true" for m in owners] + [
+            f"+ /{group}/{i}/{m}/estimate" for m in methods if clean[m][est_key].shape[1] >= i]
+        return (_series_view(f"{group}-{i} ({DIMENSIONLESS})", f"/{group}/{i}", every),
+                _series_view(f"{group}-{i} full scale ({DIMENSIONLESS})", f"/{group}/{i}",
+                             every))
     lo, hi = true_signal_range(np.concatenate([clean[m][true_key][:, i - 1] for m in owners]))
     shown, left_out = [], []
     for m in methods:
@@ -107,19 +121,22 @@ def _true_and_estimates(group: str, i: int, methods: list[str],
     return fitted, full
 
 
-def _blueprint(clean: dict[str, dict[str, np.ndarray]]) -> rrb.Blueprint:
-    """The paper layout (module docstring) for the runs ``clean`` (method -> traces)."""
+def _blueprint(clean: dict[str, dict[str, np.ndarray]], fixed: bool = True) -> rrb.Blueprint:
+    """The paper layout (module docstring) for the runs ``clean`` (method -> traces); not
+    ``fixed``: the layout of a live viewer, every y-axis automatic (the data are to come)."""
     methods = list(clean)
+    view = _series_view if fixed else _auto_view
     rows: dict[str, list[rrb.TimeSeriesView]] = {}
     full: list[rrb.Horizontal] = []
     for group, keys in VIEW_GROUPS:
         dim = max(run[k].shape[1] for run in clean.values() for k in keys)
         if group in _TRUE_GROUPS:
-            pairs = [_true_and_estimates(group, i, methods, clean) for i in range(1, dim + 1)]
+            pairs = [_true_and_estimates(group, i, methods, clean, fixed)
+                     for i in range(1, dim + 1)]
             rows[group] = [p[0] for p in pairs]
             full.append(rrb.Horizontal(*[p[1] for p in pairs], name=f"{group}, full scale"))
         else:
-            rows[group] = [_series_view(
+            rows[group] = [view(
                 f"{group}-{i} ({DIMENSIONLESS})", f"/{group}/{i}", None,
                 data_range([run[k][:, i - 1] for run in clean.values() for k in keys
                             if run[k].shape[1] >= i]))
@@ -134,14 +151,16 @@ def _blueprint(clean: dict[str, dict[str, np.ndarray]]) -> rrb.Blueprint:
     return rrb.Blueprint(
         rrb.Vertical(legend, rrb.Tabs(figures, exo, estimates, active_tab=0),
                      row_shares=[1.0, 14.0], name="auv-cosim"),
-        *_panels(),
+        *_panels(fixed),
     )
 
 
-def _panels() -> tuple:
-    """Side panels folded away (more room for the plots), the time panel paused."""
+def _panels(fixed: bool = True) -> tuple:
+    """Side panels folded away (more room for the plots), the time panel paused (not
+    ``fixed``, a live viewer: following the newest data)."""
     return (rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
-            rrb.TimePanel(timeline=_SIM_TIME, play_state="paused", state="collapsed"))
+            rrb.TimePanel(timeline=_SIM_TIME, play_state="paused" if fixed else "following",
+                          state="collapsed"))
 
 
 #: Vehicles per tab of the right-hand side of the fleet blueprint when N > _FLEET_GRID_MAX.
@@ -200,18 +219,20 @@ def _vehicle_ranges(fleet: _Fleet, runs: dict[str, dict[str, np.ndarray]], i: in
 def _fleet_blueprint(methods: list[str], fleet: _Fleet, trail_ns: int, trail_steps: int,
                      runs: dict[str, dict[str, np.ndarray]],
                      links: dict[str, list[str]] | None = None,
-                     points: np.ndarray | None = None) -> rrb.Blueprint:
+                     points: np.ndarray | None = None, fixed: bool = True) -> rrb.Blueprint:
     """3D view(s) of the fleet on the left (framed by :func:`fleet_camera` on every vehicle
     and leader position), under them the actuator views (nonlinear vehicles) and the links
     (legend line and counts); per-vehicle error/control (and age of information) views on
     the right (whole run, legends hidden: the legend view on top names the colours).
-    ``points``: every vehicle and leader position to frame, if not those of ``runs``."""
+    ``points``: every vehicle and leader position to frame, if not those of ``runs``. Not
+    ``fixed`` (a live viewer, the data to come): automatic y-axes and camera."""
     n = fleet.n
+    view = _series_view if fixed else _auto_view
     if points is None:                  # else: the extremes, kept as a stream went
         points = np.concatenate(
             [np.concatenate([run["x"][:, fleet.position_index].reshape(-1, 3),
                              run["z"] @ fleet.leader_output.T]) for run in runs.values()])
-    camera = fleet_camera(points)
+    camera = fleet_camera(points) if fixed else None
     views_3d = [
         rrb.Spatial3DView(
             name=f"fleet {m}",
@@ -228,13 +249,12 @@ def _fleet_blueprint(methods: list[str], fleet: _Fleet, trail_ns: int, trail_ste
     if any("rpm" in r for r in runs.values()):  # the nonlinear vehicle: actuators per kind
         from .actuators import DEFAULT_DELTA_MAX, DEFAULT_N_MAX, actuator_views
         left_parts.append(actuator_views(
-            n, runs, fleet.n_max or DEFAULT_N_MAX, fleet.delta_max or DEFAULT_DELTA_MAX,
-            _series_view))
+            n, runs, fleet.n_max or DEFAULT_N_MAX, fleet.delta_max or DEFAULT_DELTA_MAX, view))
         shares.append(2.2)
     ages: dict[int, rrb.TimeSeriesView] = {}
     if links:                           # acoustic links: counts under the 3D view
         from .network import network_view
-        links_part, age_views = network_view(runs, links, _series_view)
+        links_part, age_views = network_view(runs, links, view)
         ages = {int(i): v for i, v in age_views.items() if i.isdigit()}
         left_parts.append(links_part)
         shares.append(1.6)
@@ -244,11 +264,10 @@ def _fleet_blueprint(methods: list[str], fleet: _Fleet, trail_ns: int, trail_ste
     control_unit = unit_of(fleet.control_names, fleet.control_unit)
 
     def vehicle_views(i: int) -> list[rrb.TimeSeriesView]:
-        err, ctl = _vehicle_ranges(fleet, runs, i)
-        views = [_series_view(f"vehicle {i} error ({error_unit})", f"/vehicles/{i}/error",
-                              None, err),
-                 _series_view(f"vehicle {i} control ({control_unit})",
-                              f"/vehicles/{i}/control", None, ctl)]
+        err, ctl = _vehicle_ranges(fleet, runs, i) if fixed else (None, None)
+        views = [view(f"vehicle {i} error ({error_unit})", f"/vehicles/{i}/error", None, err),
+                 view(f"vehicle {i} control ({control_unit})", f"/vehicles/{i}/control", None,
+                      ctl)]
         if i in ages:
             views.append(ages[i])
         return views
@@ -269,5 +288,5 @@ def _fleet_blueprint(methods: list[str], fleet: _Fleet, trail_ns: int, trail_ste
     return rrb.Blueprint(
         rrb.Vertical(legend, rrb.Horizontal(left, right, column_shares=[1.0, 1.0]),
                      row_shares=[1.0, 14.0], name="fleet"),
-        *_panels(),
+        *_panels(fixed),
     )

@@ -36,6 +36,7 @@ access, see ``rerun.RecordingStream.save``).
 from __future__ import annotations
 
 import os
+import sys
 import time
 import uuid
 from collections.abc import Mapping, Sequence
@@ -48,6 +49,7 @@ import rerun as rr
 from .actuators import DEFAULT_DELTA_MAX, DEFAULT_N_MAX, send_limits
 from .blueprint import LEGEND_ENTITY, _blueprint, _fleet_blueprint
 from .layout import FLEET_TRACE_KEYS, TRACE_KEYS, FleetLayout, _Fleet, method_color
+from .live import start_live
 from .network import LINK_KEYS, LINKS_LEGEND_ENTITY, links_legend, send_links
 from .scene import WorldStream, leader_position, time_columns
 from .summary import SAMPLE_ROWS, RunSummary
@@ -129,6 +131,11 @@ trail_sample_seconds, links
         when they reach :data:`PENDING_BYTES`); 1 writes every send at once (a live viewer).
     footer : bool, optional
         Write the file's footer (Rerun's chunk manifest, kept in memory until the close).
+    live : str or None, optional
+        A Rerun viewer's URL (``rerun+http://HOST:PORT/proxy``): every row written to the
+        file goes to it too, after a live layout of its own, and the final blueprint at
+        the close (:mod:`.live`); the file is the same. Check it first
+        (:func:`.live.check_viewer`): Rerun's sink does not wait for the viewer.
 
     Raises
     ------
@@ -145,7 +152,7 @@ trail_sample_seconds, links
                  trail_sample_seconds: float = 0.5,
                  links: Mapping[str, Sequence[str]] | None = None,
                  application_id: str = "auv-cosim", chunk_rows: int = CHUNK_ROWS,
-                 footer: bool = True) -> None:
+                 footer: bool = True, live: str | None = None) -> None:
         t0 = time.perf_counter()
         self.chunk_rows = _positive_int(chunk_rows, "chunk_rows")
         self.methods = [_method_name(m) for m in methods]
@@ -179,6 +186,8 @@ trail_sample_seconds, links
         self._current: str | None = None
         self.signals = 0
         self._open = False
+        self.live, self.footer = live, bool(footer)
+        self._viewer: Any = None                # a live viewer's own stream (.live)
         rec = rr.RecordingStream(application_id, recording_id=uuid.uuid4())
         if not rec.is_enabled():
             raise RuntimeError("write_rrd: Rerun logging is disabled (RERUN env var?); refusing "
@@ -188,7 +197,7 @@ trail_sample_seconds, links
         self.rec = _StaticOnce(rec)
         self._open = True
         try:
-            rec.save(self.tmp, write_footer=bool(footer))
+            self._sinks(rec)
             rec.send_recording_name(recording_name)
             if fleet is not None:
                 rec.log("world", rr.ViewCoordinates.FRD, static=True)
@@ -196,6 +205,29 @@ trail_sample_seconds, links
             self.abort()
             raise
         self.seconds = time.perf_counter() - t0
+
+    def _sinks(self, rec: rr.RecordingStream) -> None:
+        """Where the recording goes: the temporary file and, with ``live`` (a viewer's
+        URL), that viewer too (Rerun's file and gRPC sinks: the same rows, as they are
+        written)."""
+        if self.live is None:
+            rec.save(self.tmp, write_footer=self.footer)
+        else:
+            rec.set_sinks(rr.FileSink(self.tmp, write_footer=self.footer),
+                          rr.GrpcSink(self.live))
+
+    def _flush_sinks(self) -> None:
+        """Flush what was logged to the sinks; a live viewer that went away (closed, its
+        connection severed) is said once on stderr and the file goes on."""
+        try:
+            self._rec.flush()
+        except RuntimeError as exc:
+            if self.live is None or "grpc" not in str(exc).lower():
+                raise
+            if not getattr(self, "_viewer_gone", False):
+                self._viewer_gone = True
+                print(f"live viewer at {self.live} gone ({str(exc).splitlines()[0]}); the run "
+                      f"goes on, writing {self.path}", file=sys.stderr, flush=True)
 
     # -- sending --------------------------------------------------------------------------
 
@@ -292,6 +324,8 @@ trail_sample_seconds, links
                 self._fleet = self._fleet or fleet
                 run.world = WorldStream(self.rec, method, self._fleet, self.h_ns, self.stride,
                                         self.scene_stride, self.trail_stride)
+            if self.live is not None and not self._runs:   # the viewer's layout first
+                self._viewer = start_live(self, method, clean)
             self._runs[method] = run
             self._current = method
         elif dims != run.dims:
@@ -350,7 +384,7 @@ trail_sample_seconds, links
             run.counted = True
         if run.world is not None:
             run.world.send(ks, rows)
-        self._rec.flush()
+        self._flush_sinks()
 
     def _finish_current(self) -> None:
         """The current method's pending rows and the scene rows that wait for its end
@@ -406,7 +440,7 @@ trail_sample_seconds, links
                 last = int(last_step)
             self._finish_current()
             self._closing_rows(sent, last)
-            self._rec.flush()
+            self._flush_sinks()
         except BaseException:
             self.abort()
             raise
@@ -446,6 +480,8 @@ trail_sample_seconds, links
                                          compact, links={m: self.links[m] for m in with_links}
                                          or None, points=points)
         self._rec.send_blueprint(blueprint, make_active=False, make_default=True)
+        if self._viewer is not None:                # a live viewer: made its active one
+            self._viewer.finish(blueprint)
 
     def abort(self) -> None:
         """Stop writing and remove the temporary file (the final name is left as it was).

@@ -54,7 +54,7 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
              predict: str = "stationary", master: str = "auto",
              window_from_step: int = 0, checkpoint_every: float | None = None,
              resume: RunCheckpoint | None = None,
-             realtime: float | None = None) -> dict[str, Any]:
+             realtime: float | None = None, live: str | None = None) -> dict[str, Any]:
     """Co-simulate each method (estimator ``modes`` x tracking laws ``trackings`` x
     ``architectures``, each default the scenario's) on each seed; write
     ``<out>/<scenario>.rrd`` and summary.json.
@@ -113,6 +113,10 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
         Pace the runs in this process to the wall clock, ``realtime`` simulated seconds per
         second (:mod:`orchestrator.cosim.pacing`); the summary's ``realtime`` reports the
         overruns.
+    live : str, optional
+        A Rerun viewer's URL (``rerun+http://HOST:PORT/proxy``): the .rrd's rows go to it as
+        they are written, its layout first (:mod:`orchestrator.recording.live`); with
+        ``realtime``, in chunks of about 0.2 s of wall clock. Checked before anything runs.
 
     Returns
     -------
@@ -124,6 +128,9 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
 
     t0 = time.perf_counter()
     phases.reset()
+    if live is not None:                    # a viewer that is not there: before anything
+        from ..recording.live import check_viewer
+        check_viewer(live)
     methods = method_list(sc, modes, trackings, architectures)
     out = Path(out_dir)
     setup = make_setup(sc, out / "fmus", methods, predict=predict, master=master)
@@ -139,7 +146,7 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
         keeper = _Keeper(out, checkpoint_every, options, resume, realtime)
         return _simulate(setup, methods, seeds, out, writer, t0, progress=progress, log=log,
                          record_hz=record_hz, stop=stop, pool=pool,
-                         window_from_step=window_from_step, keeper=keeper)
+                         window_from_step=window_from_step, keeper=keeper, live=live)
 
 
 class _Keeper:
@@ -256,7 +263,8 @@ def _predictions(setup: RunSetup, methods: list[Method], results: dict[str, Any]
 def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out: Path,
               writer: Any, t0: float, *, progress: bool, log: Callable[[str], None],
               record_hz: float | None, stop: StopFlag, pool: Any = None,
-              window_from_step: int = 0, keeper: _Keeper | None = None) -> dict[str, Any]:
+              window_from_step: int = 0, keeper: _Keeper | None = None,
+              live: str | None = None) -> dict[str, Any]:
     sc = setup.sc
     keeper = keeper or _Keeper(out, None, {}, None)
     for m in methods:
