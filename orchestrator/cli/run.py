@@ -59,7 +59,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = args.resume or args.out or default_out(sc, sc.estimator, f"seed{sc.seed}")
     with staged_output(out, "run", identity=run_identity(sc, "run"),
                        force=True if resume is not None else args.force,
-                       kind=RUN if every else "") as st:
+                       kind=RUN if every else "",
+                       resume=(CHECKPOINT_DIR,) if resume is not None else ()) as st:
         summary = simulate(sc, [sc.estimator], [sc.seed], st.path, progress=not args.quiet,
                            log=_log(args, st), predict=options["predict"],
                            master=options["master"], checkpoint_every=every, resume=resume,
