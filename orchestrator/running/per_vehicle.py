@@ -159,7 +159,7 @@ class PerVehicleSetup(RunSetup):
             net = network_configs(setup.form.senders, setup.links, setup.slot_senders,
                                   setup.net.receiver, setup.launch, setup.leader_size,
                                   modem_settings(sc), schedule_settings(setup))
-        return per_vehicle_configs(sc, method.architecture, mode=method.estimator, seed=seed,
+        return per_vehicle_configs(sc, method.architecture, estimator=method.estimator, seed=seed,
                                    tracking=method.tracking, settings=sc.distributed,
                                    gain=gain, network=net)
 
@@ -273,11 +273,9 @@ class PerVehicleSetup(RunSetup):
         """:meth:`predictions` with the multi-rate filter of [sensors]: the periodic loop's
         (distributed, no dropouts; orchestrator.analysis.multirate_prediction), else the
         steady filter's window and margin and no cost, saying why."""
-        from plant_model.navigation import NavigationSensors
-
         from ..analysis.multirate_prediction import predict_multirate_cost
         sc = self.sc
-        sensors = NavigationSensors.from_mapping(sc.sensors)
+        sensors = sc.sensors
         reason = ("no prediction for the multi-rate Kalman filter of [sensors] with the "
                   "centralized architecture")
         if method.architecture == "distributed":

@@ -400,5 +400,5 @@ def run_statistics(sc: Scenario, res: RunResult, k0: int,
             from ..analysis.tracking_segments import force_saturation
             traces = dict(traces, saturated=force_saturation(traces["u"], sc.design.u_max,
                                                              traces.get("saturated")))
-        stats["segments"] = run_segments(sc.fleet["leader"], traces, k0)
+        stats["segments"] = run_segments(sc.fleet.leader, traces, k0)
     return stats

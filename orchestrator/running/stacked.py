@@ -54,7 +54,7 @@ def check_stacked(sc: Scenario, methods: Sequence[Method] = (),
 
 def stacked_phase(sc: Scenario, est: DesignEstimate) -> str:
     """``the stacked design (80 vehicles, 726 states)``: names the phase in messages."""
-    who = f"{len(sc.fleet['vehicles'])} vehicles, " if sc.fleet is not None else ""
+    who = f"{sc.fleet.N} vehicles, " if sc.fleet is not None else ""
     return f"the stacked design ({who}{est.states} states)"
 
 
