@@ -19,7 +19,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -30,6 +30,9 @@ from plant_model.system import LinearSystem
 
 from . import estimators as _est
 from . import kalman_tv as _tv
+
+if TYPE_CHECKING:       # the predictions are the orchestrator's (:attr:`EstimatorKind.predictions`)
+    from orchestrator.scenario import Scenario
 
 __all__ = ["COMPARED_BY_DEFAULT", "DEFAULT_ESTIMATOR", "NAVIGATION_FILTER", "STEADY_FILTER",
            "TRUTH", "TRUTH_MODES", "ESTIMATORS", "ESTIMATOR_MODES", "EstimatorKind",
@@ -133,7 +136,7 @@ class EstimatorKind:
         """One vehicle's estimator (per-vehicle deployment)."""
         return self.vehicle(system, model, where, options or {})
 
-    def predict(self, sc: Any, model: DiscreteModel, est: Any, Ks: np.ndarray,
+    def predict(self, sc: Scenario, model: DiscreteModel, est: Any, Ks: np.ndarray,
                 k0: int | None = None) -> tuple:
         """Its predictions of the stacked loop (:attr:`predictions`)."""
         module, func = self.predictions.split(":")
