@@ -165,7 +165,7 @@ def per_vehicle_configs(sc: Scenario, architecture: str, *, estimator: str, seed
     v0 = views[0]
     dims = {"n": v0.n, "m": v0.m, "r": v0.r, "p": v0.p, "l": l0}
     base = {"dims": dims, "h": float(sc.h), "T": float(sc.T), "seed": int(seed),
-            "mode": estimator, "tracking": tracking, "fleet": None}
+            "estimator": estimator, "tracking": tracking, "fleet": None}
     slots = fleet_slots(sc.fleet)
     N = len(views)
     rows = (centralized_rows(gain, N, v0.n, v0.r, v0.m, l0)

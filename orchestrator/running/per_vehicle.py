@@ -300,18 +300,18 @@ class PerVehicleSetup(RunSetup):
     def _perfect(self, method: Method, k0: int | None = None
                  ) -> tuple[Prediction, Prediction, Prediction | None, int]:
         """:meth:`predictions` with perfect links (the window from ``k0``, or the own)."""
-        sc, mode, tracking = self.sc, method.estimator, method.tracking
+        sc, estimator, tracking = self.sc, method.estimator, method.tracking
         if method.architecture == "centralized":            # the stacked loop's predictions
             self._check_centralized()
-            kind = estimator_kind(mode)
+            kind = estimator_kind(estimator)
             cost = design_estimate(stacked_states(sc), kind.solves_riccati, True)
             self.announce(f"solving {stacked_phase(sc, cost)} and predicting the "
                           f"centralized loop: {cost.text()} ...", cost.seconds)
             model = discretize(sc.system, sc.h)
-            return kind.predict(sc, model, make_estimator(sc.system, model, mode,
+            return kind.predict(sc, model, make_estimator(sc.system, model, estimator,
                                                           sc.estimator_options),
                                 tracking_law(sc.system, tracking).Ks, k0)
-        loop = distributed_loop_of(sc, mode, tracking, sc.distributed)
+        loop = distributed_loop_of(sc, estimator, tracking, sc.distributed)
         pred0 = predict_cost(loop)
         if k0 is None:
             k0 = stats_window(sc.T, sc.h, pred0.settling_time)

@@ -91,7 +91,7 @@ class StackedSetup(RunSetup):
     def python_system(self, method: Method, seed: int) -> SystemDescription:
         """:func:`orchestrator.cosim.system.closed_loop_system` of the method and seed."""
         from ..cosim.system import closed_loop_system
-        return closed_loop_system(dict(self.config, mode=method.estimator, seed=int(seed),
+        return closed_loop_system(dict(self.config, estimator=method.estimator, seed=int(seed),
                                        tracking=method.tracking), name=self.sc.name)
 
     def model(self) -> Any:
