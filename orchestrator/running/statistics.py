@@ -70,8 +70,7 @@ class RunStatistics:
             index, offsets, edges, h = formation
             self.formation = FormationSums(index, offsets, edges, k0, h)
             self.segments = segments.SegmentSums()
-            leader = sc.fleet["leader"]
-            self.F, self.H = (np.asarray(leader[k], float) for k in ("F", "H"))
+            self.F, self.H = sc.fleet.leader.F, sc.fleet.leader.H
             self.u_max = (sc.design.u_max if sc.design is not None and sc.design.clip
                           else None)
         #: per link column of ``link_age``: [sum, count, max] over the window, s
