@@ -43,7 +43,7 @@ class AuvEstimator(Fmi2Slave):
             sample_period_spec(config, "sample period the filters are designed for"),
             noise_convention_spec(config),
             ArraySpec("mode", (), "parameter", "estimator: " + ", ".join(ESTIMATOR_MODES),
-                      start=config["mode"], type="String"),
+                      start=config["estimator"], type="String"),
             *parameter_specs(config),
             ArraySpec("y", (p,), "input", "measured vehicle output y"),
             ArraySpec("ybar", (p,), "input", "measured reference output ybar"),

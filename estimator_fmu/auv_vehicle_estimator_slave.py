@@ -55,7 +55,7 @@ class AuvVehicleEstimator(Fmi2Slave):
             sample_period_spec(config, "sample period the filter is designed for"),
             noise_convention_spec(config),
             ArraySpec("mode", (), "parameter", "estimator: " + ", ".join(ESTIMATOR_MODES),
-                      start=config["mode"], type="String"),
+                      start=config["estimator"], type="String"),
             *parameter_specs(config),
             *sensor_parameter_specs(config),
             measured,

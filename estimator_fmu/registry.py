@@ -19,7 +19,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -30,6 +30,18 @@ from plant_model.system import LinearSystem
 
 from . import estimators as _est
 from . import kalman_tv as _tv
+
+
+class PredictedScenario(Protocol):
+    """What an estimator's predictions read of a scenario
+    (:class:`orchestrator.scenario.Scenario` is one): the system, the step, the horizon."""
+
+    system: LinearSystem
+    h: float
+    T: float
+
+    @property
+    def steps(self) -> int: ...
 
 __all__ = ["COMPARED_BY_DEFAULT", "DEFAULT_ESTIMATOR", "NAVIGATION_FILTER", "STEADY_FILTER",
            "TRUTH", "TRUTH_MODES", "ESTIMATORS", "ESTIMATOR_MODES", "EstimatorKind",
@@ -133,7 +145,7 @@ class EstimatorKind:
         """One vehicle's estimator (per-vehicle deployment)."""
         return self.vehicle(system, model, where, options or {})
 
-    def predict(self, sc: Any, model: DiscreteModel, est: Any, Ks: np.ndarray,
+    def predict(self, sc: PredictedScenario, model: DiscreteModel, est: Any, Ks: np.ndarray,
                 k0: int | None = None) -> tuple:
         """Its predictions of the stacked loop (:attr:`predictions`)."""
         module, func = self.predictions.split(":")

@@ -1,10 +1,12 @@
 """A fleet spec parsed once: its vehicle models, its communication graph, each vehicle's
 view of the loop and the stacked system, built on first use and kept.
 
-A scenario's fleet (:attr:`orchestrator.scenario.Scenario.fleet_model`) is such a
-:class:`Fleet`; code that needs the models or the graph asks it instead of parsing the
-spec again (:func:`plant_model.fleet.fleet_vehicles` builds one model per distinct vehicle
-table, :func:`plant_model.fleet.fleet_graph` validates the graph: done once here).
+A scenario's fleet (:attr:`orchestrator.scenario.Scenario.fleet`) is such a
+:class:`Fleet`; code that needs the models, the graph, the leader or a vehicle's table asks
+it instead of parsing the spec again (:func:`plant_model.fleet.fleet_vehicles` builds one
+model per distinct vehicle table, :func:`plant_model.fleet.fleet_graph` validates the graph:
+done once here). The spec itself is kept for what hands it on whole (the stacked FMUs'
+configuration, a scenario's key).
 """
 from __future__ import annotations
 
@@ -13,14 +15,49 @@ from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
 
-from .fleet import fleet_graph, fleet_system, fleet_vehicles
+import numpy as np
+
+from .fleet import FleetInfo, fleet_graph, fleet_info, fleet_system, fleet_vehicles
 from .graph import CommunicationGraph
 from .per_vehicle import vehicle_views
 from .system import LinearSystem
-from .vehicle_models import ModelEntry, get
+from .vehicle_models import DEFAULT_MODEL, ModelEntry, get
 from .vehicles import VehicleModel
 
-__all__ = ["Fleet"]
+__all__ = ["Fleet", "LeaderSpec", "VehicleSpec"]
+
+
+@dataclass(frozen=True, eq=False)
+class LeaderSpec:
+    """The leader's table of a fleet spec, typed: its path (``kind``, ``params``: None for a
+    leader given by its matrices) and its exosystem as float arrays."""
+
+    kind: str | None
+    params: Mapping[str, Any] | None
+    F: np.ndarray                       #: l x l (1/s)
+    H: np.ndarray                       #: s x l, the tracked output H z
+    z0: np.ndarray                      #: (l,), zeros where the spec gives none
+    W_z: Any                            #: the process noise intensity as given (0: none)
+
+    @classmethod
+    def of(cls, table: Mapping[str, Any]) -> LeaderSpec:
+        """From a spec's ``leader`` table."""
+        F = np.asarray(table["F"], dtype=float)
+        z0 = table.get("z0")
+        return cls(kind=table.get("kind"), params=table.get("params"), F=F,
+                   H=np.asarray(table["H"], dtype=float),
+                   z0=np.zeros(F.shape[0]) if z0 is None else np.asarray(z0, dtype=float),
+                   W_z=table.get("W_z", 0.0))
+
+
+@dataclass(frozen=True, eq=False)
+class VehicleSpec:
+    """One vehicle's table of a fleet spec, typed (what consumers read of it)."""
+
+    number: int                         #: 1-based
+    model: str                          #: the registry name (plant_model.vehicle_models)
+    params: Mapping[str, Any]           #: the model's parameters as the spec gives them
+    offset: np.ndarray                  #: (s,) formation offset d_i, zeros where none
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,15 +86,49 @@ class Fleet:
         """The number of vehicles."""
         return len(self.models)
 
-    @property
-    def vehicles(self) -> list[Mapping[str, Any]]:
-        """The vehicle tables of the spec, in vehicle order."""
-        return self.spec["vehicles"]
+    @cached_property
+    def vehicles(self) -> tuple[VehicleSpec, ...]:
+        """Each vehicle's table, typed, in vehicle order."""
+        return tuple(VehicleSpec(
+            number=i, model=str(v.get("model", DEFAULT_MODEL)), params=v.get("params", {}),
+            offset=np.asarray(v.get("offset", np.zeros(mdl.s)), dtype=float))
+            for i, (v, mdl) in enumerate(zip(self.spec["vehicles"], self.models), start=1))
 
     @property
-    def leader(self) -> Mapping[str, Any]:
-        """The leader table of the spec (F, H, z0, ...)."""
-        return self.spec["leader"]
+    def model_names(self) -> tuple[str, ...]:
+        """Each vehicle's model name, in vehicle order."""
+        return tuple(v.model for v in self.vehicles)
+
+    @property
+    def offsets(self) -> tuple[np.ndarray, ...]:
+        """Each vehicle's formation offset d_i (output space), in vehicle order."""
+        return tuple(v.offset for v in self.vehicles)
+
+    @cached_property
+    def leader(self) -> LeaderSpec:
+        """The leader's table, typed."""
+        return LeaderSpec.of(self.spec["leader"])
+
+    @property
+    def consensus(self) -> str:
+        """Where the consensus protocol acts: "in-plant" or "protocol"
+        (plant_model.fleet.CONSENSUS_FORMS)."""
+        return str(self.spec.get("graph", {}).get("consensus", "in-plant"))
+
+    @property
+    def edges(self) -> tuple[tuple[int, int, float], ...]:
+        """The graph's edges (j, i, a_ij): vehicle i hears vehicle j."""
+        return tuple((int(j), int(i), float(a)) for j, i, a in self.graph.edges)
+
+    @property
+    def pinning(self) -> tuple[tuple[int, float], ...]:
+        """The graph's pins (i, a_i0): vehicle i hears the leader."""
+        return tuple((int(i), float(a)) for i, a in self.graph.pinning)
+
+    def info(self, system: LinearSystem | None = None) -> FleetInfo:
+        """The layout of the stacked vectors (:func:`plant_model.fleet.fleet_info`; of
+        ``system``, the stacked system, when given)."""
+        return fleet_info(self.spec, system)
 
     @property
     def entries(self) -> tuple[ModelEntry, ...]:

@@ -135,8 +135,8 @@ def test_the_spiral_leaders_critical_loss_equals_the_certificate_search(no_cache
     from orchestrator.scenario import load_scenario
     sc = load_scenario(Path(__file__).parent / "data" / "spiral-leader-network.toml")
     loop = distributed_loop_of(sc, "kalman", "regulator", sc.distributed)
-    form = distributed_message_form(loop, np.asarray(sc.fleet["leader"]["H"], float),
-                                    [v.get("offset") for v in sc.fleet["vehicles"]])
+    form = distributed_message_form(loop, sc.fleet.leader.H,
+                                    sc.fleet.offsets)
     net = NetworkedLoop(form, {k: check_link(str(k), 1.0, 2.0, 0.2) for k in form.links},
                         "propagate")
     assert ms_spectral_radius(net, 0.1) == pytest.approx(0.875173, abs=1e-6)

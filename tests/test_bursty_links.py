@@ -109,8 +109,8 @@ def test_a_links_entry_switches_one_link_to_another_model():
 def _formation(T, bursty, receiver="hold", model=GE):
     sc = load_scenario("formation-4").with_run(h=0.05, T=T)
     loop = distributed_loop_of(sc, "kalman", "regulator", sc.distributed)
-    H = np.asarray(sc.fleet["leader"]["H"], float)
-    form = distributed_message_form(loop, H, [v.get("offset") for v in sc.fleet["vehicles"]])
+    H = sc.fleet.leader.H
+    form = distributed_message_form(loop, H, sc.fleet.offsets)
     timings = {k: check_link(str(k), 1.0, 2.0, model if bursty == "all" or k in bursty
                              else 0.2) for k in form.links}
     net = NetworkedLoop(form, timings, receiver)
@@ -222,8 +222,8 @@ def test_the_spiral_leader_has_a_critical_mean_burst():
     data["graph"].update(edges=[], pinning=[[1, 1.0]])
     sc = scenario_from_dict(data, "spiral leader, one vehicle")
     loop = distributed_loop_of(sc, "kalman", "regulator", sc.distributed)
-    H = np.asarray(sc.fleet["leader"]["H"], float)
-    form = distributed_message_form(loop, H, [v.get("offset") for v in sc.fleet["vehicles"]])
+    H = sc.fleet.leader.H
+    form = distributed_message_form(loop, H, sc.fleet.offsets)
     m = GilbertElliott(p_gb=0.05, p_bg=0.2, loss_good=0.02, loss_bad=0.95)
     net = NetworkedLoop(form, {k: check_link(str(k), 1.0, 2.0, m) for k in form.links},
                         "propagate")

@@ -154,7 +154,7 @@ def test_run_help_lists_the_builtin_files_and_the_linked_fleet_runs(capsys, tmp_
     assert "formation-4-links" in listed
     sc = load_scenario("formation-4-links")
     assert sc.deployment == "per-vehicle" and sc.architecture == "distributed"
-    assert (sc.network["latency"], sc.network["period"], sc.network["loss"]) == (1.0, 2.0, 0.1)
+    assert (sc.network.table["latency"], sc.network.table["period"], sc.network.table["loss"]) == (1.0, 2.0, 0.1)
     assert main(["run", "--scenario", "formation-4-links", "--T", "5", "--quiet",
                  "--out", str(tmp_path)]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())

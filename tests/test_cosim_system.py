@@ -33,7 +33,7 @@ def _feedthrough(name):
 
 def test_paper_loop_order_follows_feedthrough(built_scenario):
     _, cfg = built_scenario("paper")
-    order = evaluation_order(closed_loop_system(dict(cfg, mode="kalman")))
+    order = evaluation_order(closed_loop_system(dict(cfg, estimator="kalman")))
     assert order == [("plant", s) for s in ("y", "ybar", "x", "w", "z", "e")] + [
         ("estimator", s) for s in ("xhat", "what", "zhat")] + [("controller", "u")]
 
@@ -67,7 +67,7 @@ def test_truth_connections_carry_data_only_in_ideal_mode(built_scenario):
     _, cfg = built_scenario("paper")
     truth = {("plant", s, "estimator", s) for s in ("x", "w", "z")}
     for mode in ("kalman", "classical", "ideal"):
-        sys_ = closed_loop_system(dict(cfg, mode=mode))
+        sys_ = closed_loop_system(dict(cfg, estimator=mode))
         active = {(c.source, c.output, c.target, c.input) for c in sys_.active_connections()}
         assert (truth <= active) == (mode == "ideal"), mode
         assert len(sys_.scalar_connections()) == 20          # exports write every connection
@@ -95,7 +95,7 @@ def _two_loops(cfg, seeds=(3, 11)) -> SystemDescription:
     """Two independent paper loops in one system (suffixes _a, _b), different seeds."""
     comps, conns = [], []
     for suffix, seed in zip(("_a", "_b"), seeds):
-        one = closed_loop_system(dict(cfg, mode="kalman", seed=seed))
+        one = closed_loop_system(dict(cfg, estimator="kalman", seed=seed))
         comps += [replace(c, name=c.name + suffix) for c in one.components]
         conns += [replace(c, source=c.source + suffix, target=c.target + suffix,
                           when=None if c.when is None else (c.when[0] + suffix, *c.when[1:]))
@@ -124,7 +124,7 @@ def test_a_new_topology_is_a_new_description(built_scenario, coupling):
 
 def test_a_system_that_does_not_match_its_fmus_is_refused(built_scenario):
     fmus, cfg = built_scenario("paper")
-    sys_ = closed_loop_system(dict(cfg, mode="kalman"))
+    sys_ = closed_loop_system(dict(cfg, estimator="kalman"))
     bad = replace(sys_, connections=sys_.connections + (Connection("plant", "e", "controller", "y"),))
     with pytest.raises(CosimError, match=r"does not match its FMUs: connection plant\.e\[1\] -> "
                                          r"controller\.y\[1\]: controller \(AuvController\.fmu\) "

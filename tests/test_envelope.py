@@ -16,12 +16,12 @@ def test_a_point_is_the_fleet_behind_a_line_or_a_circle_started_in_formation():
                                                architecture="distributed")
     line = envelope_point(sc, 2.0, math.inf, 0.3)
     circle = envelope_point(sc, 1.5, 40.0, 0.1)
-    assert line.fleet["leader"]["kind"] == "straight" and circle.fleet["leader"]["kind"] == "circle"
-    assert line.fleet["vehicles"][0]["current"]["sigma"] == 0.3
+    assert line.fleet.leader.kind == "straight" and circle.fleet.leader.kind == "circle"
+    assert line.fleet.spec["vehicles"][0]["current"]["sigma"] == 0.3
     assert line.T == 20.0 and line.deployment == "per-vehicle"
     # started in formation: each vehicle at the leader's position plus its offset
-    z0 = line.fleet["leader"]["z0"]
-    for v in line.fleet["vehicles"]:
+    z0 = line.fleet.leader.z0
+    for v in line.fleet.spec["vehicles"]:
         assert v["x0"][:3] == pytest.approx([z0[0] + v["offset"][0], z0[1] + v["offset"][1],
                                              z0[2] + v["offset"][2]])
 

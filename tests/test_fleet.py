@@ -22,7 +22,7 @@ from orchestrator.analysis.reference import run_monolithic
 from orchestrator.running import build, scenario_config
 from orchestrator.scenario import SCENARIO_DIR, load_scenario
 from orchestrator.scenario.fleet import fleet_spec_from_dict
-from plant_model.fleet import fleet_info, fleet_system, resolve_fleet_spec
+from plant_model.fleet import fleet_system, resolve_fleet_spec
 from plant_model.linalg_checks import ModelError
 from support.loop import run_cosimulation
 
@@ -229,7 +229,7 @@ def _last(formation, seconds):
 @pytest.mark.slow
 def test_formation4_regulator_reaches_every_formation_target(formation, noiseless_runs):
     out = noiseless_runs["regulator"]
-    info = fleet_info(formation.fleet, formation.system)
+    info = formation.fleet.info(formation.system)
     k0 = _last(formation, 200.0)
     # position of each vehicle against leader position + offset, computed from the
     # states (not from e), then e = H z - C x must agree

@@ -15,6 +15,7 @@ from orchestrator.running import build, scenario_config
 from orchestrator.scenario import scenario_from_dict
 from orchestrator.scenario.generator import grid_fleet
 from plant_model.fleet import fleet_system
+from plant_model.fleet_model import Fleet
 from support.loop import run_cosimulation
 
 
@@ -73,11 +74,11 @@ def test_parameter_count_grows_linearly_with_the_fleet(tmp_path):
 def test_parameters_set_by_the_host_are_used(f4, fmus):
     """FMUs built for formation-4; the host changes a graph weight, a mass, an offset and
     the tracking law: the co-simulation equals the monolithic loop of the changed fleet."""
-    spec = copy.deepcopy(f4.fleet)
+    spec = copy.deepcopy(dict(f4.fleet.spec))
     spec["graph"]["edges"][0][2] = 2.0                      # a[2,1]
     spec["vehicles"][2]["params"]["mass"] = 40.0
     spec["vehicles"][0]["offset"][1] = 5.0
-    changed = replace(f4, fleet=spec, system=fleet_system(spec), tracking="lq")
+    changed = replace(f4, fleet=Fleet.of(spec), system=fleet_system(spec), tracking="lq")
     cfg = scenario_config(changed)
     assert cfg["fleet"]["graph"]["edges"][0][2] == 2.0
     steps = 500

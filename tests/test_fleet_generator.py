@@ -8,7 +8,6 @@ import pytest
 
 from orchestrator.scenario import SCENARIO_DIR, load_scenario, scenario_from_dict
 from orchestrator.scenario.generator import grid_fleet, scenario_toml
-from plant_model.fleet import fleet_graph
 
 
 def test_formation_20_file_matches_the_generator():
@@ -19,7 +18,7 @@ def test_formation_20_file_matches_the_generator():
 @pytest.mark.parametrize("N", [1, 2, 5, 7, 20, 50])
 def test_every_generated_vehicle_hears_the_leader_through_the_graph(N):
     sc = scenario_from_dict(grid_fleet(N), f"grid {N}")
-    g = fleet_graph(sc.fleet)
+    g = sc.fleet.graph
     assert len(g.pinning) == 1
     # L + G of a graph where every vehicle has a path from the leader is nonsingular
     # with eigenvalues in the open right half-plane
@@ -38,8 +37,8 @@ def test_grid_offsets_are_distinct_and_the_front_centre_is_pinned():
 
 def test_formation_20_loads_with_20_remus_vehicles():
     sc = load_scenario("formation-20")
-    assert len(sc.fleet["vehicles"]) == 20
-    assert {v["model"] for v in sc.fleet["vehicles"]} == {"remus100"}
+    assert sc.fleet.N == 20
+    assert set(sc.fleet.model_names) == {"remus100"}
     assert sc.tracking == "regulator"
 
 
@@ -52,7 +51,7 @@ def test_formation_100_file_matches_the_generator():
 def test_formation_100_hears_at_most_four_nearer_neighbours():
     sc = load_scenario("formation-100")
     assert (sc.deployment, sc.architecture) == ("per-vehicle", "distributed")
-    g = fleet_graph(sc.fleet)
+    g = sc.fleet.graph
     pinned = {i for i, _ in g.pinning}
     assert pinned == set(range(1, 11))                     # the front row
     heard: dict[int, list[int]] = {}

@@ -14,7 +14,7 @@ from orchestrator.cosim.build import build_fmus
 from orchestrator.running import scenario_config
 from orchestrator.scenario import SCENARIO_DIR, ScenarioError, load_scenario
 from plant_model.discretization import discretize
-from plant_model.fleet import ConsensusProtocol, fleet_graph, fleet_vehicles
+from plant_model.fleet import ConsensusProtocol
 from support.loop import run_cosimulation
 
 
@@ -30,7 +30,7 @@ def _scenario(tmp_path, consensus="protocol", text=None):
 def both(tmp_path_factory):
     d = tmp_path_factory.mktemp("protocol")
     default = load_scenario("formation-4")                  # the protocol form is the default
-    assert default.fleet["graph"]["consensus"] == "protocol"
+    assert default.fleet.consensus == "protocol"
     return _scenario(d, "in-plant"), default
 
 
@@ -44,9 +44,9 @@ def test_the_protocol_force_reproduces_the_in_plant_terms(both):
     c = sp.meta["consensus"]
     assert isinstance(c, ConsensusProtocol)
     np.testing.assert_array_equal(c.design.A, si.A)
-    spec = proto.fleet
-    models = fleet_vehicles(spec)
-    LG = fleet_graph(spec).consensus_matrix()
+    spec = proto.fleet.spec
+    models = proto.fleet.models
+    LG = proto.fleet.graph.consensus_matrix()
     Gam = np.asarray(spec["graph"]["coupling"], dtype=float)
     coupled = np.kron(LG, Gam)
     np.testing.assert_allclose(sp.A, block_diag(*[m.A for m in models]), atol=1e-15)

@@ -352,7 +352,7 @@ def test_per_vehicle_noise_and_cost_overrides(tmp_path):
     R = np.diag(sc.system.R).reshape(4, 3)
     assert V[2].tolist() == [4.0] * 3 and V[[0, 1, 3]].ravel().tolist() == [0.25] * 9
     assert R[2].tolist() == [0.5] * 3 and R[[0, 1, 3]].ravel().tolist() == [0.01] * 9
-    np.testing.assert_array_equal(fleet_system(sc.fleet).V_y, sc.system.V_y)
+    np.testing.assert_array_equal(fleet_system(sc.fleet.spec).V_y, sc.system.V_y)
     bad = tmp_path / "f4_bad.toml"
     bad.write_text(text.replace("position = 4.0", "positon = 4.0"))
     with pytest.raises(ScenarioError, match="vehicle 3.*positon"):

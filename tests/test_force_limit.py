@@ -45,7 +45,7 @@ def built(tmp_path_factory):
     folder = tmp_path_factory.mktemp("limit")
     for arch in ("distributed", "centralized"):
         gain = None if arch == "distributed" else tracking_law(sc.system, "regulator").Ks
-        cfgs = per_vehicle_configs(sc, arch, mode="kalman", seed=1, tracking="regulator",
+        cfgs = per_vehicle_configs(sc, arch, estimator="kalman", seed=1, tracking="regulator",
                                    gain=gain)
         fmus = build_fmus(None, folder / arch, kinds=build_configs(cfgs))
         out[arch] = (fmus, per_vehicle_system(sc, cfgs, arch), Extracted(fmus))
@@ -78,7 +78,7 @@ def test_the_clipped_distributed_controller_is_the_plain_law_clipped(built):
     law = distributed_loop_of(sc, "kalman", "regulator", sc.distributed).laws[3]
     slots = fleet_slots(sc.fleet)
     a, a0 = slots.weights[3], float(slots.pinning[3])
-    F = np.asarray(sc.fleet["leader"]["F"], float)
+    F = sc.fleet.leader.F
     Aobs, Bobs = sampled_observer(F, sc.h, sc.distributed.mu).vehicle_matrices(a.sum() + a0)
     c = sc.distributed.cohesion
     l_ = F.shape[0]
@@ -181,7 +181,7 @@ def _one_vehicle_loop(sc, parts, anti_windup: bool, umax: list[float], T_run: fl
 
     def refs(inst, name, n):
         return [inst.vr[f"{name}[{j}]"] for j in range(1, n + 1)]
-    l_ = np.asarray(sc.fleet["leader"]["F"]).shape[0]
+    l_ = sc.fleet.leader.F.shape[0]
     z_vr, y_vr, x_vr = refs(L, "z", l_), refs(V, "y", 3), refs(V, "x", 6)
     ey, eu, vu = refs(E, "y", 3), refs(E, "u", 3), refs(V, "u", 3)
     est = refs(E, "xhat", 6) + refs(E, "what", 3)
@@ -202,8 +202,8 @@ def _one_vehicle_loop(sc, parts, anti_windup: bool, umax: list[float], T_run: fl
             inst.slave.doStep(k * sc.h, sc.h)
     for inst in (L, V, E, C):
         inst.close()
-    H = np.asarray(sc.fleet["leader"]["H"], float)
-    d = np.asarray(sc.fleet["vehicles"][0]["offset"], float)
+    H = sc.fleet.leader.H
+    d = sc.fleet.offsets[0]
     return np.linalg.norm(Z @ H.T + d - X[:, :3], axis=1), W
 
 
@@ -218,7 +218,7 @@ def test_anti_windup_matters_after_a_saturating_transient(tmp_path):
                       "noise": 0.0}
     data["vehicles"]["positions"][0] = [-40.0, 30.0, 25.0]
     sc = scenario_from_dict(data, "windup").with_run(T=120.0)
-    cfgs = per_vehicle_configs(sc, "distributed", mode="kalman", seed=0, tracking="regulator")
+    cfgs = per_vehicle_configs(sc, "distributed", estimator="kalman", seed=0, tracking="regulator")
     fmus = build_fmus(None, tmp_path, kinds=build_configs(cfgs))
     ex = Extracted(fmus)
     parts = (fmus, per_vehicle_system(sc, cfgs, "distributed"), ex)

@@ -9,7 +9,7 @@ from orchestrator.analysis.full_information import best_steady_motion, full_info
 from orchestrator.running.setup import Method
 from orchestrator.running.systems import make_setup
 from orchestrator.scenario import load_scenario
-from plant_model.per_vehicle import sample_vehicle, vehicle_views
+from plant_model.per_vehicle import sample_vehicle
 
 
 @pytest.fixture(scope="module")
@@ -18,7 +18,7 @@ def f4():
 
 
 def _pieces(sc):
-    v = vehicle_views(sc.fleet)[1]
+    v = sc.fleet.views[1]
     model = sample_vehicle(v, sc.h, 2)
     p = v.n
     return v, model, model.Ad[:p, :p], model.Bd[:p], expm(v.F * sc.h)

@@ -18,8 +18,7 @@ from orchestrator.cosim.instance import Extracted, FmuInstance
 from orchestrator.recording import read_rrd_scalars
 from orchestrator.running.systems import scenario_system
 from orchestrator.scenario import load_scenario
-from plant_model.fleet import fleet_vehicles
-from plant_model.per_vehicle import sample_vehicle, vehicle_views
+from plant_model.per_vehicle import sample_vehicle
 from plant_model.remus100.autopilot import AutopilotGains
 from plant_model.remus100.dynamics import Remus100
 from plant_model.remus100.plant import (
@@ -82,7 +81,7 @@ def test_each_vehicle_is_guidance_autopilot_and_actuated_vehicle(run):
     assert not any(c.endswith("vehicle_2.u") for c in conns)
     # the guidance start values are each vehicle's own (its start depth), the autopilot's
     # the vehicle's gains
-    v3 = vehicle_views(sc.fleet)[2]
+    v3 = sc.fleet.views[2]
     assert system.component("guidance_3").parameters["depth0"] == v3.x0[2] == 25.0
     assert system.component("autopilot_3").parameters["K_chi"] == AutopilotGains().K_chi
     # the set-points are recorded per vehicle: speed, course, depth
@@ -99,8 +98,8 @@ def test_the_run_is_the_chain_replayed_monolithically(run):
     _, _, x_rec = scalars["vehicles/1/state/kalman/true"]
     steps = round(T / H)
     assert u.shape == (steps, 3) and x_rec.shape == (steps, 6)
-    model = fleet_vehicles(sc.fleet)[0]
-    view = vehicle_views(sc.fleet)[0]
+    model = sc.fleet.models[0]
+    view = sc.fleet.views[0]
     par = model.parameters
     # the guidance: v_ref through the water, the depth set-point, the held course
     M, D = np.array(par["total_mass"], float), np.array(par["damping"], float)
@@ -134,7 +133,7 @@ def test_actuated_plant_meets_the_internal_plants_current_and_noise(run):
     """Same seed and vehicle: the actuated and the force-driven plant draw the same current
     and sensor noise (the current does not depend on the vehicle's motion)."""
     sc, _, _, _ = run
-    view = vehicle_views(sc.fleet)[1]
+    view = sc.fleet.views[1]
     lin = sample_vehicle(view, H, 2)
     M, D = linear_mass_damping(view.B1, view.B2)
     n = substep_count(H, default_substep(H))

@@ -390,5 +390,5 @@ def test_the_c_host_runs_the_native_survey_export_of_every_platform(tmp_path):
     north = next(v.valueReference for v in md.modelVariables if v.name == "x[1]")
     columns = [i for i, h in enumerate(header) if h.startswith("vehicle_")
                and h.endswith(f".{north}")]
-    assert len(columns) == len(sc.fleet["vehicles"])
+    assert len(columns) == sc.fleet.N
     assert all(got[-1, i] - got[0, i] > 5.0 for i in columns), got[[0, -1]][:, columns]

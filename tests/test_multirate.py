@@ -9,13 +9,13 @@ from scipy.linalg import solve_discrete_are
 from estimator_fmu.multirate import MultiRateKalman, navigation_rows
 from orchestrator.scenario import load_scenario
 from plant_model.navigation import NAV_SIZE, NavigationSensors, SensedVehicle
-from plant_model.per_vehicle import sample_vehicle, vehicle_views
+from plant_model.per_vehicle import sample_vehicle
 from plant_model.plant import Plant
 
 
 @pytest.fixture(scope="module")
 def vehicle():
-    view = vehicle_views(load_scenario("formation-4").fleet)[1]
+    view = load_scenario("formation-4").fleet.views[1]
     return view, sample_vehicle(view, 0.01, 2)
 
 

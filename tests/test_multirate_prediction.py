@@ -24,7 +24,6 @@ from orchestrator.cosim.per_vehicle import (
 )
 from orchestrator.scenario import load_scenario
 from plant_model.linalg_checks import ModelError
-from plant_model.navigation import NavigationSensors
 
 BUILTIN = Path(__file__).parent.parent / "orchestrator/scenario/builtin/formation-4.toml"
 
@@ -46,13 +45,13 @@ def test_the_fmus_are_the_periodic_loop(tmp_path):
     """No dropouts: the estimator FMUs start on the periodic filter, so the co-simulation
     equals the periodic loop driven by the same draws, to 1e-9."""
     sc = _scenario(tmp_path, "fix_period = 1.0\nfix_dropout = 0.0\ndvl_dropout = 0.0\n")
-    cfgs = per_vehicle_configs(sc, "distributed", mode="kalman", seed=3, tracking=sc.tracking)
+    cfgs = per_vehicle_configs(sc, "distributed", estimator="kalman", seed=3, tracking=sc.tracking)
     fmus = build_fmus(None, tmp_path / "fmus", kinds=build_configs(cfgs))
     system = per_vehicle_system(sc, cfgs, "distributed")
     traces, _, _ = run_system(system, fmus, sc.steps)
     fmu = stacked_traces(sc, system, traces)
     loop = distributed_loop_of(sc, "kalman", sc.tracking, sc.distributed)
-    ref = multirate_reference(sc, loop, NavigationSensors.from_mapping(sc.sensors), 3,
+    ref = multirate_reference(sc, loop, sc.sensors, 3,
                               sc.steps)
     for key in ("x", "u", "e"):
         assert _rel(fmu[key], ref[key]) < 1e-9, key
@@ -65,7 +64,7 @@ def test_every_sensor_every_step_is_the_steady_loop(tmp_path):
     sc = _scenario(tmp_path, "fix_period = 0.01\ndvl_period = 0.01\ndepth_period = 0.01\n"
                    "fix_dropout = 0.0\ndvl_dropout = 0.0\n")
     loop = distributed_loop_of(sc, "kalman", sc.tracking, sc.distributed)
-    sensors = NavigationSensors.from_mapping(sc.sensors)
+    sensors = sc.sensors
     (phase,) = periodic_loop(sc, loop, sensors)
     from dataclasses import replace
     steady = replace(loop, Phi=phase["Phi"], Gam=phase["Gam"], W=phase["W"], Gx=phase["Gx"],
@@ -82,7 +81,7 @@ def test_the_lifted_solution_is_the_iterated_second_moment(tmp_path):
     sc = _scenario(tmp_path, "fix_period = 0.1\ndvl_period = 0.05\ndepth_period = 0.02\n"
                    "fix_dropout = 0.0\ndvl_dropout = 0.0\n")
     loop = distributed_loop_of(sc, "kalman", sc.tracking, sc.distributed)
-    sensors = NavigationSensors.from_mapping(sc.sensors)
+    sensors = sc.sensors
     phases = periodic_loop(sc, loop, sensors)
     assert len(phases) == 10
     R = ~loop.deterministic
@@ -111,4 +110,4 @@ def test_dropouts_have_no_prediction_and_say_why(tmp_path):
     sc = _scenario(tmp_path, "")
     loop = distributed_loop_of(sc, "kalman", sc.tracking, sc.distributed)
     with pytest.raises(ModelError, match="no prediction with sensor dropouts"):
-        predict_multirate_cost(sc, loop, NavigationSensors.from_mapping(sc.sensors))
+        predict_multirate_cost(sc, loop, sc.sensors)

@@ -20,7 +20,7 @@ from orchestrator.cosim.native_remus import native_remus_fmu
 from orchestrator.cosim.per_vehicle import build_configs, per_vehicle_configs
 from orchestrator.scenario import load_scenario
 from plant_model.navigation import NavigationSensors
-from plant_model.per_vehicle import sample_vehicle, vehicle_views
+from plant_model.per_vehicle import sample_vehicle
 from plant_model.remus100.autopilot import AutopilotGains
 from plant_model.remus100.dynamics import Remus100
 from plant_model.remus100.native_constants import const_struct, remus_constants
@@ -42,7 +42,7 @@ SEED, VEHICLE = 3, 3
 
 def _plant(cls, sensors=None):
     sc = load_scenario("formation-4")
-    view = vehicle_views(sc.fleet)[VEHICLE - 1]
+    view = sc.fleet.views[VEHICLE - 1]
     linear = sample_vehicle(view, sc.h, VEHICLE)
     M, D = linear_mass_damping(view.B1, view.B2)
     return cls(Remus100(), AutopilotGains(), linear, M, D, view.x0, view.w0, SEED,
@@ -133,7 +133,7 @@ def fmus(tmp_path_factory):
         sc = load_scenario("formation-4").with_run(
             T=2.0, deployment="per-vehicle", architecture="distributed", seed=SEED
         ).with_vehicle_model(model)
-        cfgs = per_vehicle_configs(sc, "distributed", mode="kalman", seed=SEED,
+        cfgs = per_vehicle_configs(sc, "distributed", estimator="kalman", seed=SEED,
                                    tracking=sc.tracking)
         built.update(build_fmus(None, out / model, kinds=build_configs(cfgs)))
     native = {k: native_remus_fmu(k, built[k], out / "native")

@@ -44,8 +44,8 @@ def f4():
 
 
 def _H_offsets(sc):
-    H = np.asarray(sc.fleet["leader"]["H"], float)
-    return H, [v.get("offset") for v in sc.fleet["vehicles"]]
+    H = sc.fleet.leader.H
+    return H, sc.fleet.offsets
 
 
 def _centralized(sc, mode):
@@ -183,8 +183,7 @@ def test_a_jointly_connected_schedule_predicted_and_simulated(f4):
     sc = f4.with_run(T=100.0)
     loop = distributed_loop_of(sc, "kalman", "regulator", sc.distributed)
     form = distributed_message_form(loop, *_H_offsets(sc))
-    g = sc.fleet["graph"]
-    timings = resolve_links(4, [tuple(e) for e in g["edges"]], [tuple(p) for p in g["pinning"]],
+    timings = resolve_links(4, sc.fleet.edges, sc.fleet.pinning,
                             {"latency": 1.0, "period": 2.0, "loss": 0.2}, sc.h)
     sched = resolve_schedule(HALVES, timings, sc.h, 4)
     assert connectivity(sched, timings) == {"connected_graphs": [False, False],
@@ -270,8 +269,7 @@ def test_predicted_cost_matches_simulation_over_seeds(f4, receiver, tdma):
     sc = f4.with_run(T=100.0)
     loop = distributed_loop_of(sc, "kalman", "regulator", sc.distributed)
     form = distributed_message_form(loop, *_H_offsets(sc))
-    g = sc.fleet["graph"]
-    timings = resolve_links(4, [tuple(e) for e in g["edges"]], [tuple(p) for p in g["pinning"]],
+    timings = resolve_links(4, sc.fleet.edges, sc.fleet.pinning,
                             {"latency": 1.0, "period": 2.0, "loss": 0.2, "tdma": tdma}, sc.h)
     net = NetworkedLoop(form, timings, receiver)
     if tdma:

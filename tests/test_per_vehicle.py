@@ -25,7 +25,7 @@ from orchestrator.cosim.per_vehicle import (
 from orchestrator.running import scenario_config
 from orchestrator.scenario import ScenarioError, load_scenario
 from plant_model.discretization import discretize
-from plant_model.per_vehicle import sample_vehicle, vehicle_views
+from plant_model.per_vehicle import sample_vehicle
 from plant_model.plant import NoiseStream
 from support.cli import assert_one_line_error
 from support.loop import run_cosimulation
@@ -43,7 +43,7 @@ def f4():
 def _per_vehicle(sc, arch, mode, seed, tmp, settings=None):
     sc = replace(sc, distributed=settings) if settings else sc
     gain = tracking_law(sc.system, sc.tracking).Ks if arch == "centralized" else None
-    cfgs = per_vehicle_configs(sc, arch, mode=mode, seed=seed, tracking=sc.tracking,
+    cfgs = per_vehicle_configs(sc, arch, estimator=mode, seed=seed, tracking=sc.tracking,
                                settings=sc.distributed, gain=gain)
     fmus = build_fmus(None, tmp, kinds=build_configs(cfgs))
     system = per_vehicle_system(sc, cfgs, arch)
@@ -56,11 +56,11 @@ def test_each_vehicle_draws_its_stacked_stream_alone(f4):
     protocol form's noise (both sample the same block with one Van Loan exponential)."""
     model = discretize(f4.system, f4.h)
     rows = NoiseStream.all_rows(model, 11, 3000)
-    for i, view in enumerate(vehicle_views(f4.fleet), start=1):
+    for i, view in enumerate(f4.fleet.views, start=1):
         alone = NoiseStream.all_rows(sample_vehicle(view, f4.h, i), 11, 3000)
         assert np.array_equal(alone, rows[:, list(model.noise_blocks[i - 1])])
     # and another vehicle number draws another stream
-    other = NoiseStream.all_rows(sample_vehicle(vehicle_views(f4.fleet)[0], f4.h, 2), 11, 3000)
+    other = NoiseStream.all_rows(sample_vehicle(f4.fleet.views[0], f4.h, 2), 11, 3000)
     assert not np.allclose(other, rows[:, list(model.noise_blocks[0])])
 
 
@@ -74,7 +74,7 @@ def test_slots_hold_the_graph_with_unused_ones_weightless(f4):
 
 
 def test_the_system_is_constant_size_per_vehicle_for_the_distributed_law(f4, tmp_path):
-    cfgs = per_vehicle_configs(f4, "distributed", mode="kalman", seed=0, tracking="regulator")
+    cfgs = per_vehicle_configs(f4, "distributed", estimator="kalman", seed=0, tracking="regulator")
     system = per_vehicle_system(f4, cfgs, "distributed")
     assert len(system.components) == 1 + 3 * 4
     sizes = {c.name: sum(s.size for s in c.arrays("input")) for c in system.components}
@@ -109,7 +109,7 @@ def test_distributed_fmus_equal_the_monolithic_loop(f4, tmp_path, mode, cohesion
     for key in ("x", "u", "e", "eta"):
         assert _rel(per[key], ref[key]) < 1e-9, key
     # the observers converge on the leader: the last eta of every vehicle is the leader
-    l0 = np.asarray(f4.fleet["leader"]["F"]).shape[0]
+    l0 = f4.fleet.leader.F.shape[0]
     z = per["z"][-1, :l0]
     for i in range(4):
         assert np.abs(per["eta"][-1, i * l0:(i + 1) * l0] - z).max() < 1e-3 * np.abs(z).max()
@@ -240,7 +240,7 @@ def test_a_planned_leader_path_needs_no_leader_messages(f4, tmp_path):
     sc = replace(f4, distributed=settings)
     per, system = _per_vehicle(sc, "distributed", "kalman", 4, tmp_path, settings)
     assert not [c for c in system.connections if c.source == "leader"]
-    l0 = np.asarray(f4.fleet["leader"]["F"]).shape[0]
+    l0 = f4.fleet.leader.F.shape[0]
     z = per["z"][:, :l0]
     for i in range(4):
         assert np.abs(per["eta"][:, i * l0:(i + 1) * l0] - z).max() < 1e-9 * np.abs(z).max()

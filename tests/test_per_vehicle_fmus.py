@@ -13,7 +13,7 @@ from orchestrator.scenario import load_scenario
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     sc = load_scenario("formation-4").with_run(T=10.0)
-    cfgs = per_vehicle_configs(sc, "distributed", mode="kalman", seed=2, tracking="regulator")
+    cfgs = per_vehicle_configs(sc, "distributed", estimator="kalman", seed=2, tracking="regulator")
     fmus = build_fmus(None, tmp_path_factory.mktemp("pv"), kinds=build_configs(cfgs))
     system = per_vehicle_system(sc, cfgs, "distributed")
     ex = Extracted(fmus)

@@ -248,3 +248,32 @@ def test_links_may_come_with_the_first_chunk(tmp_path):
             stream.send(m, 100, {k: v[100:] for k, v in traces.items()})
         stream.close()
     assert_same_files(tmp_path / "one.rrd", tmp_path / "late.rrd")
+
+
+@pytest.mark.parametrize("resume", [False, True], ids=["goes-on", "resumed"])
+def test_checkpoint_segments_join_into_the_same_file(tmp_path, resume):
+    """A fleet with links recorded with two checkpoints (each finishes a segment file):
+    going on, or resumed from the second checkpoint's state in a new stream (what
+    ``run --resume`` does after a kill: the rows after the checkpoint are sent again), the
+    joined file holds what a stream without checkpoints writes, blueprint included."""
+    runs = fleet_runs_with_links_and_actuators()
+    kw = dict(recording_name="checkpoints", fleet=make_fleet(), trail_seconds=TRAIL_S,
+              trail_sample_seconds=TRAIL_SAMPLE_S, stride=3, links={m: LINKS for m in runs})
+    write_rrd(tmp_path / "one.rrd", runs, FLEET_H, **kw)
+    (first, tr1), (second, tr2) = runs.items()
+    folder = tmp_path / "checkpoint"
+    stream = RrdStream(tmp_path / "segmented.rrd", list(runs), FLEET_H, chunk_rows=25, **kw)
+    stream.send(first, 0, tr1)
+    stream.checkpoint(folder)
+    stream.send(second, 0, {k: v[:100] for k, v in tr2.items()})
+    state = stream.checkpoint(folder)
+    assert sorted(p.name for p in folder.iterdir()) == ["segment-0000.rrd",
+                                                         "segment-0001.rrd"]
+    if resume:
+        stream.send(second, 100, {k: v[100:150] for k, v in tr2.items()})   # then killed
+        stream.abort()
+        stream = RrdStream.resumed(state, folder, tmp_path / "segmented.rrd")
+    stream.send(second, 100, {k: v[100:] for k, v in tr2.items()})
+    stream.close()
+    assert_same_files(tmp_path / "one.rrd", tmp_path / "segmented.rrd")
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".part")]

@@ -7,7 +7,7 @@ import pytest
 
 from orchestrator.scenario import ScenarioError, load_scenario
 from plant_model.linalg_checks import ModelError
-from plant_model.per_vehicle import sample_vehicle, vehicle_views
+from plant_model.per_vehicle import sample_vehicle
 from plant_model.plant import Plant
 from plant_model.remus100.autopilot import AutopilotGains
 from plant_model.remus100.dynamics import Remus100
@@ -29,7 +29,7 @@ def f4_6dof():
 
 
 def _plant(sc, i=0, seed=4, **kw):
-    view = vehicle_views(sc.fleet)[i]
+    view = sc.fleet.views[i]
     linear = sample_vehicle(view, sc.h, i + 1)
     M, D = linear_mass_damping(view.B1, view.B2)
     return Remus6dofPlant(Remus100(), AutopilotGains(), linear, M, D, view.x0, view.w0,
@@ -98,7 +98,7 @@ def test_a_cruise_force_holds_cruise_speed_over_ground():
     """u = D v north: the linear model's steady state is 1.5 m/s north; so is the torpedo's
     (no current, no noise), at constant depth, with the propeller near its feedforward."""
     sc = load_scenario("formation-4").with_run(T=20.0)
-    view = vehicle_views(sc.fleet)[0]
+    view = sc.fleet.views[0]
     quiet = view.__class__.from_mapping({**view.to_mapping(), "W_x": np.zeros((6, 6)),
                                          "W_w": np.zeros((3, 3)), "V_y": np.zeros((3, 3)),
                                          "w0": np.zeros(3),

@@ -18,7 +18,7 @@ from orchestrator.cosim.per_vehicle import (
     stacked_traces,
 )
 from orchestrator.scenario import load_scenario
-from plant_model.per_vehicle import sample_vehicle, vehicle_views
+from plant_model.per_vehicle import sample_vehicle
 from plant_model.remus100.autopilot import AutopilotGains
 from plant_model.remus100.dynamics import Remus100
 from plant_model.remus100.plant import (
@@ -36,7 +36,7 @@ def loop(tmp_path_factory):
     sc = load_scenario("formation-4").with_run(
         T=T, deployment="per-vehicle", architecture="distributed", seed=3
     ).with_vehicle_model("remus100-6dof")
-    cfgs = per_vehicle_configs(sc, "distributed", mode="kalman", seed=3, tracking=sc.tracking)
+    cfgs = per_vehicle_configs(sc, "distributed", estimator="kalman", seed=3, tracking=sc.tracking)
     fmus = build_fmus(None, tmp_path_factory.mktemp("r6"), kinds=build_configs(cfgs))
     system = per_vehicle_system(sc, cfgs, "distributed")
     traces, _, _ = run_system(system, fmus, sc.steps)
@@ -62,7 +62,7 @@ def test_the_fmu_in_the_loop_is_the_plant_stepped_by_hand(loop):
     """Vehicle 3's outputs, replayed offline from its recorded force: equal to 1e-12."""
     sc, _, system, traces = loop
     names = system.trace_names()
-    view = vehicle_views(sc.fleet)[2]
+    view = sc.fleet.views[2]
     linear = sample_vehicle(view, sc.h, 3)
     M, D = linear_mass_damping(view.B1, view.B2)
     plant = Remus6dofPlant(Remus100(), AutopilotGains(), linear, M, D, view.x0, view.w0, 3,

@@ -23,7 +23,7 @@ def test_the_path_check_and_the_weight_comes_from_the_bandwidth(name):
     assert d.binding == "bandwidth" and d.bandwidth == pytest.approx(0.2, rel=1e-6)
     assert 0.5 < d.R < 5.0
     assert d.clip and all(u[0] > 20.0 and u[1] > 20.0 for u in d.u_max)
-    assert sc.sensors["fix_period"] == 2.0           # the REMUS navigation sensors
+    assert sc.sensors.fix_period == 2.0           # the REMUS navigation sensors
 
 
 @pytest.mark.slow

@@ -16,7 +16,7 @@ from orchestrator.cosim.per_vehicle import build_configs, per_vehicle_configs, p
 from orchestrator.scenario import ScenarioError, load_scenario
 from plant_model.linalg_checks import ModelError
 from plant_model.navigation import NavigationSensors
-from plant_model.per_vehicle import sample_vehicle, vehicle_views
+from plant_model.per_vehicle import sample_vehicle
 
 BUILTIN = Path(__file__).parent.parent / "orchestrator/scenario/builtin/formation-4.toml"
 SENSORS = '\n[sensors]\nkind = "remus"\nfix_period = 1.0\nfix_dropout = 0.2\n'
@@ -36,7 +36,7 @@ def _scenario(tmp_path, model="remus100-6dof", extra=SENSORS, per_vehicle=True):
 @pytest.mark.parametrize("model", ["remus100", "remus100-6dof"])
 def test_the_estimator_fmu_is_the_multirate_filter_on_the_vehicle_reports(tmp_path, model):
     sc = load_scenario(_scenario(tmp_path, model)).with_run(T=8.0)
-    cfgs = per_vehicle_configs(sc, "distributed", mode="kalman", seed=1, tracking=sc.tracking)
+    cfgs = per_vehicle_configs(sc, "distributed", estimator="kalman", seed=1, tracking=sc.tracking)
     fmus = build_fmus(None, tmp_path / "fmus", kinds=build_configs(cfgs))
     system = per_vehicle_system(sc, cfgs, "distributed")
     traces, _, _ = run_system(system, fmus, sc.steps)
@@ -46,7 +46,7 @@ def test_the_estimator_fmu_is_the_multirate_filter_on_the_vehicle_reports(tmp_pa
     assert np.all(nav[k % 100 != 0, 7] == 0) and 0 < nav[k % 100 == 0, 7].sum() <= 8
     assert np.all(nav[k % 20 == 0, 8] + (nav[k % 20 == 0, 8] == 0) >= 1)
     assert nav[:, 9].sum() == sc.steps // 10                      # depth: 10 Hz, no dropout
-    view = vehicle_views(sc.fleet)[2]
+    view = sc.fleet.views[2]
     kf = MultiRateKalman(sample_vehicle(view, sc.h, 3), NavigationSensors(
         fix_period=1.0, fix_dropout=0.2), np.concatenate([view.x0, view.w0]))
     u = traces[names[("controller_3", "u")]]
@@ -78,7 +78,7 @@ def test_sensors_are_refused_where_they_cannot_be(tmp_path, capsys):
     assert len(err.splitlines()) == 1
     assert not (tmp_path / "c").exists()
     sc = load_scenario(path)
-    view = vehicle_views(sc.fleet)[0]
+    view = sc.fleet.views[0]
     with pytest.raises(ModelError, match="needs a position fix every step"):
         navigation_estimator(view, sample_vehicle(view, sc.h, 1), "classical",
                              NavigationSensors())

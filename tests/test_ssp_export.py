@@ -318,8 +318,7 @@ def test_a_per_vehicle_archive_runs_in_fmpy_with_each_vehicles_values(tmp_path):
     from orchestrator.running import build
     fmus = build(sc, tmp_path / "fmus")
     ours, _, _ = run_system(system, fmus, steps)
-    from plant_model.per_vehicle import vehicle_views
-    C = vehicle_views(sc.fleet)[0].C
+    C = sc.fleet.views[0].C
     for i in range(1, 5):
         w = np.column_stack([result[f"vehicle_{i}.w[{k}]"] for k in range(1, 4)])[:steps - 1]
         assert np.abs(w - ours[f"vehicle_{i}.w"][1:steps]).max() < 1e-12, i

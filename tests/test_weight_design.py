@@ -26,7 +26,6 @@ from orchestrator.analysis.distributed_verdict import predict_cost
 from orchestrator.analysis.per_vehicle import distributed_loop_of
 from orchestrator.analysis.weight_search import _noise_gain, design_fleet
 from orchestrator.scenario import SCENARIO_DIR, ScenarioError, load_scenario, scenario_from_dict
-from plant_model.fleet import fleet_vehicles
 from plant_model.leader import circle, straight
 from plant_model.linalg_checks import ModelError
 from plant_model.path_feasibility import path_demands, path_findings
@@ -39,7 +38,7 @@ FLEET = tomllib.loads((SCENARIO_DIR / "formation-4.toml").read_text())
 @pytest.fixture(scope="module")
 def f4():
     sc = load_scenario("formation-4")
-    agents, _, leader = agents_from_fleet_spec(sc.fleet)
+    agents, _, leader = agents_from_fleet_spec(sc.fleet.spec)
     return sc, agents, leader
 
 
@@ -100,18 +99,18 @@ def test_the_search_meets_each_target_and_both_take_the_larger_r(f4):
     the target it names to 1e-8; with both targets the larger R is taken."""
     sc, _, _ = f4
     run = dict(h=sc.h, T=60.0, estimator="kalman", tracking="regulator")
-    bw = design_fleet(sc.fleet, {"bandwidth": 0.2, "path_check": "off"}, **run)
+    bw = design_fleet(sc.fleet.spec, {"bandwidth": 0.2, "path_check": "off"}, **run)
     assert bw.binding == "bandwidth" and bw.bandwidth == pytest.approx(0.2, rel=1e-8)
-    fb = design_fleet(sc.fleet, {"force_budget": 0.5, "u_max": "vehicle",
+    fb = design_fleet(sc.fleet.spec, {"force_budget": 0.5, "u_max": "vehicle",
                                  "path_check": "off"}, **run)
     assert fb.binding == "force_budget" and fb.force_ratio == pytest.approx(0.5, rel=1e-8)
-    both = design_fleet(sc.fleet, {"bandwidth": 0.2, "force_budget": 0.5,
+    both = design_fleet(sc.fleet.spec, {"bandwidth": 0.2, "force_budget": 0.5,
                                    "u_max": "vehicle", "path_check": "off"}, **run)
     assert both.R == pytest.approx(max(bw.R, fb.R), rel=1e-9)
     assert both.force_ratio <= 0.5 + 1e-9 and both.bandwidth <= 0.2 + 1e-9
     # u_max of the linear remus100: the drag at its top speed, D_a * 2.5 m/s, with D_a
     # from the model's own parameters
-    D = np.asarray(fleet_vehicles(sc.fleet)[0].parameters["damping"], float)
+    D = np.asarray(sc.fleet.models[0].parameters["damping"], float)
     assert np.allclose(fb.u_max[0], D * 2.5, rtol=1e-12)
 
 
@@ -238,7 +237,7 @@ def test_the_vehicle_s_band_is_where_it_follows_its_design_model():
     )
     from orchestrator.analysis.weight_search import vehicle_band
     sc = load_scenario("survey-4-remus")
-    mdl = fleet_vehicles(sc.fleet)[0]
+    mdl = sc.fleet.models[0]
     band = vehicle_band([mdl])
     M = 1.0 / np.diag(np.asarray(mdl.B1, float)[3:6, :3])
     D = -np.diag(np.asarray(mdl.A, float)[3:6, 3:6]) * M

@@ -141,7 +141,7 @@ def full_information_bound(sc: Scenario, window: tuple[int, int]) -> FullInforma
         The bound and its parts; ``cost_rate`` None (with the reason) for a leader with
         process noise.
     """
-    views = sc.fleet_model.views
+    views = sc.fleet.views
     if np.any(views[0].W_z != 0.0):
         return FullInformationBound(None, None, None, [], reason=(
             "the leader has process noise: its random motion has no finite full-information "
@@ -179,7 +179,7 @@ def fleet_bound(sc: Scenario, k0: int) -> float | None:
     float or None
         The bound's cost rate.
     """
-    if sc.fleet is None or sc.fleet.get("graph", {}).get("consensus") != "protocol":
+    if sc.fleet is None or sc.fleet.consensus != "protocol":
         return None
     return full_information_bound(sc, (k0, sc.steps)).cost_rate
 

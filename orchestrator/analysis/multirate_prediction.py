@@ -71,7 +71,7 @@ def periodic_loop(sc: Scenario, base: DistributedLoop, sensors: NavigationSensor
         raise ModelError(f"the periodic loop of the sensors' {cycle}-step cycle ({nX} states "
                          f"per phase) needs about {need / 1e9:.3g} GB, more than the "
                          f"{MAX_PHASE_BYTES / 1e9:g} GB this prediction builds")
-    agents, graph, leader = fleet_agents(sc.fleet_model)
+    agents, graph, leader = fleet_agents(sc.fleet)
     g = np.diag(graph.pinning_matrix()).copy()
     n, r = agents[0].A.shape[0], agents[0].Kw.shape[0]
     cache: dict[bytes, list] = {}            # identical vehicles share one filter

@@ -54,7 +54,7 @@ def distributed_loop_of(sc: Scenario, mode: str, tracking: str, settings: Any) -
     DistributedLoop
         Phi, Gam, W, Gx, Geta, Ce and the pieces.
     """
-    agents, graph, leader = fleet_agents(sc.fleet_model)
+    agents, graph, leader = fleet_agents(sc.fleet)
     laws = [vehicle_law(A=a.A, B1=a.B, B2=a.E, C=a.C, K=a.Kw, Q=a.Q, R=a.R, F=leader["F"],
                         H=leader["H"], offset=a.offset, tracking=tracking,
                         regulator=settings.regulator, h=sc.h, where=f"vehicle {i}: ")
@@ -84,8 +84,8 @@ def distributed_initial_state(sc: Scenario, loop: DistributedLoop) -> np.ndarray
     np.ndarray
         X(0).
     """
-    views = sc.fleet_model.views
-    z0 = np.asarray(sc.fleet["leader"].get("z0"), dtype=float)
+    views = sc.fleet.views
+    z0 = sc.fleet.leader.z0
     eta0 = observer_start(z0, sc.distributed)
     return loop.initial_state(z0, [v.x0 for v in views], [v.w0 for v in views],
                               [eta0] * len(views))
@@ -110,7 +110,7 @@ def distributed_noise(sc: Scenario, seed: int, steps: int) -> np.ndarray:
         (steps, sum of the vehicles' (n + r) + sum of their s).
     """
     nu, nn = [], []
-    for i, view in enumerate(sc.fleet_model.views, start=1):
+    for i, view in enumerate(sc.fleet.views, start=1):
         rows = NoiseStream.all_rows(sample_vehicle(view, sc.h, i), seed, steps)
         ns = view.n + view.r
         nu.append(rows[:, :ns])

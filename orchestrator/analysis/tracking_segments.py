@@ -20,9 +20,12 @@ NED position error from the formation slot). Over the statistics window [k0, K):
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from plant_model.fleet_model import LeaderSpec
 
 __all__ = ["TURN_RATE", "SegmentSums", "leader_turn_rate", "run_segments", "segment_stats",
            "segment_summary"]
@@ -169,11 +172,10 @@ def segment_summary(per_seed: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def run_segments(leader: Mapping[str, Any], traces: Mapping[str, np.ndarray], k0: int
+def run_segments(leader: LeaderSpec, traces: Mapping[str, np.ndarray], k0: int
                  ) -> dict[str, Any]:
     """:func:`segment_stats` of one fleet run: errors from the stacked ``e``, turns from
-    the leader's ``z`` (``leader``: the fleet spec's F and H), saturation from the
+    the leader's ``z`` (``leader``: the fleet's, its F and H), saturation from the
     vehicles' ``saturated`` outputs when they have actuators."""
-    turning = np.abs(leader_turn_rate(traces["z"], np.asarray(leader["F"], float),
-                                      np.asarray(leader["H"], float))) > TURN_RATE
+    turning = np.abs(leader_turn_rate(traces["z"], leader.F, leader.H)) > TURN_RATE
     return segment_stats(traces["e"], turning, k0, traces.get("saturated"))

@@ -72,7 +72,7 @@ def benchmark_per_vehicle(N: int, *, architecture: str = "distributed", T: float
                            "T": sc.T, "mode": mode, "tracking": tracking}
     t = time.perf_counter()
     if architecture == "distributed":
-        agents, _, leader = fleet_agents(sc.fleet_model)
+        agents, _, leader = fleet_agents(sc.fleet)
         for a in agents:
             vehicle_law(A=a.A, B1=a.B, B2=a.E, C=a.C, K=a.Kw, Q=a.Q, R=a.R, F=leader["F"],
                         H=leader["H"], offset=a.offset, tracking=tracking,

@@ -109,7 +109,7 @@ def benchmark_remus(steps: int = 20_000) -> dict[str, Any]:
             sc = load_scenario("formation-4").with_run(
                 T=10.0, deployment="per-vehicle", architecture="distributed"
             ).with_vehicle_model(model)
-            cfgs = per_vehicle_configs(sc, "distributed", mode=DEFAULT_ESTIMATOR, seed=0,
+            cfgs = per_vehicle_configs(sc, "distributed", estimator=DEFAULT_ESTIMATOR, seed=0,
                                        tracking=sc.tracking)
             fmus = build_fmus(None, Path(tmp) / model, kinds=build_configs(cfgs))
             system = per_vehicle_system(sc, cfgs, "distributed")

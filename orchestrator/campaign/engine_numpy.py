@@ -22,7 +22,7 @@ does not know (anything but a linear plant with perfect links).
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -30,6 +30,9 @@ from plant_model.plant import NoiseStream
 
 from ..analysis.prediction import closed_loop
 from ..analysis.summary import trace_stats
+
+if TYPE_CHECKING:
+    from ..scenario import Scenario
 
 __all__ = ["numpy_unsupported", "run_batch", "KNOWN_SECTIONS"]
 
@@ -43,7 +46,7 @@ BLOCK = 2048
 
 
 def numpy_unsupported(coupling: str, sections: set[str] | frozenset[str],
-                      scenario: Any = None) -> str | None:
+                      scenario: Scenario | None = None) -> str | None:
     """Why the numpy engine cannot run a point (None if it can): it covers the stacked loop
     of a linear plant over perfect links, coupled Gauss-Seidel; the FMU kind does not
     matter (it runs no FMU).

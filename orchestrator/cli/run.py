@@ -60,7 +60,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = args.resume or args.out or default_out(sc, sc.estimator, f"seed{sc.seed}")
     with staged_output(out, "run", identity=run_identity(sc, "run"),
                        force=True if resume is not None else args.force,
-                       kind=RUN if every else "") as st:
+                       kind=RUN if every else "",
+                       resume=(CHECKPOINT_DIR,) if resume is not None else ()) as st:
         summary = simulate(sc, [sc.estimator], [sc.seed], st.path, progress=not args.quiet,
                            log=_log(args, st), predict=options["predict"],
                            master=options["master"], checkpoint_every=every, resume=resume,
@@ -148,7 +149,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
     """compare --what plants: the linear and the nonlinear REMUS 100, same FMUs otherwise."""
-    from plant_model.vehicle_models import DEFAULT_MODEL, family_of
+    from plant_model.vehicle_models import family_of
 
     from ..running.naming import default_out, run_identity
     from ..running.plants import PLANTS, compare_plants, plant_table
@@ -156,7 +157,7 @@ def _compare_plants(sc: Scenario, args: argparse.Namespace) -> int:
         raise UsageError("--what plants runs the nonlinear vehicle, which is its own FMU: add "
                          "--deployment per-vehicle (or set [simulation] deployment = "
                          "\"per-vehicle\")")
-    models = [v.get("model", DEFAULT_MODEL) for v in sc.fleet["vehicles"]]
+    models = list(sc.fleet.model_names)
     other = next((i for i, m in enumerate(models, 1)
                   if family_of(m) != family_of(PLANTS[0])), None)
     if other is not None or args.methods:

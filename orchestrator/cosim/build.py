@@ -112,7 +112,7 @@ STACKED_KINDS = ("plant", "estimator", "controller")
 
 
 def fmu_config(system_mapping: dict[str, Any], dims: dict[str, int], h: float, T: float,
-               seed: int, mode: str, tracking: str = "lq",
+               seed: int, estimator: str, tracking: str = "lq",
                fleet: dict[str, Any] | None = None) -> dict[str, Any]:
     """The JSON configuration an FMU is built with (dimensions and start values).
 
@@ -131,8 +131,8 @@ def fmu_config(system_mapping: dict[str, Any], dims: dict[str, int], h: float, T
         Stop time of the default experiment, s.
     seed : int
         Seed of the plant's noise.
-    mode : str
-        Estimator mode.
+    estimator : str
+        The estimator (estimator_fmu.registry; the estimator FMU's ``mode`` parameter).
     tracking : str, optional
         Controller law ('lq' or 'regulator').
     fleet : dict[str, Any] or None, optional
@@ -141,12 +141,12 @@ def fmu_config(system_mapping: dict[str, Any], dims: dict[str, int], h: float, T
     Returns
     -------
     dict[str, Any]
-        Keys system, dims, h, T, seed, mode, tracking, fleet (JSON-ready).
+        Keys system, dims, h, T, seed, estimator, tracking, fleet (JSON-ready).
     """
     if fleet is not None:
         system_mapping = {"noise_convention": system_mapping.get("noise_convention", "intensity")}
     return {"system": system_mapping, "dims": dims, "h": float(h), "T": float(T),
-            "seed": int(seed), "mode": mode, "tracking": tracking, "fleet": fleet}
+            "seed": int(seed), "estimator": estimator, "tracking": tracking, "fleet": fleet}
 
 
 def interface_of(kind: FmuKind, config: dict[str, Any]) -> list[ArraySpec]:

@@ -44,7 +44,6 @@ from controller_fmu.vehicle_law import (
 )
 from estimator_fmu.registry import TRUTH, estimator_kind
 from plant_model.acoustic.links import link_sender
-from plant_model.fleet import fleet_graph
 from plant_model.per_vehicle import leader_system
 from plant_model.system import LinearSystem
 from plant_model.vehicle_fmu import fmu_port_config
@@ -56,6 +55,8 @@ from .per_vehicle_network import network_connections
 from .system import Component, Connection, SystemDescription, component_parameters
 
 if TYPE_CHECKING:
+    from plant_model.fleet_model import Fleet, LeaderSpec
+
     from ..scenario import Scenario
 
 __all__ = ["ARCHITECTURES", "DEPLOYMENTS", "DistributedSettings", "FleetSlots",
@@ -76,20 +77,20 @@ class FleetSlots:
         return int(self.weights.shape[1])
 
 
-def fleet_slots(spec: Mapping[str, Any]) -> FleetSlots:
-    """The graph of a fleet spec as fixed-size neighbour slots.
+def fleet_slots(fleet: Fleet) -> FleetSlots:
+    """The graph of a fleet as fixed-size neighbour slots.
 
     Parameters
     ----------
-    spec : Mapping[str, Any]
-        The fleet spec (its graph is validated: every vehicle reachable from the leader).
+    fleet : Fleet
+        The fleet (its graph is validated: every vehicle reachable from the leader).
 
     Returns
     -------
     FleetSlots
         Slots in the order of the edges; unused ones name the vehicle itself, weight 0.
     """
-    graph = fleet_graph(spec)
+    graph = fleet.graph
     N = graph.N
     heard: list[list[tuple[int, float]]] = [[] for _ in range(N)]
     for j, i, a in graph.edges:
@@ -106,11 +107,9 @@ def fleet_slots(spec: Mapping[str, Any]) -> FleetSlots:
     return FleetSlots(neighbours=nb, weights=w, pinning=pin)
 
 
-def _leader(spec: Mapping[str, Any]) -> dict[str, np.ndarray]:
-    ld = spec["leader"]
-    l0 = np.asarray(ld["F"]).shape[0]
-    F, z0, W = leader_system(ld["F"], ld.get("z0", np.zeros(l0)), ld.get("W_z", 0.0))
-    return {"F": F, "H": np.asarray(ld["H"], dtype=float), "z0": z0, "W_z": W}
+def _leader(ld: LeaderSpec) -> dict[str, np.ndarray]:
+    F, z0, W = leader_system(ld.F, ld.z0, ld.W_z)
+    return {"F": F, "H": ld.H, "z0": z0, "W_z": W}
 
 
 def _mapping(view: LinearSystem, leader: Mapping[str, np.ndarray]) -> dict[str, Any]:
@@ -122,7 +121,8 @@ def _mapping(view: LinearSystem, leader: Mapping[str, np.ndarray]) -> dict[str, 
     return out
 
 
-def per_vehicle_configs(sc: Scenario, architecture: str, *, mode: str, seed: int, tracking: str,
+def per_vehicle_configs(sc: Scenario, architecture: str, *, estimator: str, seed: int,
+                        tracking: str,
                         settings: DistributedSettings | None = None,
                         gain: np.ndarray | None = None,
                         network: list[dict[str, Any]] | None = None
@@ -135,8 +135,8 @@ def per_vehicle_configs(sc: Scenario, architecture: str, *, mode: str, seed: int
         A fleet scenario.
     architecture : str
         One of :data:`ARCHITECTURES`.
-    mode, seed, tracking : str, int, str
-        Estimator mode, noise seed, tracking law.
+    estimator, seed, tracking : str, int, str
+        Estimator (estimator_fmu.registry), noise seed, tracking law.
     settings : DistributedSettings or None, optional
         Gains of the distributed law (default :class:`DistributedSettings`).
     gain : np.ndarray or None, optional
@@ -158,36 +158,35 @@ def per_vehicle_configs(sc: Scenario, architecture: str, *, mode: str, seed: int
     if architecture not in ARCHITECTURES:
         raise ValueError(f"architecture {architecture!r} is not one of "
                          f"{', '.join(ARCHITECTURES)}")
-    spec = sc.fleet
     settings = settings or DistributedSettings()
-    views = sc.fleet_model.views
-    leader = _leader(spec)
+    views = sc.fleet.views
+    leader = _leader(sc.fleet.leader)
     l0 = leader["F"].shape[0]
     v0 = views[0]
     dims = {"n": v0.n, "m": v0.m, "r": v0.r, "p": v0.p, "l": l0}
     base = {"dims": dims, "h": float(sc.h), "T": float(sc.T), "seed": int(seed),
-            "mode": mode, "tracking": tracking, "fleet": None}
-    slots = fleet_slots(spec)
+            "estimator": estimator, "tracking": tracking, "fleet": None}
+    slots = fleet_slots(sc.fleet)
     N = len(views)
     rows = (centralized_rows(gain, N, v0.n, v0.r, v0.m, l0)
             if architecture == "centralized" else None)
     eta0 = observer_start(leader["z0"], settings)
-    models = sc.fleet_model.models
+    models = sc.fleet.models
     out: list[dict[str, dict[str, Any]]] = [{"leader": dict(base, system=_mapping(v0, leader))}]
-    design = getattr(sc, "design", None)
+    design = sc.design
     limit = design.u_max if design is not None and design.clip else None
     for i, view in enumerate(views):
         cfg = dict(base, system=_mapping(view, leader))
         if sc.sensors is not None:              # acoustic fixes, DVL, depth at their rates
-            cfg["sensors"] = dict(sc.sensors)
-        if getattr(sc, "estimator_P0", None) is not None:    # [estimator] P0, one vehicle's
+            cfg["sensors"] = sc.sensors.to_mapping()
+        if sc.estimator_P0 is not None:    # [estimator] P0, one vehicle's
             cfg["P0"] = np.asarray(sc.estimator_P0, dtype=float).tolist()
         entry = get(models[i].name)
         one = {"vehicle": dict(cfg, vehicle=i + 1), "vehicle_estimator": cfg}
         par = models[i].parameters
         if entry.fmu_kind == "vehicle_fmu":  # the user's vehicle FMU through its port map
             one = {entry.fmu_kind: dict(cfg, vehicle=i + 1, fmu=fmu_port_config(
-                       par["ports"], mode, truth=estimator_kind(mode).uses_truth,
+                       par["ports"], estimator, truth=estimator_kind(estimator).uses_truth,
                        sensors=sc.sensors is not None, where=f"vehicle "
                        f"{i + 1}", first=out[1:2])), "vehicle_estimator": cfg}
         elif entry.nonlinear:                # a nonlinear REMUS 100 vehicle FMU
@@ -203,11 +202,11 @@ def per_vehicle_configs(sc: Scenario, architecture: str, *, mode: str, seed: int
             K, u0 = rows[i]
             one["central_controller"] = dict(ctrl, vehicles=N, gain=K.tolist(), u0=u0.tolist())
         else:
-            d = np.asarray(spec["vehicles"][i].get("offset", np.zeros(view.p)), float)
             one["vehicle_controller"] = dict(
-                ctrl, slots=slots.S, offset=d.tolist(), weights=slots.weights[i].tolist(),
-                pinning=float(slots.pinning[i]), mu=settings.mu, cohesion=settings.cohesion,
-                regulator=settings.regulator, eta0=eta0.tolist())
+                ctrl, slots=slots.S, offset=sc.fleet.offsets[i].tolist(),
+                weights=slots.weights[i].tolist(), pinning=float(slots.pinning[i]),
+                mu=settings.mu, cohesion=settings.cohesion, regulator=settings.regulator,
+                eta0=eta0.tolist())
         if network is not None:
             one["network"] = dict(base, **network[i])
         out.append(one)

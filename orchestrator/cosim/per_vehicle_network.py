@@ -28,7 +28,7 @@ import numpy as np
 
 from plant_model.acoustic.link_models import MODEL_KEY, model_code
 from plant_model.acoustic.links import LinkTiming, link_key
-from plant_model.acoustic.settings import resolve_links, timing_table
+from plant_model.acoustic.settings import resolve_links
 
 from .system import Connection
 
@@ -53,16 +53,15 @@ def fleet_links(sc: Scenario, architecture: str) -> dict[tuple[Any, int], LinkTi
     dict[tuple[Any, int], LinkTiming]
         (sender, receiver) -> timing; the sender a vehicle number or "leader".
     """
-    g = sc.fleet["graph"]
-    N = len(sc.fleet["vehicles"])
+    N = sc.fleet.N
     if architecture == "centralized":
         edges = [(j, i, 1.0) for i in range(1, N + 1) for j in range(1, N + 1) if j != i]
         pins = [(i, 1.0) for i in range(1, N + 1)]
     else:
-        edges = [(int(j), int(i), float(a)) for j, i, a in g["edges"]]
-        pins = ([] if sc.distributed.leader == "planned" else
-                [(int(i), float(a)) for i, a in g.get("pinning", [])])
-    return resolve_links(N, edges, pins, timing_table(sc.network), sc.h)
+        edges = list(sc.fleet.edges)
+        pins = [] if sc.distributed.leader == "planned" else list(sc.fleet.pinning)
+    timing = {} if sc.network is None else sc.network.timing      # None: perfect links
+    return resolve_links(N, edges, pins, timing, sc.h)
 
 
 def receiver_slots(sc: Scenario, architecture: str, slots: Any) -> list[list[int | None]]:
@@ -71,7 +70,7 @@ def receiver_slots(sc: Scenario, architecture: str, slots: Any) -> list[list[int
     distributed: the controller's slots (:func:`orchestrator.cosim.per_vehicle.fleet_slots`);
     centralized: the other vehicles in order, N - 1 slots.
     """
-    N = len(sc.fleet["vehicles"])
+    N = sc.fleet.N
     if architecture == "centralized":
         return [[j for j in range(1, N + 1) if j != i] for i in range(1, N + 1)]
     return [[int(slots.neighbours[i, k]) if slots.weights[i, k] > 0.0 else None

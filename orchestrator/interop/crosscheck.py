@@ -200,10 +200,10 @@ def write_crosscheck(fmus: dict[str, Path], config: dict, out_dir: Path, *, step
     if layout not in LAYOUTS:
         raise ValueError(f"layout {layout!r} is not one of {', '.join(LAYOUTS)}")
     seed = int(config["seed"] if seed is None else seed)
-    mode = str(config["mode"] if mode is None else mode)
+    mode = str(config["estimator"] if mode is None else mode)
     tracking = str(config.get("tracking", "lq"))
     if system is None:
-        system = closed_loop_system(dict(config, mode=mode, seed=seed, tracking=tracking))
+        system = closed_loop_system(dict(config, estimator=mode, seed=seed, tracking=tracking))
     h = float(system.h)
     out = Path(out_dir)
     t0 = time.perf_counter()

@@ -51,9 +51,9 @@ def signal_layout(sc: Scenario, system: SystemDescription) -> dict[str, list[Sig
              if spec.causality in ("input", "output")}
     plain = {s: [SignalElement("", None, str(i + 1)) for i in range(n)]
              for s, n in sizes.items()}
-    if sc.fleet_model is None:
+    if sc.fleet is None:
         return plain
-    models = sc.fleet_model.models
+    models = sc.fleet.models
     per = {"x": ("state_names", "state_units"), "u": ("input_names", "input_units"),
            "w": ("disturbance_names", "disturbance_units"),
            "y": ("output_names", "output_units")}

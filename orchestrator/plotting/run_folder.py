@@ -251,7 +251,7 @@ def _fleet_units(summary: dict[str, Any], error_names: tuple[str, ...]) -> dict[
         sc = load_scenario(spec)
         if sc.fleet is None:
             return {}
-        model = sc.fleet_model.models[0]
+        model = sc.fleet.models[0]
     except Exception:       # a file changed or gone since the run: no units, not an error
         return {}
     if error_names != tuple(model.output_names):

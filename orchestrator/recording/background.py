@@ -108,7 +108,7 @@ class BackgroundWriter:
         return json.loads(out.decode())
 
     def stream(self, path: Path | str, methods: Sequence[str], h: float,
-               **kwargs: Any) -> Any:
+               resume: tuple[bytes, Path | str] | None = None, **kwargs: Any) -> Any:
         """An ``RrdStream(path, methods, h, **kwargs)`` in the child: a :class:`ChildStream`
         with the same ``send``, ``close`` and ``abort``; an
         :class:`~orchestrator.recording.stream.RrdStream` in this process if there is no
@@ -122,6 +122,10 @@ class BackgroundWriter:
             The methods that will be sent.
         h : float
             Step, s.
+        resume : (bytes, Path), optional
+            Go on from a checkpoint: the state
+            :meth:`~orchestrator.recording.stream.RrdStream.checkpoint` returned and the
+            folder of its segments (``methods``, ``h`` and ``kwargs`` are then the state's).
         **kwargs : Any
             The other keyword arguments of
             :class:`~orchestrator.recording.stream.RrdStream`.
@@ -129,15 +133,17 @@ class BackgroundWriter:
         Returns
         -------
         ChildStream or RrdStream
-            ``send(method, k0, traces)``, ``close(last_step=None) -> dict``, ``abort()``.
+            ``send(method, k0, traces)``, ``checkpoint(folder) -> bytes``,
+            ``close(last_step=None) -> dict``, ``abort()``.
         """
         if self.proc is None:
             self.close()
             from .stream import RrdStream
-            self._stream = RrdStream(path, methods, h, **kwargs)
+            self._stream = (RrdStream(path, methods, h, **kwargs) if resume is None else
+                            RrdStream.resumed(resume[0], resume[1], path))
         else:
             proc, self.proc = self.proc, None
-            self._stream = ChildStream(proc, path, methods, h, kwargs)
+            self._stream = ChildStream(proc, path, methods, h, kwargs, resume)
         return self._stream
 
     def close(self) -> None:
@@ -179,14 +185,18 @@ class ChildStream:
     the last line it reported, by the next call; so is a chunk the child refuses."""
 
     def __init__(self, proc: subprocess.Popen, path: Path | str, methods: Sequence[str],
-                 h: float, kwargs: dict[str, Any]) -> None:
+                 h: float, kwargs: dict[str, Any],
+                 resume: tuple[bytes, Path | str] | None = None) -> None:
         self.proc: subprocess.Popen | None = proc
         self.path = Path(path)
         self._lines: deque[bytes] = deque(maxlen=100)
         self._drain = threading.Thread(target=self._drain_stderr, args=(proc.stderr,),
                                        daemon=True)
         self._drain.start()
-        self._put(("open", str(path), list(methods), float(h), kwargs))
+        if resume is None:
+            self._put(("open", str(path), list(methods), float(h), kwargs))
+        else:
+            self._put(("resume", str(path), resume[0], str(resume[1])))
 
     def _drain_stderr(self, err: IO[bytes]) -> None:
         """Keep the child's last lines of standard error (and never let the pipe fill)."""
@@ -219,6 +229,16 @@ class ChildStream:
         copied into the pipe: the caller may reuse its arrays at once)."""
         self._put(("send", method, int(k0), dict(traces),
                    None if links is None else list(links)))
+
+    def checkpoint(self, folder: Path | str) -> bytes:
+        """:meth:`~orchestrator.recording.stream.RrdStream.checkpoint` in the child: its
+        state, answered as a frame on its standard output."""
+        self._put(("checkpoint", str(folder)))
+        assert self.proc is not None and self.proc.stdout is not None
+        reply = _read_frame(self.proc.stdout)
+        if reply is None:
+            raise self._failure()
+        return reply[1]
 
     def close(self, last_step: int | None = None) -> dict[str, Any]:
         """:meth:`~orchestrator.recording.stream.RrdStream.close` in the child; its figures."""
@@ -282,14 +302,22 @@ def _child() -> int:
         _, path, runs, h, kwargs = message
         info = write_rrd(Path(path), runs, h, **kwargs)
     else:
-        _, path, methods, h, kwargs = message
-        with RrdStream(path, methods, h, **kwargs) as stream:   # aborted unless closed
+        if message[0] == "resume":
+            _, path, state, folder = message
+            opened = RrdStream.resumed(state, folder, path)
+        else:
+            _, path, methods, h, kwargs = message
+            opened = RrdStream(path, methods, h, **kwargs)
+        with opened as stream:                  # aborted unless closed
             while True:
                 message = _read_frame(inp)
                 if message is None:          # the parent aborted or died
                     return 0
                 if message[0] == "send":
                     stream.send(*message[1:])
+                elif message[0] == "checkpoint":
+                    sys.stdout.buffer.write(_frame(("state", stream.checkpoint(message[1]))))
+                    sys.stdout.buffer.flush()
                 else:
                     info = stream.close(message[1])
                     break

@@ -36,6 +36,8 @@ access, see ``rerun.RecordingStream.save``).
 from __future__ import annotations
 
 import os
+import pickle
+import subprocess
 import sys
 import time
 import uuid
@@ -96,6 +98,10 @@ class _StaticOnce:
 
     def send_columns(self, *args: Any, **kwargs: Any) -> None:
         self.rec.send_columns(*args, **kwargs)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """What a checkpoint keeps: the statics logged (not the recording's connection)."""
+        return {"rec": None, "_seen": set(self._seen)}
 
 
 class _Run:
@@ -186,25 +192,102 @@ trail_sample_seconds, links
         self._current: str | None = None
         self.signals = 0
         self._open = False
-        self.live, self.footer = live, bool(footer)
+        self.application_id, self.recording_id = application_id, str(uuid.uuid4())
+        self.recording_name, self.footer = recording_name, bool(footer)
+        self.live = live
         self._viewer: Any = None                # a live viewer's own stream (.live)
-        rec = rr.RecordingStream(application_id, recording_id=uuid.uuid4())
+        #: the files of the run before its checkpoints (:meth:`checkpoint`), in order, in
+        #: :attr:`segment_dir`
+        self.segments: list[str] = []
+        self.segment_dir: Path | None = None
+        self.rec = _StaticOnce(None)            # type: ignore[arg-type]
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._connect()
+        self.seconds = time.perf_counter() - t0
+
+    def _connect(self) -> None:
+        """A recording (the stream's ids) writing to the temporary file."""
+        rec = rr.RecordingStream(self.application_id, recording_id=self.recording_id)
         if not rec.is_enabled():
             raise RuntimeError("write_rrd: Rerun logging is disabled (RERUN env var?); refusing "
                                "to write an empty .rrd")
-        self.path.parent.mkdir(parents=True, exist_ok=True)
         self._rec = rec
-        self.rec = _StaticOnce(rec)
+        self.rec.rec = rec
         self._open = True
         try:
             self._sinks(rec)
-            rec.send_recording_name(recording_name)
-            if fleet is not None:
+            rec.send_recording_name(self.recording_name)
+            if self.fleet_layout is not None:
                 rec.log("world", rr.ViewCoordinates.FRD, static=True)
         except BaseException:
             self.abort()
             raise
-        self.seconds = time.perf_counter() - t0
+
+    # -- checkpoints ----------------------------------------------------------------------
+
+    def checkpoint(self, folder: str | Path) -> bytes:
+        """Finish the file so far as a segment in ``folder`` (a complete .rrd of its own,
+        ``segment-NNNN.rrd``), go on in a new temporary file, and return the stream's state
+        for :meth:`resumed` (a run resumed from the checkpoint goes on from here; the
+        segments and the rest are joined into one file at :meth:`close`)."""
+        if not self._open:
+            raise RuntimeError(f"RrdStream {self.path}: checkpoint after close or abort")
+        t0 = time.perf_counter()
+        if self._current is not None:
+            self._flush(self._current, self._runs[self._current])
+        self._flush_sinks()
+        self._rec.disconnect()
+        del self._rec
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        name = f"segment-{len(self.segments):04d}.rrd"
+        os.replace(self.tmp, folder / name)
+        self.segments.append(name)
+        self.segment_dir = folder
+        state = pickle.dumps(self, protocol=pickle.HIGHEST_PROTOCOL)
+        self._connect()
+        self.seconds += time.perf_counter() - t0
+        return state
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        state.pop("_rec", None)
+        state["_viewer"] = state["live"] = None      # a resumed run is not streamed live
+        return state
+
+    @classmethod
+    def resumed(cls, state: bytes, folder: str | Path, path: str | Path) -> RrdStream:
+        """The stream of a checkpoint (:meth:`checkpoint`'s state) going on: its segments
+        are in ``folder``, its final file is ``path``."""
+        self = pickle.loads(state)
+        self.segment_dir, self.path = Path(folder), Path(path)
+        missing = [s for s in self.segments if not (self.segment_dir / s).is_file()]
+        if missing:
+            raise ValueError(f"resuming {self.path}: the recording's segment(s) "
+                             f"{', '.join(missing)} are not in {self.segment_dir}")
+        self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.part")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._connect()
+        return self
+
+    def _join_segments(self) -> None:
+        """The segments and the temporary file joined into one file at the temporary name
+        (``rerun rrd merge``: Rerun's own join, which checks every chunk; ``rerun rrd
+        route``, which would not decode them, fails on files with a footer in Rerun
+        0.41)."""
+        if not self.segments:
+            return
+        assert self.segment_dir is not None
+        joined = self.tmp.with_name(self.tmp.name + ".joined")
+        cmd = [sys.executable, "-m", "rerun", "rrd", "merge", "-o", str(joined),
+               *(str(self.segment_dir / s) for s in self.segments), str(self.tmp)]
+        done = subprocess.run(cmd, capture_output=True, text=True)
+        if done.returncode != 0 or not joined.is_file():
+            joined.unlink(missing_ok=True)
+            lines = done.stderr.strip().splitlines()
+            raise RuntimeError(f"joining the recording's {len(self.segments) + 1} segments "
+                               f"failed: {lines[-1] if lines else done.returncode}")
+        os.replace(joined, self.tmp)
 
     def _sinks(self, rec: rr.RecordingStream) -> None:
         """Where the recording goes: the temporary file and, with ``live`` (a viewer's
@@ -448,6 +531,11 @@ trail_sample_seconds, links
         self._rec.disconnect()
         del self._rec, self.rec
         self._open = False
+        try:
+            self._join_segments()
+        except BaseException:
+            self.tmp.unlink(missing_ok=True)
+            raise
         os.replace(self.tmp, self.path)
         self.seconds += time.perf_counter() - t0
         return {"rrd_s": self.seconds, "signals": self.signals,

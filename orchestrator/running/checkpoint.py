@@ -13,6 +13,9 @@ go on exactly where it stood:
   row;
 - the statistics accumulated so far (:class:`~orchestrator.running.statistics.RunStatistics`)
   and what the recorder kept (:class:`~orchestrator.running.statistics.RunRecorder`);
+- the .rrd stream's state: the recording so far is finished as a segment file in the
+  checkpoint folder (``segment-NNNN.rrd``, :meth:`~orchestrator.recording.stream.RrdStream.
+  checkpoint`), the segments joined into one .rrd when the run ends;
 - the seconds the loop took so far.
 
 ``--resume OUT`` reads it from ``OUT`` (or from the hidden staging folder a killed run left
@@ -71,6 +74,9 @@ class RunCheckpoint:
     master: MasterState                      #: the step and every FMU's state
     recorder: RunRecorder                    #: statistics so far, what it kept
     loop_s: float                            #: seconds in the loop so far
+    #: the .rrd stream's state (:meth:`orchestrator.recording.stream.RrdStream.checkpoint`:
+    #: the recording up to here is in segment files beside the checkpoint)
+    recording: bytes | None = None
     saved_at: float = field(default_factory=time.time)     #: wall clock, s since the epoch
     format: int = FORMAT
     versions: dict[str, str] = field(default_factory=dict)  #: the packages that wrote it

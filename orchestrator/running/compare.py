@@ -24,7 +24,7 @@ from ..interrupt import StopFlag, stop_on_signals
 from ..outputs import file_stem
 from ..scenario import Scenario
 from . import phases
-from .checkpoint import RunCheckpoint, Saver
+from .checkpoint import CHECKPOINT_DIR, RunCheckpoint, Saver
 from .fmus import fleet_layout, record_stride
 from .setup import (
     Method,
@@ -34,7 +34,7 @@ from .setup import (
     stats_context,
     window_dependent,
 )
-from .statistics import RunRecorder, RunStatistics
+from .statistics import MAX_CHUNK_STEPS, RunRecorder, RunStatistics
 from .systems import check_run, make_setup
 
 __all__ = ["NONLINEAR_NOTE", "common_window", "simulate"]
@@ -157,19 +157,30 @@ class _Keeper:
                  resume: RunCheckpoint | None, realtime: float | None = None):
         self.out, self.every_s, self.options, self.resume = out, every_s, options, resume
         self.realtime = realtime                #: the pace of the runs (None: as fast as can)
+        self.stream: Any = None                 #: the command's .rrd stream
         self.paced: list[dict[str, Any]] = []   #: each paced run's report
         self.written = 0                        #: checkpoints written
         self.seconds = 0.0                      #: spent writing them
         self.resumed_at: float | None = None    #: the time the resumed run went on from, s
         self.before = 0.0                       #: loop seconds of the resumed run before
 
-    def prepare(self, sc: Scenario, name: str, seed: int, recorder: RunRecorder
-                ) -> tuple[RunRecorder, MasterState | None, Saver | None]:
-        """The recorder, the master state to start from and the saver of one run."""
+    def recording(self) -> tuple[bytes, Path] | None:
+        """The .rrd stream's state to go on from, and the folder of its segments (None:
+        a new recording)."""
+        ck = self.resume
+        if ck is None or ck.recording is None:
+            return None
+        return ck.recording, self.out / CHECKPOINT_DIR
+
+    def prepare(self, sc: Scenario, name: str, seed: int, recorder: RunRecorder,
+                stream: Any = None) -> tuple[RunRecorder, MasterState | None, Saver | None]:
+        """The recorder, the master state to start from and the saver of one run
+        (``stream``: the command's .rrd stream, which a resumed recorder sends to)."""
         start = None
         ck = self.resume
         if ck is not None and ck.method == name and ck.seed == seed:
             recorder, start = ck.recorder, ck.master
+            recorder.stream = stream
             self.resumed_at, self.before = start.step * sc.h, ck.loop_s
             self.resume = None
         if not self.every_s:
@@ -178,8 +189,10 @@ class _Keeper:
         before = self.before if start is not None else 0.0
 
         def make(state: MasterState) -> RunCheckpoint:
+            recording = (None if self.stream is None else
+                         self.stream.checkpoint(self.out / CHECKPOINT_DIR))
             return RunCheckpoint(sc, self.options, name, seed, state, recorder,
-                                 before + time.perf_counter() - t_run)
+                                 before + time.perf_counter() - t_run, recording)
         return recorder, start, Saver(self.out, self.every_s, make)
 
     def done(self, res: RunResult, saver: Saver | None) -> None:
@@ -270,8 +283,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
     for m in methods:
         setup.fmus(m)                       # every FMU in place before the first step
     results: dict[str, Any] = {}
-    rrd_runs: dict[str, dict[str, np.ndarray]] = {}
-    rrd_links: dict[str, list[str]] = {}
+    streamed: dict[str, int] = {}           # method -> steps its first seed sent to the .rrd
     loop_us: list[float] = []
     masters: dict[str, str] = {}            # method -> the master that ran it here
     bar = _bar(sc, len(methods) * len(seeds), progress)
@@ -287,6 +299,20 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
     k0 = common_window(preds.values(), window_from_step)
     window = (k0 * sc.h, sc.T)
     preds = {m.name: setup.predictions(m, k0) for m in methods if m.name in preds}
+    # the .rrd is written as the runs go: the first seed of every method, chunk by chunk
+    rrd_path = out / f"{file_stem(sc.name)}.rrd"
+    stride = record_stride(sc, record_hz)
+    live_chunk, live_kw = None, {}
+    if live is not None:                    # watched live and paced: rows 5 times a second
+        live_kw["live"] = live
+        if keeper.realtime is not None:
+            from ..recording.live import live_chunk_steps
+            live_chunk = live_chunk_steps(sc.h, keeper.realtime, MAX_CHUNK_STEPS)
+            live_kw["chunk_rows"] = 1       # each chunk written as it comes
+    stream = writer.stream(rrd_path, list(preds), sc.h, resume=keeper.recording(),
+                           recording_name=f"{sc.name} ({', '.join(preds)})",
+                           fleet=fleet_layout(sc), stride=stride, **live_kw)
+    keeper.stream = stream
     bound: dict[int, float | None] = {}     # the full-information bound over the window
     notes: set[str] = set()
     settling = 0.0              # the slowest settling time of a method whose window is early
@@ -318,17 +344,17 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
                 log(f"{name:>9s} seed {seed}: cost rate {stats['cost_rate']:.4g} (worker "
                     f"process), {loop_s:.2f} s")
                 continue
+            first = name not in streamed
             recorder = RunRecorder(RunStatistics(sc, k0, formation),
-                                   keep=name not in rrd_runs)
-            recorder, start, saver = keeper.prepare(sc, name, seed, recorder)
+                                   stream=stream if first else None, name=name,
+                                   chunk=live_chunk if first else None)
+            recorder, start, saver = keeper.prepare(sc, name, seed, recorder, stream)
             res = setup.run(method, seed, progress=bar, stop=stop, recorder=recorder,
                             start=start, checkpoints=saver, realtime=keeper.realtime)
             keeper.done(res, saver)
             masters[name] = res.info["master"]
-            if name not in rrd_runs and res.steps:
-                rrd_runs[name] = res.traces
-                if "links" in res.info:
-                    rrd_links[name] = res.info["links"]
+            if first:
+                streamed[name] = res.steps
             if res.info["interrupted_by"]:
                 reached = res.steps * sc.h
                 log(f"{name:>9s} seed {seed}: interrupted by {res.info['interrupted_by']} at "
@@ -374,19 +400,14 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
     if bar is not None:
         bar.close()
     results = {m.name: results[m.name] for m in methods if m.name in results}  # their order
-    rrd_path = out / f"{file_stem(sc.name)}.rrd"
-    stride = record_stride(sc, record_hz)
-    recorded = min((len(next(iter(tr.values()))) for tr in rrd_runs.values()), default=0)
-    if recorded:          # an interrupted compare: every method up to the shortest run
-        rrd_runs = {m: {k: v[:recorded] for k, v in tr.items()} for m, tr in rrd_runs.items()}
+    # an interrupted compare: the .rrd holds each method as far as it ran
+    recorded = min(streamed.values(), default=0)
+    rrd_info = {"bytes": 0, "signals": 0, "rrd_s": 0.0}
+    if recorded:
         with phases.phase("recording"):
-            rrd_info = writer.write(rrd_path, rrd_runs, sc.h,
-                                    recording_name=f"{sc.name} ({', '.join(rrd_runs)})",
-                                    fleet=fleet_layout(sc), stride=stride,
-                                    links=rrd_links or None)
+            rrd_info = stream.close()
     else:
-        rrd_path.unlink(missing_ok=True)          # never leave an earlier run's .rrd
-        rrd_info = {"bytes": 0, "signals": 0, "rrd_s": 0.0}
+        stream.abort()
     design = setup.design()
     summary = {
         "scenario": sc.name,
@@ -397,8 +418,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
         "seeds": [int(s) for s in seeds],
         "noise_convention": sc.system.noise_convention,
         "noise_stream": NOISE_STREAM,
-        "consensus": None if sc.fleet is None else sc.fleet["graph"].get("consensus",
-                                                                         "in-plant"),
+        "consensus": None if sc.fleet is None else sc.fleet.consensus,
         "deployment": sc.deployment,
         "fmu_kind": sc.fmus,
         "master": masters,

@@ -29,7 +29,6 @@ from typing import Any
 import numpy as np
 
 from plant_model.noise_factor import NOISE_STREAM
-from plant_model.vehicle_models import DEFAULT_MODEL
 
 from ..atomic import write_text_atomically
 from ..outputs import file_stem
@@ -50,8 +49,8 @@ def envelope_params(sc: Scenario, speed: float, radius: float, current: float
     set_key`): the leader's whole table (a straight line for ``radius`` inf, else a circle,
     at the leader's depth, no path noise), the current's standard deviation, the vehicles
     started in formation, and the run settings the scenario was given (its links too)."""
-    leader = sc.fleet["leader"]
-    depth = float((np.asarray(leader["H"], float) @ np.asarray(leader["z0"], float))[2])
+    leader = sc.fleet.leader
+    depth = float((leader.H @ leader.z0)[2])
     if math.isinf(radius):
         table = {"path": "straight", "speed": speed, "start": [0.0, 0.0, depth],
                  "noise": 0.0}
@@ -64,7 +63,7 @@ def envelope_params(sc: Scenario, speed: float, radius: float, current: float
         out["design.path_check"] = "warn"      # a verdict per point, not a refusal
     out.update({f"simulation.{k}": getattr(sc, k) for k in RUN_KEYS})
     if sc.network is not None:
-        out["network"] = dict(sc.network)
+        out["network"] = sc.network.to_mapping()
     return out
 
 
@@ -220,7 +219,7 @@ def run_envelope(sc: Scenario, speeds: Sequence[float], radii: Sequence[float],
     summary = {"scenario": sc.name, "T": sc.T, "h": sc.h, "seed": sc.seed,
                "noise_stream": NOISE_STREAM,
                "estimator": sc.estimator, "architecture": sc.architecture,
-               "models": sorted({v.get("model", DEFAULT_MODEL) for v in sc.fleet["vehicles"]}),
+               "models": sorted(set(sc.fleet.model_names)),
                "envelope": {"tolerance_m": tolerance, "points": points,
                             "failed": sum(p["failed"] is not None for p in points),
                             "path_check": verdicts},

@@ -135,7 +135,7 @@ def scenario_config(sc: Scenario) -> dict[str, Any]:
         controller's ``u_max``, every vehicle's axes in the stacked input order.
     """
     cfg = fmu_config(sc.system.to_mapping(), sc.system.dims, sc.h, sc.T, sc.seed, sc.estimator,
-                     sc.tracking, sc.fleet)
+                     sc.tracking, None if sc.fleet is None else sc.fleet.spec)
     if sc.estimator_P0 is not None:     # [estimator] P0 (one vehicle's in a fleet)
         cfg["P0"] = np.asarray(sc.estimator_P0, dtype=float).tolist()
     if sc.design is not None and sc.design.clip:
@@ -165,11 +165,11 @@ def guidance_configs(sc: Scenario) -> dict[str, dict[str, Any]]:
     from ..cosim.guided import stack_configs
     if sc.fleet is None:
         return {}
-    models = sc.fleet_model.models
+    models = sc.fleet.models
     entries = [find(m.name) for m in models]
     if any(e is None or not e.guidance for e in entries):
         return {}
-    return stack_configs(models[0], sc.fleet_model.views[0], sc.h, sc.T, sc.seed)
+    return stack_configs(models[0], sc.fleet.views[0], sc.h, sc.T, sc.seed)
 
 
 def fmu_readme(sc: Scenario) -> str:
@@ -219,12 +219,10 @@ def fleet_layout(sc: Scenario) -> FleetLayout | None:
     FleetLayout or None
         None for a single stacked system or a fleet whose vehicles have no NED positions.
     """
-    from plant_model.fleet import fleet_info
-
     from ..recording import FleetLayout
     if sc.fleet is None:
         return None
-    info = fleet_info(sc.fleet, sc.system)
+    info = sc.fleet.info(sc.system)
     if info.position_index is None:
         return None
     N = info.N
@@ -239,7 +237,7 @@ def fleet_layout(sc: Scenario) -> FleetLayout | None:
         offsets=info.offsets, edges=info.edges, pinned=info.pinned,
         state_index=block(info.p), state_names=info.state_names,
         disturbance_index=block(info.r), disturbance_names=info.disturbance_names,
-        **_actuator_limits(sc.fleet_model.models[0].parameters),
+        **_actuator_limits(sc.fleet.models[0].parameters),
     )
 
 

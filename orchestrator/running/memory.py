@@ -128,7 +128,7 @@ def check_design(sc: Scenario, estimators: Iterable[str], predict: str, *, who: 
     too_slow = est.seconds > MAX_DESIGN_S
     too_big = short is not None
     if too_slow or too_big:
-        what = (f"all {len(sc.fleet['vehicles'])} vehicles" if sc.fleet is not None
+        what = (f"all {sc.fleet.N} vehicles" if sc.fleet is not None
                 else "the system")
         limit = (f"more than the {MAX_DESIGN_S:g} s allowed" if too_slow else
                  f"more than {MEMORY_SHARE:.0%} of the {short / 1e9:.3g} GB of memory "

@@ -45,8 +45,8 @@ def run_tags(sc: Scenario) -> list[str]:
         tags.append(f"{sc.deployment}-{sc.architecture}")
     if sc.network is not None:
         tags.append("links")
-    models = sorted({str(sc.fleet["vehicles"][i - 1].get("model"))
-                     for i in sc.nonlinear_vehicles}) if sc.fleet else []
+    models = sorted({sc.fleet.vehicles[i - 1].model
+                     for i in sc.nonlinear_vehicles}) if sc.fleet is not None else []
     tags += models
     if sc.fmus != "python":
         tags.append(sc.fmus)
@@ -74,7 +74,7 @@ def campaign_out(name: str) -> Path:
 
 def run_identity(sc: Scenario, command: str) -> dict[str, str]:
     """What an output folder records about the run that writes it."""
-    models = sorted({str(v.get("model", "")) for v in sc.fleet["vehicles"]}) if sc.fleet else []
+    models = sorted(set(sc.fleet.model_names)) if sc.fleet is not None else []
     shadow = _shadowing_file(sc)
     name = sc.name if shadow is None else f"{sc.name} (file {shadow.resolve()})"
     return {"command": command, "scenario": name, "deployment": sc.deployment,

@@ -19,7 +19,7 @@ import numpy as np
 
 from controller_fmu.regulator import tracking_law
 from controller_fmu.vehicle_law import centralized_rows
-from plant_model.acoustic.schedule import connectivity, resolve_schedule
+from plant_model.acoustic.schedule import connectivity
 
 from ..analysis.acoustic.bursty import bursty_radius, bursty_window, critical_burst
 from ..analysis.acoustic.loop import NetworkedLoop
@@ -96,15 +96,12 @@ def network_setup(sc: Scenario, method: Method) -> NetworkSetup:
                                 loop.observer.Phi.shape[0])
         form = centralized_message_form(loop, rows)
     else:
-        H = np.asarray(sc.fleet["leader"]["H"], float)
-        offsets = [v.get("offset", np.zeros(H.shape[0])) for v in sc.fleet["vehicles"]]
-        form = distributed_message_form(loop, H, offsets)
+        form = distributed_message_form(loop, sc.fleet.leader.H, sc.fleet.offsets)
         if sc.distributed.leader == "planned":
             form = without_leader_links(form)
     links = fleet_links(sc, architecture)
-    receiver = dict(sc.network).get("receiver", "propagate")
-    schedule = resolve_schedule(sc.network, links, sc.h, len(sc.fleet["vehicles"]))
-    net = NetworkedLoop(form, links, receiver, schedule)
+    net = NetworkedLoop(form, links, sc.network.receiver,
+                        sc.network.schedule(links, sc.h, sc.fleet.N))
     modem = modem_settings(sc)
     if modem is not None:
         net.set_modem_range(modem["range"], _positions(sc, loop, form, net, modem))
@@ -116,13 +113,12 @@ def network_setup(sc: Scenario, method: Method) -> NetworkSetup:
 def modem_settings(sc: Scenario) -> dict[str, Any] | None:
     """The network FMUs' modem range settings (None without ``[network] range``): the range
     (m), the vehicles' state size and position states, the leader's position map H."""
-    table = dict(sc.network or {})
-    if "range" not in table:
+    if sc.network is None or sc.network.range is None:
         return None
-    mdl = sc.fleet_model.models[0]
-    return {"range": float(table["range"]), "state_size": int(mdl.p),
+    mdl = sc.fleet.models[0]
+    return {"range": sc.network.range, "state_size": int(mdl.p),
             "position_index": [int(i) for i in mdl.position_states],
-            "leader_H": np.asarray(sc.fleet["leader"]["H"], float).tolist()}
+            "leader_H": sc.fleet.leader.H.tolist()}
 
 
 def schedule_settings(setup: NetworkSetup) -> dict[str, Any] | None:
@@ -219,19 +215,14 @@ def network_summary(sc: Scenario, setup: NetworkSetup, *, critical: bool = True,
     """The summary's ``network`` entry of a method: the fleet-wide latency, period and loss,
     the receiver, the links, the message cycle and the critical loss probability (with
     ``predict`` "none", null and a note; ``log`` told before the search starts)."""
-    table = dict(sc.network)
     out: dict[str, Any] = {
-        "latency": float(table.get("latency", 0.0)),
-        "period": float(table.get("period", sc.h)),
-        "loss": float(table.get("loss", 0.0)),
-        "loss_model": table.get("loss_model", "independent"),
-        "tdma": bool(table.get("tdma", False)),
+        **sc.network.fleet_figures(sc.h),
         "receiver": setup.net.receiver,
         "links": len(setup.links),
         "cycle_s": setup.net.period * setup.net.h,
     }
-    if "range" in table:
-        out["range"] = float(table["range"])
+    if sc.network.range is not None:
+        out["range"] = sc.network.range
     if setup.net.bursty:
         out["bursty_links"] = {f"{k[0]} -> {k[1]}": {**m.parameters(), "pi_bad": m.pi_bad,
                                                       "mean_loss": m.mean_loss,

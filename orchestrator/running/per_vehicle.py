@@ -159,7 +159,7 @@ class PerVehicleSetup(RunSetup):
             net = network_configs(setup.form.senders, setup.links, setup.slot_senders,
                                   setup.net.receiver, setup.launch, setup.leader_size,
                                   modem_settings(sc), schedule_settings(setup))
-        return per_vehicle_configs(sc, method.architecture, mode=method.estimator, seed=seed,
+        return per_vehicle_configs(sc, method.architecture, estimator=method.estimator, seed=seed,
                                    tracking=method.tracking, settings=sc.distributed,
                                    gain=gain, network=net)
 
@@ -273,11 +273,9 @@ class PerVehicleSetup(RunSetup):
         """:meth:`predictions` with the multi-rate filter of [sensors]: the periodic loop's
         (distributed, no dropouts; orchestrator.analysis.multirate_prediction), else the
         steady filter's window and margin and no cost, saying why."""
-        from plant_model.navigation import NavigationSensors
-
         from ..analysis.multirate_prediction import predict_multirate_cost
         sc = self.sc
-        sensors = NavigationSensors.from_mapping(sc.sensors)
+        sensors = sc.sensors
         reason = ("no prediction for the multi-rate Kalman filter of [sensors] with the "
                   "centralized architecture")
         if method.architecture == "distributed":
@@ -302,18 +300,18 @@ class PerVehicleSetup(RunSetup):
     def _perfect(self, method: Method, k0: int | None = None
                  ) -> tuple[Prediction, Prediction, Prediction | None, int]:
         """:meth:`predictions` with perfect links (the window from ``k0``, or the own)."""
-        sc, mode, tracking = self.sc, method.estimator, method.tracking
+        sc, estimator, tracking = self.sc, method.estimator, method.tracking
         if method.architecture == "centralized":            # the stacked loop's predictions
             self._check_centralized()
-            kind = estimator_kind(mode)
+            kind = estimator_kind(estimator)
             cost = design_estimate(stacked_states(sc), kind.solves_riccati, True)
             self.announce(f"solving {stacked_phase(sc, cost)} and predicting the "
                           f"centralized loop: {cost.text()} ...", cost.seconds)
             model = discretize(sc.system, sc.h)
-            return kind.predict(sc, model, make_estimator(sc.system, model, mode,
+            return kind.predict(sc, model, make_estimator(sc.system, model, estimator,
                                                           sc.estimator_options),
                                 tracking_law(sc.system, tracking).Ks, k0)
-        loop = distributed_loop_of(sc, mode, tracking, sc.distributed)
+        loop = distributed_loop_of(sc, estimator, tracking, sc.distributed)
         pred0 = predict_cost(loop)
         if k0 is None:
             k0 = stats_window(sc.T, sc.h, pred0.settling_time)

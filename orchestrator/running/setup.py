@@ -402,7 +402,9 @@ class _StackedSink:
 
     def take(self, k0: int, traces: dict[str, Any]) -> None:
         t0 = time.perf_counter()
-        self.recorder.take(k0, self.setup.stacked(self.system, traces, self.info))
+        stacked = self.setup.stacked(self.system, traces, self.info)
+        self.recorder.links = self.info.get("links")
+        self.recorder.take(k0, stacked)
         self.seconds += time.perf_counter() - t0
 
 

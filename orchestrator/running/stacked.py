@@ -54,7 +54,7 @@ def check_stacked(sc: Scenario, methods: Sequence[Method] = (),
 
 def stacked_phase(sc: Scenario, est: DesignEstimate) -> str:
     """``the stacked design (80 vehicles, 726 states)``: names the phase in messages."""
-    who = f"{len(sc.fleet['vehicles'])} vehicles, " if sc.fleet is not None else ""
+    who = f"{sc.fleet.N} vehicles, " if sc.fleet is not None else ""
     return f"the stacked design ({who}{est.states} states)"
 
 
@@ -91,7 +91,7 @@ class StackedSetup(RunSetup):
     def python_system(self, method: Method, seed: int) -> SystemDescription:
         """:func:`orchestrator.cosim.system.closed_loop_system` of the method and seed."""
         from ..cosim.system import closed_loop_system
-        return closed_loop_system(dict(self.config, mode=method.estimator, seed=int(seed),
+        return closed_loop_system(dict(self.config, estimator=method.estimator, seed=int(seed),
                                        tracking=method.tracking), name=self.sc.name)
 
     def model(self) -> Any:

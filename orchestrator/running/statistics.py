@@ -70,8 +70,7 @@ class RunStatistics:
             index, offsets, edges, h = formation
             self.formation = FormationSums(index, offsets, edges, k0, h)
             self.segments = segments.SegmentSums()
-            leader = sc.fleet["leader"]
-            self.F, self.H = (np.asarray(leader[k], float) for k in ("F", "H"))
+            self.F, self.H = sc.fleet.leader.F, sc.fleet.leader.H
             self.u_max = (sc.design.u_max if sc.design is not None and sc.design.clip
                           else None)
         #: per link column of ``link_age``: [sum, count, max] over the window, s
@@ -131,14 +130,17 @@ class RunRecorder:
         #: :func:`chunk_steps`) and the steps the run plans (set by the run)
         self.chunk_steps, self.planned = chunk, 0
         self.steps = 0                                   #: steps taken so far
+        #: over acoustic links: the link of each column of the ``link_*`` traces (set by
+        #: the run with the first chunk)
+        self.links: list[str] | None = None
 
     def take(self, k0: int, traces: Mapping[str, np.ndarray]) -> None:
         """Rows k0 .. k0 + n - 1 of the run's stacked traces (views the next chunk may
         overwrite: what is kept is copied)."""
         if self.statistics is not None:
             self.statistics.add(k0, traces)
-        if self.stream is not None:
-            self.stream.send(self.name, k0, traces)
+        if self.stream is not None:     # the link names with the first chunk
+            self.stream.send(self.name, k0, traces, links=self.links if not self.steps else None)
         rows = len(next(iter(traces.values())))
         if self.keep:
             for k, v in traces.items():

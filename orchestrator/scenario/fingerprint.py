@@ -32,19 +32,30 @@ def _plain(value: Any) -> Any:
     raise TypeError(f"cannot key a scenario value of type {type(value).__name__}")
 
 
+def _handed_on(sc: Scenario, name: str) -> Any:
+    """A scenario field as it is written whole: the fleet as its resolved spec, the
+    network and sensors as their tables."""
+    value = getattr(sc, name)
+    if value is None:
+        return None
+    if name == "fleet":
+        return value.spec
+    if name in ("network", "sensors"):
+        return value.to_mapping()
+    return value
+
+
 def resolved_scenario(sc: Scenario, *, without: tuple[str, ...] = ()) -> dict[str, Any]:
     """Everything a resolved scenario runs, but its seed, its names and the fields in
     ``without``, as JSON-ready data (the run key's scenario part)."""
     skip = {"seed", "name", "description", "source", "raw", "system", *without}
     if sc.design is None:           # no [design]: the key of every scenario before it
         skip.add("design")
-    out = {f.name: _plain(getattr(sc, f.name)) for f in dataclasses.fields(sc)
+    out = {f.name: _plain(_handed_on(sc, f.name)) for f in dataclasses.fields(sc)
            if f.name not in skip}
     if sc.fleet is None:            # a fleet's system is made from its (resolved) fleet spec
         out["system"] = _plain(sc.system.to_mapping())
     return out
-
-
 
 
 def scenario_digest(sc: Scenario, *, without: tuple[str, ...] = ()) -> str:

@@ -24,17 +24,17 @@ from __future__ import annotations
 import copy
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
-from functools import cached_property
 from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
 
 from controller_fmu.vehicle_law import DistributedSettings
-from plant_model.acoustic.settings import check_network
+from plant_model.acoustic.settings import NetworkSettings, check_network
 from plant_model.discretization import check_step
 from plant_model.fleet_model import Fleet
 from plant_model.linalg_checks import ModelError
+from plant_model.navigation import NavigationSensors
 from plant_model.system import LinearSystem
 
 from .errors import ScenarioError, validate_scenario
@@ -64,17 +64,18 @@ class Scenario:
     estimator: str
     source: str
     tracking: str = "lq"
-    fleet: dict[str, Any] | None = None     #: the fleet spec (plant_model.fleet), if a fleet
+    #: the fleet, parsed once from its resolved spec (plant_model.fleet_model.Fleet: models,
+    #: graph, leader, views, stacked system), if a fleet
+    fleet: Fleet | None = None
     deployment: str = "stacked"             #: "stacked" or "per-vehicle" (fleets)
     architecture: str = "centralized"       #: "centralized" or "distributed" (per-vehicle)
     fmus: str = "python"                    #: "python" (pythonfmu) or "native" where linear
     #: gains of the distributed law ([distributed] of a fleet scenario)
     distributed: DistributedSettings = field(default_factory=DistributedSettings)
-    #: the acoustic links' [network] table (per-vehicle fleets; None: perfect links)
-    network: dict[str, Any] | None = None
-    #: the navigation sensors' [sensors] table (plant_model.navigation; None: a position
-    #: fix every step)
-    sensors: dict[str, Any] | None = None
+    #: the acoustic links' checked [network] table (per-vehicle fleets; None: perfect links)
+    network: NetworkSettings | None = None
+    #: the navigation sensors of the [sensors] table (None: a position fix every step)
+    sensors: NavigationSensors | None = None
     #: [estimator] P0 as given (the time-varying Kalman filter's start covariance on the
     #: filter's state: [x; w; z], or one vehicle's [x; w] in a fleet; None: 0, the known
     #: start), checked against the system when the scenario is built
@@ -85,18 +86,11 @@ class Scenario:
     #: the parsed file the scenario was validated from (for variants of it)
     raw: Mapping[str, Any] | None = field(default=None, repr=False, compare=False)
 
-    @cached_property
-    def fleet_model(self) -> Fleet | None:
-        """The fleet parsed once (:class:`plant_model.fleet_model.Fleet`: models, graph,
-        views, stacked system); None for a single system. Kept with the scenario: every
-        consumer asks it instead of parsing :attr:`fleet` again."""
-        return None if self.fleet is None else Fleet.of(self.fleet)
-
     @property
     def nonlinear_vehicles(self) -> tuple[int, ...]:
         """The vehicles (1-based) of a nonlinear model (``remus100-6dof``), each its own FMU
         (plant_model.vehicle_models: ``nonlinear``)."""
-        return () if self.fleet_model is None else self.fleet_model.nonlinear
+        return () if self.fleet is None else self.fleet.nonlinear
 
     def with_vehicle_model(self, model: str) -> Scenario:
         """The same fleet scenario with every vehicle of ``model`` (e.g. the nonlinear
@@ -158,8 +152,9 @@ class Scenario:
                 raise ScenarioError(f"{self.source}: acoustic links (--latency, --period, "
                                     "--loss, --receiver) need a fleet scenario")
             try:
-                new = replace(new, network=check_network(
-                    {**(self.network or {}), **network}, len(new.fleet["vehicles"]), new.h))
+                new = replace(new, network=check_network(dict(network), new.fleet.N, new.h)
+                              if self.network is None
+                              else self.network.updated(network, new.fleet.N, new.h))
             except ModelError as exc:
                 raise ScenarioError(f"{self.source}: {exc}") from None
         run = {"T": new.T, "h": new.h, "seed": new.seed, "estimator": new.estimator,
@@ -167,10 +162,9 @@ class Scenario:
                "architecture": new.architecture, "fmus": new.fmus}
         validate_scenario(RunSettings, {"simulation": run}, new.source)
         if new.design is not None and new.T != self.T:      # the path over the run's horizon
-            ld = new.fleet["leader"]
+            ld = new.fleet.leader
             try:
-                new = replace(new, design=new.design.over(
-                    new.T, *(np.asarray(ld[k], float) for k in ("F", "H", "z0"))))
+                new = replace(new, design=new.design.over(new.T, ld.F, ld.H, ld.z0))
             except ModelError as exc:                       # a horizon too long to sample
                 raise ScenarioError(f"{self.source}: {exc}") from None
         _check_step(new)
@@ -188,15 +182,14 @@ def _check_sampled(sc: Scenario, network_checked: bool = False) -> None:
         return
     from plant_model.leader import check_turn_rate
     from plant_model.leader_paths import make_leader
-    from plant_model.navigation import NavigationSensors
-    ld = sc.fleet["leader"]
+    ld = sc.fleet.leader
     try:
-        if "params" in ld:
-            check_turn_rate(make_leader(ld["kind"], ld["params"]), sc.h)
+        if ld.params is not None:
+            check_turn_rate(make_leader(ld.kind, ld.params), sc.h)
         if sc.network is not None and not network_checked:
-            check_network(sc.network, len(sc.fleet["vehicles"]), sc.h)
+            check_network(sc.network, sc.fleet.N, sc.h)
         if sc.sensors is not None:
-            NavigationSensors.from_mapping(sc.sensors).steps(sc.h)
+            sc.sensors.steps(sc.h)
     except ModelError as exc:
         raise ScenarioError(f"{sc.source}: {exc}") from None
 
@@ -209,7 +202,7 @@ def _check_step(sc: Scenario) -> None:
     except ModelError as exc:
         raise ScenarioError(f"{sc.source}: [simulation] h: {exc}") from None
     for i in sc.nonlinear_vehicles:
-        substep = sc.fleet["vehicles"][i - 1].get("params", {}).get("substep")
+        substep = sc.fleet.vehicles[i - 1].params.get("substep")
         if substep is not None:
             from plant_model.remus100.plant import substep_count
             try:
@@ -224,7 +217,7 @@ def check_deployment(sc: Scenario, network: bool = True) -> None:
     are known, so that --deployment per-vehicle can select it)."""
     if sc.deployment != "per-vehicle":
         if network and sc.nonlinear_vehicles:
-            model = sc.fleet["vehicles"][sc.nonlinear_vehicles[0] - 1].get("model")
+            model = sc.fleet.vehicles[sc.nonlinear_vehicles[0] - 1].model
             raise ScenarioError(f"{sc.source}: vehicle model {model} needs [simulation] "
                                 "deployment = \"per-vehicle\" (a nonlinear vehicle is its own "
                                 f"FMU, not a block of the stacked linear plant), not "
@@ -244,7 +237,7 @@ def check_deployment(sc: Scenario, network: bool = True) -> None:
         raise ScenarioError(f"{sc.source}: [simulation] deployment = \"per-vehicle\" needs a "
                             "fleet scenario (a [vehicles] count, a [graph] and a [leader]); "
                             "this one is a single stacked system")
-    form = sc.fleet.get("graph", {}).get("consensus", "in-plant")
+    form = sc.fleet.consensus
     if form != "protocol":
         raise ScenarioError(f"{sc.source}: [simulation] deployment = \"per-vehicle\" needs "
                             f"[graph] consensus = \"protocol\" (the protocol as a force each "
@@ -287,7 +280,7 @@ def _built(where: str, build: Callable[..., T_], *args: Any) -> T_:
 
 
 def _scenario(file: ScenarioFile, where: str, system: LinearSystem,
-              fleet: dict[str, Any] | None = None) -> Scenario:
+              fleet: Fleet | None = None) -> Scenario:
     sim = file.simulation
     sc = Scenario(name=file.name if file.name is not None else Path(where).stem,
                   description=file.description, system=system, T=sim.T, h=sim.h,
@@ -298,10 +291,10 @@ def _scenario(file: ScenarioFile, where: str, system: LinearSystem,
     if dist is not None:
         sc = replace(sc, distributed=DistributedSettings(
             mu=dist.mu, cohesion=dist.cohesion, regulator=dist.regulator, leader=dist.leader))
-    if getattr(file, "network", None) is not None:
-        sc = replace(sc, network=dict(file.network))
+    if getattr(file, "network", None) is not None:    # checked by the schema (check_network)
+        sc = replace(sc, network=NetworkSettings(dict(file.network)))
     if getattr(file, "sensors", None) is not None:
-        sc = replace(sc, sensors=dict(file.sensors))
+        sc = replace(sc, sensors=NavigationSensors.from_mapping(file.sensors))
     if file.estimator is not None and file.estimator.P0 is not None:
         sc = replace(sc, estimator_P0=_initial_covariance(sc, file.estimator.P0, where))
     _check_step(sc)
@@ -316,7 +309,7 @@ def _initial_covariance(sc: Scenario, value: Any, where: str) -> np.ndarray:
     try:
         if sc.fleet is None:
             return check_initial_covariance(value, sc.system.n + sc.system.r + sc.system.l)
-        N = len(sc.fleet["vehicles"])
+        N = sc.fleet.N
         P0 = check_initial_covariance(value, (sc.system.n + sc.system.r) // N)
         stacked_initial_covariance(sc.system, P0, per_vehicle=P0.shape[0])
         return P0
@@ -412,7 +405,8 @@ def scenario_from_dict(data: Mapping[str, Any], where: str = "scenario") -> Scen
         spec = fleet_spec(fleet)
         design = _design(fleet, spec, where) if fleet.design is not None else None
         system = _built(where, fleet_system, spec)
-        sc = _scenario(fleet, where, system, _built(where, resolve_fleet_spec, spec))
+        sc = _scenario(fleet, where, system,
+                       _built(where, lambda: Fleet.of(resolve_fleet_spec(spec))))
         return replace(sc, raw=copy.deepcopy(dict(data)), design=design)
     single = validate_scenario(SystemScenario, data, where)
     system = _built(where, LinearSystem.from_mapping, single.system_mapping())

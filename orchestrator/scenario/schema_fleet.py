@@ -456,7 +456,7 @@ class FleetScenario(ScenarioFile):
         vehicles, sim = _valid_vehicles(info), info.data.get("simulation")
         if network is None or vehicles is None or sim is None:
             return network
-        return check_network(network, vehicles.count, sim.h)
+        return check_network(network, vehicles.count, sim.h).to_mapping()
 
     @field_validator("cost")
     @classmethod

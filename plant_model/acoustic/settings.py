@@ -3,22 +3,25 @@
 :func:`resolve_links` gives every link of a fleet its timing (:class:`~.links.LinkTiming`)
 from a ``[network]`` table (fleet-wide defaults, per-link overrides, TDMA);
 :func:`check_network` validates the whole table (receiver, timing, modem range and the
-switching schedule of :mod:`.schedule`) for a fleet of N vehicles. Pure Python, no FMI.
+switching schedule of :mod:`.schedule`) for a fleet of N vehicles and gives it as a
+:class:`NetworkSettings`, the form a scenario carries it in. Pure Python, no FMI.
 """
 from __future__ import annotations
 
+import copy
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from ..linalg_checks import ModelError
 from .base import MAX_MESSAGE_CYCLE_STEPS, _number, _vehicle
 from .link_models import DEFAULT_MODEL, MODEL_KEY, link_model, model_parameter_keys
 from .links import LinkTiming, check_link, tdma_offsets
-from .schedule import resolve_schedule
+from .schedule import LinkSchedule, resolve_schedule
 
-__all__ = ["NOT_TIMING", "RECEIVERS", "check_cycle", "check_network", "modem_range",
-           "resolve_links", "timing_table"]
+__all__ = ["NOT_TIMING", "RECEIVERS", "NetworkSettings", "check_cycle", "check_network",
+           "modem_range", "resolve_links", "timing_table"]
 
 #: what a receiver does with the newest message between arrivals: hold it, or carry it
 #: forward with the sender's model
@@ -33,6 +36,53 @@ def timing_table(table: Any) -> dict[str, Any]:
     """The keys of a ``[network]`` table that :func:`resolve_links` reads (not ``receiver``
     nor the switching schedule, :mod:`.schedule`)."""
     return {k: v for k, v in dict(table or {}).items() if k not in NOT_TIMING}
+
+
+@dataclass(frozen=True)
+class NetworkSettings:
+    """A checked ``[network]`` table (:func:`check_network` makes one): the receiver, the
+    links' timing table, the modem range and the switching schedule, read from one place.
+    The table is kept as given (:meth:`to_mapping`) for what writes it whole (an FMU's
+    configuration, a run's summary, a scenario's key)."""
+
+    table: Mapping[str, Any]            #: the checked table, as given
+
+    @property
+    def receiver(self) -> str:
+        """What a receiver does between arrivals, one of :data:`RECEIVERS`."""
+        return str(self.table.get("receiver", "propagate"))
+
+    @property
+    def timing(self) -> dict[str, Any]:
+        """The keys :func:`resolve_links` reads (:func:`timing_table`)."""
+        return timing_table(self.table)
+
+    @property
+    def range(self) -> float | None:
+        """The modem range (m; None: every link in range)."""
+        return float(self.table["range"]) if "range" in self.table else None
+
+    def fleet_figures(self, h: float) -> dict[str, Any]:
+        """The fleet-wide latency, period (s; default h), loss, loss model and TDMA."""
+        t = self.table
+        return {"latency": float(t.get("latency", 0.0)), "period": float(t.get("period", h)),
+                "loss": float(t.get("loss", 0.0)),
+                "loss_model": t.get(MODEL_KEY, DEFAULT_MODEL), "tdma": bool(t.get("tdma", False))}
+
+    def schedule(self, links: Iterable[tuple[Any, int]], h: float,
+                 N: int) -> LinkSchedule | None:
+        """The switching schedule over an architecture's links (None without;
+        :func:`~.schedule.resolve_schedule`)."""
+        return resolve_schedule(self.table, links, h, N)
+
+    def to_mapping(self) -> dict[str, Any]:
+        """The table as a new plain dict."""
+        return copy.deepcopy(dict(self.table))
+
+    def updated(self, overrides: Mapping[str, Any], N: int, h: float) -> NetworkSettings:
+        """The table with ``overrides`` (latency, period, loss, receiver, ...) over it,
+        checked anew (:func:`check_network`)."""
+        return check_network({**self.to_mapping(), **overrides}, N, h)
 
 
 def _link_name(j: int | str, i: int) -> str:
@@ -152,7 +202,7 @@ def modem_range(value: Any) -> float:
     return r
 
 
-def check_network(table: Any, N: int, h: float) -> dict[str, Any]:
+def check_network(table: Any, N: int, h: float) -> NetworkSettings:
     """A ``[network]`` table checked for a fleet of N vehicles: its ``receiver`` (one of
     :data:`RECEIVERS`) and its timing; an override must name a link of at least one
     architecture (every ordered pair of vehicles, the leader to any vehicle).
@@ -168,14 +218,16 @@ def check_network(table: Any, N: int, h: float) -> dict[str, Any]:
 
     Returns
     -------
-    dict[str, Any]
-        The table as a dict.
+    NetworkSettings
+        The checked table.
 
     Raises
     ------
     ModelError
         One line naming the key, link or entry.
     """
+    if isinstance(table, NetworkSettings):
+        table = table.to_mapping()
     if not isinstance(table, dict):
         raise ModelError(f"[network] must be a table, not {table!r}")
     receiver = table.get("receiver", "propagate")
@@ -193,7 +245,7 @@ def check_network(table: Any, N: int, h: float) -> dict[str, Any]:
         raise ModelError("[network] loss_model = \"gilbert-elliott\" with a schedule is not "
                          "supported (a down link's channel would step without an arrival, "
                          "which the predictions do not carry)")
-    return dict(table)
+    return NetworkSettings(dict(table))
 
 
 def check_cycle(links: dict[tuple[Any, int], LinkTiming], schedule_period: int,

@@ -62,7 +62,7 @@ def run_cosimulation(fmus: dict[str, Path], config: dict[str, Any], *, mode: str
         If an FMU refuses a call.
     """
     t0 = time.perf_counter()
-    cfg = dict(config, mode=mode, seed=int(seed),
+    cfg = dict(config, estimator=mode, seed=int(seed),
                tracking=tracking or config.get("tracking", "lq"))
     system = closed_loop_system(cfg)
     traces, loop_s, info = run_system(system, fmus, steps, coupling=coupling,
