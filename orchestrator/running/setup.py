@@ -356,8 +356,11 @@ class RunSetup:
         fmus = self.fmus(method)
         sink, chunk_info = None, {}
         if recorder is not None:
+            grid = chunk_steps(system.output_width())
             if recorder.chunk_steps is None:
-                recorder.chunk_steps = chunk_steps(system.output_width())
+                recorder.chunk_steps = grid
+            if recorder.statistics is not None and recorder.statistics.block is None:
+                recorder.statistics.block = grid     # the figures whatever the chunks
             recorder.planned = self.sc.steps
             sink = _StackedSink(self, system, recorder, chunk_info)
         with phase("instantiate"):     # the loop's own seconds are counted apart

@@ -75,6 +75,41 @@ class RunStatistics:
                           else None)
         #: per link column of ``link_age``: [sum, count, max] over the window, s
         self.ages: list[list[float]] = []
+        #: the grid the sums are taken over (:meth:`feed`; None: as the chunks come)
+        self.block: int | None = None
+        self._rows: dict[str, list[np.ndarray]] = {}        # a block's rows, gathered
+        self._start = 0                                     # the gathered block's first step
+        self._gathered = 0
+
+    def feed(self, start: int, traces: Mapping[str, np.ndarray]) -> None:
+        """Samples start .. start + rows - 1, added block by block of :attr:`block` steps
+        (the grid k = 0, block, 2 block, ...) whatever the chunks they come in: a chunk on
+        the grid is added as it is; smaller ones (a live run's) are gathered until their
+        block is whole (copies of the statistics' traces only). The sums, and with them the
+        figures, do not depend on how the run was cut."""
+        rows = len(next(iter(traces.values())))
+        if self.block is None or (not self._gathered and start % self.block == 0
+                                  and rows == self.block):
+            self.add(start, traces)
+            return
+        keys = [k for k in ("e", "u", "x", "z", "saturated", "link_age") if k in traces]
+        a = 0
+        while a < rows:
+            if not self._gathered:
+                self._start = start + a
+            b = min(rows, a + self.block - (start + a) % self.block)
+            for k in keys:
+                self._rows.setdefault(k, []).append(np.array(traces[k][a:b]))
+            self._gathered += b - a
+            if (start + b) % self.block == 0:
+                self._add_gathered()
+            a = b
+
+    def _add_gathered(self) -> None:
+        """Add the gathered rows (a whole block, or the run's last part) at once."""
+        if self._gathered:
+            self.add(self._start, {k: np.concatenate(v) for k, v in self._rows.items()})
+            self._rows, self._gathered = {}, 0
 
     def add(self, start: int, traces: Mapping[str, np.ndarray]) -> None:
         """Samples start .. start + rows - 1 of the run's stacked traces."""
@@ -102,6 +137,7 @@ class RunStatistics:
     def result(self) -> dict[str, Any]:
         """The statistics as the summary and the campaign rows hold them: ``rms_e``,
         ``mean_e``, ``rms_u``, ``cost_rate``; for a fleet ``formation`` and ``segments``."""
+        self._add_gathered()                 # the run's last, partial block
         stats = self.trace.result()
         if self.formation is not None:
             stats["formation"] = self.formation.result()
@@ -111,6 +147,7 @@ class RunStatistics:
     def link_ages(self, links: list[str]) -> dict[str, tuple[float, int, float]]:
         """Per link ("j -> i", the columns' order) its age of information over the window:
         (sum, count, max), s."""
+        self._add_gathered()
         return {name: (float(s), int(n), float(m)) for name, (s, n, m) in zip(links, self.ages)}
 
 
@@ -138,7 +175,7 @@ class RunRecorder:
         """Rows k0 .. k0 + n - 1 of the run's stacked traces (views the next chunk may
         overwrite: what is kept is copied)."""
         if self.statistics is not None:
-            self.statistics.add(k0, traces)
+            self.statistics.feed(k0, traces)
         if self.stream is not None:     # the link names with the first chunk
             self.stream.send(self.name, k0, traces, links=self.links if not self.steps else None)
         rows = len(next(iter(traces.values())))
