@@ -78,8 +78,8 @@ def test_out_that_is_a_file_or_under_a_file(capsys, tmp_path):
 
 
 @pytest.mark.parametrize("argv, fragments", [
-    (["--T", "1e12"], ["T = 1e+12 s with h = 0.01 s is 1e+14 steps", "GB of memory available",
-                       "shorten T or lengthen h"]),
+    (["--T", "1e12"], ["T = 1e+12 s with h = 0.01 s is 1e+14 steps", "GB on disk",
+                       "shorten T, lengthen h or record fewer samples (--record-hz)"]),
     (["--h", "1e-300"], ["[simulation] h: step h = 1e-300 s is too small for this model"]),
     (["--T", "1e9", "--h", "1e-6"], ["T = 1e+09 s with h = 1e-06 s is 1e+15 steps"]),
     (["--T", "1e-299", "--h", "1e-300"], ["step h = 1e-300 s is too small for this model",
@@ -92,15 +92,22 @@ def test_steps_beyond_memory_or_resolution_blame_T_and_h(capsys, tmp_path, argv,
     assert not (tmp_path / "o").exists()
 
 
-def test_the_memory_estimate_counts_every_method():
+def test_the_memory_estimate_is_a_chunk_and_the_disk_holds_the_recording():
     from orchestrator.running import check_memory
+    from orchestrator.running.statistics import chunk_steps
     from orchestrator.scenario import load_scenario
     sc = load_scenario("paper")
-    one = check_memory(sc, 1, available=10**15)
-    assert one == 8 * sc.steps * 20 * 3                 # 20 outputs per step, 1 + 2 copies
-    assert check_memory(sc, 3, available=10**15) == one * 5 // 3
-    with pytest.raises(Exception, match="need about 0.024 GB, more than the 0.01 GB"):
-        check_memory(sc, 3, available=10**7)
+    one = check_memory(sc, 1, available=10**15, disk=10**15)
+    chunk = min(chunk_steps(20), sc.steps)
+    assert one == 8 * 4 * chunk * 20                    # 20 outputs per step, 4 copies
+    long = sc.with_run(T=1e6)                           # a longer run keeps no more
+    assert check_memory(long, 3, available=10**15, disk=10**15) == one
+    with pytest.raises(Exception, match=r"a chunk of 16384 steps \(20 values per step\) "
+                                        r"needs about 0.0105 GB, more than the 0.01 GB"):
+        check_memory(long, 1, available=10**7, disk=10**15)
+    with pytest.raises(Exception, match="its recording .* needs about 192 GB on disk, "
+                                        "more than the 1 GB free"):
+        check_memory(long, 3, available=10**15, disk=10**9)
 
 
 def test_validate_refuses_what_is_not_an_fmu(capsys, tmp_path):

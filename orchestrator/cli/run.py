@@ -54,7 +54,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     options = resume.options if resume is not None else {"predict": args.predict,
                                                          "master": args.master or "auto",
                                                          "record_hz": args.record_hz}
-    check_run(sc, predict=options["predict"])   # every check, before anything is created
+    check_run(sc, predict=options["predict"],   # every check, before anything is created
+              record_hz=options.get("record_hz"))
     live = _live(args)
     every = DEFAULT_EVERY_S if args.checkpoint_every is None else args.checkpoint_every
     out = args.resume or args.out or default_out(sc, sc.estimator, f"seed{sc.seed}")
@@ -132,7 +133,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     modes = picked if what == "estimators" else None
     trackings = picked if what == "tracking" else None
     architectures = picked if what == "architectures" else None
-    check_run(sc, method_list(sc, modes, trackings, architectures), predict=args.predict)
+    check_run(sc, method_list(sc, modes, trackings, architectures), predict=args.predict,
+              record_hz=args.record_hz)
     live = _live(args)
     tail = "compare" if args.what is None else f"compare-{what}"
     with staged_output(args.out or default_out(sc, tail), "compare",

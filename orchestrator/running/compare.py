@@ -134,7 +134,8 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     methods = method_list(sc, modes, trackings, architectures)
     out = Path(out_dir)
     setup = make_setup(sc, out / "fmus", methods, predict=predict, master=master)
-    check_run(sc, methods, predict=predict, setup=setup)   # run's checks: every caller
+    check_run(sc, methods, predict=predict, setup=setup,   # run's checks: every caller
+              record_hz=record_hz)
     out.mkdir(parents=True, exist_ok=True)
     # the .rrd writer imports Rerun in a child while we simulate; SIGINT / SIGTERM stop
     # the runs between steps and keep what was simulated

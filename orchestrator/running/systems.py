@@ -135,7 +135,8 @@ def build(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
 
 def check_run(sc: Scenario, methods: Sequence[Method] = (), *,
               coupling: str = "gauss-seidel", predict: str = "stationary",
-              available: int | None = None, setup: RunSetup | None = None) -> int:
+              available: int | None = None, setup: RunSetup | None = None,
+              record_hz: float | None = None) -> int:
     """Every check a run makes before it starts: the one set of rules of ``run``,
     ``compare``, each ``envelope`` point and each ``campaign`` point.
 
@@ -149,7 +150,7 @@ def check_run(sc: Scenario, methods: Sequence[Method] = (), *,
        (:func:`orchestrator.running.setup.check_setup`);
     2. the stacked design's estimated time and memory (:func:`check_size`);
     3. native FMUs need a C compiler (:func:`check_native`);
-    4. the traces of ``steps`` = T / h steps, ``len(methods)`` methods, fit in memory
+    4. a chunk of the run fits in memory and its recording on the disk
        (:func:`check_memory`): a T that would not finish (``T = 1e9``: 1e11 steps) is
        refused here, at once.
 
@@ -170,6 +171,8 @@ def check_run(sc: Scenario, methods: Sequence[Method] = (), *,
         The run's own setup (:func:`make_setup` of the same scenario and methods): the
         system it builds for the memory check is then the one the run uses (a fleet's
         vehicle laws and network loop are made once, not twice).
+    record_hz : float, optional
+        The recording's samples per second (the disk the .rrd needs).
 
     Returns
     -------
@@ -190,7 +193,7 @@ def check_run(sc: Scenario, methods: Sequence[Method] = (), *,
         setup = make_setup(sc, Path("."), methods, coupling=coupling, predict=predict)  # 1, 2
     check_native(sc)
     width = setup.python_system(Method.of(sc), sc.seed).output_width()  # as scenario_system
-    return check_memory(sc, len(methods), available, width=width)
+    return check_memory(sc, len(methods), available, width=width, record_hz=record_hz)
 
 
 def check_native(sc: Scenario) -> None:
@@ -210,13 +213,24 @@ def check_native(sc: Scenario) -> None:
 
 
 
-def check_memory(sc: Scenario, n_methods: int, available: int | None = None, *,
-                 width: int | None = None) -> int:
-    """Refuse a run whose traces cannot fit in memory, before anything is built.
+#: bytes per recorded value in a .rrd (the value, its share of the time columns and the
+#: chunk framing: measured 26 for the paper's 20 series at every step, 18-30 for fleets)
+RRD_BYTES_PER_VALUE = 32
 
-    The traces of one run are ``steps`` rows of every output of every FMU, 8 bytes each;
-    a run holds its own, plus the first seed's traces of every method for the .rrd, plus a
-    copy in the recording child: bytes = 8 steps width (n_methods + 2).
+
+def check_memory(sc: Scenario, n_methods: int, available: int | None = None, *,
+                 width: int | None = None, record_hz: float | None = None,
+                 disk: int | None = None) -> int:
+    """Refuse a run whose chunks cannot fit in memory, or whose recording cannot fit on the
+    disk, before anything is built.
+
+    A run keeps what it is asked to keep, not its horizon: the master's trace buffers hold
+    one chunk of steps (:func:`orchestrator.running.statistics.chunk_steps`: at most 64
+    MiB), and so do the chunk's copies (the stacked layout, the one sent to the .rrd writer,
+    the writer's gathered rows): bytes = 8 x 4 x chunk x width, whatever T. The statistics
+    are sums; the .rrd is written as the run goes. What grows with T is the file: about
+    :data:`RRD_BYTES_PER_VALUE` bytes per recorded value (every ``stride``-th step of the
+    first seed of each method), checked against the disk's free space.
 
     Parameters
     ----------
@@ -225,29 +239,45 @@ def check_memory(sc: Scenario, n_methods: int, available: int | None = None, *,
     n_methods : int
         Methods simulated (estimator modes x tracking laws).
     available : int, optional
-        Bytes available (default :func:`available_memory`).
+        Bytes of memory available (default :func:`available_memory`).
     width : int, optional
         Values per step (default: those of the scenario's own system,
         :func:`scenario_system`).
+    record_hz : float, optional
+        The recording's samples per second (:func:`orchestrator.running.fmus.record_stride`).
+    disk : int, optional
+        Bytes free on the disk of the output (default: that of the current folder).
 
     Returns
     -------
     int
-        The estimated bytes.
+        The estimated bytes of memory.
 
     Raises
     ------
     ScenarioError
-        Naming T, h, the number of steps and both sizes, if the estimate exceeds
-        MEMORY_SHARE of the memory available.
+        Naming T, h, the number of steps and both sizes, if the chunks exceed MEMORY_SHARE
+        of the memory available or the recording the free disk.
     """
+    import shutil
+
+    from .fmus import record_stride
+    from .statistics import chunk_steps
     width = scenario_system(sc).output_width() if width is None else width
-    need = 8 * sc.steps * width * (n_methods + 2)
-    available = memory_short(need, available)
-    if available is not None:
+    chunk = min(chunk_steps(width), sc.steps)
+    need = 8 * 4 * chunk * width
+    short = memory_short(need, available)
+    if short is not None:
         raise ScenarioError(
-            f"T = {sc.T:g} s with h = {sc.h:g} s is {sc.steps:.4g} steps: the traces "
-            f"({width} values per step, {n_methods} method(s)) need about {need / 1e9:.3g} GB, "
-            f"more than the {available / 1e9:.3g} GB of memory available; shorten T or "
-            "lengthen h")
+            f"a chunk of {chunk} steps ({width} values per step) needs about "
+            f"{need / 1e9:.3g} GB, more than the {short / 1e9:.3g} GB of memory available")
+    samples = sc.steps // record_stride(sc, record_hz) + 1
+    rrd = RRD_BYTES_PER_VALUE * samples * width * n_methods
+    free = shutil.disk_usage(".").free if disk is None else disk
+    if rrd > free:
+        raise ScenarioError(
+            f"T = {sc.T:g} s with h = {sc.h:g} s is {sc.steps:.4g} steps: its recording "
+            f"({width} values per sample, {n_methods} method(s), {samples:.4g} samples) "
+            f"needs about {rrd / 1e9:.3g} GB on disk, more than the {free / 1e9:.3g} GB "
+            "free; shorten T, lengthen h or record fewer samples (--record-hz)")
     return need
