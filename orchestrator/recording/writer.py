@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 
-from estimator_fmu.registry import ESTIMATORS
 from plant_model.remus100.rigid_body import quaternion_xyzw
 
 from .actuators import DEFAULT_DELTA_MAX, DEFAULT_N_MAX, send_actuators, send_limits
@@ -30,6 +29,7 @@ from .layout import (
     axis_colors,
     color_name,
     method_color,
+    method_styles,
 )
 from .network import LINK_KEYS, LINKS_LEGEND_ENTITY, links_legend, send_links
 from .validation import _positive_int, _positive_ns, _validate, _validate_fleet
@@ -39,9 +39,9 @@ __all__ = ["write_rrd"]
 #: how the viewer draws the samples that share a pixel column when zoomed out: the minimum
 #: and the maximum (its default, the average, draws noise 2-4 times smaller than it is)
 _AGGREGATION = "MinMax"
-#: the ideal method's line in the paper layout: wider and translucent, so that the Kalman
-#: line (nearly the same curve) shows on top of it and it shows round the Kalman line
-_WIDE_METHODS = {k: e.wide for k, e in ESTIMATORS.items() if e.wide is not None}
+#: the width of the lines every method shares (the true disturbance and reference); each
+#: method's own lines: :func:`~.layout.method_styles` (the ideal one wide, the Kalman
+#: filter's thin and translucent over it)
 _LINE_WIDTH = 1.0
 
 
@@ -111,7 +111,14 @@ _SHARED_TRUTH = ("w", "z")
 
 def _paper_legend(methods: list[str], colors: dict[str, tuple[int, int, int]]) -> str:
     """The one-line colour legend of the paper layout (markdown)."""
-    names = " · ".join(f"**{m}** {color_name(colors[m])}" for m in methods)
+    styles = method_styles(methods)
+
+    def how(m: str) -> str:
+        s = styles[m]
+        if s.wide:
+            return f"{color_name(colors[m])}, wide (under the thin lines)"
+        return color_name(colors[m]) + (", thin, see-through" if s.viewer_alpha < 255 else "")
+    names = " · ".join(f"**{m}** {how(m)}" for m in methods)
     return (f"{names} · true state: the method's colour, its estimate a lighter shade · "
             "disturbance and reference (the same for every method): white, drawn once · "
             "whole run shown; scroll or drag in a plot to zoom, double-click to reset")
@@ -374,12 +381,13 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
 
         indexes = _time_columns(np.arange(0, steps, stride, dtype=np.int64), h_ns)
         if fleet_v is None:
+            styles = method_styles(methods)
             for method in methods:
                 base = colors[method]
                 light = _lighter(base)
+                width, alpha = styles[method].width, styles[method].viewer_alpha
                 for key, template, suffix, is_estimate in _SERIES:
                     arr = clean[method][key]
-                    width, alpha = _WIDE_METHODS.get(method, (_LINE_WIDTH, 255))
                     if key in _SHARED_TRUTH:        # exogenous: the same for every method
                         style = rr.SeriesLines(colors=[TRUE_COLOR], names=["true"],
                                                widths=[_LINE_WIDTH],
