@@ -5,10 +5,11 @@ series styles and the embedded blueprint)."""
 from __future__ import annotations
 
 import pytest
+from rerun.chunk import RrdReader
 
 from orchestrator.cli import main
 from orchestrator.recording import read_rrd_series_lines, read_rrd_view_ranges
-from orchestrator.recording.layout import method_styles
+from orchestrator.recording.layout import fleet_method_line, method_styles
 
 METHODS = ("kalman", "classical", "ideal")
 
@@ -61,3 +62,29 @@ def test_a_fleet_comparisons_views_share_their_y_ranges(folders):
     assert len(set(errors.values())) == 1 and len(set(controls.values())) == 1
     (lo, hi), = set(errors.values())
     assert lo < hi
+
+
+def _widths(path) -> dict[str, list[float]]:
+    """entity -> its static series line widths."""
+    out = {}
+    for chunk in RrdReader(path).stream():
+        batch = chunk.to_record_batch()
+        if chunk.is_static and "SeriesLines:widths" in batch.schema.names:
+            out[chunk.entity_path.strip("/")] = batch.column("SeriesLines:widths").to_pylist()[-1]
+    return out
+
+
+@pytest.mark.slow
+def test_a_fleet_comparisons_two_laws_differ_in_shade_and_width(folders):
+    rrd = folders["fleet"] / "formation-4.rrd"
+    lines, widths = read_rrd_series_lines(rrd), _widths(rrd)
+    for i in range(1, 5):
+        (names_lq, rgba_lq), (names_reg, rgba_reg) = (
+            lines[f"vehicles/{i}/error/{m}"] for m in ("lq", "regulator"))
+        assert names_lq == ("lq n", "lq e", "lq d")
+        assert names_reg == ("regulator n", "regulator e", "regulator d")
+        assert all(a[:3] != b[:3] for a, b in zip(rgba_lq, rgba_reg))
+        assert {c[3] for c in rgba_lq} == {fleet_method_line(0, 2)[1]} and all(
+            c[3] == 255 for c in rgba_reg)
+        assert min(widths[f"vehicles/{i}/error/lq"]) > 2 * max(
+            widths[f"vehicles/{i}/error/regulator"])

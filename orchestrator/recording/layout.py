@@ -13,7 +13,8 @@ import numpy as np
 from estimator_fmu.registry import ESTIMATORS
 
 __all__ = ["FLEET_TRACE_KEYS", "TRACE_KEYS", "TRUE_COLOR", "VIEW_GROUPS", "FleetLayout",
-           "MethodStyle", "axis_colors", "color_name", "method_color", "method_styles"]
+           "MethodStyle", "axis_colors", "color_name", "fleet_method_line", "method_color",
+           "method_styles"]
 
 # (trace key, entity path template, series-name suffix, is an estimate)
 _SERIES: tuple[tuple[str, str, str, bool], ...] = (
@@ -176,6 +177,35 @@ def method_styles(methods: list[str] | tuple[str, ...]) -> dict[str, MethodStyle
         out[m] = MethodStyle(colors[m], float(width), int(alpha), dash, order.index(m),
                              _OVER_WIDE_ALPHA if over_wide else 255)
     return out
+
+
+#: (width, alpha) of the first method's per-vehicle lines when a fleet recording holds more
+#: than one method: wide and see-through, so the others' thin lines show on it or through it
+_FLEET_FIRST_LINE = (2.5, 150)
+
+
+def fleet_method_line(method_index: int, n_methods: int) -> tuple[float, int]:
+    """(width, alpha) of a method's per-vehicle series in a fleet recording. Its components
+    have one hue each (:func:`axis_colors`), a method a shade of them; on the viewer's dark
+    background a darker shade alone hardly shows, so with two methods or more the first
+    is also drawn wide and see-through and the others thin and opaque: whichever the
+    viewer draws last (entity-path order), both show.
+
+    Parameters
+    ----------
+    method_index : int
+        Position of the method in the recording (0-based).
+    n_methods : int
+        Methods in the recording.
+
+    Returns
+    -------
+    tuple[float, int]
+        Line width (points) and alpha (0-255).
+    """
+    if n_methods > 1 and method_index == 0:
+        return _FLEET_FIRST_LINE
+    return (_LINE_WIDTH, 255)
 
 
 @dataclass(frozen=True, eq=False)

@@ -28,6 +28,7 @@ from .layout import (
     _vehicle_colors,
     axis_colors,
     color_name,
+    fleet_method_line,
     method_color,
     method_styles,
 )
@@ -46,11 +47,15 @@ _LINE_WIDTH = 1.0
 
 
 def _send_block(rec: rr.RecordingStream, entity: str, values: np.ndarray, names: list[str],
-                colors: list[tuple[int, int, int]], indexes: list[rr.TimeColumn]) -> int:
+                colors: list[tuple[int, int, int]], indexes: list[rr.TimeColumn],
+                line: tuple[float, int] = (_LINE_WIDTH, 255)) -> int:
     """One multi-component series entity: static SeriesLines (one name/colour per column of
-    ``values``) and one ``send_columns`` whose rows hold all k components.  Returns k."""
-    rec.log(entity, rr.SeriesLines(colors=colors, names=names, aggregation_policy=_AGGREGATION),
-            static=True)
+    ``values``, every line ``line`` = (width, alpha)) and one ``send_columns`` whose rows
+    hold all k components.  Returns k."""
+    width, alpha = line
+    rec.log(entity, rr.SeriesLines(colors=[(*c[:3], alpha) for c in colors], names=names,
+                                   widths=[width] * len(names),
+                                   aggregation_policy=_AGGREGATION), static=True)
     rec.send_columns(entity, indexes=indexes,
                      columns=rr.Scalars.columns(
                          scalars=np.ascontiguousarray(values, dtype=np.float64)))
@@ -59,7 +64,7 @@ def _send_block(rec: rr.RecordingStream, entity: str, values: np.ndarray, names:
 
 def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray],
                        fleet: _Fleet, method_index: int, stride: int,
-                       indexes: list[rr.TimeColumn]) -> int:
+                       indexes: list[rr.TimeColumn], n_methods: int = 1) -> int:
     """Per-vehicle multi-component series and the leader series of one run (recorded steps
     only); returns the number of scalar lines (components) written."""
     rec_traces = {key: traces[key][::stride] for key in ("e", "u", "x", "xhat", "w", "what", "z")}
@@ -81,13 +86,14 @@ def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, n
              " estimate", True),
         ]
     signals = 0
+    line = fleet_method_line(method_index, n_methods)
     for key, template, index, names, suffix, is_estimate in groups:
         arr = rec_traces[key]
         line_names = [f"{method} {name}{suffix}" for name in names]
         colors = shades(len(names), is_estimate)
         for i in range(1, fleet.n + 1):
             signals += _send_block(rec, f"vehicles/{i}/{template.format(m=method)}",
-                                   arr[:, index[i - 1]], line_names, colors, indexes)
+                                   arr[:, index[i - 1]], line_names, colors, indexes, line)
     if "rpm" in traces:                  # the nonlinear vehicle: its actuators
         signals += send_actuators(rec, method, traces, fleet.n, stride, indexes, method_index,
                                   _vehicle_colors(fleet.n))
@@ -129,7 +135,8 @@ def _fleet_legend(methods: list[str], fleet: _Fleet, actuators: bool = False) ->
     comps = ", ".join(f"{n} {color_name(c)}" for n, c in zip(
         fleet.error_names, axis_colors(len(fleet.error_names), 0)))
     shades = " · ".join(f"**{m}**: {('full colour', 'darker', 'lighter')[i % 3]}"
-                        for i, m in enumerate(methods))
+                        + (", wide, see-through" if fleet_method_line(i, len(methods))[0]
+                           > _LINE_WIDTH else "") for i, m in enumerate(methods))
     return (f"components: {comps} · {shades} · 3D: one colour per vehicle (numbered), "
             "leader gold with its whole path, formation targets as small pale points, "
             "communication edges grey, pinned links gold" + (
@@ -416,7 +423,7 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
                                                    media_type=rr.MediaType.MARKDOWN), static=True)
             for index, method in enumerate(methods):
                 signals += _send_fleet_series(rec, method, clean[method], fleet_v,
-                                              index, stride, indexes)
+                                              index, stride, indexes, len(methods))
                 _send_fleet_world(rec, method, clean[method], fleet_v, h_ns, stride,
                                   scene_stride, trail_stride)
                 if links and method in links:
