@@ -30,11 +30,17 @@ import shutil
 from collections.abc import Iterable
 from pathlib import Path
 
-__all__ = ["CAMPAIGN", "exchange", "link_tree", "lock_file", "new_staging", "old_name",
+__all__ = ["CAMPAIGN", "KEPT_KINDS", "RUN", "exchange", "link_tree", "lock_file", "new_staging",
+           "old_name",
            "prune", "recover", "remove_tree", "stale_of", "swap_in", "tag"]
 
 #: the kind tag of a campaign's staging folders (kept for its next run: it resumes them)
 CAMPAIGN = "campaign"
+#: the kind tag of a checkpointed run's staging folders (kept: ``run --resume`` reads them)
+RUN = "run"
+#: the kinds of staging folder :func:`prune` leaves to the next command into their own
+#: destination
+KEPT_KINDS = (CAMPAIGN, RUN)
 
 _RENAME_EXCHANGE = 2
 _AT_FDCWD = -100
@@ -154,8 +160,9 @@ def recover(target: Path) -> None:
 def prune(parent: Path, keep: Iterable[Path] = ()) -> None:
     """Delete the staging and old- folders in ``parent`` whose owner is gone: a folder's
     destination lock (``.<tag>.lock``) can be taken, so no process writes it. A campaign's
-    staging folder is left to the next command into its own destination (a campaign
-    resumes it, any other command replaces it)."""
+    or a checkpointed run's staging folder (:data:`KEPT_KINDS`) is left to the next command
+    into its own destination (a campaign, ``run --resume``, resume it; any other command
+    replaces it)."""
     import fcntl
     keep = {Path(p).name for p in keep}
     tags: dict[str, list[Path]] = {}
@@ -163,7 +170,7 @@ def prune(parent: Path, keep: Iterable[Path] = ()) -> None:
         for sep in (".staging-", ".old-"):
             head, found, rest = p.name[1:].rpartition(sep)
             if found and head and p.name not in keep and p.is_dir() and not p.is_symlink():
-                if not (sep == ".staging-" and _kind(rest) == CAMPAIGN):
+                if not (sep == ".staging-" and _kind(rest) in KEPT_KINDS):
                     tags.setdefault(head, []).append(p)
                 break
     for name, folders in tags.items():

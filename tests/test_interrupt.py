@@ -46,7 +46,8 @@ def test_a_signal_keeps_what_was_simulated(tmp_path, sig, status):
     reached = summary["time_reached_s"]
     assert 0 < reached < 3000
     steps = summary["rrd"]["recorded_steps"]
-    assert steps == round(reached / 0.01) and steps % 200 == 0       # stopped between chunks
+    # stopped between slices of 200 steps (or at the end of a chunk of the recorder)
+    assert steps == round(reached / 0.01) and (steps % 200 == 0 or steps % 2 ** 14 == 0)
     assert summary["methods"]["kalman"]["seeds_completed"] == 0
     series = read_rrd_scalars(out / "paper.rrd")                     # a valid, complete file
     k, t_ns, e1 = series["error/1/kalman"]

@@ -15,19 +15,19 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["formation_stats", "formation_summary"]
+__all__ = ["FormationSums", "formation_stats", "formation_summary"]
 
 _CHUNK = 256          # time steps per block of the all-pairs distance computation
 
 
-def formation_stats(x: np.ndarray, position_index: np.ndarray, offsets: np.ndarray,
-                    edges: Any, k0: int, h: float) -> dict[str, Any]:
-    """Formation figures of one run (module docstring).
+class FormationSums:
+    """The formation figures of a run (module docstring) accumulated chunk by chunk of
+    samples (:meth:`add`); :meth:`result` gives :func:`formation_stats`' dict. One chunk
+    of the whole run gives exactly :func:`formation_stats`; more chunks the same maxima
+    and closest approach, and the RMS values to rounding.
 
     Parameters
     ----------
-    x : np.ndarray
-        Stacked vehicle states, shape (steps, n).
     position_index : np.ndarray
         (N, 3) int: the columns of x holding vehicle i's north, east, down position.
     offsets : np.ndarray
@@ -38,6 +38,50 @@ def formation_stats(x: np.ndarray, position_index: np.ndarray, offsets: np.ndarr
         First sample of the statistics window.
     h : float
         Sampling period, s (for the time of the closest approach).
+    """
+
+    def __init__(self, position_index: np.ndarray, offsets: np.ndarray, edges: Any, k0: int,
+                 h: float):
+        self.idx = np.asarray(position_index, dtype=np.int64)
+        self.off = np.asarray(offsets, dtype=float)
+        self.edges = [(int(j), int(i)) for j, i in edges]
+        self.k0, self.h = int(k0), float(h)
+        self.sums = np.zeros(len(self.edges))      #: sum over the window of |rel|^2, m^2
+        self.n = 0                                 #: window samples seen
+        self.best, self.where = np.inf, (0, 1, 0)  #: closest approach so far (m; i, j, k)
+
+    def add(self, start: int, x: np.ndarray) -> None:
+        """Samples start .. start + len(x) - 1 of the stacked vehicle states x."""
+        pos = x[:, self.idx]                                      # (rows, N, 3)
+        window = pos[max(0, self.k0 - start):]
+        if window.shape[0]:
+            for c, (j, i) in enumerate(self.edges):
+                rel = window[:, i - 1] - window[:, j - 1] - (self.off[i - 1] - self.off[j - 1])
+                self.sums[c] += np.sum(np.sum(rel * rel, axis=1))
+            self.n += window.shape[0]
+        if self.idx.shape[0] >= 2 and pos.shape[0]:
+            self.best, self.where = _closest_approach(np.ascontiguousarray(pos), start,
+                                                      self.best, self.where)
+
+    def result(self) -> dict[str, Any]:
+        """The figures (:func:`formation_stats`)."""
+        rms = {f"{j}->{i}": float(np.sqrt(s / self.n))
+               for (j, i), s in zip(self.edges, self.sums)}
+        two = self.idx.shape[0] >= 2
+        return {
+            "formation_error_rms": rms,
+            "formation_error_rms_max": max(rms.values()) if rms else None,
+            "min_separation": self.best if two else None,
+            "min_separation_vehicles": [self.where[0] + 1, self.where[1] + 1] if two else None,
+            "min_separation_time_s": self.where[2] * self.h if two else None,
+        }
+
+
+def formation_stats(x: np.ndarray, position_index: np.ndarray, offsets: np.ndarray,
+                    edges: Any, k0: int, h: float) -> dict[str, Any]:
+    """Formation figures of one run (module docstring): :class:`FormationSums` (its
+    parameters) over the whole run at once, ``x`` the stacked vehicle states, shape
+    (steps, n).
 
     Returns
     -------
@@ -46,25 +90,9 @@ def formation_stats(x: np.ndarray, position_index: np.ndarray, offsets: np.ndarr
         ``min_separation`` (m), ``min_separation_vehicles`` ([i, j], 1-based) and
         ``min_separation_time_s``.
     """
-    idx = np.asarray(position_index, dtype=np.int64)
-    off = np.asarray(offsets, dtype=float)
-    pos = x[:, idx]                                           # (steps, N, 3)
-    window = pos[k0:]
-    rms = {}
-    for j, i in edges:
-        rel = window[:, i - 1] - window[:, j - 1] - (off[i - 1] - off[j - 1])
-        rms[f"{j}->{i}"] = float(np.sqrt(np.mean(np.sum(rel * rel, axis=1))))
-    N = idx.shape[0]
-    best, where = np.inf, (0, 1, 0)
-    if N >= 2:
-        best, where = _closest_approach(np.ascontiguousarray(pos))
-    return {
-        "formation_error_rms": rms,
-        "formation_error_rms_max": max(rms.values()) if rms else None,
-        "min_separation": None if N < 2 else best,
-        "min_separation_vehicles": None if N < 2 else [where[0] + 1, where[1] + 1],
-        "min_separation_time_s": None if N < 2 else where[2] * h,
-    }
+    sums = FormationSums(position_index, offsets, edges, k0, h)
+    sums.add(0, x)
+    return sums.result()
 
 
 def formation_summary(per_seed: list[dict[str, Any]], seeds: list[int]) -> dict[str, Any]:
@@ -99,9 +127,13 @@ def formation_summary(per_seed: list[dict[str, Any]], seeds: list[int]) -> dict[
     return out
 
 
-def _closest_approach(pos: np.ndarray) -> tuple[float, tuple[int, int, int]]:
+def _closest_approach(pos: np.ndarray, start: int = 0, best: float = np.inf,
+                      where: tuple[int, int, int] = (0, 1, 0)
+                      ) -> tuple[float, tuple[int, int, int]]:
     """The smallest distance between two vehicles over the run, its pair (i < j, 0-based)
-    and sample: the first in (k, i, j) order.
+    and sample: the first in (k, i, j) order. ``pos`` may be a chunk of the run, from
+    sample ``start``, after chunks whose closest approach was ``best`` at ``where``: the
+    result is then the run's so far (a tie keeps the earlier sample).
 
     Block by block of :data:`_CHUNK` samples. A pair (i, j) cannot come closer within a
     block than its distance at the block's first sample less how far each vehicle moves
@@ -122,7 +154,6 @@ def _closest_approach(pos: np.ndarray) -> tuple[float, tuple[int, int, int]]:
     """
     steps, N, _ = pos.shape
     iu, ju = np.triu_indices(N, k=1)                 # the pairs i < j in (i, j) order
-    best, where = np.inf, (0, 1, 0)
     for a in range(0, steps, _CHUNK):
         blk = pos[a:a + _CHUNK]
         moved = np.sqrt(np.max(np.sum((blk - blk[0]) ** 2, axis=2), axis=0))     # (N,)
@@ -140,5 +171,6 @@ def _closest_approach(pos: np.ndarray) -> tuple[float, tuple[int, int, int]]:
             d2 += d
         k, q = np.unravel_index(np.argmin(d2), d2.shape)
         if np.sqrt(d2[k, q]) < best:
-            best, where = float(np.sqrt(d2[k, q])), (int(pi[q]), int(pj[q]), a + int(k))
+            best, where = (float(np.sqrt(d2[k, q])),
+                           (int(pi[q]), int(pj[q]), start + a + int(k)))
     return best, where

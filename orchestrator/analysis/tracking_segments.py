@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["TURN_RATE", "leader_turn_rate", "run_segments", "segment_stats",
+__all__ = ["TURN_RATE", "SegmentSums", "leader_turn_rate", "run_segments", "segment_stats",
            "segment_summary"]
 
 #: rad/s: a leader turning faster than this is in a turn
@@ -43,9 +43,66 @@ def leader_turn_rate(z: np.ndarray, F: np.ndarray, H: np.ndarray) -> np.ndarray:
     return np.divide(rate, speed2, out=np.zeros_like(rate), where=speed2 > 1e-12)
 
 
+class SegmentSums:
+    """The window's figures (module docstring) accumulated chunk by chunk of window samples
+    (:meth:`add`); :meth:`result` gives :func:`segment_stats`' dict. One chunk of the whole
+    window gives exactly :func:`segment_stats`; more chunks the same maxima and fractions,
+    and the RMS values to rounding."""
+
+    def __init__(self) -> None:
+        self.n = 0                                  #: window samples seen
+        self.turns = 0                              #: of them in a turn
+        self.max = -np.inf                          #: largest |e_i|, m
+        #: (largest |e_i|, sum of |e_i|^2, count) on straight samples [0] and turns [1]
+        self.parts = [[-np.inf, 0.0, 0], [-np.inf, 0.0, 0]]
+        self.sat: np.ndarray | None = None          #: per vehicle, samples saturated
+        self.size = 0                               #: |e_i| values seen
+
+    def add(self, e: np.ndarray, turning: np.ndarray,
+            saturated: np.ndarray | None = None) -> None:
+        """Window samples: tracking errors e (rows x 3 N, m), whether the leader turns
+        (rows booleans), saturation (rows x N, 1 at the limit; None: no actuators)."""
+        e = np.asarray(e)
+        norm = np.linalg.norm(e.reshape(e.shape[0], e.shape[1] // 3, 3), axis=2)  # (rows, N)
+        rows = e.shape[0]
+        turn = np.asarray(turning, bool)
+        if norm.size:
+            self.max = max(self.max, float(norm.max()))
+        for part, mask in zip(self.parts, (~turn, turn)):
+            if mask.any():
+                sel = norm[mask]
+                part[0] = max(part[0], float(sel.max()))
+                part[1] += np.sum(sel ** 2)
+                part[2] += sel.size
+        self.turns += int(np.count_nonzero(turn))
+        self.n += rows
+        self.size += norm.size
+        if saturated is not None:
+            at = np.count_nonzero(np.asarray(saturated) > 0.5, axis=0)
+            self.sat = at if self.sat is None else self.sat + at
+
+    def result(self) -> dict[str, Any]:
+        """The keys of the module docstring."""
+        (max_s, sum_s, n_s), (max_t, sum_t, n_t) = self.parts
+        out: dict[str, Any] = {
+            "max_error": self.max if self.size else None,
+            "max_error_straight": max_s if n_s else None,
+            "max_error_turns": max_t if n_t else None,
+            "rms_error_straight": float(np.sqrt(sum_s / n_s)) if n_s else None,
+            "rms_error_turns": float(np.sqrt(sum_t / n_t)) if n_t else None,
+            "turn_fraction": self.turns / self.n if self.n else None,
+            "actuator_saturation_fraction": None,
+        }
+        if self.sat is not None:
+            out["actuator_saturation_fraction"] = float(self.sat.sum() / (self.n * self.sat.size))
+            out["actuator_saturation_fraction_per_vehicle"] = (self.sat / self.n).tolist()
+        return out
+
+
 def segment_stats(e: np.ndarray, turning: np.ndarray, k0: int,
                   saturated: np.ndarray | None = None) -> dict[str, Any]:
-    """The window's figures (module docstring) of one run.
+    """The window's figures (module docstring) of one run: :class:`SegmentSums` over the
+    window at once.
 
     Parameters
     ----------
@@ -63,30 +120,10 @@ def segment_stats(e: np.ndarray, turning: np.ndarray, k0: int,
     dict[str, Any]
         The keys of the module docstring.
     """
-    K = e.shape[0]
-    norm = np.linalg.norm(np.asarray(e)[k0:].reshape(K - k0, -1, 3), axis=2)   # (K-k0, N)
-    turn = np.asarray(turning, bool)[k0:]
-
-    def part(mask: np.ndarray) -> tuple[float | None, float | None]:
-        if not mask.any():
-            return None, None
-        sel = norm[mask]
-        return float(sel.max()), float(np.sqrt(np.mean(sel ** 2)))
-
-    max_s, rms_s = part(~turn)
-    max_t, rms_t = part(turn)
-    out: dict[str, Any] = {
-        "max_error": float(norm.max()) if norm.size else None,
-        "max_error_straight": max_s, "max_error_turns": max_t,
-        "rms_error_straight": rms_s, "rms_error_turns": rms_t,
-        "turn_fraction": float(turn.mean()) if turn.size else None,
-        "actuator_saturation_fraction": None,
-    }
-    if saturated is not None:
-        sat = np.asarray(saturated)[k0:] > 0.5
-        out["actuator_saturation_fraction"] = float(sat.mean())
-        out["actuator_saturation_fraction_per_vehicle"] = sat.mean(axis=0).tolist()
-    return out
+    sums = SegmentSums()
+    sums.add(np.asarray(e)[k0:], np.asarray(turning, bool)[k0:],
+             None if saturated is None else np.asarray(saturated)[k0:])
+    return sums.result()
 
 
 def force_saturation(u: np.ndarray, u_max: Sequence[Sequence[float]],

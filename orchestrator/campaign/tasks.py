@@ -241,7 +241,8 @@ def _numpy_rows(task: Task, design: PointDesign, ver: str,
 
 
 def _fmu_rows(task: Task, ver: str) -> list[dict[str, Any]]:
-    from ..running.setup import Method, run_statistics, stats_context
+    from ..running.setup import Method, stats_context
+    from ..running.statistics import RunRecorder, RunStatistics
     from ..running.systems import make_setup
     sc = task.scenario
     assert sc is not None
@@ -268,8 +269,9 @@ def _fmu_rows(task: Task, ver: str) -> list[dict[str, Any]]:
             row.update(verdict)
             t0 = time.perf_counter()
             try:
-                res = setup.run(method, seed)
-                stats = run_statistics(sc, res, pred.k0, formation)
+                recorder = RunRecorder(RunStatistics(sc, pred.k0, formation))
+                res = setup.run(method, seed, recorder=recorder)
+                stats = recorder.statistics.result()
                 _stats_row(row, stats, expected, pred.k0 * sc.h, design_s)
                 row.update(_tracking_figures(stats))
                 row["loop_s"] = res.loop_s

@@ -303,6 +303,13 @@ def print_summary(summary: dict, out: Path, note: str = "") -> int:
         print(line)
     for line in summary_notes(summary):
         print(line)
+    paced = summary.get("realtime")
+    if paced:
+        drift = paced["wall_s"] / paced["planned_s"] - 1 if paced["planned_s"] else 0.0
+        print(f"real time x{paced['factor']:g}: {paced['wall_s']:.2f} s of wall clock for "
+              f"{paced['planned_s']:.2f} s planned ({100 * drift:+.2f} %), "
+              f"{paced['overruns']} overrun(s), worst lateness "
+              f"{1e3 * paced['worst_lateness_s']:.1f} ms")
     rrd = summary["rrd"]["path"]
     if rrd:
         print(f"wrote {rrd} and {out / 'summary.json'}; wall time {summary['wall_s']:.1f} s")

@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from controller_fmu.regulator import TRACKING_MODES
@@ -39,17 +41,54 @@ def _log(args: argparse.Namespace, st: Any) -> Callable[[str], None]:
 
 def cmd_run(args: argparse.Namespace) -> int:
     from ..running import simulate
+    from ..running.checkpoint import CHECKPOINT_DIR, DEFAULT_EVERY_S
     from ..running.naming import default_out, run_identity
     from ..running.systems import check_run
-    sc = scenario_of(args)
-    check_run(sc, predict=args.predict)     # every check, before anything is created
-    with staged_output(args.out or default_out(sc, sc.estimator, f"seed{sc.seed}"), "run",
-                       identity=run_identity(sc, "run"), force=args.force) as st:
+    from ..swap import RUN, remove_tree
+    resume = _resumed(args)
+    sc = resume.scenario if resume is not None else scenario_of(args)
+    if resume is not None and not args.quiet:
+        when = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(resume.saved_at))
+        print(f"resuming at t = {resume.master.step * sc.h:g} s of {sc.T:g} s "
+              f"(checkpoint of {when})")
+    options = resume.options if resume is not None else {"predict": args.predict,
+                                                         "master": args.master or "auto",
+                                                         "record_hz": args.record_hz}
+    check_run(sc, predict=options["predict"])   # every check, before anything is created
+    every = DEFAULT_EVERY_S if args.checkpoint_every is None else args.checkpoint_every
+    out = args.resume or args.out or default_out(sc, sc.estimator, f"seed{sc.seed}")
+    with staged_output(out, "run", identity=run_identity(sc, "run"),
+                       force=True if resume is not None else args.force,
+                       kind=RUN if every else "") as st:
         summary = simulate(sc, [sc.estimator], [sc.seed], st.path, progress=not args.quiet,
-                           log=_log(args, st), predict=args.predict,
-                           master=args.master or "auto")
-        out = st.finish(complete=not summary.get("interrupted"))
+                           log=_log(args, st), predict=options["predict"],
+                           master=options["master"], checkpoint_every=every, resume=resume,
+                           realtime=args.realtime, record_hz=options.get("record_hz"))
+        complete = not summary.get("interrupted")
+        if complete:                    # a finished run needs no checkpoint
+            remove_tree(st.path / CHECKPOINT_DIR)
+        out = st.finish(complete=complete)
     return print_summary(st.relocate(summary), out, st.note)
+
+
+def _resumed(args: argparse.Namespace) -> Any:
+    """The checkpoint ``--resume OUT`` goes on from (None without it), read before the
+    output folder is taken (a killed run's staging folder holds it); the options that
+    would change the run are refused beside it, in one line."""
+    if not args.resume:
+        return None
+    from ..running.checkpoint import find_checkpoint, read_checkpoint
+    changed = [f"--{k.replace('_', '-')}" for k in ("estimator", "seed", "tracking", "fmus",
+                                                    "master", "deployment", "architecture",
+                                                    "latency", "period", "loss", "receiver",
+                                                    "T", "h", "out", "record_hz")
+               if getattr(args, k, None) is not None]
+    if args.scenario != "paper":
+        changed.insert(0, "--scenario")
+    if changed:
+        raise UsageError(f"--resume goes on with the run as it was checkpointed: drop "
+                         f"{', '.join(changed)}")
+    return read_checkpoint(find_checkpoint(Path(args.resume)))
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
@@ -86,7 +125,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         summary = simulate(sc, modes, args.seeds, st.path, progress=not args.quiet,
                            log=_log(args, st), trackings=trackings,
                            workers=args.workers, architectures=architectures,
-                           predict=args.predict, master=args.master or "auto")
+                           predict=args.predict, master=args.master or "auto",
+                           record_hz=args.record_hz)
         out = st.finish(complete=not summary.get("interrupted"))
     return print_summary(st.relocate(summary), out, st.note)
 
@@ -195,14 +235,53 @@ def add_run(sub: argparse._SubParsersAction) -> None:
                     help="tracking law: lq (the paper) or regulator (default: scenario's)")
     add_fmu_options(sp)
     add_master_option(sp)
+    long = sp.add_argument_group("long runs (docs/long-runs.md)")
+    long.add_argument("--checkpoint-every", type=_seconds, metavar="S",
+                      help="write a checkpoint every S wall-clock seconds (default 60: a "
+                           "run shorter than a minute writes none; 0: none)")
+    long.add_argument("--realtime", type=_factor, metavar="FACTOR",
+                      help="pace the run to the wall clock: FACTOR simulated seconds per "
+                           "second (1: real time); the overruns (steps that ended late) "
+                           "and the worst lateness are reported")
+    long.add_argument("--resume", metavar="OUT",
+                      help="go on with the run in OUT from its last checkpoint (after a "
+                           "kill or an interruption); the traces and summary equal an "
+                           "uninterrupted run's")
     sp.set_defaults(func=cmd_run)
 
 
+def _seconds(text: str) -> float:
+    """A number of seconds >= 0 (argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not value >= 0 or math.isinf(value):
+        raise argparse.ArgumentTypeError(f"{text!r}: give seconds >= 0 (0: no checkpoints)")
+    return value
+
+
+def _factor(text: str) -> float:
+    """A real-time factor > 0 (argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not value > 0 or math.isinf(value):
+        raise argparse.ArgumentTypeError(f"{text!r}: give simulated seconds per wall-clock "
+                                         "second, a number > 0 (1: real time)")
+    return value
+
+
 def _add_run_outputs(sp: argparse.ArgumentParser, default_out: str) -> None:
-    """--out, --force and --predict of run and compare."""
+    """--out, --force, --predict and --record-hz of run and compare."""
     sp.add_argument("--out", help=f"output folder (default: {default_out})")
     add_force_option(sp)
     add_predict_option(sp)
+    sp.add_argument("--record-hz", type=_factor, metavar="HZ",
+                    help="samples per second of simulated time in the .rrd (default: every "
+                         "step for a single system, 20 for a fleet); every step is still "
+                         "simulated and in the statistics")
 
 
 def add_compare(sub: argparse._SubParsersAction) -> None:

@@ -364,6 +364,56 @@ class FmuInstance:
             raise CosimError(f"{self.label} FMU: initialization failed ({exc}): "
                              f"{self.errors()}") from None
 
+    def serialized_state(self) -> bytes:
+        """The instance's whole state as bytes (fmi2GetFMUstate, fmi2SerializeFMUstate).
+
+        Raises
+        ------
+        CosimError
+            If the FMU cannot serialize its state (its modelDescription says so) or a call
+            fails, naming the FMU.
+        """
+        cs = self.md.coSimulation
+        if not (cs.canGetAndSetFMUstate and cs.canSerializeFMUstate):
+            raise CosimError(f"{self.label} FMU: cannot serialize its state "
+                             "(canGetAndSetFMUstate / canSerializeFMUstate false): a run "
+                             "with it cannot be checkpointed")
+        s = self.slave
+        try:
+            state = s.getFMUState()
+            try:
+                return bytes(s.serializeFMUstate(state))
+            finally:
+                s.freeFMUState(state)
+        except FMICallException as exc:
+            raise CosimError(f"{self.label} FMU: serializing its state failed ({exc}): "
+                             f"{self.errors()}") from None
+
+    def restore_state(self, data: bytes) -> None:
+        """Set the instance's state from :meth:`serialized_state`'s bytes
+        (fmi2DeSerializeFMUstate, fmi2SetFMUstate).
+
+        Raises
+        ------
+        CosimError
+            If a call fails or the FMU logs an error refusing the state (a pythonfmu slave
+            refuses that way), naming the FMU.
+        """
+        s = self.slave
+        logged = len(self.messages)
+        try:
+            state = s.deSerializeFMUstate(data)
+            try:
+                s.setFMUState(state)
+            finally:
+                s.freeFMUState(state)
+        except FMICallException as exc:
+            raise CosimError(f"{self.label} FMU: restoring its state failed ({exc}): "
+                             f"{self.errors()}") from None
+        refused = [t for st, t in self.messages[logged:] if st in ("Error", "Fatal")]
+        if refused:
+            raise CosimError(f"{self.label} FMU: refused the saved state: {refused[0]}")
+
     def close(self) -> None:
         """Terminate (ignoring a failure) and free the instance."""
         try:

@@ -20,12 +20,16 @@ Row k of a Jacobi trace holds the outputs read at t_k, i.e. the values transferr
 step k. A measurement-to-control path through two feedthrough FMUs gains two steps of
 latency this way (see orchestrator/analysis/jacobi.py for its prediction).
 
-The plan is resolved once: value references, one batched fmi2GetReal per run of
-consecutive outputs of a component, one batched fmi2SetReal per run of consecutive
-outputs feeding one component; the FMUs read and write the trace arrays in place (row k
-of a component's trace is the buffer fmi2GetReal fills and the buffer its consumers'
-inputs are set from). A connection that carries nothing in the run (the truth signals
-outside mode ``ideal``) is not in the plan.
+The plan is resolved once (:mod:`orchestrator.cosim.plan`): value references, one batched
+fmi2GetReal per run of consecutive outputs of a component, one batched fmi2SetReal per run
+of consecutive outputs feeding one component; the FMUs read and write the trace arrays in
+place (row k of a component's trace is the buffer fmi2GetReal fills and the buffer its
+consumers' inputs are set from). A connection that carries nothing in the run (the truth
+signals outside mode ``ideal``) is not in the plan.
+
+The trace buffers hold the whole run, or with a :class:`TraceSink` one chunk of steps,
+handed to the sink after each chunk and then reused: memory then depends on the chunk, not
+on the horizon, and the traces the sink takes are the whole run's bit for bit.
 
 :func:`compile_plan` writes the plan out as a Python loop, the reference;
 :mod:`orchestrator.cosim.native_master` runs the same plan in a compiled C loop, to the
@@ -33,27 +37,29 @@ same traces bit for bit (``run_system(master=...)``; by default when every FMU i
 """
 from __future__ import annotations
 
-import ctypes
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from itertools import groupby
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from fmpy import read_model_description
 
 from .checks import connection_problems, fmu_variables
 from .instance import CosimError, Extracted, FmuInstance
-from .system import SystemDescription, evaluation_order
+from .pacing import Pacer
+from .plan import StepPlan, compile_plan, initial_reads, plan_steps
+from .system import SystemDescription
 
-__all__ = ["COUPLINGS", "CosimError", "RunResult", "StepPlan", "compile_plan",
-           "initial_reads", "plan_steps", "run_system"]
+__all__ = ["COUPLINGS", "Checkpoints", "CosimError", "MasterState", "RunResult", "StepPlan",
+           "TraceSink", "chunk_rows",
+           "compile_plan", "initial_reads", "plan_steps", "run_system"]
 
 #: how the master couples the FMUs within a step (see the module docstring)
 COUPLINGS = ("gauss-seidel", "jacobi")
-_DOUBLE = 8
+#: steps the Python master runs between two looks at the stop flag and the progress bar
+_SLICE = 200
 
 
 @dataclass
@@ -72,7 +78,10 @@ class RunResult:
 
     @property
     def steps(self) -> int:
-        """Number of samples in the traces."""
+        """Number of steps the run simulated (the rows of its traces, when it keeps them
+        whole)."""
+        if "steps_done" in self.info:
+            return int(self.info["steps_done"])
         return next(iter(self.traces.values())).shape[0]
 
     @property
@@ -81,238 +90,30 @@ class RunResult:
         return np.arange(self.steps) * self.h
 
 
-@dataclass
-class StepPlan:
-    """What one macro step does, resolved to raw FMI calls.
-
-    ``exchange``: (function, component pointer, value-reference array address, count,
-    buffer address in row 0, row stride, instance, call label, byte offset of that address
-    in its row) for the get/set calls
-    before the steps; ``stepping``: (fmi2DoStep, component pointer, instance);
-    ``after``: get calls after the steps, into the next row (Jacobi only)."""
-
-    exchange: list[tuple]
-    stepping: list[tuple]
-    after: list[tuple]
-    order: list[str]                    #: the evaluation order, for reports
-    keep: list[Any] = field(default_factory=list)   #: ctypes arrays the calls point into
-
-
-def _runs(cols: list[int]) -> list[tuple[int, int]]:
-    """Index ranges [a, b) of consecutive runs in the positions of ``cols``."""
-    runs, start = [], 0
-    for i in range(1, len(cols) + 1):
-        if i == len(cols) or cols[i] != cols[i - 1] + 1:
-            runs.append((start, i))
-            start = i
-    return runs
-
-
-def plan_steps(system: SystemDescription, inst: Mapping[str, FmuInstance],
-               rec: Mapping[str, np.ndarray], coupling: str) -> StepPlan:
-    """Resolve the system's active connections into batched FMI calls.
-
-    Parameters
-    ----------
-    system : SystemDescription
-        The system.
-    inst : Mapping[str, FmuInstance]
-        Component name -> its initialized instance.
-    rec : Mapping[str, np.ndarray]
-        Component name -> trace array (steps, outputs) the calls read and write in place.
-    coupling : str
-        'gauss-seidel' or 'jacobi' (module docstring).
-
-    Returns
-    -------
-    StepPlan
-        The get / set calls, the steps and the evaluation order.
-
-    Raises
-    ------
-    CosimError
-        If a connection's two ends differ in size.
-    AlgebraicLoopError
-        If Gauss-Seidel coupling meets an algebraic loop.
-    """
-    keep: list[Any] = []                # ctypes arrays the plan points into
-
-    def vr_array(fmu: FmuInstance, names: list[str]) -> int:
-        arr = fmu.vrs(names)
-        keep.append(arr)
-        return ctypes.addressof(arr)
-
-    cols: dict[str, dict[str, list[int]]] = {}      # component -> output array -> columns
-    names: dict[str, list[str]] = {}                # component -> output scalar names
-    for comp in system.components:
-        cols[comp.name], names[comp.name], i = {}, [], 0
-        for spec in comp.arrays("output"):
-            scal = spec.elements
-            cols[comp.name][spec.name] = list(range(i, i + len(scal)))
-            names[comp.name] += scal
-            i += len(scal)
-
-    def get_ops(comp: str, columns: list[int]) -> list[tuple]:
-        fmu, buf = inst[comp], rec[comp]
-        ops = []
-        for a, b in _runs(columns):
-            c0 = columns[a]
-            ops.append((fmu.get_real, fmu.component,
-                        vr_array(fmu, names[comp][c0:c0 + b - a]), b - a,
-                        buf.ctypes.data + c0 * _DOUBLE, buf.strides[0], fmu, "fmi2GetReal",
-                        c0 * _DOUBLE))
-        return ops
-
-    active = system.active_connections()
-
-    def set_ops(source: str, outputs: set[str]) -> list[tuple]:
-        """Sets fed by these outputs of ``source``: per target, one call per run of
-        connections whose source columns follow each other (an output feeding two inputs
-        of one target is two calls, not one per element)."""
-        per_target: dict[str, list[list[tuple[int, str, str]]]] = {}
-        for c in active:
-            if c.source != source or c.output not in outputs:
-                continue
-            tgt = system.component(c.target)
-            dst = tgt.array(c.input).elements
-            src_cols = cols[source][c.output]       # sizes match: checked before the plan
-            per_target.setdefault(c.target, []).append(
-                [(col, name, c.input) for col, name in zip(src_cols, dst)])
-        ops = []
-        buf = rec[source]
-        for target, conns in per_target.items():
-            conns.sort(key=lambda items: items[0][0])
-            groups: list[list[tuple[int, str, str]]] = []
-            for items in conns:
-                if groups and groups[-1][-1][0] + 1 == items[0][0]:
-                    groups[-1].extend(items)
-                else:
-                    groups.append(list(items))
-            fmu = inst[target]
-            for items in groups:
-                ins = ", ".join(dict.fromkeys(arr for _, _, arr in items))
-                col0 = items[0][0]
-                ops.append((fmu.set_real, fmu.component,
-                            vr_array(fmu, [n for _, n, _ in items]), len(items),
-                            buf.ctypes.data + col0 * _DOUBLE, buf.strides[0], fmu,
-                            f"fmi2SetReal ({ins} from {source})", col0 * _DOUBLE))
-        return ops
-
-    stepping = [(inst[c].do_step, inst[c].component, inst[c]) for c in system.names]
-    if coupling == "gauss-seidel":
-        order = evaluation_order(system)
-        exchange: list[tuple] = []
-        for comp, run in groupby(order, key=lambda n: n[0]):   # consecutive outputs of one
-            group = [o for _, o in run]                          # component: one get
-            exchange += get_ops(comp, sorted(col for o in group for col in cols[comp][o]))
-            exchange += set_ops(comp, set(group))
-        plan = StepPlan(exchange, stepping, [], [f"{c}.{o}" for c, o in order], keep)
-    else:
-        sets = [op for comp in system.names for op in set_ops(comp, set(cols[comp]))]
-        gets = [op for comp in system.names for op in get_ops(
-            comp, [c for cs in cols[comp].values() for c in cs])]
-        plan = StepPlan(sets, stepping, gets, system.names, keep)
-    return plan
-
-
-def compile_plan(plan: StepPlan) -> tuple[Callable[[int, int, float, int], None], str]:
-    """The plan as one Python function ``run(k0, k1, h, last)`` stepping k0 <= k < k1.
-
-    Written out call by call (every function, pointer and count a local constant), as a
-    hand-written master for this system would be. Per step and call:
-    ``st = f(component, value references, count, row address)``; a non-zero status raises
-    the instance's CosimError naming the call and the time t = k h (s).
-
-    Parameters
-    ----------
-    plan : StepPlan
-        The resolved plan (:func:`plan_steps`).
-
-    Returns
-    -------
-    run : Callable
-        ``run(k0, k1, h, last)``: steps k0..k1-1 of ``h`` s; ``last`` is the number of
-        steps of the run (Jacobi reads no outputs after the last one).
-    source : str
-        Its source text, for reading and reports.
-    """
-    env: dict[str, Any] = {}
-    lines: list[str] = []
-
-    def const(prefix: str, i: int, value: Any) -> str:
-        name = f"{prefix}{i}"
-        env[name] = value
-        return name
-
-    rows: dict[tuple[int, int], str] = {}      # (row-0 address, stride) -> its variable
-
-    def row_of(base: int, stride: int, col: int) -> str:
-        key = (base - col, stride)
-        if key not in rows:
-            rows[key] = f"r{len(rows)}"
-            env[f"b{rows[key]}"], env[f"s{rows[key]}"] = key
-        return rows[key]
-
-    def calls(ops: list[tuple], tag: str, row: str, indent: str, when: str) -> None:
-        for i, (fn, c, vr, n, base, stride, who, what, col) in enumerate(ops):
-            f, cc, v, w, lab = (const(x, f"{tag}{i}", y) for x, y in
-                                (("f", fn), ("c", c), ("v", vr), ("w", who), ("l", what)))
-            r = row_of(base, stride, col)
-            addr = f"{r}{row} + {col}" if col else f"{r}{row}"
-            lines.append(f"{indent}st = {f}({cc}, {v}, {n}, {addr})")
-            lines.append(f"{indent}if st:")
-            lines.append(f"{indent}    raise {w}.fail(f\"{{{lab}}} at t = {{{when}}} s\", st)")
-
-    lines.append("for k in range(k0, k1):")
-    lines.append("    t = k * h")
-    head = len(lines)
-    calls(plan.exchange, "x", "", "    ", "t")
-    for i, (fn, c, who) in enumerate(plan.stepping):
-        f, cc, w = const("f", f"d{i}", fn), const("c", f"d{i}", c), const("w", f"d{i}", who)
-        lines.append(f"    st = {f}({cc}, t, h, 1)")
-        lines.append("    if st:")
-        lines.append(f"        raise {w}.fail(f\"fmi2DoStep at t = {{t}} s\", st)")
-    exchange_rows = list(rows.values())
-    if plan.after:
-        lines.append("    if k + 1 < last:")
-        mark = len(lines)
-        calls(plan.after, "a", "_next", "        ", "(k + 1) * h")
-        lines[mark:mark] = [f"        {r}_next = b{r} + (k + 1) * s{r}" for r in rows.values()]
-    lines[head:head] = [f"    {r} = b{r} + k * s{r}" for r in exchange_rows]
-    params = ", ".join(f"{k}={k}" for k in env)
-    src = (f"def run(k0, k1, h, last, {params}):\n"
-           + "\n".join("    " + ln for ln in lines) + "\n")
-    ns: dict[str, Any] = dict(env)
-    exec(compile(src, "<auv-cosim step plan>", "exec"), ns)
-    return ns["run"], src
-
-
-def initial_reads(plan: StepPlan) -> None:
-    """Jacobi: read the outputs at t = 0 into row 0 (the plan's ``after`` calls).
-
-    Raises
-    ------
-    CosimError
-        If a call fails (named, at t = 0.0 s).
-    """
-    for fn, c, vr, n, base, _, who, what, _ in plan.after:
-        st = fn(c, vr, n, base)
-        if st:
-            raise who.fail(f"{what} at t = 0.0 s", st)
-
-
-def _step_loop(plan: StepPlan, steps: int, h: float, bar: Any, stop: Any = None) -> int:
-    """Run ``steps`` macro steps of the plan (t = k h) in chunks of 200 (progress bar,
-    ``stop`` checked between chunks); returns the number of steps run."""
-    run, _ = compile_plan(plan)
-    chunk = 200
-    for k0 in range(0, steps, chunk):
+def _step_loop(plan: StepPlan, k0: int, k1: int, h: float, last: int, bar: Any,
+               stop: Any = None, row0: int = 0, pacer: Pacer | None = None) -> int:
+    """Run macro steps k0 <= k < k1 of the plan (t = k h; step k on buffer row k - row0)
+    in slices ending at multiples of 200 (progress bar, ``stop`` checked between slices;
+    with a ``pacer``, one step at a time, each waiting for its wall-clock deadline);
+    returns the step reached."""
+    run = plan.compiled()
+    if pacer is not None:
+        pacer.begin(k0)
+    a = k0
+    while a < k1:                       # slices on the grid of multiples of _SLICE
         if stop:
-            return k0
-        run(k0, min(k0 + chunk, steps), h, steps)
+            return a
+        b = min((a // _SLICE + 1) * _SLICE, k1)
+        if pacer is None:
+            run(a, b, h, last, row0)
+        else:
+            for k in range(a, b):
+                run(k, k + 1, h, last, row0)
+                pacer.after(k)
         if bar is not None:
-            bar.update(min(chunk, steps - k0))
-    return steps
+            bar.update(b - a)
+        a = b
+    return k1
 
 
 def _with_origin(exc: CosimError, instances: list[FmuInstance]) -> CosimError:
@@ -333,10 +134,119 @@ def _with_origin(exc: CosimError, instances: list[FmuInstance]) -> CosimError:
     return exc
 
 
+class TraceSink(Protocol):
+    """Takes a run's traces chunk by chunk (:func:`run_system` with ``sink``)."""
+
+    #: steps per chunk (the master's trace buffers hold one chunk: memory ~ chunk x width)
+    chunk_steps: int
+
+    def take(self, k0: int, traces: dict[str, np.ndarray]) -> None:
+        """Rows k0 .. k0 + n - 1 of the run, keyed as :func:`run_system`'s traces. The
+        arrays are views of buffers the next chunk overwrites: copy what is kept."""
+
+
+@dataclass
+class MasterState:
+    """Where a run stands between two chunks: what a checkpoint holds of the master, and
+    what a resumed run starts from (:func:`run_system` ``start``)."""
+
+    step: int                           #: the next step to run (steps 0 .. step - 1 ran)
+    fmus: dict[str, bytes]              #: component -> its FMU's serialized state
+    #: Jacobi: component -> its outputs read after step - 1 (what step ``step`` is fed)
+    next_row: dict[str, np.ndarray] | None = None
+
+
+class Checkpoints(Protocol):
+    """Asked after every chunk whether to save the run's state (:func:`run_system`)."""
+
+    def due(self, step: int) -> bool:
+        """Whether to save now, ``step`` steps done."""
+
+    def save(self, state: MasterState) -> None:
+        """Keep ``state`` (write it, atomically)."""
+
+
+def _split(system: SystemDescription, rec: Mapping[str, np.ndarray],
+           rows: int) -> dict[str, np.ndarray]:
+    """The first ``rows`` rows of each component's buffer, split into its outputs (keyed by
+    :meth:`SystemDescription.trace_names`; views, no copy)."""
+    names = system.trace_names()
+    traces: dict[str, np.ndarray] = {}
+    for comp in system.components:
+        i = 0
+        for spec in comp.arrays("output"):
+            traces[names[(comp.name, spec.name)]] = rec[comp.name][:rows, i:i + spec.size]
+            i += spec.size
+    return traces
+
+
+def _run_chunks(loop: Callable[..., int], plan: StepPlan, rec: Mapping[str, np.ndarray],
+                steps: int, chunk: int, h: float, bar: Any, stop: Any,
+                give: Callable[[int, int], None] | None, start: int = 0,
+                saved: Callable[[int], None] | None = None,
+                pacer: Pacer | None = None) -> int:
+    """Steps start .. steps - 1 in chunks of ``chunk`` steps (the grid k = 0, chunk, 2
+    chunk, ...) on buffers of chunk (+ 1) rows: chunk [k0, k1) on rows 0 .. k1 - k0 - 1,
+    handed to ``give(k0, rows)``; Jacobi's reads after the chunk's last step (row k1 - k0)
+    move to row 0 for the next chunk; then ``saved(k1)`` (a checkpoint, if due). Returns the
+    step reached (fewer than ``steps`` when stopped)."""
+    k0 = start
+    while k0 < steps:
+        if stop:
+            return k0
+        k1 = min((k0 // chunk + 1) * chunk, steps)
+        done = loop(plan, k0, k1, h, steps, bar, stop, k0 if give is not None else 0, pacer)
+        if give is not None and done > k0:
+            give(k0, done - k0)
+        if done < k1:
+            return done
+        if give is not None and plan.after:
+            for buf in rec.values():
+                buf[0] = buf[k1 - k0]
+        if saved is not None and k1 < steps:
+            saved(k1)
+        k0 = k1
+    return steps
+
+
+def _state(step: int, inst: Mapping[str, FmuInstance], rec: Mapping[str, np.ndarray],
+           jacobi: bool) -> MasterState:
+    """The run's :class:`MasterState` between chunks, ``step`` steps done."""
+    return MasterState(step, {name: fmu.serialized_state() for name, fmu in inst.items()},
+                       {name: buf[0].copy() for name, buf in rec.items()} if jacobi else None)
+
+
+def _restore(start: MasterState, inst: Mapping[str, FmuInstance],
+             system: SystemDescription) -> None:
+    """Every instance set to its saved state.
+
+    Raises
+    ------
+    CosimError
+        If the saved states are not those of this system's components, or an FMU refuses
+        its state.
+    """
+    if set(start.fmus) != set(inst):
+        extra, missing = sorted(set(start.fmus) - set(inst)), sorted(set(inst) - set(start.fmus))
+        raise CosimError(f"system {system.name!r}: the saved run's components differ "
+                         f"(not in this system: {', '.join(extra) or 'none'}; without a saved "
+                         f"state: {', '.join(missing) or 'none'})")
+    for name, fmu in inst.items():
+        fmu.restore_state(start.fmus[name])
+
+
+def chunk_rows(sink: TraceSink | None, steps: int) -> int:
+    """Steps per chunk: the whole run without a sink, else the sink's (at least 1)."""
+    return steps if sink is None else max(1, min(steps, int(sink.chunk_steps)))
+
+
 def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, *,
                coupling: str = "gauss-seidel", progress: Any = False,
                instance_suffix: str = "", stop: Any = None,
-               master: str = "auto") -> tuple[dict[str, np.ndarray], float, dict[str, Any]]:
+               master: str = "auto", sink: TraceSink | None = None,
+               start: MasterState | None = None, checkpoints: Checkpoints | None = None,
+               realtime: float | None = None
+               ) -> tuple[dict[str, np.ndarray], float, dict[str, Any]]:
     """Co-simulate ``system`` for ``steps`` communication steps of ``system.h``.
 
     Parameters
@@ -362,12 +272,26 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
         ``python`` (this module's loop, the reference), ``native`` (the same plan in C,
         :mod:`orchestrator.cosim.native_master`) or ``auto`` (native when every component
         is a native FMU and a C compiler is present, else python).
+    sink : TraceSink, optional
+        Takes the traces chunk by chunk as the run goes (:class:`TraceSink`): the buffers
+        then hold one chunk, whatever the horizon; the returned traces are empty. The
+        traces it takes are those returned without it, bit for bit.
+    start : MasterState, optional
+        Resume there (with a ``sink``): every FMU initialized as for a new run, then set to
+        its saved state; the sink takes steps ``start.step`` onwards, the same as the
+        uninterrupted run's bit for bit (FMUs that serialize their state whole).
+    checkpoints : Checkpoints, optional
+        Asked after every chunk but the last (with a ``sink``): when due, given the
+        :class:`MasterState` there (every FMU's serialized state).
+    realtime : float, optional
+        Pace the steps to the wall clock, ``realtime`` simulated seconds per second
+        (:mod:`orchestrator.cosim.pacing`); ``info["realtime"]`` then reports the overruns.
 
     Returns
     -------
     traces : dict[str, np.ndarray]
         Keyed by :meth:`SystemDescription.trace_names`, row k = sample k (fewer rows than
-        ``steps`` if stopped).
+        ``steps`` if stopped); empty with a ``sink``.
     loop_s : float
         Seconds spent in the step loop.
     info : dict[str, Any]
@@ -386,6 +310,8 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
     """
     if coupling not in COUPLINGS:
         raise ValueError(f"coupling {coupling!r} is not one of {', '.join(COUPLINGS)}")
+    if sink is None and (start is not None or checkpoints is not None):
+        raise ValueError("resuming or checkpointing a run needs a sink (its chunks)")
     h = float(system.h)
     used = {c.fmu for c in system.components}
     missing = sorted(used - set(fmus))
@@ -412,7 +338,12 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
                                           f"{comp.name}{instance_suffix}", mds[comp.fmu])
             with np.errstate(over="ignore", invalid="ignore"):      # as in the loop below
                 inst[comp.name].initialize(dict(comp.parameters), T=steps * h)
-        rec = {c.name: np.zeros((steps, sum(s.size for s in c.arrays("output"))))
+        if start is not None:
+            _restore(start, inst, system)
+        chunk = chunk_rows(sink, steps)
+        pacer = None if realtime is None else Pacer(realtime, h)
+        rows = chunk + (1 if sink is not None else 0)       # Jacobi reads one row ahead
+        rec = {c.name: np.zeros((rows, sum(s.size for s in c.arrays("output"))))
                for c in system.components}
         plan = plan_steps(system, inst, rec, coupling)
         if progress is True:
@@ -425,9 +356,21 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
             # the slaves run in this thread: numpy's overflow warnings are not printed (the
             # FMU refuses a non-finite output itself, naming it, in one logged line)
             with np.errstate(over="ignore", invalid="ignore"):
-                initial_reads(plan)
-                done = (run_native_loop if chosen == "native" else _step_loop)(
-                    plan, steps, h, bar, stop)
+                if start is None:
+                    initial_reads(plan)
+                elif plan.after:                    # Jacobi: what the next step is fed
+                    for name, row in (start.next_row or {}).items():
+                        rec[name][0] = row
+                give = None if sink is None else (
+                    lambda k0, n: sink.take(k0, _split(system, rec, n)))
+                saved = None if checkpoints is None else (
+                    lambda k: checkpoints.save(_state(k, inst, rec, bool(plan.after)))
+                    if checkpoints.due(k) else None)
+                done = _run_chunks(run_native_loop if chosen == "native" else _step_loop,
+                                   plan, rec, steps, chunk, h, bar, stop, give,
+                                   0 if start is None else start.step, saved, pacer)
+                if pacer is not None:
+                    pacer.finish()
         except CosimError as exc:
             first = [o.split(".")[0] for o in plan.order] + list(system.names)
             raise _with_origin(exc, [inst[c] for c in dict.fromkeys(first) if c in inst]) \
@@ -439,15 +382,12 @@ def run_system(system: SystemDescription, fmus: Mapping[str, Path], steps: int, 
         for fmu in inst.values():
             fmu.close()
         ex.cleanup()
-    names = system.trace_names()
-    traces: dict[str, np.ndarray] = {}
-    for comp in system.components:
-        i = 0
-        for spec in comp.arrays("output"):
-            traces[names[(comp.name, spec.name)]] = rec[comp.name][:done, i:i + spec.size]
-            i += spec.size
+    traces = {} if sink is not None else _split(system, rec, done)
+    more: dict[str, Any] = {}
     calls = [op[7] for op in plan.exchange + plan.after]
-    return traces, loop_s, {"order": plan.order, "steps_done": done,
+    if pacer is not None:
+        more["realtime"] = pacer.report(done)
+    return traces, loop_s, {**more, "order": plan.order, "steps_done": done,
                             "interrupted_by": getattr(stop, "name", None) if stop else None,
                             "master": chosen, "master_reason": reason,
                             "calls_per_step": calls + [

@@ -1,4 +1,4 @@
-"""The compiled master: the step plan of :func:`orchestrator.cosim.master.plan_steps` run by
+"""The compiled master: the step plan of :func:`orchestrator.cosim.plan.plan_steps` run by
 a small C loop (``native_master.c``) instead of the Python loop of ``compile_plan``.
 
 The same plan (Gauss-Seidel or Jacobi, the batched get / set calls, the FMUs reading and
@@ -122,7 +122,8 @@ def load_library() -> ctypes.CDLL:
         P = ctypes.POINTER
         fn.argtypes = [P(_Call), ctypes.c_int32, P(_Step), ctypes.c_int32, P(_Call),
                        ctypes.c_int32, ctypes.c_int64, ctypes.c_int64, ctypes.c_double,
-                       ctypes.c_int64, P(ctypes.c_int32), P(ctypes.c_int64), P(_Failure)]
+                       ctypes.c_int64, ctypes.c_int64, P(ctypes.c_int32), P(ctypes.c_int64),
+                       P(_Failure), ctypes.c_void_p]
         fn.restype = ctypes.c_int64
         _LIBRARY = lib
         return lib
@@ -191,28 +192,36 @@ def _calls(ops: list[tuple]) -> ctypes.Array:
     return arr
 
 
-def run_native_loop(plan: Any, steps: int, h: float, bar: Any = None,
-                    stop: Any = None) -> int:
-    """Run ``steps`` macro steps of ``plan`` (t = k h, h in s) in the compiled loop.
+def run_native_loop(plan: Any, k0: int, k1: int, h: float, last: int, bar: Any = None,
+                    stop: Any = None, row0: int = 0, pacer: Any = None) -> int:
+    """Run macro steps k0 <= k < k1 of ``plan`` (t = k h, h in s) in the compiled loop,
+    step k on buffer row k - ``row0``.
 
     Parameters
     ----------
     plan : StepPlan
         The resolved plan; its Jacobi reads at t = 0 are already done
-        (:func:`orchestrator.cosim.master.initial_reads`).
-    steps : int
-        Number of steps of the run.
+        (:func:`orchestrator.cosim.plan.initial_reads`).
+    k0, k1 : int
+        The steps to run.
     h : float
         Communication step, s.
+    last : int
+        Number of steps of the whole run (Jacobi reads no outputs after the last one).
     bar : Any, optional
         An object with ``update(n)`` (a progress bar), updated every 50 ms.
     stop : StopFlag, optional
         Once true, the loop ends before its next step and keeps the steps simulated.
+    row0 : int, optional
+        The step whose values are in row 0 of the trace buffers (0: a row per step of the
+        run; k0: a buffer of one chunk).
+    pacer : Pacer, optional
+        Paces the steps to the wall clock in C (:mod:`orchestrator.cosim.pacing`).
 
     Returns
     -------
     int
-        The number of steps run.
+        The step reached: k1, or the step at which the stop was found.
 
     Raises
     ------
@@ -224,19 +233,23 @@ def run_native_loop(plan: Any, steps: int, h: float, bar: Any = None,
     stepping = (_Step * max(1, len(plan.stepping)))()
     for i, (do_step, comp, _) in enumerate(plan.stepping):
         stepping[i] = _Step(ctypes.cast(do_step, ctypes.c_void_p).value, comp)
-    flag, reached, fail = ctypes.c_int32(0), ctypes.c_int64(0), _Failure()
+    flag, reached, fail = ctypes.c_int32(0), ctypes.c_int64(k0), _Failure()
+    pace = None
+    if pacer is not None:
+        pacer.begin(k0)
+        pace = ctypes.addressof(pacer.pace)
     out: dict[str, Any] = {}
 
     def work() -> None:
         try:
             out["k"] = fn(exchange, len(plan.exchange), stepping, len(plan.stepping), after,
-                          len(plan.after), 0, steps, h, steps, ctypes.byref(flag),
-                          ctypes.byref(reached), ctypes.byref(fail))
+                          len(plan.after), k0, k1, h, last, row0, ctypes.byref(flag),
+                          ctypes.byref(reached), ctypes.byref(fail), pace)
         except BaseException as exc:            # pragma: no cover - ctypes argument errors
             out["error"] = exc
 
     loop = threading.Thread(target=work, name="auv-cosim compiled master", daemon=True)
-    shown = 0
+    shown = k0
     loop.start()
     try:
         while loop.is_alive():

@@ -263,6 +263,10 @@ class SystemDescription:
             for spec in comp.arrays("output"):
                 yield comp, spec
 
+    def output_width(self) -> int:
+        """Values per step of every output of every component (a trace row's width)."""
+        return sum(spec.size for _, spec in self.outputs())
+
     def trace_names(self) -> dict[tuple[str, str], str]:
         """(component, output) -> the name of its trace.
 

@@ -4,26 +4,34 @@ Importing rerun-sdk and pyarrow takes about 0.5 s, as long as a third of the pap
 loop. :class:`BackgroundWriter` starts ``python -m orchestrator.recording.background`` at
 once (for ``run`` and ``compare`` at the very start of the command, :func:`prestart`);
 the child imports :func:`orchestrator.recording.writer.write_rrd` (and with it Rerun)
-on the other core, then waits for the traces on its standard input. :meth:`write` sends
-them (pickled: a private pipe between two processes of this program) and waits for the
-child's one-line JSON answer, the figures ``write_rrd`` returns. If the child fails, the
-error names what it reported; when no child could be started, or the traces are too large
-to send (:data:`MAX_PIPE_BYTES`, large fleets), :meth:`BackgroundWriter.write` writes in
-this process. So does a writer taken where the writer module, and with it Rerun, is
-already imported (a notebook, a host program, the test suite running commands in
-process): a child would only pay that import a second time.
+on the other core, then waits for length-prefixed pickled frames on its standard input
+(a private pipe between two processes of this program). Either :meth:`write` sends the
+whole traces in one frame and waits for the child's one-line JSON answer, the figures
+``write_rrd`` returns; or :meth:`stream` returns a :class:`ChildStream` whose ``send``
+passes each chunk of a run to the child as it comes (the child writes it to the file at
+once, :class:`~orchestrator.recording.stream.RrdStream`) and whose ``close`` answers the
+figures. If the child fails, the error names the last line it reported; when no child
+could be started, or the traces are too large to send in one frame (:data:`MAX_PIPE_BYTES`,
+large fleets: stream them instead), the writing happens in this process. So does a writer
+taken where the writer module, and with it Rerun, is already imported (a notebook, a host
+program, the test suite running commands in process): a child would only pay that import a
+second time.
 """
 from __future__ import annotations
 
 import json
 import os
 import pickle
+import struct
 import subprocess
 import sys
+import threading
+from collections import deque
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
-__all__ = ["BackgroundWriter", "MAX_PIPE_BYTES", "prestart"]
+__all__ = ["BackgroundWriter", "ChildStream", "MAX_PIPE_BYTES", "prestart"]
 
 #: traces larger than this are written in the parent (large fleets: no second copy)
 MAX_PIPE_BYTES = 200_000_000
@@ -35,6 +43,7 @@ class BackgroundWriter:
     def __init__(self, child: bool = True) -> None:
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         self.proc: subprocess.Popen | None = None
+        self._stream: Any = None                    # the stream handed out, if any
         if not child:                               # write in this process
             return
         try:
@@ -91,17 +100,52 @@ class BackgroundWriter:
             self.close()
             from .writer import write_rrd
             return write_rrd(Path(path), runs, h, **kwargs)
-        payload = pickle.dumps((str(path), runs, float(h), kwargs),
-                               protocol=pickle.HIGHEST_PROTOCOL)
-        out, err = self.proc.communicate(payload)
+        out, err = self.proc.communicate(_frame(("write", str(path), runs, float(h), kwargs)))
         if self.proc.returncode != 0:
             lines = err.decode("utf-8", "replace").strip().splitlines()
             raise RuntimeError(f"writing {path} failed: "
                                f"{lines[-1] if lines else f'exit status {self.proc.returncode}'}")
         return json.loads(out.decode())
 
+    def stream(self, path: Path | str, methods: Sequence[str], h: float,
+               **kwargs: Any) -> Any:
+        """An ``RrdStream(path, methods, h, **kwargs)`` in the child: a :class:`ChildStream`
+        with the same ``send``, ``close`` and ``abort``; an
+        :class:`~orchestrator.recording.stream.RrdStream` in this process if there is no
+        child. Use once; :meth:`close` (the ``with`` block's end) aborts a stream not closed.
+
+        Parameters
+        ----------
+        path : Path or str
+            Output .rrd file.
+        methods : Sequence[str]
+            The methods that will be sent.
+        h : float
+            Step, s.
+        **kwargs : Any
+            The other keyword arguments of
+            :class:`~orchestrator.recording.stream.RrdStream`.
+
+        Returns
+        -------
+        ChildStream or RrdStream
+            ``send(method, k0, traces)``, ``close(last_step=None) -> dict``, ``abort()``.
+        """
+        if self.proc is None:
+            self.close()
+            from .stream import RrdStream
+            self._stream = RrdStream(path, methods, h, **kwargs)
+        else:
+            proc, self.proc = self.proc, None
+            self._stream = ChildStream(proc, path, methods, h, kwargs)
+        return self._stream
+
     def close(self) -> None:
-        """Stop the child if it is still waiting (nothing to write after all)."""
+        """Stop the child if it is still waiting (nothing to write after all), and abort a
+        stream handed out and not closed."""
+        stream, self._stream = self._stream, None
+        if stream is not None:
+            stream.abort()
         if self.proc is not None and self.proc.poll() is None:
             self.proc.kill()
             self.proc.wait()
@@ -128,14 +172,127 @@ def prestart() -> None:
         _PRESTARTED = BackgroundWriter()
 
 
+class ChildStream:
+    """The parent's end of an :class:`~orchestrator.recording.stream.RrdStream` in the
+    child: each call is a frame on the child's standard input. A failure in the child
+    (which then removes its temporary file and exits) is raised as RuntimeError, naming
+    the last line it reported, by the next call; so is a chunk the child refuses."""
+
+    def __init__(self, proc: subprocess.Popen, path: Path | str, methods: Sequence[str],
+                 h: float, kwargs: dict[str, Any]) -> None:
+        self.proc: subprocess.Popen | None = proc
+        self.path = Path(path)
+        self._lines: deque[bytes] = deque(maxlen=100)
+        self._drain = threading.Thread(target=self._drain_stderr, args=(proc.stderr,),
+                                       daemon=True)
+        self._drain.start()
+        self._put(("open", str(path), list(methods), float(h), kwargs))
+
+    def _drain_stderr(self, err: IO[bytes]) -> None:
+        """Keep the child's last lines of standard error (and never let the pipe fill)."""
+        for line in iter(err.readline, b""):
+            self._lines.append(line)
+
+    def _failure(self) -> RuntimeError:
+        assert self.proc is not None
+        self.proc.wait()
+        self._drain.join(timeout=5.0)
+        self.proc = None
+        lines = [ln.decode("utf-8", "replace").strip() for ln in self._lines]
+        lines = [ln for ln in lines if ln]
+        return RuntimeError(f"writing {self.path} failed: "
+                            f"{lines[-1] if lines else 'the writer process ended'}")
+
+    def _put(self, message: tuple) -> None:
+        if self.proc is None:
+            raise RuntimeError(f"writing {self.path}: the stream is closed")
+        try:
+            assert self.proc.stdin is not None
+            self.proc.stdin.write(_frame(message))
+            self.proc.stdin.flush()
+        except (BrokenPipeError, ConnectionResetError):
+            raise self._failure() from None
+
+    def send(self, method: str, k0: int, traces: Mapping[str, Any],
+             links: Sequence[str] | None = None) -> None:
+        """:meth:`~orchestrator.recording.stream.RrdStream.send` in the child (the chunk is
+        copied into the pipe: the caller may reuse its arrays at once)."""
+        self._put(("send", method, int(k0), dict(traces),
+                   None if links is None else list(links)))
+
+    def close(self, last_step: int | None = None) -> dict[str, Any]:
+        """:meth:`~orchestrator.recording.stream.RrdStream.close` in the child; its figures."""
+        self._put(("close", last_step))
+        assert self.proc is not None and self.proc.stdin is not None
+        self.proc.stdin.close()
+        out = self.proc.stdout.read() if self.proc.stdout is not None else b""
+        if self.proc.wait() != 0:
+            raise self._failure()
+        self._drain.join(timeout=5.0)
+        self.proc = None
+        return json.loads(out.decode())
+
+    def abort(self) -> None:
+        """Stop the child and remove its temporary file; nothing after close."""
+        proc, self.proc = self.proc, None
+        if proc is None:
+            return
+        try:
+            proc.stdin.close()                  # the child aborts at the end of its input
+            proc.wait(timeout=10.0)
+        except (OSError, subprocess.TimeoutExpired):
+            proc.kill()
+            proc.wait()
+        self.path.with_name(f".{self.path.name}.{proc.pid}.part").unlink(missing_ok=True)
+
+    def __enter__(self) -> ChildStream:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.abort()
+
+
+def _frame(message: tuple) -> bytes:
+    """A message as one frame: its pickle's length (8 bytes, little-endian), the pickle."""
+    data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+    return struct.pack("<Q", len(data)) + data
+
+
+def _read_frame(inp: IO[bytes]) -> tuple | None:
+    """The next frame's message, None at the end of the input."""
+    head = inp.read(8)
+    if len(head) < 8:
+        return None
+    (size,) = struct.unpack("<Q", head)
+    data = inp.read(size)
+    if len(data) < size:
+        return None
+    return pickle.loads(data)
+
+
 def _child() -> int:
+    from .stream import RrdStream
     from .writer import write_rrd  # the import this process exists to pay
 
-    data = sys.stdin.buffer.read()
-    if not data:                             # the parent had nothing to write
+    inp = sys.stdin.buffer
+    message = _read_frame(inp)
+    if message is None:                      # the parent had nothing to write
         return 0
-    path, runs, h, kwargs = pickle.loads(data)
-    info = write_rrd(Path(path), runs, h, **kwargs)
+    if message[0] == "write":
+        _, path, runs, h, kwargs = message
+        info = write_rrd(Path(path), runs, h, **kwargs)
+    else:
+        _, path, methods, h, kwargs = message
+        with RrdStream(path, methods, h, **kwargs) as stream:   # aborted unless closed
+            while True:
+                message = _read_frame(inp)
+                if message is None:          # the parent aborted or died
+                    return 0
+                if message[0] == "send":
+                    stream.send(*message[1:])
+                else:
+                    info = stream.close(message[1])
+                    break
     sys.stdout.write(json.dumps(info, default=float))
     return 0
 

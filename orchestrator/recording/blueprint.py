@@ -214,15 +214,18 @@ def fleet_ranges(fleet: _Fleet, runs: dict[str, dict[str, np.ndarray]]
 
 def _fleet_blueprint(methods: list[str], fleet: _Fleet, trail_ns: int, trail_steps: int,
                      runs: dict[str, dict[str, np.ndarray]],
-                     links: dict[str, list[str]] | None = None) -> rrb.Blueprint:
+                     links: dict[str, list[str]] | None = None,
+                     points: np.ndarray | None = None) -> rrb.Blueprint:
     """3D view(s) of the fleet on the left (framed by :func:`fleet_camera` on every vehicle
     and leader position), under them the actuator views (nonlinear vehicles) and the links
     (legend line and counts); per-vehicle error/control (and age of information) views on
-    the right (whole run, legends hidden: the legend view on top names the colours)."""
+    the right (whole run, legends hidden: the legend view on top names the colours).
+    ``points``: every vehicle and leader position to frame, if not those of ``runs``."""
     n = fleet.n
-    points = np.concatenate(
-        [np.concatenate([run["x"][:, fleet.position_index].reshape(-1, 3),
-                         run["z"] @ fleet.leader_output.T]) for run in runs.values()])
+    if points is None:                  # else: the extremes, kept as a stream went
+        points = np.concatenate(
+            [np.concatenate([run["x"][:, fleet.position_index].reshape(-1, 3),
+                             run["z"] @ fleet.leader_output.T]) for run in runs.values()])
     camera = fleet_camera(points)
     views_3d = [
         rrb.Spatial3DView(

@@ -167,20 +167,13 @@ def _validate(runs: Mapping[str, Mapping[str, np.ndarray]], h: float,
     places), the step count and h in ns."""
     if not isinstance(runs, Mapping) or len(runs) == 0:
         raise ValueError("write_rrd: runs must be a non-empty mapping method -> traces")
-    h = float(h)
-    if not np.isfinite(h) or h <= 0.0:
-        raise ValueError(f"write_rrd: step h must be a positive number of seconds, got {h!r}")
-    h_ns = round(h * 1e9)
-    if h_ns < 1:
-        raise ValueError(f"write_rrd: step h={h!r} s is below one nanosecond")
+    h_ns = _step_ns(h)
 
     clean: dict[str, dict[str, np.ndarray]] = {}
     steps: int | None = None
     first: tuple[str, str] | None = None
     for method, traces in runs.items():
-        if not isinstance(method, str) or not method or "/" in method or method.strip() != method:
-            raise ValueError(f"write_rrd: method name {method!r} is not a valid entity path part "
-                             "(non-empty, no '/', no surrounding spaces)")
+        _method_name(method)
         if not isinstance(traces, Mapping):
             raise ValueError(f"write_rrd: run {method!r} must be a mapping of traces, "
                              f"got {type(traces).__name__}")
@@ -211,6 +204,25 @@ def _validate(runs: Mapping[str, Mapping[str, np.ndarray]], h: float,
     if steps == 0:
         raise ValueError("write_rrd: traces have zero steps; nothing to write")
     return clean, steps, h_ns
+
+
+def _step_ns(h: object) -> int:
+    """The step h (s, > 0, at least 1 ns) as integer nanoseconds, or ValueError."""
+    h = float(h)  # type: ignore[arg-type]
+    if not np.isfinite(h) or h <= 0.0:
+        raise ValueError(f"write_rrd: step h must be a positive number of seconds, got {h!r}")
+    h_ns = round(h * 1e9)
+    if h_ns < 1:
+        raise ValueError(f"write_rrd: step h={h!r} s is below one nanosecond")
+    return h_ns
+
+
+def _method_name(method: object) -> str:
+    """A method name usable as an entity path part, or ValueError."""
+    if not isinstance(method, str) or not method or "/" in method or method.strip() != method:
+        raise ValueError(f"write_rrd: method name {method!r} is not a valid entity path part "
+                         "(non-empty, no '/', no surrounding spaces)")
+    return method
 
 
 def _positive_ns(value: object, name: str) -> int:

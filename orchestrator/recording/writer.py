@@ -1,24 +1,18 @@
-"""Write the traces of one or more runs to a Rerun .rrd file: :func:`write_rrd` and the
-``send_columns`` writers of the per-vehicle series and the 3D scene of a fleet."""
+"""Write the traces of one or more runs to a Rerun .rrd file: :func:`write_rrd` (through
+:class:`~orchestrator.recording.stream.RrdStream`) and the ``send_columns`` writers of the
+series of the paper layout and of the per-vehicle series of a fleet (its 3D scene:
+:mod:`.scene`)."""
 from __future__ import annotations
 
-import os
-import time
-import uuid
 from pathlib import Path
 
 import numpy as np
 import rerun as rr
 
-from plant_model.remus100.rigid_body import quaternion_xyzw
-
-from .actuators import DEFAULT_DELTA_MAX, DEFAULT_N_MAX, send_actuators, send_limits
-from .blueprint import LEGEND_ENTITY, _blueprint, _fleet_blueprint
+from .actuators import send_actuators
 from .layout import (
     _POSITION_NAMES,
     _SERIES,
-    _SIM_TIME,
-    _STEP,
     FLEET_TRACE_KEYS,
     TRACE_KEYS,
     TRUE_COLOR,
@@ -29,11 +23,11 @@ from .layout import (
     axis_colors,
     color_name,
     fleet_method_line,
-    method_color,
     method_styles,
 )
-from .network import LINK_KEYS, LINKS_LEGEND_ENTITY, links_legend, send_links
-from .validation import _positive_int, _positive_ns, _validate, _validate_fleet
+from .network import LINK_KEYS
+from .scene import leader_position
+from .validation import _validate, _validate_fleet
 
 __all__ = ["write_rrd"]
 
@@ -104,7 +98,7 @@ def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, n
                                    sp[:, 3 * (i - 1):3 * i],
                                    [f"{method} speed (m/s)", f"{method} course (rad)",
                                     f"{method} depth (m)"], shades(3), indexes)
-    leader = rec_traces["z"] @ fleet.leader_output.T  # (rows, 3)
+    leader = leader_position(rec_traces["z"], fleet.leader_output)  # (rows, 3)
     signals += _send_block(rec, f"leader/{method}", leader,
                            [f"{method} leader {c}" for c in _POSITION_NAMES], shades(3), indexes)
     return signals
@@ -144,131 +138,9 @@ def _fleet_legend(methods: list[str], fleet: _Fleet, actuators: bool = False) ->
                 else ""))
 
 
-def _time_columns(k: np.ndarray, h_ns: int) -> list[rr.TimeColumn]:
-    return [rr.TimeColumn(_STEP, sequence=k),
-            rr.TimeColumn(_SIM_TIME, duration=(k * h_ns).astype("timedelta64[ns]"))]
-
-
-def _sample_steps(steps: int, every: int, last: int) -> np.ndarray:
-    """Steps 0, every, 2*every, ... (< steps), then ``last`` if it is not among them."""
-    ks = np.arange(0, steps, every, dtype=np.int64)
-    if ks[-1] != last:
-        ks = np.append(ks, last)
-    return ks
-
-
 #: optional fleet traces of the nonlinear vehicle (orchestrator.cosim.per_vehicle) and of
 #: its guidance FMU (setpoint: per vehicle speed, course, depth)
 _ACTUATOR_KEYS = ("attitude", "rpm", "rudder", "stern", "saturated", "setpoint")
-
-#: the hull drawn in the 3D view: the REMUS 100's 1.6 m x 0.19 m spheroid, 3 times enlarged
-#: to be seen at formation scale (m, body axes x forward, y starboard, z down)
-_HULL_HALF_SIZES = (2.4, 0.285, 0.285)
-
-
-#: distance (m) of a vehicle's number from the vehicle, to starboard of its course
-_LABEL_OFFSET = 4.0
-
-
-def _label_positions(pos: np.ndarray) -> np.ndarray:
-    """(rows, N, 3) positions of the vehicles' numbers: ``_LABEL_OFFSET`` m to starboard of
-    each vehicle's horizontal course (east when it does not move), so the number sits off
-    its own trail."""
-    if pos.shape[0] < 2:
-        vel = np.zeros_like(pos)
-    else:
-        vel = np.gradient(pos, axis=0)
-    right = np.stack([-vel[..., 1], vel[..., 0], np.zeros(vel.shape[:-1])], axis=-1)
-    norm = np.linalg.norm(right, axis=-1, keepdims=True)
-    east = np.broadcast_to(np.array([0.0, 1.0, 0.0]), right.shape)
-    unit = np.where(norm > 1e-9, right / np.maximum(norm, 1e-12), east)
-    return pos + _LABEL_OFFSET * unit
-
-
-def _send_fleet_world(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray],
-                      fleet: _Fleet, h_ns: int, stride: int, scene_stride: int,
-                      trail_stride: int) -> None:
-    """The 3D scene of one run under ``world/{method}``: one partition per sample, no per-step
-    logs."""
-    n, steps = fleet.n, traces["x"].shape[0]
-    root = f"world/{method}"
-    colors = _vehicle_colors(n)
-    ks = np.arange(0, steps, stride, dtype=np.int64)                 # recorded steps
-    rows = ks.size
-    indexes = _time_columns(ks, h_ns)
-    pos_all = traces["x"][:, fleet.position_index]                    # (steps, N, 3) float64
-    lead_all = traces["z"] @ fleet.leader_output.T                    # (steps, 3)
-    pos, leader = pos_all[ks], lead_all[ks]
-    targets = leader[:, None, :] + fleet.offsets[None, :, :]          # (rows, N, 3)
-
-    rec.log(root, rr.ViewCoordinates.FRD, static=True)
-    rec.log(f"{root}/vehicles", rr.Points3D.from_fields(
-        radii=[1.0], colors=colors, labels=[str(i) for i in range(1, n + 1)], show_labels=False),
-        static=True)
-    rec.send_columns(f"{root}/vehicles", indexes=indexes, columns=rr.Points3D.columns(
-        positions=pos.reshape(rows * n, 3).astype(np.float32)).partition(np.full(rows, n)))
-    # the numbers beside the vehicles, off their own trails and edges: to starboard
-    rec.log(f"{root}/labels", rr.Points3D.from_fields(
-        radii=[0.05], colors=[_lighter(tuple(int(v) for v in c), 0.45) for c in colors],
-        labels=[str(i) for i in range(1, n + 1)], show_labels=True),
-        static=True)
-    rec.send_columns(f"{root}/labels", indexes=indexes, columns=rr.Points3D.columns(
-        positions=_label_positions(pos).reshape(rows * n, 3).astype(np.float32)
-    ).partition(np.full(rows, n)))
-
-    if "attitude" in traces:             # the nonlinear vehicle: an oriented hull
-        att = traces["attitude"][ks].reshape(rows * n, 3)
-        rec.log(f"{root}/hulls", rr.Ellipsoids3D.from_fields(
-            half_sizes=[_HULL_HALF_SIZES] * n, colors=colors, fill_mode="solid"), static=True)
-        rec.send_columns(f"{root}/hulls", indexes=indexes, columns=rr.Ellipsoids3D.columns(
-            centers=pos.reshape(rows * n, 3).astype(np.float32),
-            quaternions=quaternion_xyzw(att).astype(np.float32)).partition(np.full(rows, n)))
-
-    rec.log(f"{root}/leader", rr.Points3D.from_fields(
-        radii=[1.5], colors=[(255, 215, 0)]), static=True)
-    rec.log(f"{root}/leader_path", rr.LineStrips3D(
-        [lead_all[::stride].astype(np.float32)], radii=[0.12], colors=[(230, 190, 0)]),
-        static=True)
-    rec.send_columns(f"{root}/leader", indexes=indexes, columns=rr.Points3D.columns(
-        positions=leader.astype(np.float32)).partition(np.ones(rows, dtype=np.int64)))
-
-    rec.log(f"{root}/targets", rr.Points3D.from_fields(
-        radii=[0.7], colors=[tuple(_lighter(tuple(int(v) for v in c), 0.55)) for c in colors],
-        show_labels=False), static=True)
-    rec.send_columns(f"{root}/targets", indexes=indexes, columns=rr.Points3D.columns(
-        positions=targets.reshape(rows * n, 3).astype(np.float32)).partition(np.full(rows, n)))
-
-    n_edges, n_pinned = fleet.edges.shape[0], fleet.pinned.shape[0]
-    n_seg = n_edges + n_pinned
-    if n_seg:
-        es = _sample_steps(steps, scene_stride, int(ks[-1]))
-        e_rows = es.size
-        seg = np.empty((e_rows, n_seg, 2, 3), dtype=np.float32)
-        seg[:, :n_edges, 0] = pos_all[es][:, fleet.edges[:, 0]]
-        seg[:, :n_edges, 1] = pos_all[es][:, fleet.edges[:, 1]]
-        seg[:, n_edges:, 0] = lead_all[es][:, None, :]
-        seg[:, n_edges:, 1] = pos_all[es][:, fleet.pinned]
-        rec.log(f"{root}/edges", rr.LineStrips3D.from_fields(
-            radii=[0.15], colors=[(160, 160, 160)] * n_edges + [(255, 215, 0)] * n_pinned),
-            static=True)
-        rec.send_columns(f"{root}/edges", indexes=_time_columns(es, h_ns),
-                         columns=rr.LineStrips3D.columns(
-                             strips=seg.reshape(e_rows * n_seg, 2, 3)
-                         ).partition(np.full(e_rows, n_seg)))
-
-    # Trails: one segment per vehicle from the previous trail sample to this one.
-    ts = _sample_steps(steps, trail_stride, int(ks[-1]))
-    if ts.size >= 2:
-        t_rows = ts.size - 1
-        seg = np.empty((t_rows, n, 2, 3), dtype=np.float32)
-        seg[:, :, 0] = pos_all[ts[:-1]]
-        seg[:, :, 1] = pos_all[ts[1:]]
-        rec.log(f"{root}/trails", rr.LineStrips3D.from_fields(radii=[0.2]), static=True)
-        rec.send_columns(f"{root}/trails", indexes=_time_columns(ts[1:], h_ns),
-                         columns=rr.LineStrips3D.columns(
-                             strips=seg.reshape(t_rows * n, 2, 3),
-                             colors=np.tile(colors, (t_rows, 1)),
-                         ).partition(np.full(t_rows, n)))
 
 
 def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float, *,
@@ -348,104 +220,53 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
                     raise ValueError(f"write_rrd: run {m!r} trace {key!r} has shape "
                                      f"{arr.shape}, expected ({steps}, ...)")
                 clean[m][key] = arr
-    stride = _positive_int(stride, "stride")
-    if scene_stride is not None:
-        scene_stride = _positive_int(scene_stride, "scene_stride")
-        if scene_stride % stride:
-            raise ValueError(f"write_rrd: scene_stride = {scene_stride} must be a multiple of "
-                             f"stride = {stride}")
-    path = Path(path)
-    methods = list(clean)
-    colors = method_color(methods)
-    fleet_v: _Fleet | None = None
-    if fleet is None:
-        blueprint = _blueprint(clean)
-    else:
-        fleet_v = _validate_fleet(fleet, clean)
-        trail_ns, sample_ns = (_positive_ns(v, name) for v, name in (
-            (trail_seconds, "trail_seconds"), (trail_sample_seconds, "trail_sample_seconds")))
-        trail_steps = -(-trail_ns // h_ns)  # ceil: the step range covers at least trail_seconds
-        trail_stride = stride * max(1, round(sample_ns / (stride * h_ns)))
-        if scene_stride is None:
-            scene_stride = trail_stride
-        with_links = {m: {**clean[m], **{k: np.asarray(runs[m][k]) for k in LINK_KEYS}}
-                      if links and m in links else clean[m] for m in methods}
-        blueprint = _fleet_blueprint(methods, fleet_v, trail_ns, trail_steps, with_links,
-                                     links={m: list(v) for m, v in links.items()
-                                            if m in clean} if links else None)
+    if fleet is not None:
+        _validate_fleet(fleet, clean)
+    links = {m: v for m, v in links.items() if m in clean} if links else None
+    for m in links or ():
+        clean[m].update({k: np.asarray(runs[m][k]) for k in LINK_KEYS})
+    from .stream import RrdStream  # it imports this module's series writers
 
-    t0 = time.perf_counter()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    rec = rr.RecordingStream(application_id, recording_id=uuid.uuid4())
-    if not rec.is_enabled():
-        raise RuntimeError("write_rrd: Rerun logging is disabled (RERUN env var?); refusing to "
-                           "write an empty .rrd")
+    with RrdStream(path, list(clean), h, recording_name=recording_name, fleet=fleet,
+                   stride=stride, scene_stride=scene_stride, trail_seconds=trail_seconds,
+                   trail_sample_seconds=trail_sample_seconds, links=links,
+                   application_id=application_id) as stream:
+        for method, traces in clean.items():
+            stream.send(method, 0, traces)
+        return stream.close()
+
+
+def _send_paper(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray],
+                colors: dict[str, tuple[int, int, int]], stride: int,
+                indexes: list[rr.TimeColumn]) -> int:
+    """One run's series of the paper layout, one entity per component (recorded steps
+    only: every ``stride``-th row of ``traces``), each method in its style
+    (:func:`~.layout.method_styles` of the methods of ``colors``); returns the number of
+    entities."""
     signals = 0
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.part")   # renamed when complete
-    try:
-        rec.save(tmp, default_blueprint=blueprint)
-        rec.send_recording_name(recording_name)
-
-        indexes = _time_columns(np.arange(0, steps, stride, dtype=np.int64), h_ns)
-        if fleet_v is None:
-            styles = method_styles(methods)
-            for method in methods:
-                base = colors[method]
-                light = _lighter(base)
-                width, alpha = styles[method].width, styles[method].viewer_alpha
-                for key, template, suffix, is_estimate in _SERIES:
-                    arr = clean[method][key]
-                    if key in _SHARED_TRUTH:        # exogenous: the same for every method
-                        style = rr.SeriesLines(colors=[TRUE_COLOR], names=["true"],
-                                               widths=[_LINE_WIDTH],
-                                               aggregation_policy=_AGGREGATION)
-                    else:
-                        style = rr.SeriesLines(
-                            colors=[(*(light if is_estimate else base), alpha)],
-                            names=[f"{method}{suffix}"], widths=[width],
-                            aggregation_policy=_AGGREGATION)
-                    for i in range(1, arr.shape[1] + 1):
-                        entity = template.format(i=i, m=method)
-                        rec.log(entity, style, static=True)
-                        rec.send_columns(
-                            entity,
-                            indexes=indexes,
-                            columns=rr.Scalars.columns(
-                                scalars=np.ascontiguousarray(arr[::stride, i - 1])),
-                        )
-                        signals += 1
-            rec.log(LEGEND_ENTITY, rr.TextDocument(_paper_legend(methods, colors),
-                                                   media_type=rr.MediaType.MARKDOWN), static=True)
+    base = colors[method]
+    light = _lighter(base)
+    style_of = method_styles(list(colors))[method]
+    width, alpha = style_of.width, style_of.viewer_alpha
+    for key, template, suffix, is_estimate in _SERIES:
+        arr = traces[key]
+        if key in _SHARED_TRUTH:        # exogenous: the same for every method
+            style = rr.SeriesLines(colors=[TRUE_COLOR], names=["true"],
+                                   widths=[_LINE_WIDTH],
+                                   aggregation_policy=_AGGREGATION)
         else:
-            rec.log("world", rr.ViewCoordinates.FRD, static=True)
-            rec.log(LEGEND_ENTITY, rr.TextDocument(_fleet_legend(
-                methods, fleet_v, any("rpm" in clean[m] for m in methods)),
-                                                   media_type=rr.MediaType.MARKDOWN), static=True)
-            for index, method in enumerate(methods):
-                signals += _send_fleet_series(rec, method, clean[method], fleet_v,
-                                              index, stride, indexes, len(methods))
-                _send_fleet_world(rec, method, clean[method], fleet_v, h_ns, stride,
-                                  scene_stride, trail_stride)
-                if links and method in links:
-                    signals += send_links(rec, method, runs[method], links[method], stride,
-                                          indexes, index, n=fleet_v.n)
-            if links:
-                rec.log(LINKS_LEGEND_ENTITY, rr.TextDocument(
-                    links_legend([m for m in methods if m in links]),
-                    media_type=rr.MediaType.MARKDOWN), static=True)
-            if any("rpm" in clean[m] for m in methods):
-                ends = np.array([0, (steps - 1) // stride * stride], dtype=np.int64)
-                send_limits(rec, _time_columns(ends, h_ns), fleet_v.n_max or DEFAULT_N_MAX,
-                            fleet_v.delta_max or DEFAULT_DELTA_MAX)
-        rec.flush()
-    except BaseException:
-        rec.disconnect()
-        del rec
-        tmp.unlink(missing_ok=True)
-        raise
-    # Dropping the file sink finishes the file (footer + manifest) before returning.
-    rec.disconnect()
-    del rec
-    os.replace(tmp, path)
-    rrd_s = time.perf_counter() - t0
-    return {"rrd_s": rrd_s, "signals": signals, "bytes": path.stat().st_size}
+            style = rr.SeriesLines(
+                colors=[(*(light if is_estimate else base), alpha)],
+                names=[f"{method}{suffix}"], widths=[width],
+                aggregation_policy=_AGGREGATION)
+        for i in range(1, arr.shape[1] + 1):
+            entity = template.format(i=i, m=method)
+            rec.log(entity, style, static=True)
+            rec.send_columns(
+                entity,
+                indexes=indexes,
+                columns=rr.Scalars.columns(
+                    scalars=np.ascontiguousarray(arr[::stride, i - 1])),
+            )
+            signals += 1
+    return signals

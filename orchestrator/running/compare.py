@@ -19,20 +19,22 @@ from ..analysis.full_information import fleet_bound, fleet_comparison
 from ..analysis.summary import method_summary, stationarity_note, stationary_horizon, versions
 from ..analysis.tracking_segments import segment_summary
 from ..atomic import write_text_atomically
+from ..cosim.master import MasterState, RunResult
 from ..interrupt import StopFlag, stop_on_signals
 from ..outputs import file_stem
 from ..scenario import Scenario
 from . import phases
+from .checkpoint import RunCheckpoint, Saver
 from .fmus import fleet_layout, record_stride
 from .setup import (
     Method,
     Predictions,
     RunSetup,
     method_list,
-    run_statistics,
     stats_context,
     window_dependent,
 )
+from .statistics import RunRecorder, RunStatistics
 from .systems import check_run, make_setup
 
 __all__ = ["NONLINEAR_NOTE", "common_window", "simulate"]
@@ -50,7 +52,9 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
              record_hz: float | None = None, workers: int | None = None,
              architectures: Sequence[str] | None = None,
              predict: str = "stationary", master: str = "auto",
-             window_from_step: int = 0) -> dict[str, Any]:
+             window_from_step: int = 0, checkpoint_every: float | None = None,
+             resume: RunCheckpoint | None = None,
+             realtime: float | None = None) -> dict[str, Any]:
     """Co-simulate each method (estimator ``modes`` x tracking laws ``trackings`` x
     ``architectures``, each default the scenario's) on each seed; write
     ``<out>/<scenario>.rrd`` and summary.json.
@@ -100,6 +104,15 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     window_from_step : int, optional
         The statistics window starts at this sample or later (``compare --what plants``:
         the common window of the plants, each a run of its own).
+    checkpoint_every : float, optional
+        Write a checkpoint of the run in this process every so many wall-clock seconds
+        (:mod:`orchestrator.running.checkpoint`; None or 0: none).
+    resume : RunCheckpoint, optional
+        Go on from this checkpoint: its method and seed resume at its step.
+    realtime : float, optional
+        Pace the runs in this process to the wall clock, ``realtime`` simulated seconds per
+        second (:mod:`orchestrator.cosim.pacing`); the summary's ``realtime`` reports the
+        overruns.
 
     Returns
     -------
@@ -120,9 +133,75 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     # the runs between steps and keep what was simulated
     with BackgroundWriter.take() as writer, stop_on_signals() as stop, \
             seed_pool(sc.steps, len(seeds), len(methods), workers) as pool:
+        options = {"modes": modes, "seeds": list(seeds), "trackings": trackings,
+                   "record_hz": record_hz, "architectures": architectures,
+                   "predict": predict, "master": master, "window_from_step": window_from_step}
+        keeper = _Keeper(out, checkpoint_every, options, resume, realtime)
         return _simulate(setup, methods, seeds, out, writer, t0, progress=progress, log=log,
                          record_hz=record_hz, stop=stop, pool=pool,
-                         window_from_step=window_from_step)
+                         window_from_step=window_from_step, keeper=keeper)
+
+
+class _Keeper:
+    """The checkpoints of a command's runs in this process, and the one it resumes
+    (:mod:`orchestrator.running.checkpoint`)."""
+
+    def __init__(self, out: Path, every_s: float | None, options: dict[str, Any],
+                 resume: RunCheckpoint | None, realtime: float | None = None):
+        self.out, self.every_s, self.options, self.resume = out, every_s, options, resume
+        self.realtime = realtime                #: the pace of the runs (None: as fast as can)
+        self.paced: list[dict[str, Any]] = []   #: each paced run's report
+        self.written = 0                        #: checkpoints written
+        self.seconds = 0.0                      #: spent writing them
+        self.resumed_at: float | None = None    #: the time the resumed run went on from, s
+        self.before = 0.0                       #: loop seconds of the resumed run before
+
+    def prepare(self, sc: Scenario, name: str, seed: int, recorder: RunRecorder
+                ) -> tuple[RunRecorder, MasterState | None, Saver | None]:
+        """The recorder, the master state to start from and the saver of one run."""
+        start = None
+        ck = self.resume
+        if ck is not None and ck.method == name and ck.seed == seed:
+            recorder, start = ck.recorder, ck.master
+            self.resumed_at, self.before = start.step * sc.h, ck.loop_s
+            self.resume = None
+        if not self.every_s:
+            return recorder, start, None
+        t_run = time.perf_counter()
+        before = self.before if start is not None else 0.0
+
+        def make(state: MasterState) -> RunCheckpoint:
+            return RunCheckpoint(sc, self.options, name, seed, state, recorder,
+                                 before + time.perf_counter() - t_run)
+        return recorder, start, Saver(self.out, self.every_s, make)
+
+    def done(self, res: RunResult, saver: Saver | None) -> None:
+        """Count what ``saver`` wrote; a resumed run's loop seconds include those before."""
+        if saver is not None:
+            self.written += saver.count
+            self.seconds += saver.seconds
+        if "realtime" in res.info:
+            self.paced.append(res.info["realtime"])
+        if self.resumed_at is not None and res.info.get("resumed_from_s") is None:
+            res.info["resumed_from_s"] = self.resumed_at
+            res.loop_s += self.before
+
+    def summary(self) -> dict[str, Any]:
+        """summary.json's ``checkpoints``."""
+        return {"every_s": self.every_s or None, "written": self.written,
+                "seconds": self.seconds, "resumed_from_s": self.resumed_at}
+
+    def realtime_summary(self) -> dict[str, Any] | None:
+        """summary.json's ``realtime``: the factor, the overruns (steps that ended after
+        their wall-clock deadline) and the worst lateness over the paced runs, their
+        wall-clock and planned seconds; None when not paced."""
+        if not self.paced:
+            return None
+        return {"factor": self.realtime, "runs": len(self.paced),
+                "overruns": sum(p["overruns"] for p in self.paced),
+                "worst_lateness_s": max(p["worst_lateness_s"] for p in self.paced),
+                "wall_s": sum(p["wall_s"] for p in self.paced),
+                "planned_s": sum(p["planned_s"] for p in self.paced)}
 
 
 def _bar(sc: Scenario, runs: int, progress: bool) -> Any:
@@ -177,8 +256,9 @@ def _predictions(setup: RunSetup, methods: list[Method], results: dict[str, Any]
 def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out: Path,
               writer: Any, t0: float, *, progress: bool, log: Callable[[str], None],
               record_hz: float | None, stop: StopFlag, pool: Any = None,
-              window_from_step: int = 0) -> dict[str, Any]:
+              window_from_step: int = 0, keeper: _Keeper | None = None) -> dict[str, Any]:
     sc = setup.sc
+    keeper = keeper or _Keeper(out, None, {}, None)
     for m in methods:
         setup.fmus(m)                       # every FMU in place before the first step
     results: dict[str, Any] = {}
@@ -220,15 +300,22 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
             if stop:
                 break
             if seed in pooled:
-                stats, loop_s = pooled[seed].result()
+                stats, loop_s, ages = pooled[seed].result()
                 if bar is not None:
                     bar.update(sc.steps)
                 loop_us.append(loop_s / sc.steps * 1e6)
                 per_seed.append(stats)
+                if ages:
+                    link_ages.append(ages)
                 log(f"{name:>9s} seed {seed}: cost rate {stats['cost_rate']:.4g} (worker "
                     f"process), {loop_s:.2f} s")
                 continue
-            res = setup.run(method, seed, progress=bar, stop=stop)
+            recorder = RunRecorder(RunStatistics(sc, k0, formation),
+                                   keep=name not in rrd_runs)
+            recorder, start, saver = keeper.prepare(sc, name, seed, recorder)
+            res = setup.run(method, seed, progress=bar, stop=stop, recorder=recorder,
+                            start=start, checkpoints=saver, realtime=keeper.realtime)
+            keeper.done(res, saver)
             masters[name] = res.info["master"]
             if name not in rrd_runs and res.steps:
                 rrd_runs[name] = res.traces
@@ -241,9 +328,9 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
                 break
             loop_us.append(res.loop_s / sc.steps * 1e6)
             with phases.phase("statistics"):
-                per_seed.append(run_statistics(sc, res, k0, formation))
-            if "link_age" in res.traces:
-                link_ages.append((res.info["links"], res.traces["link_age"]))
+                per_seed.append(recorder.statistics.result())
+            if "links" in res.info:
+                link_ages.append(recorder.statistics.link_ages(res.info["links"]))
             log(f"{name:>9s} seed {seed}: cost rate {per_seed[-1]['cost_rate']:.4g}"
                 + ("" if predicted is None else f" (predicted {predicted:.4g})")
                 + f", {res.loop_s:.2f} s")
@@ -253,7 +340,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
             entry.update(formation_summary([st["formation"] for st in per_seed],
                                            list(seeds[:len(per_seed)])))
             entry.update(segment_summary([st["segments"] for st in per_seed]))
-        entry.update(setup.method_entries(method, link_ages, k0))
+        entry.update(setup.method_entries(method, link_ages))
         if per_seed and pred.window_from_start is not None:
             entry["cost_rate"]["predicted_window"] = pred.window_from_start.cost_rate
             entry["rms_e"]["predicted_window"] = pred.window_from_start.rms_e
@@ -325,6 +412,8 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
                    # where the command's time went (orchestrator.running.phases)
                    "phases_s": phases.split(time.perf_counter() - t0)},
         "fmus": _fmu_entries(setup, methods),
+        "checkpoints": keeper.summary(),
+        "realtime": keeper.realtime_summary(),
         "wall_s": time.perf_counter() - t0,
         "versions": versions(),
     }

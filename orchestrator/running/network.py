@@ -11,7 +11,7 @@ predictions (:func:`network_predictions`) share one description. Age of informat
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -306,7 +306,7 @@ def network_reference(sc: Scenario, setup: NetworkSetup, seed: int, steps: int
             "e": Z @ setup.net.Ce.T}
 
 
-def age_summary(runs: list[tuple[list[str], np.ndarray]], k0: int, setup: NetworkSetup
+def age_summary(runs: list[Mapping[str, tuple[float, int, float]]], setup: NetworkSetup
                 ) -> dict[str, dict[str, dict[str, float]]]:
     """Per receiving vehicle and sender the age of the newest information it holds over the
     window, over every seed: mean and max (s), and the mean predicted for independent losses,
@@ -315,10 +315,9 @@ def age_summary(runs: list[tuple[list[str], np.ndarray]], k0: int, setup: Networ
 
     Parameters
     ----------
-    runs : list[tuple[list[str], np.ndarray]]
-        Per seed the links ("j -> i") and the ``link_age`` traces (steps, links), s.
-    k0 : int
-        First sample of the window.
+    runs : list of mappings
+        Per seed, per link ("j -> i") its age over the window: (sum, count, max), s
+        (:meth:`orchestrator.running.statistics.RunStatistics.link_ages`).
     setup : NetworkSetup
         The links' timing.
 
@@ -328,20 +327,22 @@ def age_summary(runs: list[tuple[list[str], np.ndarray]], k0: int, setup: Networ
         {receiver: {sender: {"mean", "max", "predicted_mean"}}}.
     """
     net = setup.net
-    by_link: dict[str, list[np.ndarray]] = {}
-    for names, ages in runs:
-        for c, name in enumerate(names):
-            by_link.setdefault(name, []).append(np.asarray(ages[k0:, c], float))
+    by_link: dict[str, list[float]] = {}
+    for ages in runs:
+        for name, (total, count, largest) in ages.items():
+            acc = by_link.setdefault(name, [0.0, 0, -math.inf])
+            acc[0] += total
+            acc[1] += count
+            acc[2] = max(acc[2], largest)
     out: dict[str, dict[str, dict[str, float]]] = {}
-    for name, parts in by_link.items():
+    for name, (total, count, largest) in by_link.items():
         j, i = (x.strip() for x in name.split("->"))
         key = ("leader" if j == "leader" else int(j), int(i))
         g = net.groups[net.link_group[key]]
         p = net.loss[key]
-        w = np.concatenate(parts)
         predicted = (None if net.schedule is not None or key in net.bursty else  # switched,
                      # or bursty (losses correlated: the formula is independent losses')
                      (g.D + (g.P - 1) / 2 + g.P * p / (1 - p)) * net.h)
-        out.setdefault(i, {})[j] = {"mean": float(w.mean()), "max": float(w.max()),
+        out.setdefault(i, {})[j] = {"mean": float(total / count), "max": float(largest),
                                     "predicted_mean": predicted}
     return out

@@ -9,7 +9,7 @@ or the Lyapunov prediction of the distributed loop (:mod:`orchestrator.analysis.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -326,17 +326,16 @@ class PerVehicleSetup(RunSetup):
                      if loop.Phi.shape[0] <= TRANSIENT_LIMIT else None)
         return _prediction(pred0), _prediction(predict_cost(loop, win, X0)), transient, k0
 
-    def method_entries(self, method: Method, runs: list[tuple[list[str], np.ndarray]],
-                       k0: int) -> dict[str, Any]:
+    def method_entries(self, method: Method,
+                       runs: list[Mapping[str, tuple[float, int, float]]]) -> dict[str, Any]:
         """The summary's ``network`` and ``age_of_information`` of a method over links.
 
         Parameters
         ----------
         method : Method
-        runs : list[tuple[list[str], np.ndarray]]
-            Per seed its links and their ``link_age`` traces.
-        k0 : int
-            First sample of the statistics window.
+        runs : list of mappings
+            Per seed, per link its age of information over the statistics window (sum,
+            count, max; :meth:`orchestrator.running.statistics.RunStatistics.link_ages`).
 
         Returns
         -------
@@ -351,4 +350,4 @@ class PerVehicleSetup(RunSetup):
                                            critical=prediction_path(setup.net, self.sc.steps)
                                            == "dense", search=self.predict == "full",
                                            predict=self.predict, log=self.log),
-                "age_of_information": age_summary(runs, k0, setup)}
+                "age_of_information": age_summary(runs, setup)}

@@ -36,7 +36,8 @@ def _init_worker() -> None:
 
 
 def seed_stats(setup: Any, method: Any, seed: int, system: Any, k0: int,
-               formation: tuple | None = None) -> tuple[dict[str, Any], float]:
+               formation: tuple | None = None
+               ) -> tuple[dict[str, Any], float, dict[str, tuple[float, int, float]]]:
     """One seed's co-simulation on a worker: its statistics and loop time.
 
     Parameters
@@ -57,13 +58,20 @@ def seed_stats(setup: Any, method: Any, seed: int, system: Any, k0: int,
     Returns
     -------
     stats : dict[str, Any]
-        :func:`orchestrator.running.setup.run_statistics` of the run.
+        The run's statistics (:class:`orchestrator.running.statistics.RunStatistics`,
+        accumulated as the run goes).
     loop_s : float
         Seconds in the step loop.
+    link_ages : dict
+        Over acoustic links, per link its age of information over the window (sum, count,
+        max, s); else empty.
     """
-    from .setup import run_statistics
-    res = setup.run(method, seed, system=system)
-    return run_statistics(setup.sc, res, k0, formation), res.loop_s
+    from .statistics import RunRecorder, RunStatistics
+    recorder = RunRecorder(RunStatistics(setup.sc, k0, formation))
+    res = setup.run(method, seed, system=system, recorder=recorder)
+    stats = recorder.statistics
+    return (stats.result(), res.loop_s,
+            stats.link_ages(res.info["links"]) if "links" in res.info else {})
 
 
 class SeedPool:

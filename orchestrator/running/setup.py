@@ -32,6 +32,7 @@ from ..scenario import Scenario, ScenarioError
 from ..scenario.loader import check_deployment
 from .phases import add as add_phase
 from .phases import phase
+from .statistics import RunRecorder, RunStatistics, chunk_steps
 
 __all__ = ["NO_PREDICTION", "PREDICT_LEVELS", "Method", "Predictions", "RunSetup", "check_setup",
            "method_list", "run_statistics", "stats_context"]
@@ -173,8 +174,7 @@ class RunSetup:
         """The traces of a run of ``system`` in the stacked layout (``e``, ``u``, ``x``, ...)."""
         return traces
 
-    def method_entries(self, method: Method, runs: list[tuple[list[str], Any]],
-                       k0: int) -> dict[str, Any]:
+    def method_entries(self, method: Method, runs: list[Any]) -> dict[str, Any]:
         """What the summary adds for ``method`` beyond the statistics (links' figures)."""
         return {}
 
@@ -309,9 +309,11 @@ class RunSetup:
                 for k, p in self.fmus(method).items()}
 
     def run(self, method: Method, seed: int, *, progress: Any = False, stop: Any = None,
-            system: SystemDescription | None = None) -> RunResult:
+            system: SystemDescription | None = None,
+            recorder: RunRecorder | None = None, start: Any = None,
+            checkpoints: Any = None, realtime: float | None = None) -> RunResult:
         """Co-simulate ``method`` on ``seed`` for the scenario's T; traces in the stacked
-        layout.
+        layout, whole, or chunk by chunk to a ``recorder`` as the run goes.
 
         Parameters
         ----------
@@ -322,6 +324,18 @@ class RunSetup:
             As :func:`orchestrator.cosim.master.run_system`.
         system : SystemDescription, optional
             The system (default :meth:`system`; a worker process gets it made).
+        recorder : RunRecorder, optional
+            Takes the stacked traces chunk by chunk
+            (:class:`orchestrator.running.statistics.RunRecorder`: statistics, the .rrd
+            stream, what is kept): the master's buffers hold one chunk
+            (:func:`orchestrator.running.statistics.chunk_steps`) whatever T; the result's
+            traces are then what the recorder kept.
+        start, checkpoints : optional
+            With a ``recorder``: resume from a saved
+            :class:`~orchestrator.cosim.master.MasterState`, and save one when
+            ``checkpoints`` says it is due (:func:`orchestrator.cosim.master.run_system`).
+        realtime : float, optional
+            Pace the loop to the wall clock (:mod:`orchestrator.cosim.pacing`).
 
         Returns
         -------
@@ -340,14 +354,27 @@ class RunSetup:
             self.prepare(method)
         mark_simulated()
         fmus = self.fmus(method)
+        sink, chunk_info = None, {}
+        if recorder is not None:
+            if recorder.chunk_steps is None:
+                recorder.chunk_steps = chunk_steps(system.output_width())
+            recorder.planned = self.sc.steps
+            sink = _StackedSink(self, system, recorder, chunk_info)
         with phase("instantiate"):     # the loop's own seconds are counted apart
             traces, loop_s, info = run_system(system, fmus, self.sc.steps,
                                               coupling=self.coupling, progress=progress,
-                                              stop=stop, master=self.master,
-                                              instance_suffix=f"_{method.estimator}_{seed}")
-            add_phase("loop", loop_s)
-        with phase("statistics"):
-            stacked = self.stacked(system, traces, info)
+                                              stop=stop, master=self.master, sink=sink,
+                                              instance_suffix=f"_{method.estimator}_{seed}",
+                                              start=start, checkpoints=checkpoints,
+                                              realtime=realtime)
+            add_phase("loop", loop_s - (sink.seconds if sink is not None else 0.0))
+        if recorder is not None:
+            add_phase("statistics", sink.seconds)
+            info.update(chunk_info)
+            stacked = recorder.traces()
+        else:
+            with phase("statistics"):
+                stacked = self.stacked(system, traces, info)
         return RunResult(mode=method.estimator, seed=int(seed), h=self.sc.h,
                          traces=stacked,
                          wall_s=time.perf_counter() - t0, loop_s=loop_s,
@@ -360,6 +387,23 @@ class RunSetup:
         state["_predictions"] = {}
         state["log"] = None
         return state
+
+
+class _StackedSink:
+    """The master's :class:`~orchestrator.cosim.master.TraceSink` of a run with a recorder:
+    each chunk in the stacked layout (:meth:`RunSetup.stacked`) to the recorder; the
+    seconds it takes (counted as statistics, not as the loop)."""
+
+    def __init__(self, setup: RunSetup, system: SystemDescription, recorder: RunRecorder,
+                 info: dict[str, Any]):
+        self.setup, self.system, self.recorder, self.info = setup, system, recorder, info
+        self.chunk_steps = recorder.chunk_steps
+        self.seconds = 0.0
+
+    def take(self, k0: int, traces: dict[str, Any]) -> None:
+        t0 = time.perf_counter()
+        self.recorder.take(k0, self.setup.stacked(self.system, traces, self.info))
+        self.seconds += time.perf_counter() - t0
 
 
 def check_setup(sc: Scenario, coupling: str = "gauss-seidel") -> None:
@@ -390,15 +434,8 @@ def stats_context(sc: Scenario) -> tuple | None:
 
 def run_statistics(sc: Scenario, res: RunResult, k0: int,
                    formation: tuple | None) -> dict[str, Any]:
-    """The statistics of one run as the summary and the campaign rows hold them."""
-    from ..analysis.summary import run_stats
-    from ..analysis.tracking_segments import run_segments
-    stats = run_stats(res.traces, sc.system.Q, sc.system.R, k0, formation)
-    if formation is not None:
-        traces = res.traces
-        if sc.design is not None and sc.design.clip:     # the controllers' force limit
-            from ..analysis.tracking_segments import force_saturation
-            traces = dict(traces, saturated=force_saturation(traces["u"], sc.design.u_max,
-                                                             traces.get("saturated")))
-        stats["segments"] = run_segments(sc.fleet["leader"], traces, k0)
-    return stats
+    """The statistics of one run as the summary and the campaign rows hold them, from its
+    whole traces (:class:`orchestrator.running.statistics.RunStatistics` in one chunk)."""
+    stats = RunStatistics(sc, k0, formation)
+    stats.add(0, res.traces)
+    return stats.result()

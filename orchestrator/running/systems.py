@@ -189,7 +189,7 @@ def check_run(sc: Scenario, methods: Sequence[Method] = (), *,
     if setup is None:
         setup = make_setup(sc, Path("."), methods, coupling=coupling, predict=predict)  # 1, 2
     check_native(sc)
-    width = _trace_width(setup.python_system(Method.of(sc), sc.seed))  # as scenario_system
+    width = setup.python_system(Method.of(sc), sc.seed).output_width()  # as scenario_system
     return check_memory(sc, len(methods), available, width=width)
 
 
@@ -208,10 +208,6 @@ def check_native(sc: Scenario) -> None:
         except NativeBuildError as exc:
             raise NativeBuildError(f"--fmus native: {exc}") from None
 
-
-def _trace_width(system: SystemDescription) -> int:
-    """Values per step of a system's traces: every output of every FMU."""
-    return sum(spec.size for _, spec in system.outputs())
 
 
 def check_memory(sc: Scenario, n_methods: int, available: int | None = None, *,
@@ -245,7 +241,7 @@ def check_memory(sc: Scenario, n_methods: int, available: int | None = None, *,
         Naming T, h, the number of steps and both sizes, if the estimate exceeds
         MEMORY_SHARE of the memory available.
     """
-    width = _trace_width(scenario_system(sc)) if width is None else width
+    width = scenario_system(sc).output_width() if width is None else width
     need = 8 * sc.steps * width * (n_methods + 2)
     available = memory_short(need, available)
     if available is not None:

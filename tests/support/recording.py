@@ -124,7 +124,10 @@ def recorded_steps(stride, steps=FLEET_STEPS):
 
 
 def leader_position(run, fleet):
-    return run["z"] @ fleet.leader_output.T  # (steps, 3)
+    """(steps, 3): z @ leader_output.T, summed as the writer does (row by row the same
+    whatever the chunks; a BLAS product's last bits are not)."""
+    from orchestrator.recording.scene import leader_position as position
+    return position(run["z"], np.asarray(fleet.leader_output, dtype=float))
 
 
 #: strides of the fleet recording, and their test ids

@@ -1,0 +1,467 @@
+"""Write a .rrd chunk by chunk as a run goes, in bounded memory: :class:`RrdStream`.
+
+A stream is opened on the run's methods; the master sends each method's traces in chunks of
+steps (every simulated step, the layout :func:`~orchestrator.recording.writer.write_rrd`
+takes), the methods one after the other, and closes it. The recorded rows are written to the
+file as they come (gathered into blocks of ``chunk_rows``), to a temporary name in the same
+folder (``.{name}.{pid}.part``) that :meth:`close` renames to the final one
+(``os.replace``): the final name never holds a half-written file, and an earlier run's
+file there stays until the rename. :meth:`abort` (or an exception in a
+``with`` block) removes the temporary file.
+
+What is recorded does not depend on the chunks: samples are chosen by global step (k % stride
+== 0 for the series and the 3D scene; edges, trails and the leader's path as
+:mod:`.scene` says), so the same traces sent in one chunk or in many give the same file
+contents. What needs the whole run is kept as it goes, bounded, and written at :meth:`close`:
+the default blueprint (its y ranges and camera from running minima and maxima of every trace
+column; in the paper layout, whose views also count how many estimate samples leave the true
+signal's range, from the traces themselves up to :data:`SAMPLE_ROWS` steps, then from every
+2nd, 4th, ... step plus the exact extremes), the legends, the actuator limits and the
+leader's whole path. The blueprint is sent at the close, not first: its ranges, the views it
+leaves an estimate out of, and its panels (actuators, links) are only known then, and a file
+is read whole by the viewer, so it makes no difference there; a live viewer sees the
+data at once and the blueprint at the end.
+
+Memory: the traces of one chunk (the caller's), the recorded rows gathered until they are
+written (:data:`CHUNK_ROWS` rows, fewer for wide fleets: at most :data:`PENDING_BYTES`),
+a few rows per trace column, the sample of the paper layout (at most :data:`SAMPLE_ROWS`
+rows of its few columns per method) and the leader's path (at most
+:data:`~orchestrator.recording.scene.PATH_POINTS` points per method). Gathered rows are
+flushed to the file as they are written, so nothing queues in Rerun's sink. One thing grows
+with the run: the file's footer, a manifest of its Rerun chunks that Rerun's sink keeps in
+memory until the close (about 850 bytes per chunk, one chunk per entity per write: the
+gathering keeps it small; ``footer=False`` drops it, at the cost of the readers' random
+access, see ``rerun.RecordingStream.save``).
+"""
+from __future__ import annotations
+
+import os
+import time
+import uuid
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rerun as rr
+
+from .actuators import DEFAULT_DELTA_MAX, DEFAULT_N_MAX, send_limits
+from .blueprint import LEGEND_ENTITY, _blueprint, _fleet_blueprint
+from .layout import FLEET_TRACE_KEYS, TRACE_KEYS, FleetLayout, _Fleet, method_color
+from .network import LINK_KEYS, LINKS_LEGEND_ENTITY, links_legend, send_links
+from .scene import WorldStream, leader_position, time_columns
+from .summary import SAMPLE_ROWS, RunSummary
+from .validation import (
+    _method_name,
+    _positive_int,
+    _positive_ns,
+    _step_ns,
+    _validate,
+    _validate_fleet,
+)
+from .writer import (
+    _ACTUATOR_KEYS,
+    _fleet_legend,
+    _paper_legend,
+    _send_fleet_series,
+    _send_paper,
+)
+
+__all__ = ["CHUNK_ROWS", "PENDING_BYTES", "SAMPLE_ROWS", "RrdStream"]
+
+#: recorded rows gathered before they are written (one Rerun chunk per entity), by default
+CHUNK_ROWS = 4096
+#: ... or fewer, once they hold this many bytes (a wide fleet's rows)
+PENDING_BYTES = 32 << 20
+
+
+class _StaticOnce:
+    """The recording, logging each entity's static style only the first time (the series
+    writers log it with every chunk)."""
+
+    def __init__(self, rec: rr.RecordingStream) -> None:
+        self.rec = rec
+        self._seen: set[tuple[str, type]] = set()
+
+    def log(self, entity: str, data: Any, *args: Any, static: bool = False,
+            **kwargs: Any) -> None:
+        if static:
+            key = (entity, type(data))
+            if key in self._seen:
+                return
+            self._seen.add(key)
+        self.rec.log(entity, data, *args, static=static, **kwargs)
+
+    def send_columns(self, *args: Any, **kwargs: Any) -> None:
+        self.rec.send_columns(*args, **kwargs)
+
+
+class _Run:
+    """One method's state in the stream."""
+
+    def __init__(self, index: int, k0: int, dims: dict[str, int], sample: bool) -> None:
+        self.index, self.next_k, self.dims = index, k0, dims
+        self.summary = RunSummary(sample)
+        self.world: WorldStream | None = None
+        self.counted = False
+        self.last_recorded = -1
+        self.pending: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []   # recorded rows
+        self.pending_rows = 0
+        self.pending_bytes = 0
+
+
+class RrdStream:
+    """A .rrd written chunk by chunk (module docstring).
+
+    Parameters
+    ----------
+    path : str or Path
+        The final .rrd file (replaced by :meth:`close`).
+    methods : Sequence[str]
+        The methods that may be sent, in their legend and colour order.
+    h : float
+        Step, s (> 0); times are stored as round(h * 1e9) integer nanoseconds.
+    recording_name, application_id, fleet, stride, scene_stride, trail_seconds, \
+trail_sample_seconds, links
+        As :func:`~orchestrator.recording.writer.write_rrd`.
+    chunk_rows : int, optional
+        Recorded rows gathered before they are written (one Rerun chunk per entity; fewer
+        when they reach :data:`PENDING_BYTES`); 1 writes every send at once (a live viewer).
+    footer : bool, optional
+        Write the file's footer (Rerun's chunk manifest, kept in memory until the close).
+
+    Raises
+    ------
+    ValueError
+        A bad argument (as :func:`~orchestrator.recording.writer.write_rrd`); nothing is
+        written then.
+    RuntimeError
+        If Rerun logging is disabled (``RERUN=off``).
+    """
+
+    def __init__(self, path: str | Path, methods: Sequence[str], h: float, *,
+                 recording_name: str, fleet: FleetLayout | None = None, stride: int = 1,
+                 scene_stride: int | None = None, trail_seconds: float = 60.0,
+                 trail_sample_seconds: float = 0.5,
+                 links: Mapping[str, Sequence[str]] | None = None,
+                 application_id: str = "auv-cosim", chunk_rows: int = CHUNK_ROWS,
+                 footer: bool = True) -> None:
+        t0 = time.perf_counter()
+        self.chunk_rows = _positive_int(chunk_rows, "chunk_rows")
+        self.methods = [_method_name(m) for m in methods]
+        if not self.methods or len(set(self.methods)) != len(self.methods):
+            raise ValueError(f"write_rrd: methods must be distinct names, at least one, got "
+                             f"{list(methods)!r}")
+        self.h_ns = _step_ns(h)
+        self.h = float(h)
+        self.stride = _positive_int(stride, "stride")
+        if scene_stride is not None:
+            scene_stride = _positive_int(scene_stride, "scene_stride")
+            if scene_stride % self.stride:
+                raise ValueError(f"write_rrd: scene_stride = {scene_stride} must be a multiple "
+                                 f"of stride = {self.stride}")
+        self.fleet_layout = fleet
+        self.keys = FLEET_TRACE_KEYS if fleet is not None else TRACE_KEYS
+        if fleet is not None:
+            self.trail_ns, sample_ns = (_positive_ns(v, name) for v, name in (
+                (trail_seconds, "trail_seconds"),
+                (trail_sample_seconds, "trail_sample_seconds")))
+            # ceil: the step range covers at least trail_seconds
+            self.trail_steps = -(-self.trail_ns // self.h_ns)
+            self.trail_stride = self.stride * max(1, round(sample_ns / (self.stride * self.h_ns)))
+            self.scene_stride = self.trail_stride if scene_stride is None else scene_stride
+        self.links = {m: list(v) for m, v in links.items()} if links else {}
+        self.colors = method_color(self.methods)
+        self.path = Path(path)
+        self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.part")
+        self._fleet: _Fleet | None = None
+        self._runs: dict[str, _Run] = {}
+        self._current: str | None = None
+        self.signals = 0
+        self._open = False
+        rec = rr.RecordingStream(application_id, recording_id=uuid.uuid4())
+        if not rec.is_enabled():
+            raise RuntimeError("write_rrd: Rerun logging is disabled (RERUN env var?); refusing "
+                               "to write an empty .rrd")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._rec = rec
+        self.rec = _StaticOnce(rec)
+        self._open = True
+        try:
+            rec.save(self.tmp, write_footer=bool(footer))
+            rec.send_recording_name(recording_name)
+            if fleet is not None:
+                rec.log("world", rr.ViewCoordinates.FRD, static=True)
+        except BaseException:
+            self.abort()
+            raise
+        self.seconds = time.perf_counter() - t0
+
+    # -- sending --------------------------------------------------------------------------
+
+    def _clean(self, method: str, traces: Mapping[str, Any],
+               with_links: bool) -> dict[str, np.ndarray] | None:
+        """The chunk's traces as float64 (the layout's keys, the actuator keys present, the
+        link keys if ``with_links``), checked; None for a chunk of no steps."""
+        if isinstance(traces, Mapping):
+            first = traces.get(self.keys[0])
+            if first is not None and np.ndim(first) == 2 and np.shape(first)[0] == 0:
+                return None
+        clean = _validate({method: traces}, self.h, self.keys)[0][method]
+        steps = clean[self.keys[0]].shape[0]
+        extra = [k for k in _ACTUATOR_KEYS if k in traces]
+        if with_links:
+            missing = [k for k in LINK_KEYS if k not in traces]
+            if missing:
+                raise ValueError(f"write_rrd: run {method!r} over links is missing trace "
+                                 f"key(s) {', '.join(map(repr, missing))}")
+            extra += list(LINK_KEYS)
+        for key in extra:
+            arr = np.asarray(traces[key], dtype=np.float64)
+            if arr.ndim != 2 or arr.shape[0] != steps:
+                raise ValueError(f"write_rrd: run {method!r} trace {key!r} has shape "
+                                 f"{arr.shape}, expected ({steps}, ...)")
+            clean[key] = arr
+        return clean
+
+    def send(self, method: str, k0: int, traces: Mapping[str, Any],
+             links: Sequence[str] | None = None) -> None:
+        """Record rows k0 .. k0 + n - 1 (every simulated step) of one method's traces: its
+        recorded steps are written once ``chunk_rows`` of them are gathered (or the method
+        ends: the next method's first send, or :meth:`close`).
+
+        Parameters
+        ----------
+        method : str
+            One of the stream's methods. All chunks of a method come before those of the
+            next; a method whose chunks ended (another was sent since) cannot be sent again.
+        k0 : int
+            Global step of the first row; the method's first chunk may start anywhere
+            (>= 0), each later one where the previous ended.
+        traces : Mapping[str, array]
+            Trace key -> array (n, dim), the keys and shapes of
+            :func:`~orchestrator.recording.writer.write_rrd` (the actuator traces and, for a
+            method over links, the link traces too); the same dims in every chunk.
+            A chunk of no rows is ignored.
+        links : Sequence[str] or None, optional
+            The method's link names ("j -> i", one per column of its ``link_*`` traces) if
+            they were not given when the stream was opened: with its first chunk only.
+
+        Raises
+        ------
+        ValueError
+            A bad chunk (the stream stays usable), an unknown or finished method, or a gap.
+        RuntimeError
+            If the stream is closed or aborted.
+        """
+        if not self._open:
+            raise RuntimeError(f"RrdStream {self.path}: send after close or abort")
+        t0 = time.perf_counter()
+        if method not in self.colors:
+            raise ValueError(f"write_rrd: method {method!r} is not one of the stream's "
+                             f"{self.methods}")
+        if isinstance(k0, (bool, np.bool_)) or not isinstance(k0, (int, np.integer)) or k0 < 0:
+            raise ValueError(f"write_rrd: k0 must be a step number >= 0, got {k0!r}")
+        k0 = int(k0)
+        run = self._runs.get(method)
+        if run is not None and method != self._current:
+            raise ValueError(f"write_rrd: method {method!r} was finished (its chunks must "
+                             f"come before the next method's)")
+        if run is not None and k0 != run.next_k:
+            raise ValueError(f"write_rrd: method {method!r} chunk starts at step {k0}, the "
+                             f"previous one ended at {run.next_k - 1}")
+        if links is not None:
+            links = list(links)
+            if self.links.get(method, links) != links or (run is not None
+                                                           and method not in self.links):
+                raise ValueError(f"write_rrd: method {method!r}: links {links} differ from "
+                                 "those given before (at the open or with its first chunk)")
+        clean = self._clean(method, traces, links is not None or method in self.links)
+        if clean is None:
+            return
+        if links is not None:
+            self.links[method] = links
+        dims = {k: v.shape[1] for k, v in clean.items()}
+        if run is None:
+            fleet = None
+            if self.fleet_layout is not None:
+                fleet = _validate_fleet(self.fleet_layout, {method: clean})
+            self._finish_current()
+            run = _Run(self.methods.index(method), k0, dims, sample=fleet is None)
+            if fleet is not None:
+                self._fleet = self._fleet or fleet
+                run.world = WorldStream(self.rec, method, self._fleet, self.h_ns, self.stride,
+                                        self.scene_stride, self.trail_stride)
+            self._runs[method] = run
+            self._current = method
+        elif dims != run.dims:
+            raise ValueError(f"write_rrd: method {method!r} chunk has trace columns {dims}, "
+                             f"its first chunk had {run.dims}")
+        try:
+            self._write(method, run, k0, clean)
+        except BaseException:
+            self.abort()
+            raise
+        self.seconds += time.perf_counter() - t0
+
+    def _write(self, method: str, run: _Run, k0: int, clean: dict[str, np.ndarray]) -> None:
+        steps = clean[self.keys[0]].shape[0]
+        run.summary.add(k0, clean)
+        if self._fleet is not None:
+            run.summary.add_leader(leader_position(clean["z"], self._fleet.leader_output))
+        first = k0 + (-k0) % self.stride                      # first recorded step
+        ks = np.arange(first, k0 + steps, self.stride, dtype=np.int64)
+        run.next_k = k0 + steps
+        if not ks.size:
+            return
+        rows = {k: v[first - k0::self.stride] for k, v in clean.items()}
+        size = sum(v.nbytes for v in rows.values())
+        run.last_recorded = int(ks[-1])
+        if run.pending_rows + ks.size >= self.chunk_rows or \
+                run.pending_bytes + size >= PENDING_BYTES:
+            run.pending.append((ks, rows))                     # written now: no copy
+            self._flush(method, run)
+        else:                                                  # the caller may reuse its arrays
+            run.pending.append((ks, {k: v.copy() for k, v in rows.items()}))
+            run.pending_rows += ks.size
+            run.pending_bytes += size
+
+    def _flush(self, method: str, run: _Run) -> None:
+        """Write the method's pending recorded rows (one Rerun chunk per entity)."""
+        if not run.pending:
+            return
+        if len(run.pending) == 1:
+            ks, rows = run.pending[0]
+        else:
+            ks = np.concatenate([p[0] for p in run.pending])
+            rows = {k: np.concatenate([p[1][k] for p in run.pending]) for k in run.pending[0][1]}
+        run.pending, run.pending_rows, run.pending_bytes = [], 0, 0
+        indexes = time_columns(ks, self.h_ns)
+        if self._fleet is None:
+            lines = _send_paper(self.rec, method, rows, self.colors, 1, indexes)
+        else:
+            lines = _send_fleet_series(self.rec, method, rows, self._fleet, run.index, 1,
+                                       indexes, len(self.methods))
+            if method in self.links:
+                lines += send_links(self.rec, method, rows, self.links[method], 1, indexes,
+                                    run.index, n=self._fleet.n)
+        if not run.counted:
+            self.signals += lines
+            run.counted = True
+        if run.world is not None:
+            run.world.send(ks, rows)
+        self._rec.flush()
+
+    def _finish_current(self) -> None:
+        """The current method's pending rows and the scene rows that wait for its end
+        (:meth:`WorldStream.close`)."""
+        run = self._runs.get(self._current) if self._current is not None else None
+        if run is None:
+            return
+        self._flush(self._current, run)
+        if run.world is not None:
+            run.world.close()
+            run.world = None
+
+    # -- closing --------------------------------------------------------------------------
+
+    def close(self, last_step: int | None = None) -> dict[str, float]:
+        """Write what needs the whole run (blueprint, legends, limits, the scene's last rows)
+        and rename the file to its final name.
+
+        Parameters
+        ----------
+        last_step : int or None, optional
+            The run's last step, if known (>= every step sent): the actuator limits are drawn
+            up to the last recorded step at or before it. None: the last step sent.
+
+        Returns
+        -------
+        dict[str, float]
+            ``rrd_s`` (wall-clock seconds spent in the stream's calls), ``signals`` (scalar
+            series written, counted as :func:`~orchestrator.recording.writer.write_rrd`
+            does) and ``bytes`` (the file's size).
+
+        Raises
+        ------
+        ValueError
+            If nothing was sent, or ``last_step`` is before a step sent; the temporary file
+            is removed then.
+        RuntimeError
+            If the stream is closed or aborted.
+        """
+        if not self._open:
+            raise RuntimeError(f"RrdStream {self.path}: close after close or abort")
+        t0 = time.perf_counter()
+        try:
+            sent = [m for m in self.methods if m in self._runs
+                    and self._runs[m].last_recorded >= 0]
+            if not sent:
+                raise ValueError("write_rrd: no recorded step was sent; nothing to write")
+            last = max(r.next_k - 1 for r in self._runs.values())
+            if last_step is not None:
+                if int(last_step) < last:
+                    raise ValueError(f"write_rrd: last_step = {last_step} is before step "
+                                     f"{last}, which was sent")
+                last = int(last_step)
+            self._finish_current()
+            self._closing_rows(sent, last)
+            self._rec.flush()
+        except BaseException:
+            self.abort()
+            raise
+        # Dropping the file sink finishes the file (footer + manifest) before returning.
+        self._rec.disconnect()
+        del self._rec, self.rec
+        self._open = False
+        os.replace(self.tmp, self.path)
+        self.seconds += time.perf_counter() - t0
+        return {"rrd_s": self.seconds, "signals": self.signals,
+                "bytes": self.path.stat().st_size}
+
+    def _closing_rows(self, sent: list[str], last: int) -> None:
+        rec = self.rec
+        compact = {m: self._runs[m].summary.compact() for m in sent}
+        if self._fleet is None:
+            rec.log(LEGEND_ENTITY, rr.TextDocument(_paper_legend(sent, self.colors),
+                                                   media_type=rr.MediaType.MARKDOWN), static=True)
+            blueprint = _blueprint(compact)
+        else:
+            actuators = any("rpm" in compact[m] for m in sent)
+            rec.log(LEGEND_ENTITY, rr.TextDocument(_fleet_legend(sent, self._fleet, actuators),
+                                                   media_type=rr.MediaType.MARKDOWN), static=True)
+            with_links = [m for m in sent if m in self.links]
+            if with_links:
+                rec.log(LINKS_LEGEND_ENTITY, rr.TextDocument(
+                    links_legend(with_links), media_type=rr.MediaType.MARKDOWN), static=True)
+            if actuators:
+                ends = np.array([0, last // self.stride * self.stride], dtype=np.int64)
+                send_limits(rec, time_columns(ends, self.h_ns),
+                            self._fleet.n_max or DEFAULT_N_MAX,
+                            self._fleet.delta_max or DEFAULT_DELTA_MAX)
+            points = np.concatenate([np.vstack([
+                compact[m]["x"][:, self._fleet.position_index].reshape(-1, 3),
+                *self._runs[m].summary.leader]) for m in sent])
+            blueprint = _fleet_blueprint(sent, self._fleet, self.trail_ns, self.trail_steps,
+                                         compact, links={m: self.links[m] for m in with_links}
+                                         or None, points=points)
+        self._rec.send_blueprint(blueprint, make_active=False, make_default=True)
+
+    def abort(self) -> None:
+        """Stop writing and remove the temporary file (the final name is left as it was).
+        Does nothing after :meth:`close` or a first abort."""
+        if not self._open:
+            return
+        self._open = False
+        try:
+            self._rec.disconnect()
+        finally:
+            del self._rec, self.rec
+            self.tmp.unlink(missing_ok=True)
+
+    def __enter__(self) -> RrdStream:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        """Aborts a stream that was not closed (an exception, or no :meth:`close`)."""
+        self.abort()
