@@ -11,6 +11,7 @@ import pytest
 
 from orchestrator.cli import main
 from orchestrator.cli.parser import build_parser
+from orchestrator.numbers import sig
 from orchestrator.scenario import load_scenario
 from orchestrator.scenario.loader import SCENARIO_DIR
 
@@ -58,7 +59,7 @@ def test_run_prints_values_not_none_and_no_std_for_one_seed(capsys, tmp_path):
     (note,) = notes
     assert "run T >= 66.7 s" in note and "[10, 20) s" in note     # the figures it means
     expected = summary["methods"]["kalman"]["cost_rate"]["predicted_window"]
-    assert f"kalman {expected:#.4g}" in note
+    assert f"kalman {sig(expected, 4)}" in note
 
 
 def test_run_without_prediction_leaves_the_columns_out(capsys, tmp_path):

@@ -13,7 +13,7 @@ from orchestrator.recording import (
     read_rrd_series_lines,
     write_rrd,
 )
-from orchestrator.recording.layout import axis_colors
+from orchestrator.recording.layout import axis_colors, fleet_method_line
 from support.recording import (
     CURRENT_NAMES,
     FLEET_H,
@@ -91,8 +91,10 @@ def test_fleet_series_lines(fleet_written):
     lines = read_rrd_series_lines(path)
     every = set()
     for j, m in enumerate(FLEET_METHODS):
-        # one hue per component (north red, east green, down blue), one shade per method
-        axes = tuple(c + (255,) for c in axis_colors(3, j))
+        # one hue per component (north red, east green, down blue), one shade per method;
+        # the first of several methods see-through (and wide: fleet_method_line)
+        alpha = fleet_method_line(j, len(FLEET_METHODS))[1]
+        axes = tuple(c + (alpha,) for c in axis_colors(3, j))
         for i in (1, N_VEH):
             names, rgba = lines[f"vehicles/{i}/error/{m}"]
             assert names == tuple(f"{m} {c}" for c in fleet.error_names)
@@ -115,7 +117,8 @@ def test_fleet_series_lines(fleet_written):
     assert axis_colors(3, 0) == [(214, 39, 40), (44, 160, 44), (31, 119, 180)]
     # the first-line view of the same styles
     styles = read_rrd_series_styles(path)
-    assert styles["vehicles/1/error/kalman"] == ("kalman north", (214, 39, 40, 255))
+    first = fleet_method_line(0, len(FLEET_METHODS))[1]
+    assert styles["vehicles/1/error/kalman"] == ("kalman north", (214, 39, 40, first))
 
 
 def test_fleet_default_state_and_no_current(tmp_path):

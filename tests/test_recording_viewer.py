@@ -129,9 +129,10 @@ def test_paper_views_have_units_ranges_and_min_max(paper_rrd):
     assert len(series) == 16             # 10 figure views and 6 full-scale ones
 
 
-def test_the_ideal_line_is_wide_and_translucent_beside_kalman(tmp_path):
-    """The ideal method (nearly the Kalman curve) is drawn wider and translucent: each shows
-    beside the other."""
+def test_the_ideal_line_is_wide_under_a_see_through_kalman_line(tmp_path):
+    """The ideal method (nearly the Kalman curve) is drawn wider and opaque; the Kalman
+    line, which the viewer draws over it (entity-path order), is see-through: the ideal
+    noise band shows through the Kalman band."""
     rng = np.random.default_rng(3)
     runs = {m: {k: rng.standard_normal((50, 2)) for k in
                 ("e", "u", "x", "xhat", "w", "what", "z", "zhat", "y", "ybar")}
@@ -141,7 +142,8 @@ def test_the_ideal_line_is_wide_and_translucent_beside_kalman(tmp_path):
     widths = _static(path, "SeriesLines:widths")
     lines = read_rrd_series_lines(path)
     assert widths["error/1/ideal"][0] >= 2 * widths["error/1/kalman"][0]
-    assert lines["error/1/ideal"][1][0][3] < 200 and lines["error/1/kalman"][1][0][3] == 255
+    assert lines["error/1/ideal"][1][0][3] == 255 and lines["error/1/kalman"][1][0][3] < 200
+    assert "error/1/ideal" < "error/1/kalman"          # the viewer's drawing order
 
 
 def _path_to(tree: dict, name: str, trail: tuple = ()) -> tuple | None:

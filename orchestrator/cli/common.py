@@ -10,6 +10,7 @@ from pathlib import Path
 from controller_fmu.vehicle_law import ARCHITECTURES, DEPLOYMENTS
 from plant_model.acoustic.settings import RECEIVERS
 
+from ..numbers import sig
 from ..scenario import Scenario, builtin_scenarios, load_scenario
 from .args import _positive
 from .errors import UsageError
@@ -159,24 +160,18 @@ def saturation_line(method: str, per_vehicle: list[float] | None) -> str | None:
             "force_budget or bandwidth)")
 
 
-
-def _g(v: float | None, fmt: str) -> str | None:
-    """``v`` formatted, or None when there is no value."""
-    return None if v is None else format(v, fmt)
-
-
 def _rms_cell(m: dict) -> str:
     """The rms e cell of a method: simulated, with the prediction after a slash where one
     exists; a fleet's worst component (and the noise-free steady error when predicted)."""
     sim_e = m["rms_e"]["mean"]
     pred_e = m["rms_e"].get("predicted") or [None] * len(sim_e)
     if len(sim_e) <= 4:
-        return ", ".join(f"{a:#.3g}" + ("" if b is None else f"/{b:#.3g}")
+        return ", ".join(sig(a, 3) + ("" if b is None else f"/{sig(b, 3)}")
                          for a, b in zip(sim_e, pred_e))
     preds = [b for b in pred_e if b is not None]
     steady = (m.get("steady_error") or {}).get("max_rms_e_without_noise_predicted")
-    return (f"max {max(sim_e):#.3g}" + (f"/{max(preds):#.3g}" if preds else "")
-            + ("" if steady is None else f"; steady error (noise-free RMS) {steady:#.3g}"))
+    return (f"max {sig(max(sim_e), 3)}" + (f"/{sig(max(preds), 3)}" if preds else "")
+            + ("" if steady is None else f"; steady error (noise-free RMS) {sig(steady, 3)}"))
 
 
 def method_table(summary: dict) -> list[str]:
@@ -200,19 +195,20 @@ def method_table(summary: dict) -> list[str]:
             lines.append(f"{name:>10s}   {m.get('note', 'no statistics')}")
             continue
         c = m["cost_rate"]
-        row = f"{name:>10s} {c['mean']:#12.4g}"
+        row = f"{name:>10s} {sig(c['mean'], 4, 12)}"
         if many:
-            row += f" {c['std']:#9.3g}"
+            row += f" {sig(c['std'], 3, 9)}"
         if predicted:
-            row += f" {_g(c.get('predicted'), '#.4g') or '-':>10s}"
+            pred = c.get("predicted")
+            row += f" {'-' if pred is None else sig(pred, 4):>10s}"
         lines.append(f"{row}   {_rms_cell(m)}")
         sep = m.get("min_separation")
         if m.get("formation_error_rms"):
             worst = max(m["formation_error_rms"], key=m["formation_error_rms"].get)
             lines.append(f"{'':>10s}   formation error RMS (window) worst edge {worst} "
-                         f"{m['formation_error_rms'][worst]:#.3g} m"
+                         f"{sig(m['formation_error_rms'][worst], 3)} m"
                          + ("" if sep is None else
-                            f"; closest approach {sep['m']:#.3g} m (vehicles "
+                            f"; closest approach {sig(sep['m'], 3)} m (vehicles "
                             f"{sep['vehicles'][0]} and {sep['vehicles'][1]} at t = "
                             f"{sep['time_s']:.4g} s, seed {sep['seed']})"))
     return lines
@@ -226,7 +222,7 @@ def stationarity_line(summary: dict) -> str | None:
     if not note:
         return None
     lo, hi = summary["stats_window_s"]
-    window = ", ".join(f"{n} {m['cost_rate']['predicted_window']:#.4g}"
+    window = ", ".join(f"{n} {sig(m['cost_rate']['predicted_window'], 4)}"
                        for n, m in summary["methods"].items()
                        if (m.get("cost_rate") or {}).get("predicted_window") is not None)
     settles, at_least = summary.get("settling_time_s"), summary.get("stationary_T_s")
@@ -238,17 +234,39 @@ def stationarity_line(summary: dict) -> str | None:
     return head + (f"; expected over this window: {window}" if window else "")
 
 
+def links_line(method: str, m: dict) -> str | None:
+    """What the acoustic links did in a method's run (None without links): the links and
+    their settings, and the age of the newest message a receiver holds, mean (predicted)
+    and worst over the window, the worst receiver-sender pair's."""
+    net, ages = m.get("network"), m.get("age_of_information")
+    if not net:
+        return None
+    line = (f"links: {method}: {net['links']} links, a message every {net['period']:g} s, "
+            f"{net['latency']:g} s on the way, {net['loss']:.0%} lost "
+            f"({net.get('loss_model', 'independent')}), receiver {net['receiver']}")
+    pairs = [a for per in (ages or {}).values() for a in per.values()]
+    if pairs:
+        worst = max(pairs, key=lambda a: a["mean"])
+        pred = worst.get("predicted_mean")
+        line += (f"; age of information up to {sig(worst['mean'], 3)} s on average"
+                 + ("" if pred is None else f" (predicted {sig(pred, 3)})")
+                 + f", {sig(max(a['max'] for a in pairs), 3)} s at worst")
+    return line
+
+
 def summary_notes(summary: dict) -> list[str]:
-    """The notes under the table, one line each: saturation, why a prediction is missing,
-    the full-information bound, the stationarity of the window."""
+    """The notes under the table, one line each: saturation, the acoustic links, why a
+    prediction is missing, the full-information bound, the stationarity of the window."""
     lines = [line for name, m in summary["methods"].items()
              if (line := saturation_line(name, m.get(
                  "actuator_saturation_fraction_per_vehicle")))]
+    lines += [line for name, m in summary["methods"].items()
+              if (line := links_line(name, m))]
     notes = {m.get("prediction_note") for m in summary["methods"].values()} - {None}
     lines += [f"note: {note}" for note in sorted(notes)]
     if summary.get("cost_rate_full_information") is not None:
         line = (f"full-information bound (every state known, the same cost) "
-                f"{summary['cost_rate_full_information']:#.4g}")
+                f"{sig(summary['cost_rate_full_information'], 4)}")
         if summary.get("price_of_decentralization") is not None:
             pred = summary.get("price_of_decentralization_predicted")
             line += (f"; price of decentralization J_distributed / J_centralized "
@@ -298,12 +316,12 @@ def print_summary(summary: dict, out: Path, note: str = "") -> int:
         print(f"open it with: {viewer_command()} {shlex.quote(rrd)}")
     if summary.get("interrupted"):
         from ..interrupt import EXIT_STATUS
-        sig = summary["interrupted_by"]
+        by = summary["interrupted_by"]
         kept = (f"{rrd} (traces to t = {summary['time_reached_s']:.6g} s)" if rrd
                 else "no traces (stopped before the first steps)")
-        print(f"auv-cosim: interrupted by {sig} at t = {summary['time_reached_s']:.6g} s of "
+        print(f"auv-cosim: interrupted by {by} at t = {summary['time_reached_s']:.6g} s of "
               f"{summary['T']} s: kept {kept} and {out / 'summary.json'} (marked "
               f"\"interrupted\": true; statistics over the seeds that completed)"
               + (f"; {note}" if note else ""), file=sys.stderr)
-        return EXIT_STATUS.get(sig, 130)
+        return EXIT_STATUS.get(by, 130)
     return 0

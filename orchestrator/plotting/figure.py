@@ -18,8 +18,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-__all__ = ["DPI", "PlotFigure", "axis_label", "deterministic_style", "estimate_rgb",
-           "legend_outside", "new_figure", "rgb"]
+__all__ = ["DPI", "LineStyle", "PlotFigure", "axis_label", "deterministic_style",
+           "drawing_order", "estimate_rgb", "legend_outside", "line_styles", "new_figure", "rgb"]
 
 #: Resolution of the PNG files, dots per inch; a figure of w x h inches is w*DPI x h*DPI px.
 DPI = 150
@@ -68,6 +68,9 @@ class PlotFigure:
         Recording entity (or ``entity[c]`` for component c, or a derived name such as
         ``vehicles/1/error/kalman:norm``) -> the line that draws it; its data are the values
         read from the .rrd (time in s on x).
+    whole : dict[str, Line2D]
+        Entity -> the line of its whole-run panel where that panel overlays methods (the bin
+        mean of the envelope, or every sample of a short run).
     clipped : dict[str, tuple[float, float]]
         Entity -> (min, max) of a series that leaves the y-axis (drawn clipped, and said so
         in the title and legend).
@@ -76,6 +79,7 @@ class PlotFigure:
     name: str
     figure: Figure
     series: dict[str, Line2D] = field(default_factory=dict)
+    whole: dict[str, Line2D] = field(default_factory=dict)
     clipped: dict[str, tuple[float, float]] = field(default_factory=dict)
 
 
@@ -102,6 +106,85 @@ def new_figure(width: float, height: float, nrows: int = 1, ncols: int = 1,
     FigureCanvasAgg(fig)
     axes = fig.subplots(nrows, ncols, squeeze=False, **subplot_kw)
     return fig, axes
+
+
+#: matplotlib line width per viewer point of a method's line
+_MPL_WIDTH = 1.2
+
+
+@dataclass(frozen=True)
+class LineStyle:
+    """A method's line in matplotlib (from :func:`orchestrator.recording.layout.method_styles`,
+    the viewer's style): colour, dash, width, opacity and drawing order."""
+
+    color: tuple[float, float, float]
+    linestyle: str
+    linewidth: float
+    alpha: float
+    zorder: float
+
+    def kw(self) -> dict[str, object]:
+        """The keywords of :meth:`Axes.plot`."""
+        return {"color": self.color, "ls": self.linestyle, "lw": self.linewidth,
+                "alpha": self.alpha, "zorder": self.zorder}
+
+
+def line_styles(methods: tuple[str, ...] | list[str], spread: dict[str, float] | None = None,
+                base: float = 3.0) -> dict[str, LineStyle]:
+    """Each method's :class:`LineStyle`: distinct in colour and in dash or width, and drawn
+    back to front by :func:`drawing_order`; z-orders from ``base`` up, below ``base + 1``.
+
+    Parameters
+    ----------
+    methods : tuple[str, ...] or list[str]
+        The methods in the recording's order.
+    spread : dict[str, float] or None, optional
+        Each method's spread (e.g. the standard deviation of its trace), for the order.
+    base : float, optional
+        z-order of the back layer.
+
+    Returns
+    -------
+    dict[str, LineStyle]
+    """
+    from orchestrator.recording.layout import method_styles
+    styles = method_styles(methods)
+    order = drawing_order(methods, spread or {}, {m for m, s in styles.items() if s.wide})
+    n = max(len(styles), 1)
+    return {m: LineStyle(rgb(s.color), s.dash, _MPL_WIDTH * s.width, s.alpha / 255.0,
+                         base + order.index(m) / n) for m, s in styles.items()}
+
+
+def drawing_order(methods: tuple[str, ...] | list[str], spread: dict[str, float],
+                  wide: set[str]) -> list[str]:
+    """The methods back to front: the widest spread first (its noise would hide the others),
+    but each wide translucent method just under the thin method nearest to it in spread
+    (the ideal estimator under the Kalman filter, its nearly equal curve), so that the thin
+    line shows on top and the wide one round it.
+
+    Parameters
+    ----------
+    methods : tuple[str, ...] or list[str]
+    spread : dict[str, float]
+        Spread per method (missing: 0).
+    wide : set[str]
+        The wide translucent methods.
+
+    Returns
+    -------
+    list[str]
+    """
+    def key(m: str) -> float:
+        return -spread.get(m, 0.0)
+    thin = sorted((m for m in methods if m not in wide), key=key)
+    order = list(thin)
+    for m in sorted((m for m in methods if m in wide), key=key):
+        if not thin:
+            order.append(m)
+            continue
+        partner = min(thin, key=lambda t: abs(spread.get(t, 0.0) - spread.get(m, 0.0)))
+        order.insert(order.index(partner), m)
+    return order
 
 
 def rgb(color: tuple[int, int, int] | np.ndarray) -> tuple[float, float, float]:

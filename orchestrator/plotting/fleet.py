@@ -158,15 +158,18 @@ def _paths_figure(run: RunData, n: int) -> PlotFigure:
 def _error_norm_figure(run: RunData, n: int) -> PlotFigure:
     """fleet-errors: per method a row, the whole run with the start-up transient shaded (up
     to the start of the statistics window) and a zoom on the statistics window, its y-axis
-    scaled to the window."""
+    scaled to the window. The methods' rows share their y-axes column by column (one scale
+    for the whole runs, one for the windows), so the gap between the methods shows."""
     colors = [rgb(c) for c in _vehicle_colors(n)]
     k = len(run.methods)
     fig, axes = new_figure(11.5 + (1.0 if n > 10 else 0.0), 0.9 + 3.0 * k, k, 2,
-                           sharex="col", gridspec_kw={"width_ratios": [1.4, 1.0]})
+                           sharex="col", sharey="col",
+                           gridspec_kw={"width_ratios": [1.4, 1.0]})
     pf = PlotFigure("fleet-errors", fig)
     names = list(run.error_names)
     units = {run.units.get(c) for c in names} if names else {None}
     unit = units.pop() if len(units) == 1 else None
+    windows = []
     for (whole, zoom), m in zip(axes, run.methods):
         drawn = []
         for i in range(n):
@@ -184,17 +187,18 @@ def _error_norm_figure(run: RunData, n: int) -> PlotFigure:
             whole.axvspan(0.0, t0, color="0.85", lw=0, zorder=0,
                           label="start-up transient\n(before the statistics window)")
         whole.set_xlim(0.0, t_end)
-        whole.set_ylim(bottom=0.0)
         zoom.set_xlim(t0, t_end)
-        lim = finite_limits(drawn, t0, t_end)
-        if lim is not None:
-            zoom.set_ylim(0.0, lim[1])
+        windows.append((drawn, t0, t_end))
         whole.set_ylabel(axis_label(r"$\|e_i\|$", unit))
         whole.set_title(f"method {m}: whole run", loc="left")
         t1 = (run.summary.get("stats_window_s") or [None, t_end])[1] or t_end
         zoom.set_title(f"statistics window t in [{t0:.4g}, {t1:.4g}) s", loc="left")
     for ax in axes[-1]:
         ax.set_xlabel("time t (s)")
+    axes[0, 0].set_ylim(bottom=0.0)      # shared by the column: every method's whole run
+    lims = [lim for drawn, t0, t1 in windows if (lim := finite_limits(drawn, t0, t1))]
+    if lims:                             # one scale for every method's window
+        axes[0, 1].set_ylim(0.0, max(hi for _, hi in lims))
     handles, labels = axes[0, 0].get_legend_handles_labels()
     axes[0, 1].legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0),
                       borderaxespad=0.0, ncol=2 if n > 10 else 1, frameon=False)

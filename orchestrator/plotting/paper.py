@@ -19,7 +19,15 @@ from matplotlib.axes import Axes
 
 from orchestrator.recording import method_color
 
-from .figure import PlotFigure, axis_label, estimate_rgb, legend_outside, new_figure, rgb
+from .figure import (
+    PlotFigure,
+    axis_label,
+    estimate_rgb,
+    legend_outside,
+    line_styles,
+    new_figure,
+    rgb,
+)
 from .run_folder import RunData
 from .window import BINS, draw_envelope, finite_limits, zoom_window
 
@@ -115,21 +123,26 @@ def _frame(ax_whole: Axes, ax_zoom: Axes, zoom: tuple[float, float], n: int,
 def _simple_figure(run: RunData, root: str, i: int, title: str, symbol: str) -> PlotFigure:
     """error-i or control-i: left, the whole run of every method as the envelope of its
     noise (min-max band per bin, bin mean), its full range shown; right, a zoom of
-    :data:`~.window.ZOOM_S` s after the start-up transient, every sample drawn."""
-    colors = method_color(run.methods)
+    :data:`~.window.ZOOM_S` s after the start-up transient, every sample drawn. Each method
+    has its own colour and dash or width in the whole run (:func:`~.figure.line_styles`;
+    the zoom draws every sample solid): the ideal estimator's wide translucent line lies
+    under the Kalman filter's thin one; every band under every line, the widest band and
+    the noisiest line at the back."""
+    spread = {m: _spread(run.scalars[f"{root}/{i}/{m}"][2]) for m in run.methods}
+    styles = line_styles(run.methods, spread)
     pf, axes, t_end, zoom = _panels(run, 1, _HEIGHT)
     pf.name = f"{root}-{i}"
     whole, zoomed = axes[0]
-    spread = {m: _spread(run.scalars[f"{root}/{i}/{m}"][2]) for m in run.methods}
     back_to_front = sorted(run.methods, key=lambda m: -spread[m])
     n = 0
-    for m in run.methods:           # the widest series at the back: the others stay visible
+    for m in run.methods:
         entity = f"{root}/{i}/{m}"
         _, t, v = run.scalars[entity]
         n = len(v)
-        z = 2 + back_to_front.index(m) / len(back_to_front)
-        draw_envelope(whole, _seconds(t), v, rgb(colors[m]), zorder=z)
-        (line,) = zoomed.plot(_seconds(t), v, color=rgb(colors[m]), label=m, zorder=z)
+        band_z = 1 + back_to_front.index(m) / len(back_to_front)   # widest band at the back
+        pf.whole[entity] = draw_envelope(whole, _seconds(t), v, styles[m].color, label=m,
+                                         line=styles[m].kw(), band_zorder=band_z)
+        (line,) = zoomed.plot(_seconds(t), v, label=m, **{**styles[m].kw(), "ls": "-"})
         pf.series[entity] = line
     _frame(whole, zoomed, zoom, n, t_end)
     lim = finite_limits([(_seconds(t), v) for _, t, v in
@@ -140,7 +153,7 @@ def _simple_figure(run: RunData, root: str, i: int, title: str, symbol: str) -> 
         ax.set_xlabel("time t (s)")
     whole.set_ylabel(axis_label(f"${symbol}_{{{i}}}$", None))
     pf.figure.suptitle(_title(run, title.format(sym=f"${symbol}_{{{i}}}$")), fontsize=10)
-    legend_outside(zoomed)
+    legend_outside(zoomed, handles=[pf.whole[f"{root}/{i}/{m}"] for m in run.methods])
     return pf
 
 

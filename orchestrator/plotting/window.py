@@ -11,6 +11,7 @@ from typing import NamedTuple
 
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.lines import Line2D
 
 __all__ = ["BINS", "ZOOM_S", "Envelope", "draw_envelope", "envelope", "finite_limits",
            "stats_start", "zoom_window"]
@@ -62,15 +63,28 @@ def envelope(t: np.ndarray, v: np.ndarray, bins: int = BINS) -> Envelope:
 
 
 def draw_envelope(ax: Axes, t: np.ndarray, v: np.ndarray, color: tuple[float, float, float],
-                  *, zorder: float = 2.0, label: str | None = None) -> None:
+                  *, zorder: float = 2.0, label: str | None = None,
+                  line: dict[str, object] | None = None,
+                  band_zorder: float | None = None) -> Line2D:
     """The whole run of ``v`` on ``ax``: its min-max band per bin (light) and the bin mean
-    (a line), or every sample when the run is short (fewer than 2 samples a bin)."""
+    (a line), or every sample when the run is short (fewer than 2 samples a bin).
+
+    ``line`` (keywords of :meth:`Axes.plot`: a method's :class:`~.figure.LineStyle`) styles
+    the line instead of ``color`` and ``zorder``; ``band_zorder`` puts the band elsewhere
+    (under every method's line). Returns the line."""
+    style = {"color": color, "zorder": zorder, **(line or {})}
     if len(v) < 2 * BINS:
-        ax.plot(t, v, color=color, zorder=zorder, label=label, lw=0.8)
-        return
+        style.setdefault("lw", 0.8)
+        (drawn,) = ax.plot(t, v, label=label, **style)
+        return drawn
     env = envelope(t, v)
-    ax.fill_between(env.t, env.lo, env.hi, color=color, alpha=0.22, lw=0, zorder=zorder)
-    ax.plot(env.t, env.mean, color=color, lw=1.1, zorder=zorder + 0.05, label=label)
+    ax.fill_between(env.t, env.lo, env.hi, color=style["color"], alpha=0.22, lw=0,
+                    zorder=zorder if band_zorder is None else band_zorder)
+    style.setdefault("lw", 1.1)
+    if line is None:
+        style["zorder"] = zorder + 0.05
+    (drawn,) = ax.plot(env.t, env.mean, label=label, **style)
+    return drawn
 
 
 def stats_start(summary: dict, t_end: float) -> float:

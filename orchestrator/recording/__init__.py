@@ -19,7 +19,8 @@ from .layout import TRACE_KEYS, VIEW_GROUPS, FleetLayout, method_color
 #: the layout (the workflow, before a run) does not pay Rerun's import (about 0.5 s)
 _LAZY = {"write_rrd": ".writer", "RrdStream": ".stream", "read_rrd_line_strips": ".reader",
          "read_rrd_points": ".reader", "read_rrd_scalars": ".reader",
-         "read_rrd_series": ".reader", "read_rrd_series_lines": ".reader"}
+         "read_rrd_series": ".reader", "read_rrd_series_lines": ".reader",
+         "read_rrd_view_ranges": ".reader"}
 
 
 def __getattr__(name: str) -> Any:
@@ -39,5 +40,6 @@ __all__ = [
     "read_rrd_scalars",
     "read_rrd_series",
     "read_rrd_series_lines",
+    "read_rrd_view_ranges",
     "write_rrd",
 ]

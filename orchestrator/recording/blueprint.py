@@ -23,7 +23,8 @@ Fleet layout: the 3D view(s) on the left, framed from above and behind the forma
 every vehicle and the leader over the whole run; below them the actuators (nonlinear
 vehicles: one view per actuator kind) and the links (acoustic links: their legend line and
 counts); per-vehicle error/control (and age of information) views on the right (a grid, or
-tabs of grids for many vehicles), whole run, legends hidden.
+tabs of grids for many vehicles), whole run, legends hidden; every error view on one y
+range and every control view on one (:func:`fleet_ranges`), so they compare at a glance.
 """
 from __future__ import annotations
 
@@ -209,11 +210,25 @@ def fleet_camera(points: np.ndarray) -> rrb.EyeControls3D:
                              look_target=centre.tolist(), eye_up=[0.0, 0.0, -1.0])
 
 
-def _vehicle_ranges(fleet: _Fleet, runs: dict[str, dict[str, np.ndarray]], i: int
-                    ) -> tuple[tuple[float, float], tuple[float, float]]:
-    """y ranges of vehicle i's error and control views (every method)."""
-    return (data_range([r["e"][:, fleet.error_index[i - 1]] for r in runs.values()]),
-            data_range([r["u"][:, fleet.control_index[i - 1]] for r in runs.values()]))
+def fleet_ranges(fleet: _Fleet, runs: dict[str, dict[str, np.ndarray]]
+                 ) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The y ranges of the fleet's error views and of its control views: each one range
+    for every vehicle and every method (the views of a comparison share their scale, so
+    the gap between the methods and between the vehicles shows).
+
+    Parameters
+    ----------
+    fleet : _Fleet
+    runs : dict[str, dict[str, np.ndarray]]
+        Method -> traces.
+
+    Returns
+    -------
+    tuple[tuple[float, float], tuple[float, float]]
+        (error range, control range).
+    """
+    return (data_range([r["e"][:, fleet.error_index.ravel()] for r in runs.values()]),
+            data_range([r["u"][:, fleet.control_index.ravel()] for r in runs.values()]))
 
 
 def _fleet_blueprint(methods: list[str], fleet: _Fleet, trail_ns: int, trail_steps: int,
@@ -263,8 +278,10 @@ def _fleet_blueprint(methods: list[str], fleet: _Fleet, trail_ns: int, trail_ste
     error_unit = unit_of(fleet.error_names, fleet.error_unit)
     control_unit = unit_of(fleet.control_names, fleet.control_unit)
 
+    # one y range for every vehicle's errors, one for their controls (a live viewer: auto)
+    err, ctl = fleet_ranges(fleet, runs) if fixed else (None, None)
+
     def vehicle_views(i: int) -> list[rrb.TimeSeriesView]:
-        err, ctl = _vehicle_ranges(fleet, runs, i) if fixed else (None, None)
         views = [view(f"vehicle {i} error ({error_unit})", f"/vehicles/{i}/error", None, err),
                  view(f"vehicle {i} control ({control_unit})", f"/vehicles/{i}/control", None,
                       ctl)]

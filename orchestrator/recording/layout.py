@@ -13,7 +13,8 @@ import numpy as np
 from estimator_fmu.registry import ESTIMATORS
 
 __all__ = ["FLEET_TRACE_KEYS", "TRACE_KEYS", "TRUE_COLOR", "VIEW_GROUPS", "FleetLayout",
-           "axis_colors", "color_name", "method_color"]
+           "MethodStyle", "axis_colors", "color_name", "fleet_method_line", "method_color",
+           "method_styles"]
 
 # (trace key, entity path template, series-name suffix, is an estimate)
 _SERIES: tuple[tuple[str, str, str, bool], ...] = (
@@ -49,6 +50,10 @@ VIEW_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
 
 #: each estimator's colour (its registry row)
 _FIXED_COLORS: dict[str, tuple[int, int, int]] = {k: e.color for k, e in ESTIMATORS.items()}
+#: (line width, alpha) of the estimators drawn wide and translucent (the ideal one, whose
+#: trace is nearly the Kalman filter's): under the others, showing round them
+_WIDE: dict[str, tuple[float, int]] = {k: e.wide for k, e in ESTIMATORS.items()
+                                       if e.wide is not None}
 _PALETTE: tuple[tuple[int, int, int], ...] = (
     (214, 39, 40),    # red
     (148, 103, 189),  # purple
@@ -107,6 +112,100 @@ def method_color(methods: list[str] | tuple[str, ...]) -> dict[str, tuple[int, i
             colors[m] = _PALETTE[n_unknown % len(_PALETTE)]
             n_unknown += 1
     return colors
+
+
+#: line width of a method's traces (viewer points; matplotlib scales it by _MPL_WIDTH)
+_LINE_WIDTH = 1.0
+#: dash patterns of the thin methods in matplotlib, in the methods' order (the viewer draws
+#: every line solid: there, colour, width and drawing order tell them apart)
+_DASHES: tuple[str, ...] = ("-", "--", ":", "-.")
+#: the viewer's opacity of a thin method drawn over a wide one (:class:`MethodStyle`)
+_OVER_WIDE_ALPHA = 140
+
+
+@dataclass(frozen=True)
+class MethodStyle:
+    """How one method's traces are drawn, the same in the viewer and in matplotlib: every
+    method differs from every other in colour and in width or dash, and the wide translucent
+    ones (the ideal estimator, whose curve is nearly the Kalman filter's) are drawn first,
+    so the thin line of the nearly equal method shows on top and the wide one round it."""
+
+    color: tuple[int, int, int]     #: RGB 0-255
+    width: float                    #: line width (viewer points)
+    alpha: int                      #: opacity 0-255
+    dash: str                       #: matplotlib line style ("-", "--", ":", "-.")
+    layer: int                      #: drawing order among the methods: 0 first (at the back)
+    #: opacity in the viewer, which draws a view's series in the order of their entity
+    #: paths (``error/1/classical`` < ``error/1/ideal`` < ``error/1/kalman``), each as the
+    #: min-max band of its noise when zoomed out: a thin method drawn after a wide one is
+    #: translucent there, so the wide one's band shows through it; the wide one is opaque
+    viewer_alpha: int = 255
+
+    @property
+    def wide(self) -> bool:
+        """Whether it is a wide translucent line (drawn under the thin ones)."""
+        return self.width > _LINE_WIDTH
+
+
+def method_styles(methods: list[str] | tuple[str, ...]) -> dict[str, MethodStyle]:
+    """The :class:`MethodStyle` of each method: its colour (:func:`method_color`); the
+    width and opacity of its registry row (``wide``: the ideal estimator, 3 points at
+    150/255) or a thin opaque line with a dash of its own (solid, dashed, dotted,
+    dash-dotted in the methods' order; after four, the colour alone tells them apart);
+    wide methods in the back layers; in the viewer (``viewer_alpha``) the wide ones opaque
+    and a thin one drawn over them translucent.
+
+    Parameters
+    ----------
+    methods : list[str] or tuple[str, ...]
+        Method names in the recording's order.
+
+    Returns
+    -------
+    dict[str, MethodStyle]
+        Method -> style, in the order of ``methods``.
+    """
+    colors = method_color(methods)
+    wide = [m for m in methods if m in _WIDE]
+    thin = [m for m in methods if m not in _WIDE]
+    order = wide + thin
+    out = {}
+    for m in methods:
+        width, alpha = _WIDE.get(m, (_LINE_WIDTH, 255))
+        dash = "-" if m in _WIDE else _DASHES[thin.index(m) % len(_DASHES)]
+        over_wide = m not in _WIDE and any(w < m for w in wide)     # entity path order
+        out[m] = MethodStyle(colors[m], float(width), int(alpha), dash, order.index(m),
+                             _OVER_WIDE_ALPHA if over_wide else 255)
+    return out
+
+
+#: (width, alpha) of the first method's per-vehicle lines when a fleet recording holds more
+#: than one method: wide and see-through, so the others' thin lines show on it or through it
+_FLEET_FIRST_LINE = (2.5, 150)
+
+
+def fleet_method_line(method_index: int, n_methods: int) -> tuple[float, int]:
+    """(width, alpha) of a method's per-vehicle series in a fleet recording. Its components
+    have one hue each (:func:`axis_colors`), a method a shade of them; on the viewer's dark
+    background a darker shade alone hardly shows, so with two methods or more the first
+    is also drawn wide and see-through and the others thin and opaque: whichever the
+    viewer draws last (entity-path order), both show.
+
+    Parameters
+    ----------
+    method_index : int
+        Position of the method in the recording (0-based).
+    n_methods : int
+        Methods in the recording.
+
+    Returns
+    -------
+    tuple[float, int]
+        Line width (points) and alpha (0-255).
+    """
+    if n_methods > 1 and method_index == 0:
+        return _FLEET_FIRST_LINE
+    return (_LINE_WIDTH, 255)
 
 
 @dataclass(frozen=True, eq=False)

@@ -20,6 +20,7 @@ __all__ = [
     "read_rrd_scalars",
     "read_rrd_series",
     "read_rrd_series_lines",
+    "read_rrd_view_ranges",
 ]
 
 
@@ -247,3 +248,46 @@ def read_rrd_series_lines(
                        tuple(_unpack_rgba(c)
                              for c in batch.column("SeriesLines:colors").to_pylist()[-1]))
     return out
+
+
+def read_rrd_view_ranges(path: str | Path) -> dict[str, tuple[float, float] | None]:
+    """The time-series views of the default blueprint embedded in the .rrd file ``path``:
+    each view's name and the y range it opens with.
+
+    Returns
+    -------
+    dict[str, tuple[float, float] or None]
+        View name (e.g. ``vehicle 1 error (m)``) -> (low, high) of its y-axis, None for a
+        view that fits its axis to the data. Views of other kinds (3D, text) are left out.
+
+    Raises
+    ------
+    ValueError
+        If the file holds no blueprint.
+    """
+    reader = RrdReader(path)
+    stores = reader.blueprints()
+    if not stores:
+        raise ValueError(f"{path}: holds no blueprint")
+    names: dict[str, str] = {}
+    kinds: dict[str, str] = {}
+    ranges: dict[str, tuple[float, float]] = {}
+    for chunk in reader.stream(store=stores[0]):
+        batch = chunk.to_record_batch()
+        cols = batch.schema.names
+        parts = chunk.entity_path.strip("/").split("/")
+        if len(parts) < 2 or parts[0] != "view":
+            continue
+        view = parts[1]
+        if len(parts) == 2:
+            for col, into in (("ViewBlueprint:display_name", names),
+                              ("ViewBlueprint:class_identifier", kinds)):
+                if col in cols and (value := batch.column(col).to_pylist()[-1]):
+                    into[view] = value[0] if isinstance(value, list) else value
+        elif parts[2:] == ["ScalarAxis"] and "ScalarAxis:range" in cols:
+            value = batch.column("ScalarAxis:range").to_pylist()[-1]
+            if value:
+                lo, hi = value[0] if isinstance(value[0], (list, tuple)) else value
+                ranges[view] = (float(lo), float(hi))
+    return {names.get(v, v): ranges.get(v) for v, kind in kinds.items()
+            if kind == "TimeSeries"}

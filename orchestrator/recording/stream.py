@@ -458,7 +458,7 @@ trail_sample_seconds, links
             lines = _send_paper(self.rec, method, rows, self.colors, 1, indexes)
         else:
             lines = _send_fleet_series(self.rec, method, rows, self._fleet, run.index, 1,
-                                       indexes)
+                                       indexes, len(self.methods))
             if method in self.links:
                 lines += send_links(self.rec, method, rows, self.links[method], 1, indexes,
                                     run.index, n=self._fleet.n)

@@ -9,8 +9,6 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 
-from estimator_fmu.registry import ESTIMATORS
-
 from .actuators import send_actuators
 from .layout import (
     _POSITION_NAMES,
@@ -24,6 +22,8 @@ from .layout import (
     _vehicle_colors,
     axis_colors,
     color_name,
+    fleet_method_line,
+    method_styles,
 )
 from .network import LINK_KEYS
 from .scene import leader_position
@@ -34,18 +34,22 @@ __all__ = ["write_rrd"]
 #: how the viewer draws the samples that share a pixel column when zoomed out: the minimum
 #: and the maximum (its default, the average, draws noise 2-4 times smaller than it is)
 _AGGREGATION = "MinMax"
-#: the ideal method's line in the paper layout: wider and translucent, so that the Kalman
-#: line (nearly the same curve) shows on top of it and it shows round the Kalman line
-_WIDE_METHODS = {k: e.wide for k, e in ESTIMATORS.items() if e.wide is not None}
+#: the width of the lines every method shares (the true disturbance and reference); each
+#: method's own lines: :func:`~.layout.method_styles` (the ideal one wide, the Kalman
+#: filter's thin and translucent over it)
 _LINE_WIDTH = 1.0
 
 
 def _send_block(rec: rr.RecordingStream, entity: str, values: np.ndarray, names: list[str],
-                colors: list[tuple[int, int, int]], indexes: list[rr.TimeColumn]) -> int:
+                colors: list[tuple[int, int, int]], indexes: list[rr.TimeColumn],
+                line: tuple[float, int] = (_LINE_WIDTH, 255)) -> int:
     """One multi-component series entity: static SeriesLines (one name/colour per column of
-    ``values``) and one ``send_columns`` whose rows hold all k components.  Returns k."""
-    rec.log(entity, rr.SeriesLines(colors=colors, names=names, aggregation_policy=_AGGREGATION),
-            static=True)
+    ``values``, every line ``line`` = (width, alpha)) and one ``send_columns`` whose rows
+    hold all k components.  Returns k."""
+    width, alpha = line
+    rec.log(entity, rr.SeriesLines(colors=[(*c[:3], alpha) for c in colors], names=names,
+                                   widths=[width] * len(names),
+                                   aggregation_policy=_AGGREGATION), static=True)
     rec.send_columns(entity, indexes=indexes,
                      columns=rr.Scalars.columns(
                          scalars=np.ascontiguousarray(values, dtype=np.float64)))
@@ -54,7 +58,7 @@ def _send_block(rec: rr.RecordingStream, entity: str, values: np.ndarray, names:
 
 def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray],
                        fleet: _Fleet, method_index: int, stride: int,
-                       indexes: list[rr.TimeColumn]) -> int:
+                       indexes: list[rr.TimeColumn], n_methods: int = 1) -> int:
     """Per-vehicle multi-component series and the leader series of one run (recorded steps
     only); returns the number of scalar lines (components) written."""
     rec_traces = {key: traces[key][::stride] for key in ("e", "u", "x", "xhat", "w", "what", "z")}
@@ -76,13 +80,14 @@ def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, n
              " estimate", True),
         ]
     signals = 0
+    line = fleet_method_line(method_index, n_methods)
     for key, template, index, names, suffix, is_estimate in groups:
         arr = rec_traces[key]
         line_names = [f"{method} {name}{suffix}" for name in names]
         colors = shades(len(names), is_estimate)
         for i in range(1, fleet.n + 1):
             signals += _send_block(rec, f"vehicles/{i}/{template.format(m=method)}",
-                                   arr[:, index[i - 1]], line_names, colors, indexes)
+                                   arr[:, index[i - 1]], line_names, colors, indexes, line)
     if "rpm" in traces:                  # the nonlinear vehicle: its actuators
         signals += send_actuators(rec, method, traces, fleet.n, stride, indexes, method_index,
                                   _vehicle_colors(fleet.n))
@@ -106,7 +111,14 @@ _SHARED_TRUTH = ("w", "z")
 
 def _paper_legend(methods: list[str], colors: dict[str, tuple[int, int, int]]) -> str:
     """The one-line colour legend of the paper layout (markdown)."""
-    names = " · ".join(f"**{m}** {color_name(colors[m])}" for m in methods)
+    styles = method_styles(methods)
+
+    def how(m: str) -> str:
+        s = styles[m]
+        if s.wide:
+            return f"{color_name(colors[m])}, wide (under the thin lines)"
+        return color_name(colors[m]) + (", thin, see-through" if s.viewer_alpha < 255 else "")
+    names = " · ".join(f"**{m}** {how(m)}" for m in methods)
     return (f"{names} · true state: the method's colour, its estimate a lighter shade · "
             "disturbance and reference (the same for every method): white, drawn once · "
             "whole run shown; scroll or drag in a plot to zoom, double-click to reset")
@@ -117,7 +129,8 @@ def _fleet_legend(methods: list[str], fleet: _Fleet, actuators: bool = False) ->
     comps = ", ".join(f"{n} {color_name(c)}" for n, c in zip(
         fleet.error_names, axis_colors(len(fleet.error_names), 0)))
     shades = " · ".join(f"**{m}**: {('full colour', 'darker', 'lighter')[i % 3]}"
-                        for i, m in enumerate(methods))
+                        + (", wide, see-through" if fleet_method_line(i, len(methods))[0]
+                           > _LINE_WIDTH else "") for i, m in enumerate(methods))
     return (f"components: {comps} · {shades} · 3D: one colour per vehicle (numbered), "
             "leader gold with its whole path, formation targets as small pale points, "
             "communication edges grey, pinned links gold" + (
@@ -227,13 +240,16 @@ def _send_paper(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarr
                 colors: dict[str, tuple[int, int, int]], stride: int,
                 indexes: list[rr.TimeColumn]) -> int:
     """One run's series of the paper layout, one entity per component (recorded steps
-    only: every ``stride``-th row of ``traces``); returns the number of entities."""
+    only: every ``stride``-th row of ``traces``), each method in its style
+    (:func:`~.layout.method_styles` of the methods of ``colors``); returns the number of
+    entities."""
     signals = 0
     base = colors[method]
     light = _lighter(base)
+    style_of = method_styles(list(colors))[method]
+    width, alpha = style_of.width, style_of.viewer_alpha
     for key, template, suffix, is_estimate in _SERIES:
         arr = traces[key]
-        width, alpha = _WIDE_METHODS.get(method, (_LINE_WIDTH, 255))
         if key in _SHARED_TRUTH:        # exogenous: the same for every method
             style = rr.SeriesLines(colors=[TRUE_COLOR], names=["true"],
                                    widths=[_LINE_WIDTH],

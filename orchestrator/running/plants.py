@@ -19,6 +19,7 @@ from typing import Any
 from plant_model.vehicle_models import plants_of
 
 from ..atomic import write_text_atomically
+from ..numbers import sig
 from ..scenario import Scenario
 
 __all__ = ["PLANTS", "compare_plants", "plant_table"]
@@ -109,13 +110,13 @@ def plant_table(summary: dict[str, Any]) -> list[str]:
              f"{'plant':>14s} {'cost rate':>10s} {'max':>7s} {'max str.':>9s} "
              f"{'max turns':>9s} {'rms str.':>9s} {'rms turns':>9s} {'saturated':>9s}"]
 
-    def f(v: Any, fmt: str = "#.3g") -> str:
-        return "-" if v is None else format(v, fmt)      # e.g. no turn in the window
+    def f(v: Any, fmt: str | None = None) -> str:    # "-": e.g. no turn in the window
+        return "-" if v is None else sig(v, 3) if fmt is None else format(v, fmt)
     for name, m in summary["methods"].items():
         if "cost_rate" not in m:
             lines.append(f"{name:>14s}   {m.get('note', 'no statistics')}")
             continue
-        lines.append(f"{name:>14s} {m['cost_rate']['mean']:#10.4g} {f(m['max_error']):>7s} "
+        lines.append(f"{name:>14s} {sig(m['cost_rate']['mean'], 4, 10)} {f(m['max_error']):>7s} "
                      f"{f(m['max_error_straight']):>9s} {f(m['max_error_turns']):>9s} "
                      f"{f(m['rms_error_straight']):>9s} {f(m['rms_error_turns']):>9s} "
                      f"{f(m['actuator_saturation_fraction'], '.1%'):>9s}")
