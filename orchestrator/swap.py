@@ -39,8 +39,8 @@ CAMPAIGN = "campaign"
 #: the kind tag of a checkpointed run's staging folders (kept: ``run --resume`` reads them)
 RUN = "run"
 #: the kinds of staging folder :func:`prune` leaves to the next command into their own
-#: destination
-KEPT_KINDS = (CAMPAIGN, RUN)
+#: destination, and the file that makes one worth keeping (None: always kept)
+KEPT_KINDS = {CAMPAIGN: None, RUN: "checkpoint/run.pkl"}
 
 _RENAME_EXCHANGE = 2
 _AT_FDCWD = -100
@@ -157,6 +157,15 @@ def recover(target: Path) -> None:
         shutil.rmtree(p, ignore_errors=True)
 
 
+def _kept(folder: Path, kind: str) -> bool:
+    """Whether a staging folder of ``kind`` is left to the next command into its own
+    destination (:data:`KEPT_KINDS`: a run's only when it holds a checkpoint)."""
+    if kind not in KEPT_KINDS:
+        return False
+    marker = KEPT_KINDS[kind]
+    return marker is None or (folder / marker).is_file()
+
+
 def prune(parent: Path, keep: Iterable[Path] = ()) -> None:
     """Delete the staging and old- folders in ``parent`` whose owner is gone: a folder's
     destination lock (``.<tag>.lock``) can be taken, so no process writes it. A campaign's
@@ -170,7 +179,7 @@ def prune(parent: Path, keep: Iterable[Path] = ()) -> None:
         for sep in (".staging-", ".old-"):
             head, found, rest = p.name[1:].rpartition(sep)
             if found and head and p.name not in keep and p.is_dir() and not p.is_symlink():
-                if not (sep == ".staging-" and _kind(rest) in KEPT_KINDS):
+                if not (sep == ".staging-" and _kept(p, _kind(rest))):
                     tags.setdefault(head, []).append(p)
                 break
     for name, folders in tags.items():
