@@ -100,7 +100,7 @@ from typing import Any
 import numpy as np
 
 from plant_model.discretization import check_step, zoh
-from plant_model.linalg_checks import ModelError, as_matrix, as_vector, fmt_complex
+from plant_model.linalg_checks import ModelError, as_matrix, as_square, as_vector, fmt_complex
 
 from .design import lq_riccati_gain
 from .distributed_observer import (
@@ -277,9 +277,8 @@ def design_vehicle_law(A: Any, B: Any, C: Any, Q: Any, R: Any, F: Any, H: Any,
     m, s = B.shape[1], C.shape[0]
     Q = as_matrix(f"{where}Q", Q, (s, s))
     R = as_matrix(f"{where}R", R, (m, m))
-    F = as_matrix("leader F", F)
+    F = as_square("leader F", F)
     l_ = F.shape[0]
-    F = as_matrix("leader F", F, (l_, l_))
     H = as_matrix("leader H", H, (s, l_))
     d = np.zeros(s) if offset is None else as_vector(f"{where}formation offset", offset, s)
     E = np.zeros((p, 0)) if E is None else as_matrix(f"{where}E", E, (p, None))

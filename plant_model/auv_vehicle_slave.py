@@ -21,11 +21,8 @@ from plant_model.navigation import (
     sensors_from_parameters,
 )
 from plant_model.parameters import (
-    integer_spec,
-    noise_convention_spec,
-    sample_period_spec,
-    system_parameter_specs,
-    vehicle_seed_spec,
+    VEHICLE_PARAMETERS,
+    vehicle_parameter_specs,
 )
 from plant_model.per_vehicle import sample_vehicle
 from plant_model.plant import Plant
@@ -33,8 +30,6 @@ from plant_model.plant import Plant
 # pythonfmu's loader looks for "class X(Fmi2Slave):"
 from plant_model.slave_common import PlantSlave as Fmi2Slave
 from plant_model.slave_common import vehicle_view
-
-VEHICLE_PARAMETERS = ("A", "B1", "B2", "C", "K", "x0", "w0", "W_x", "W_w", "V_y", "V_ybar")
 
 
 class AuvVehicle(Fmi2Slave):
@@ -51,13 +46,9 @@ class AuvVehicle(Fmi2Slave):
         """
         d = config["dims"]
         n, m, r, p = d["n"], d["m"], d["r"], d["p"]
-        return system_parameter_specs(config, VEHICLE_PARAMETERS) + [
-            sample_period_spec(config, "sample period: the communication step the vehicle "
-                               "is discretized for"),
-            vehicle_seed_spec(config),
-            integer_spec("vehicle", "the vehicle's number in the fleet, 1..N (keys its noise "
-                         "stream)", config.get("vehicle", 1), 1),
-            noise_convention_spec(config),
+        return vehicle_parameter_specs(
+            config, "sample period: the communication step the vehicle is discretized for",
+            "the vehicle's number in the fleet, 1..N (keys its noise stream)") + [
             ArraySpec("u", (m,), "input", "total force u held over the step (control and "
                       "consensus)"),
             ArraySpec("y", (p,), "output", "measured output y = C x + n"),

@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .linalg_checks import ModelError, as_matrix
+from .linalg_checks import ModelError, as_square
 
 if TYPE_CHECKING:
     import networkx as nx
@@ -297,7 +297,5 @@ def stacked_coupling(graph: CommunicationGraph, coupling: Any) -> np.ndarray:
     ModelError
         If ``coupling`` is not a finite square matrix.
     """
-    Gam = as_matrix("coupling", coupling)
-    p = Gam.shape[0]
-    Gam = as_matrix("coupling", Gam, (p, p))
+    Gam = as_square("coupling", coupling)
     return -np.kron(graph.consensus_matrix(), Gam)

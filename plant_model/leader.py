@@ -31,7 +31,15 @@ import numpy as np
 from scipy.linalg import expm
 
 from .bounds import Bound
-from .linalg_checks import ModelError, as_matrix, as_number, as_positive, as_vector
+from .linalg_checks import (
+    ModelError,
+    as_matrix,
+    as_number,
+    as_positive,
+    as_square,
+    as_vector,
+    readonly,
+)
 
 __all__ = [
     "LEADER_SPEED",
@@ -78,12 +86,6 @@ def check_turn_rate(path: LeaderPath, h: float) -> None:
                      f"{MAX_TURN_PER_STEP:.3g} rad (20 steps per turn) a step samples{hint}")
 
 
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, dtype=float)
-    a.setflags(write=False)
-    return a
-
-
 @dataclass(frozen=True, eq=False)
 class LeaderPath:
     """A virtual-leader exosystem z' = F z, z(0) = z0, leader position H z (NED, m)."""
@@ -96,9 +98,8 @@ class LeaderPath:
     description: str
 
     def __post_init__(self) -> None:
-        F = as_matrix("leader F", self.F)
+        F = as_square("leader F", self.F)
         l_ = F.shape[0]
-        F = as_matrix("leader F", F, (l_, l_))
         H = as_matrix("leader H", self.H, (None, l_))
         z0 = as_vector("leader z0", self.z0, l_)
         names = tuple(str(n) for n in self.state_names)
@@ -106,9 +107,9 @@ class LeaderPath:
             raise ModelError(
                 f"leader: {len(names)} state names for {l_} exosystem states"
             )
-        object.__setattr__(self, "F", _readonly(F))
-        object.__setattr__(self, "H", _readonly(H))
-        object.__setattr__(self, "z0", _readonly(z0))
+        object.__setattr__(self, "F", readonly(F))
+        object.__setattr__(self, "H", readonly(H))
+        object.__setattr__(self, "z0", readonly(z0))
         object.__setattr__(self, "state_names", names)
 
     @property
@@ -436,11 +437,11 @@ def explicit(F: Any, H: Any, z0: Any) -> LeaderPath:
     Raises
     ------
     ModelError
-        If the shapes disagree or a value is not finite.
+        If F is not square, H has not l columns or z0 not l entries, or a value is not
+        finite.
     """
-    F = as_matrix("F", F)
+    F = as_square("F", F)
     l_ = F.shape[0]
-    F = as_matrix("F", F, (l_, l_))
     H = as_matrix("H", H, (None, l_))
     z0 = as_vector("z0", z0, l_)
     return LeaderPath(

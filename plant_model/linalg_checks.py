@@ -16,6 +16,8 @@ __all__ = [
     "fmt_complex",
     "as_float",
     "as_matrix",
+    "as_square",
+    "readonly",
     "as_nonnegative",
     "as_number",
     "as_positive",
@@ -78,6 +80,20 @@ def as_matrix(name: str, value: Any, shape: Sequence[int | None] | None = None) 
                 )
     _check_finite(name, arr)
     return arr
+
+
+def as_square(name: str, value: Any) -> np.ndarray:
+    """Return ``value`` as a finite square 2-D float array: :func:`as_matrix` with as many
+    columns as rows (the same ModelError otherwise)."""
+    arr = as_matrix(name, value)
+    return as_matrix(name, arr, (arr.shape[0], arr.shape[0]))
+
+
+def readonly(a: Any) -> np.ndarray:
+    """A read-only float copy of ``a`` (the arrays of a frozen model)."""
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
 
 
 def as_vector(name: str, value: Any, length: int | None = None) -> np.ndarray:

@@ -14,8 +14,8 @@ from fmu_common.interface import ArraySpec
 
 from .system import LinearSystem
 
-__all__ = ["PARAMETER_DOCS", "sample_period_spec", "integer_spec", "vehicle_seed_spec",
-           "noise_convention_spec",
+__all__ = ["PARAMETER_DOCS", "VEHICLE_PARAMETERS", "sample_period_spec", "integer_spec",
+           "vehicle_seed_spec", "noise_convention_spec", "vehicle_parameter_specs",
            "system_parameter_specs", "system_mapping_from_parameters",
            "model_parameter_specs", "system_from_parameters"]
 
@@ -42,6 +42,9 @@ PARAMETER_DOCS: dict[str, tuple[tuple[str, ...], str]] = {
     "V_ybar": (("p", "p"), "intensity of the reference sensor noise n_z (covariance "
                            "V_ybar/h per sample)"),
 }
+
+#: the model parameters of one vehicle's FMU (the per-vehicle deployment)
+VEHICLE_PARAMETERS = ("A", "B1", "B2", "C", "K", "x0", "w0", "W_x", "W_w", "V_y", "V_ybar")
 
 
 def system_parameter_specs(config: dict[str, Any], names: Iterable[str]) -> list[ArraySpec]:
@@ -154,6 +157,20 @@ def noise_convention_spec(config: dict[str, Any]) -> ArraySpec:
     return ArraySpec("noise_convention", (), "parameter",
                      "'intensity' (W, V are continuous intensities) or 'per_sample'",
                      start=config["system"]["noise_convention"], type="String")
+
+
+def vehicle_parameter_specs(config: dict[str, Any], period: str, vehicle: str
+                            ) -> list[ArraySpec]:
+    """The parameters every vehicle FMU starts with: its model (:data:`VEHICLE_PARAMETERS`,
+    start values from ``config['system']``), the sample period h (described by
+    ``period``), the fleet's seed, its number in the fleet 1..N (described by ``vehicle``,
+    start ``config['vehicle']``, default 1) and the noise convention."""
+    return system_parameter_specs(config, VEHICLE_PARAMETERS) + [
+        sample_period_spec(config, period),
+        vehicle_seed_spec(config),
+        integer_spec("vehicle", vehicle, config.get("vehicle", 1), 1),
+        noise_convention_spec(config),
+    ]
 
 
 def model_parameter_specs(config: dict[str, Any], kind: str,

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from .discretization import DiscreteModel, check_step, van_loan, zoh
-from .linalg_checks import ModelError, as_matrix, as_vector
+from .linalg_checks import ModelError, as_matrix, as_square, as_vector
 from .system import LinearSystem
 
 __all__ = ["vehicle_views", "vehicle_view", "vehicle_alone", "sample_vehicle",
@@ -235,9 +235,8 @@ def leader_system(F: Any, z0: Any, W_z: Any = 0.0,
     tuple[np.ndarray, np.ndarray, np.ndarray]
         F, z0, W_z as float arrays.
     """
-    F = as_matrix("leader F", F)
+    F = as_square("leader F", F)
     l0 = F.shape[0]
-    F = as_matrix("leader F", F, (l0, l0))
     z0 = as_vector("leader z0", z0, l0)
     W = float(W_z) * np.eye(l0) if np.ndim(W_z) == 0 else as_matrix("leader W_z", W_z, (l0, l0))
     if noise_convention not in ("intensity", "per_sample"):

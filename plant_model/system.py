@@ -30,6 +30,7 @@ from .linalg_checks import (
     ModelError,
     as_float,
     as_matrix,
+    as_square,
     as_vector,
     check_symmetric_pd,
     check_symmetric_psd,
@@ -134,18 +135,16 @@ class LinearSystem:
         missing = [k for k in ("A", "B1", "B2", "C", "F", "H", "K") if k not in d]
         if missing:
             raise ModelError(f"missing system matrices: {', '.join(missing)}")
-        A = as_matrix("A", d["A"])
+        A = as_square("A", d["A"])
         n = A.shape[0]
-        A = as_matrix("A", A, (n, n))
         B1 = as_matrix("B1", d["B1"], (n, None))
         m = B1.shape[1]
         B2 = as_matrix("B2", d["B2"], (n, None))
         r = B2.shape[1]
         C = as_matrix("C", d["C"], (None, n))
         p = C.shape[0]
-        F = as_matrix("F", d["F"])
+        F = as_square("F", d["F"])
         l_ = F.shape[0]
-        F = as_matrix("F", F, (l_, l_))
         H = as_matrix("H", d["H"], (p, l_))
         K = as_matrix("K", d["K"], (r, r))
         Bz = as_matrix("Bz", d.get("Bz", np.zeros((n, l_))), (n, l_))

@@ -68,7 +68,14 @@ from typing import Any
 
 import numpy as np
 
-from .linalg_checks import ModelError, as_matrix, as_nonnegative, as_positive
+from .linalg_checks import (
+    ModelError,
+    as_matrix,
+    as_nonnegative,
+    as_positive,
+    as_square,
+    readonly,
+)
 
 __all__ = [
     "GENERIC_PARAMS",
@@ -85,12 +92,6 @@ __all__ = [
 
 #: Maximum speed of the REMUS 100 (m/s, propeller at 1525 rpm in zero current).
 REMUS100_MAX_SPEED = 2.5
-
-
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, dtype=float)
-    a.setflags(write=False)
-    return a
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,14 +121,13 @@ class VehicleModel:
     parameters: dict
 
     def __post_init__(self) -> None:
-        A = as_matrix("A", self.A)
+        A = as_square("A", self.A)
         p = A.shape[0]
-        A = as_matrix("A", A, (p, p))
         B1 = as_matrix("B1", self.B1, (p, None))
         B2 = as_matrix("B2", self.B2, (p, None))
         C = as_matrix("C", self.C, (None, p))
         for attr, val in (("A", A), ("B1", B1), ("B2", B2), ("C", C)):
-            object.__setattr__(self, attr, _readonly(val))
+            object.__setattr__(self, attr, readonly(val))
         for names, units, size, what in (
             ("state_names", "state_units", p, "states"),
             ("input_names", "input_units", B1.shape[1], "inputs"),
@@ -378,11 +378,11 @@ def generic(A: Any, B1: Any, B2: Any, C: Any) -> VehicleModel:
     Raises
     ------
     ModelError
-        If the shapes disagree or a value is not finite.
+        If A is not square, B1 or B2 has not p rows, C not p columns, or a value is not
+        finite.
     """
-    A = as_matrix("A", A)
+    A = as_square("A", A)
     p = A.shape[0]
-    A = as_matrix("A", A, (p, p))
     B1 = as_matrix("B1", B1, (p, None))
     B2 = as_matrix("B2", B2, (p, None))
     C = as_matrix("C", C, (None, p))

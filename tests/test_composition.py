@@ -76,6 +76,22 @@ def _run(scenarios, tmp, dep, links, vehicle, fmus, capsys):
     return code, out, capsys.readouterr()
 
 
+def _native_equals_python(runs, cell, fmus, scalars, m):
+    """Keep a cell's recorded scalars and method summary in ``runs`` under ``cell`` plus
+    its FMU kind; once both kinds of the cell ran, check the native one's every signal
+    equals the python one's to 1e-12 of that signal's largest magnitude, and its cost rate
+    to 1e-12 relative."""
+    runs[(*cell, fmus)] = (scalars, m)
+    if fmus == "native" and (*cell, "python") in runs:
+        ref, mref = runs[(*cell, "python")]
+        assert set(ref) == set(scalars)
+        for entity, (_, _, values) in ref.items():
+            got = scalars[entity][2]
+            scale = max(float(np.nanmax(np.abs(values))), 1e-300)
+            assert np.nanmax(np.abs(got - values)) <= 1e-12 * scale, entity
+        assert m["cost_rate"]["mean"] == pytest.approx(mref["cost_rate"]["mean"], rel=1e-12)
+
+
 def _refusal(dep, links, vehicle):
     """What the refusal of a cell may say (either reason where two apply), None if it runs."""
     reasons = [REFUSED[k] for k in ((dep, links), (dep, vehicle)) if k in REFUSED]
@@ -128,15 +144,7 @@ def test_every_cell_runs_or_is_refused_in_one_line(scenarios, runs, tmp_path, ca
     if vehicle == "remus100-6dof-guided":       # guidance -> autopilot -> actuated vehicle
         assert {"guidance", "autopilot", "remus6dof_actuated"} <= set(kinds)
         assert all(f"vehicles/{i}/setpoint/kalman" in scalars for i in range(1, 5))
-    runs[(dep, links, vehicle, fmus)] = (out, scalars, m)
-    if fmus == "native" and (dep, links, vehicle, "python") in runs:
-        _, ref, mref = runs[(dep, links, vehicle, "python")]
-        assert set(ref) == set(scalars)
-        for entity, (_, _, values) in ref.items():
-            got = scalars[entity][2]
-            scale = max(float(np.nanmax(np.abs(values))), 1e-300)
-            assert np.nanmax(np.abs(got - values)) <= 1e-12 * scale, entity
-        assert m["cost_rate"]["mean"] == pytest.approx(mref["cost_rate"]["mean"], rel=1e-12)
+    _native_equals_python(runs, (dep, links, vehicle), fmus, scalars, m)
 
 
 @pytest.mark.slow
@@ -208,15 +216,7 @@ def test_kalman_tv_cells_run_or_are_refused_in_one_line(tv_scenario, runs, tmp_p
     kinds = {k: e["kind"] for k, e in summary["fmus"].items()}
     assert set(kinds.values()) == {fmus}, kinds
     scalars = read_rrd_scalars(out / f"{summary['scenario']}.rrd")
-    runs[("tv", dep, links, fmus)] = (scalars, m)
-    if fmus == "native" and ("tv", dep, links, "python") in runs:
-        ref, mref = runs[("tv", dep, links, "python")]
-        assert set(ref) == set(scalars)
-        for entity, (_, _, values) in ref.items():
-            got = scalars[entity][2]
-            scale = max(float(np.nanmax(np.abs(values))), 1e-300)
-            assert np.nanmax(np.abs(got - values)) <= 1e-12 * scale, entity
-        assert m["cost_rate"]["mean"] == pytest.approx(mref["cost_rate"]["mean"], rel=1e-12)
+    _native_equals_python(runs, ("tv", dep, links), fmus, scalars, m)
 
 
 BURSTY_CELLS = [(d, f) for d in ("centralized", "distributed") for f in FMUS]
@@ -249,15 +249,7 @@ def test_bursty_link_cells_run_and_native_equals_python(scenarios, runs, tmp_pat
     # network/links/{j}-{i}: delivered, lost, in flight
     lost = [v[-1, 1] for e, (_, _, v) in scalars.items() if e.startswith("network/links/")]
     assert len(lost) == net["links"] and sum(lost) > 0                  # messages were lost
-    runs[(dep, "bursty", fmus)] = (out, scalars, m)
-    if fmus == "native" and (dep, "bursty", "python") in runs:
-        _, ref, mref = runs[(dep, "bursty", "python")]
-        assert set(ref) == set(scalars)
-        for entity, (_, _, values) in ref.items():
-            got = scalars[entity][2]
-            scale = max(float(np.nanmax(np.abs(values))), 1e-300)
-            assert np.nanmax(np.abs(got - values)) <= 1e-12 * scale, entity
-        assert m["cost_rate"]["mean"] == pytest.approx(mref["cost_rate"]["mean"], rel=1e-12)
+    _native_equals_python(runs, (dep, "bursty"), fmus, scalars, m)
 
 
 # --- a vehicle brought as an FMU (model = "fmu": the C mass-damper the tests compile) -----

@@ -30,6 +30,7 @@ from orchestrator.cosim.master import run_system
 from orchestrator.interop.native import native_system
 from orchestrator.running import build, scenario_system
 from orchestrator.scenario import load_scenario
+from support.fmi import steps_until_refused
 
 OK, DISCARD, ERROR, FATAL = 0, 2, 3, 4
 H = 0.01
@@ -111,10 +112,7 @@ def test_native_plant_fed_1e308_refuses_the_step_naming_the_state(paper, tmp_pat
     p = _open(ns.fmus["plant"], tmp_path, "plant_1e308")
     inputs = _names(p, "input")
     assert _set(p, inputs, [1e308] * len(inputs)) == OK
-    k, status = 0, OK
-    while status == OK and k < 100:
-        status = _step(p, k * H)
-        k += 1
+    k, status = steps_until_refused(lambda t: _step(p, t), H, 100)
     assert status == ERROR
     t = (k - 1) * H
     assert re.fullmatch(rf"plant_1e308: state element \d would become -?inf in the step from "
@@ -313,10 +311,7 @@ def test_pythonfmu_estimator_fed_1e308_discards_the_step_naming_the_output(paper
     e = _open(py["estimator"], tmp_path, "py_est", **system.component("estimator").parameters)
     inputs = _names(e, "input")
     assert _set(e, inputs, [1e308] * len(inputs)) == OK
-    k, status = 0, OK
-    while status == OK and k < 100:
-        status = _step(e, k * H)
-        k += 1
+    k, status = steps_until_refused(lambda t: _step(e, t), H, 100)
     assert status == DISCARD and k > 1                    # some steps were finite
     t = (k - 1) * H
     assert re.fullmatch(rf"AuvEstimator instance 'py_est': step at t = {t} s refused: output "

@@ -7,18 +7,17 @@ import math
 
 import numpy as np
 import pytest
-from fmpy import extract
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
 from controller_fmu.guidance import depth_increment, reference_step, setpoints
 from orchestrator.cosim.build import build_fmus
-from orchestrator.cosim.instance import FmuInstance
 from orchestrator.running.fmus import guidance_configs
 from orchestrator.scenario import load_scenario
 from plant_model.remus100.autopilot import AutopilotGains
 from plant_model.remus100.setpoint_autopilot import DepthLoop, limit_command, setpoint_command
 from plant_model.vehicles import remus100
+from support.fmi import open_initializing
 
 SETPOINTS = ["speed", "course", "depth", "speed_rate", "course_rate", "depth_rate"]
 SENSORS = ([f"velocity[{i}]" for i in (1, 2, 3)] + [f"attitude[{i}]" for i in (1, 2, 3)]
@@ -34,14 +33,7 @@ def fmus(tmp_path_factory):
 
 
 def _instance(fmus, key, tmp_path, name="probe", **parameters):
-    inst = FmuInstance(key, fmus[key], extract(str(fmus[key]), unzipdir=str(tmp_path / name)),
-                       name)
-    s = inst.slave
-    s.setupExperiment(startTime=0.0)
-    s.enterInitializationMode()
-    if parameters:
-        s.setReal([inst.vr[k] for k in parameters], list(parameters.values()))
-    return inst
+    return open_initializing(fmus[key], tmp_path, name, key, **parameters)
 
 
 def _vr(inst, names):

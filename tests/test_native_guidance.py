@@ -12,18 +12,18 @@ import zipfile
 
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description
+from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 from lxml import etree
 
 from orchestrator.cosim.build import build_fmus
-from orchestrator.cosim.instance import FmuInstance
 from orchestrator.cosim.native_guidance import native_guidance_fmu
 from orchestrator.running.fmus import guidance_configs
 from orchestrator.scenario import load_scenario
 from plant_model.remus100.autopilot import AutopilotGains
 from plant_model.remus100.setpoint_autopilot import DepthLoop, limit_command, setpoint_command
+from support.fmi import open_initializing
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler (cc)")
 
@@ -46,18 +46,8 @@ def fmus(tmp_path_factory):
     return {k: (py[k], native_guidance_fmu(k, py[k], tmp / "native")) for k in py}
 
 
-def _open(path, folder, name="probe", **parameters):
-    inst = FmuInstance(name, path, extract(str(path), unzipdir=str(folder / name)), name)
-    s = inst.slave
-    s.setupExperiment(startTime=0.0)
-    s.enterInitializationMode()
-    if parameters:
-        s.setReal([inst.vr[k] for k in parameters], list(parameters.values()))
-    return inst
-
-
 def _pair(fmus, kind, tmp_path):
-    py, nat = (_open(p, tmp_path, f"{kind}-{i}") for i, p in enumerate(fmus[kind]))
+    py, nat = (open_initializing(p, tmp_path, f"{kind}-{i}") for i, p in enumerate(fmus[kind]))
     py.slave.exitInitializationMode()
     nat.slave.exitInitializationMode()
     return py, nat
@@ -147,7 +137,7 @@ def test_native_autopilot_equals_the_pythonfmu_one_and_holds_its_integral_when_s
 def test_native_state_save_and_restore_continue_identically(fmus, tmp_path, kind):
     """Half way: get the state; the second half replays bit for bit after fmi2SetFMUstate
     and after a serialize / deserialize round trip (the time is part of the state)."""
-    inst = _open(fmus[kind][1], tmp_path)
+    inst = open_initializing(fmus[kind][1], tmp_path)
     s = inst.slave
     s.exitInitializationMode()
     rng = np.random.default_rng(4)
@@ -227,7 +217,7 @@ def _refused(inst, call, *args):
 ])
 def test_a_bad_input_or_step_is_an_error_status_naming_it_and_the_host_goes_on(
         fmus, tmp_path, kind, case, status, fragment):
-    inst = _open(fmus[kind][1], tmp_path)
+    inst = open_initializing(fmus[kind][1], tmp_path)
     inst.slave.exitInitializationMode()
     name = "u[2]" if kind == "guidance" else "attitude[3]"
     if case == "nan input":
@@ -251,7 +241,7 @@ def test_a_bad_input_or_step_is_an_error_status_naming_it_and_the_host_goes_on(
 ])
 def test_a_bad_parameter_fails_initialization_with_an_error_naming_it(
         fmus, tmp_path, kind, parameter, value, fragment):
-    inst = _open(fmus[kind][1], tmp_path, **{parameter: value})
+    inst = open_initializing(fmus[kind][1], tmp_path, **{parameter: value})
     assert _refused(inst, "exitInitializationMode") == 3
     assert any(fragment in m for st, m in inst.messages if st == "Error"), inst.messages
     assert _refused(inst, "doStep", 0.0, 0.05) == 3                # not in step mode

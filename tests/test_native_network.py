@@ -16,6 +16,7 @@ from orchestrator.cosim.build import build_fmus
 from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
 from orchestrator.cosim.native_network import native_network_fmu
 from plant_model.acoustic.links import link_key
+from support.fmi import assert_state_round_trip
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler (cc)")
 
@@ -130,17 +131,8 @@ def test_the_native_fmu_validates_with_the_pythonfmu_variables(pair):
 
 def test_native_fmu_state_round_trip_is_bit_identical(pair):
     inst = _open(pair, "sched", 1, "state")
-    inputs = _inputs(inst, 300, 4)
-    _drive(inst, inputs[:120], 0)
-    state = inst.slave.getFMUState()
-    first = _drive(inst, inputs[120:], 120)
-    inst.slave.setFMUState(state)
-    assert np.array_equal(_drive(inst, inputs[120:], 120), first)
-    blob = inst.slave.serializeFMUState(state)
-    inst.slave.setFMUState(inst.slave.deserializeFMUState(blob))
-    assert np.array_equal(_drive(inst, inputs[120:], 120), first)
+    first = assert_state_round_trip(inst, _drive, _inputs(inst, 300, 4), 120)
     assert first[-1, _names(inst, "output").index("link[2].lost")] > 0
-    inst.slave.freeFMUState(state)
     inst.close()
 
 

@@ -11,6 +11,7 @@ from orchestrator.cosim.instance import CosimError, Extracted, FmuInstance
 from plant_model.acoustic.inbox import Inbox, LinkSettings
 from plant_model.acoustic.link_models import LINK_MODELS, MODEL_KEY, model_of_code
 from plant_model.acoustic.links import LinkChannel, check_link, link_key
+from support.fmi import assert_state_round_trip
 
 H, RECEIVER, SEED = 0.1, 3, 11
 FIELDS = [["eta", 3], ["eps", 2]]
@@ -242,16 +243,8 @@ def test_the_fmu_validates_and_has_no_direct_feedthrough(built):
 def test_fmu_state_round_trip_is_bit_identical(built):
     inst = _instance(built, "state")
     inputs = np.random.default_rng(4).standard_normal((300, 12))
-    _drive(inst, inputs[:120], 0)
-    state = inst.slave.getFMUState()
-    first = _drive(inst, inputs[120:], 120)
-    inst.slave.setFMUState(state)
-    assert np.array_equal(_drive(inst, inputs[120:], 120), first)
-    blob = inst.slave.serializeFMUState(state)
-    inst.slave.setFMUState(inst.slave.deserializeFMUState(blob))
-    assert np.array_equal(_drive(inst, inputs[120:], 120), first)
+    first = assert_state_round_trip(inst, _drive, inputs, 120)
     assert np.std(first[:, 0]) > 0 and first[-1, 7] > 0               # rx moved, losses
-    inst.slave.freeFMUState(state)
     inst.close()
 
 

@@ -12,6 +12,8 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -85,18 +87,26 @@ def test_a_refused_run_keeps_the_earlier_result_in_one_line(earlier, tmp_path):
     assert tree_hashes(out) == before
 
 
-@pytest.mark.slow
-def test_a_sigkilled_run_keeps_the_earlier_result_and_its_staging_is_pruned(earlier, tmp_path):
-    out, before = _earlier(earlier, tmp_path)
+@contextmanager
+def _inside_the_loop(out: Path, seconds: float) -> Iterator[subprocess.Popen]:
+    """A long ``auv-cosim run`` into ``out`` (beside the earlier result there), ``seconds``
+    after its FMUs are in its staging folder: inside its loop; killed on leaving."""
     proc = cli("run", "--T", "3000", "--quiet", "--out", out)
     try:
         wait_until(lambda: (working(out) / "fmus" / "AuvController.fmu").exists()
                    and working(out) != out, proc)
-        time.sleep(2.0)                                    # inside the loop
-        proc.send_signal(signal.SIGKILL)
-        proc.wait(timeout=30)
+        time.sleep(seconds)
+        yield proc
     finally:
         proc.kill()
+
+
+@pytest.mark.slow
+def test_a_sigkilled_run_keeps_the_earlier_result_and_its_staging_is_pruned(earlier, tmp_path):
+    out, before = _earlier(earlier, tmp_path)
+    with _inside_the_loop(out, 2.0) as proc:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=30)
     assert tree_hashes(out) == before
     assert len(staging_folders(out)) == 1                  # what the killed run left, hidden
     # the next command into the same parent folder deletes it (its owner is gone)
@@ -109,15 +119,9 @@ def test_a_sigkilled_run_keeps_the_earlier_result_and_its_staging_is_pruned(earl
 @pytest.mark.slow
 def test_an_interrupted_run_beside_an_earlier_result_goes_to_a_sibling(earlier, tmp_path):
     out, before = _earlier(earlier, tmp_path)
-    proc = cli("run", "--T", "3000", "--quiet", "--out", out)
-    try:
-        wait_until(lambda: (working(out) / "fmus" / "AuvController.fmu").exists()
-                   and working(out) != out, proc)
-        time.sleep(3.0)
+    with _inside_the_loop(out, 3.0) as proc:
         proc.send_signal(signal.SIGINT)
         _, stderr = proc.communicate(timeout=120)
-    finally:
-        proc.kill()
     assert proc.returncode == 130, stderr
     lines = stderr.strip().splitlines()
     partial = tmp_path / "F.interrupted"

@@ -23,7 +23,7 @@ from plant_model.linalg_checks import ModelError, fmt_complex
 
 from .block_stein import stein, triangular_order
 from .distributed import DistributedLoop, _assemble, filtered
-from .prediction import window_average_covariance
+from .prediction import window_average_covariance, window_mean_sums
 
 #: samples of the mean motion per block in :func:`predict_cost` (a block of a 3417-state
 #: loop is 27 MB)
@@ -252,21 +252,7 @@ def _predict_cost(loop: DistributedLoop, window: tuple[int, int] | None,
         k0, K = window
         Phi = csr_matrix(loop.Phi)             # each vehicle hears a few others: sparse
         X = np.asarray(X0, dtype=float)
-        for _ in range(k0):
-            X = Phi @ X
-        ee, uu = np.zeros_like(See), np.zeros_like(Suu)
-        # the window's states in blocks of rows: one product per block, not per sample
-        block = np.empty((min(_MEAN_BLOCK, max(K - k0, 1)), X.size))
-        k = k0
-        while k < K:
-            rows = min(block.shape[0], K - k)
-            for j in range(rows):
-                block[j] = X
-                X = Phi @ X
-            E, U = block[:rows] @ loop.Ce.T, block[:rows] @ loop.Gx.T
-            ee += E.T @ E
-            uu += U.T @ U
-            k += rows
+        ee, uu = window_mean_sums(Phi, X, k0, K, loop.Ce, loop.Gx, _MEAN_BLOCK)
         See, Suu = See + ee / max(K - k0, 1), Suu + uu / max(K - k0, 1)
     rho = verdict.stacked_spectral_radius if PhiR.size else 0.0
     tau = -loop.h / np.log(rho) if rho > 0 else loop.h

@@ -76,7 +76,7 @@ def check_path_horizon(states: int, T: float, dt: float = PATH_DT,
     Returns
     -------
     int
-        The estimated bytes.
+        The path samples' estimated bytes, 8 samples (states + 16).
 
     Raises
     ------

@@ -73,10 +73,22 @@ def cmd_bench_fleet(args: argparse.Namespace) -> int:
     return 0
 
 
-def _printed_as_json(args: argparse.Namespace, r: dict, rounds: str = "") -> bool:
-    """Print a benchmark's figures as JSON (--json) and say so, or print its heading line."""
+def _json_printed(args: argparse.Namespace, r: dict) -> bool:
+    """Print a benchmark's figures as JSON when --json asks for it; whether it did."""
     if args.json:
         print(json.dumps(r, indent=2))
+    return bool(args.json)
+
+
+def _load(r: dict) -> str:
+    """``load average 0.71 on 2 CPUs (after: 0.80)``: the load before and after a benchmark."""
+    return (f"load average {r['loadavg'][0]:.2f} on {r['cpus']} CPUs "
+            f"(after: {r['loadavg_after'][0]:.2f})")
+
+
+def _printed_as_json(args: argparse.Namespace, r: dict, rounds: str = "") -> bool:
+    """Print a benchmark's figures as JSON (--json) and say so, or print its heading line."""
+    if _json_printed(args, r):
         return True
     print(f"scenario {r['scenario']}, estimator {r['mode']}, {r['steps']} steps of {r['h']} s"
           f"{rounds}; load average {r['loadavg'][0]:.2f} on {r['cpus']} CPUs")
@@ -133,11 +145,9 @@ def cmd_bench_native(args: argparse.Namespace) -> int:
 def cmd_bench_remus(args: argparse.Namespace) -> int:
     from ..benchmarks.remus import benchmark_remus
     r = benchmark_remus()
-    if args.json:
-        print(json.dumps(r, indent=2))
+    if _json_printed(args, r):
         return 0
-    print(f"  nonlinear REMUS 100; load average {r['loadavg'][0]:.2f} on {r['cpus']} CPUs "
-          f"(after: {r['loadavg_after'][0]:.2f}); numba {'on' if r['jit'] else 'off'}")
+    print(f"  nonlinear REMUS 100; {_load(r)}; numba {'on' if r['jit'] else 'off'}")
     print(f"  derivative          numpy {r['derivative_numpy_us']:8.1f} us   compiled "
           f"{r['derivative_kernel_us']:6.2f} us")
     print(f"  communication step  numpy {r['step_numpy_us']:8.1f} us   compiled "
@@ -172,11 +182,9 @@ def cmd_bench_startup(args: argparse.Namespace) -> int:
 def cmd_bench_campaign(args: argparse.Namespace) -> int:
     from ..benchmarks.campaign import benchmark_campaign
     r = benchmark_campaign()
-    if args.json:
-        print(json.dumps(r, indent=2))
+    if _json_printed(args, r):
         return 0
-    print(f"paper scenario (T = 300 s, h = 0.01 s); load average {r['loadavg'][0]:.2f} on "
-          f"{r['cpus']} CPUs (after: {r['loadavg_after'][0]:.2f})")
+    print(f"paper scenario (T = 300 s, h = 0.01 s); {_load(r)}")
     for key, label in (("fmu_1_workers", "FMU engine, 1 worker "), ("fmu_2_workers",
                        "FMU engine, 2 workers"), ("numpy_1_worker", "numpy engine, 1 worker")):
         x = r[key]
@@ -206,11 +214,9 @@ def cmd_bench_predictions(args: argparse.Namespace) -> int:
     archs = [args.architecture] if args.architecture else ["centralized", "distributed"]
     r = benchmark_predictions(sc, archs, mode=args.estimator or DEFAULT_ESTIMATOR,
                               tracking=args.tracking or "regulator")
-    if args.json:
-        print(json.dumps(r, indent=2))
+    if _json_printed(args, r):
         return 0
-    print(f"{sc.name} over links (T = {sc.T} s, h = {sc.h} s); load average "
-          f"{r['loadavg'][0]:.2f} on {r['cpus']} CPUs (after: {r['loadavg_after'][0]:.2f})")
+    print(f"{sc.name} over links (T = {sc.T} s, h = {sc.h} s); {_load(r)}")
     print(f"{'architecture':>12s} {'states':>6s} {'error':>6s} {'links':>5s} {'cycle':>6s} "
           f"{'L ms':>6s} {'stationary s':>12s} {'critical s':>10s} {'cached s':>8s}   "
           "radius, window cost, critical loss")
@@ -231,12 +237,10 @@ def cmd_bench_phases(args: argparse.Namespace) -> int:
     """``bench --phases``: a whole ``auv-cosim run`` of the scenario options, split."""
     from ..benchmarks.phases import benchmark_phases
     r = benchmark_phases(vars(args))
-    if args.json:
-        print(json.dumps(r, indent=2))
+    if _json_printed(args, r):
         return 0
     print(f"auv-cosim run {' '.join(r['argv'])}: {r['command_s']:.1f} s ({r['steps']} steps); "
-          f"load average {r['loadavg'][0]:.2f} on {r['cpus']} CPUs (after: "
-          f"{r['loadavg_after'][0]:.2f})")
+          f"{_load(r)}")
     labels = {"build": "build (FMUs, native FMUs)", "design": "design (gains, filters)",
               "predictions": "predictions (and the bound)",
               "instantiate": "instantiate, initialize, free FMUs", "loop": "loop",
@@ -253,26 +257,57 @@ def cmd_bench_phases(args: argparse.Namespace) -> int:
     return 0
 
 
-#: bench's modes (one at most: a mutually exclusive group) -> the command that times it;
-#: none: the paper loop against the monolithic one
-MODES: dict[str, Callable[[argparse.Namespace], int]] = {
-    "phases": cmd_bench_phases, "predictions": cmd_bench_predictions,
-    "campaign": cmd_bench_campaign, "fleet": cmd_bench_fleet, "tools": cmd_bench_tools,
-    "startup": cmd_bench_startup, "native": cmd_bench_native, "remus": cmd_bench_remus}
+#: bench's modes (one at most: a mutually exclusive group, in this order in --help) ->
+#: (the command that times it, its option's help); none: the paper loop against the
+#: monolithic one
+MODES: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
+    "fleet": (cmd_bench_fleet,
+              "benchmark generated grid fleets of these sizes instead, e.g. 1,5,20,50 "
+              "(REMUS 100 vehicles, circle leader; --T sets the simulated time, "
+              "default 300 s)"),
+    "tools": (cmd_bench_tools,
+              "the same FMUs in our orchestrator, libcosim (libcosimpy) and fmpy's "
+              "simulate_ssp (--T sets the simulated time, default 50 s)"),
+    "startup": (cmd_bench_startup,
+                "'auv-cosim run' as a subprocess (start to exit, cold and warm FMU "
+                "cache) against the in-process monolithic loop"),
+    "campaign": (cmd_bench_campaign,
+                 "campaign throughput: runs per hour of the paper scenario on 1 and 2 "
+                 "local workers (FMU engine) and the numpy engine, overhead per task, "
+                 "design-cache gain at N = 50"),
+    "native": (cmd_bench_native,
+               "us/step of the loop with native FMUs: in our Python master (with "
+               "the pythonfmu plant, all native), in our compiled master, in the C "
+               "host, in ecos, and a fused numpy loop (--T sets the simulated time, "
+               "default 200 s); ms/step of formation-100 per-vehicle native in both "
+               "masters"),
+    "remus": (cmd_bench_remus,
+              "the nonlinear REMUS 100: derivative and step in numpy and compiled, "
+              "vehicle FMU doStep against the linear one, compile time"),
+    "predictions": (cmd_bench_predictions,
+                    "the predictions over acoustic links (per-vehicle fleet with "
+                    "--latency/--period/--loss): the second moment and the critical-loss "
+                    "search, cold and from the cache, per architecture"),
+    "phases": (cmd_bench_phases,
+               "a whole 'auv-cosim run' of the scenario options (a subprocess): "
+               "its time split into build, design, predictions, instantiate, loop, "
+               "statistics, recording, other and start-up, and outside the loop "
+               "against inside it"),
+}
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
     from ..benchmarks.paper import benchmark
     mode = next((m for m in MODES if getattr(args, m, None)), None)
     if mode in ("phases", "predictions"):       # these take a per-vehicle scenario as is
-        return MODES[mode](args)
+        return MODES[mode][0](args)
     if getattr(args, "deployment", None) == "per-vehicle":
         if not args.fleet:
             raise UsageError("bench --deployment per-vehicle times fleets of several sizes: "
                              "give them with --fleet, e.g. --fleet 4,20,50,100")
         return cmd_bench_per_vehicle(args)
     if mode is not None:
-        return MODES[mode](args)
+        return MODES[mode][0](args)
     sc = scenario_of(args)
     r = benchmark(sc, mode=sc.estimator, seed=sc.seed)
     if _printed_as_json(args, r):
@@ -303,38 +338,10 @@ def add_bench(sub: argparse._SubParsersAction) -> None:
     sp.add_argument("--seed", type=int, help="noise seed")
     sp.add_argument("--tracking", choices=TRACKING_MODES, help="tracking law")
     modes = sp.add_mutually_exclusive_group()       # one of MODES at most
-    modes.add_argument("--fleet", type=_fleet_sizes,
-                    help="benchmark generated grid fleets of these sizes instead, e.g. 1,5,20,50 "
-                         "(REMUS 100 vehicles, circle leader; --T sets the simulated time, "
-                         "default 300 s)")
-    modes.add_argument("--tools", action="store_true",
-                    help="the same FMUs in our orchestrator, libcosim (libcosimpy) and fmpy's "
-                         "simulate_ssp (--T sets the simulated time, default 50 s)")
-    modes.add_argument("--startup", action="store_true",
-                    help="'auv-cosim run' as a subprocess (start to exit, cold and warm FMU "
-                         "cache) against the in-process monolithic loop")
-    modes.add_argument("--campaign", action="store_true",
-                    help="campaign throughput: runs per hour of the paper scenario on 1 and 2 "
-                         "local workers (FMU engine) and the numpy engine, overhead per task, "
-                         "design-cache gain at N = 50")
-    modes.add_argument("--native", action="store_true",
-                    help="us/step of the loop with native FMUs: in our Python master (with "
-                         "the pythonfmu plant, all native), in our compiled master, in the C "
-                         "host, in ecos, and a fused numpy loop (--T sets the simulated time, "
-                         "default 200 s); ms/step of formation-100 per-vehicle native in both "
-                         "masters")
-    modes.add_argument("--remus", action="store_true",
-                    help="the nonlinear REMUS 100: derivative and step in numpy and compiled, "
-                         "vehicle FMU doStep against the linear one, compile time")
-    modes.add_argument("--predictions", action="store_true",
-                    help="the predictions over acoustic links (per-vehicle fleet with "
-                         "--latency/--period/--loss): the second moment and the critical-loss "
-                         "search, cold and from the cache, per architecture")
-    modes.add_argument("--phases", action="store_true",
-                    help="a whole 'auv-cosim run' of the scenario options (a subprocess): "
-                         "its time split into build, design, predictions, instantiate, loop, "
-                         "statistics, recording, other and start-up, and outside the loop "
-                         "against inside it")
+    for name, (_, text) in MODES.items():
+        # --fleet takes the sizes; every other mode is a flag
+        kind = {"type": _fleet_sizes} if name == "fleet" else {"action": "store_true"}
+        modes.add_argument(f"--{name}", help=text, **kind)
     sp.add_argument("--json", action="store_true", help="print the figures as JSON")
     add_fmu_options(sp)
     sp.set_defaults(func=cmd_bench)

@@ -54,54 +54,48 @@ class FmuKind:
         return ROOT / (self.module.replace(".", "/") + ".py")
 
 
-FMU_KINDS: dict[str, FmuKind] = {
-    "plant": FmuKind("AuvPlant", "plant_model.auv_plant_slave",
-                     ("plant_model", "fmu_common"), "auv_plant_config.json", False),
-    "estimator": FmuKind("AuvEstimator", "estimator_fmu.auv_estimator_slave",
-                         ("estimator_fmu", "plant_model", "fmu_common"),
-                         "auv_estimator_config.json", False),
-    "controller": FmuKind("AuvController", "controller_fmu.auv_controller_slave",
-                          ("controller_fmu", "plant_model", "fmu_common"),
-                          "auv_controller_config.json", True),
+#: the project packages copied into a slave's resources/, by the package of its module
+SLAVE_PACKAGES = {"plant_model": ("plant_model", "fmu_common"),
+                  "estimator_fmu": ("estimator_fmu", "plant_model", "fmu_common"),
+                  "controller_fmu": ("controller_fmu", "plant_model", "fmu_common")}
+
+
+def _built(key: str, model: str, module: str, variable_step: bool) -> tuple[str, FmuKind]:
+    """An FMU built here: ``key`` -> its kind, the packages its module's package needs
+    (:data:`SLAVE_PACKAGES`), its configuration ``auv_<key>_config.json``."""
+    return key, FmuKind(model, module, SLAVE_PACKAGES[module.split(".")[0]],
+                        f"auv_{key}_config.json", variable_step)
+
+
+FMU_KINDS: dict[str, FmuKind] = dict([
+    _built("plant", "AuvPlant", "plant_model.auv_plant_slave", False),
+    _built("estimator", "AuvEstimator", "estimator_fmu.auv_estimator_slave", False),
+    _built("controller", "AuvController", "controller_fmu.auv_controller_slave", True),
     # the per-vehicle deployment (orchestrator.cosim.per_vehicle)
-    "vehicle": FmuKind("AuvVehicle", "plant_model.auv_vehicle_slave",
-                       ("plant_model", "fmu_common"), "auv_vehicle_config.json", False),
-    "remus6dof": FmuKind("AuvRemus6dof", "plant_model.remus100.auv_remus6dof_slave",
-                         ("plant_model", "fmu_common"), "auv_remus6dof_config.json", False),
+    _built("vehicle", "AuvVehicle", "plant_model.auv_vehicle_slave", False),
+    _built("remus6dof", "AuvRemus6dof", "plant_model.remus100.auv_remus6dof_slave", False),
     # the same vehicle driven by actuator commands (remus100-6dof-guided: AuvGuidance ->
     # AuvAutopilot -> it; orchestrator.cosim.guided)
-    "remus6dof_actuated": FmuKind("AuvRemus6dofActuated",
-                                  "plant_model.remus100.auv_remus6dof_actuated_slave",
-                                  ("plant_model", "fmu_common"),
-                                  "auv_remus6dof_actuated_config.json", False),
-    "leader": FmuKind("AuvLeader", "plant_model.auv_leader_slave",
-                      ("plant_model", "fmu_common"), "auv_leader_config.json", False),
-    "vehicle_estimator": FmuKind("AuvVehicleEstimator", "estimator_fmu.auv_vehicle_estimator_slave",
-                                 ("estimator_fmu", "plant_model", "fmu_common"),
-                                 "auv_vehicle_estimator_config.json", False),
-    "vehicle_controller": FmuKind("AuvVehicleController",
-                                  "controller_fmu.auv_vehicle_controller_slave",
-                                  ("controller_fmu", "plant_model", "fmu_common"),
-                                  "auv_vehicle_controller_config.json", False),
-    "central_controller": FmuKind("AuvCentralController",
-                                  "controller_fmu.auv_central_controller_slave",
-                                  ("controller_fmu", "plant_model", "fmu_common"),
-                                  "auv_central_controller_config.json", True),
+    _built("remus6dof_actuated", "AuvRemus6dofActuated",
+           "plant_model.remus100.auv_remus6dof_actuated_slave", False),
+    _built("leader", "AuvLeader", "plant_model.auv_leader_slave", False),
+    _built("vehicle_estimator", "AuvVehicleEstimator",
+           "estimator_fmu.auv_vehicle_estimator_slave", False),
+    _built("vehicle_controller", "AuvVehicleController",
+           "controller_fmu.auv_vehicle_controller_slave", False),
+    _built("central_controller", "AuvCentralController",
+           "controller_fmu.auv_central_controller_slave", True),
     # one vehicle's acoustic inbox (plant_model.acoustic: links, inbox)
-    "network": FmuKind("AuvNetwork", "plant_model.acoustic.auv_network_slave",
-                       ("plant_model", "fmu_common"), "auv_network_config.json", False),
+    _built("network", "AuvNetwork", "plant_model.acoustic.auv_network_slave", False),
     # the guidance interface (docs/guidance.md): beside the system for a host's own
     # vehicle, and in it for remus100-6dof-guided vehicles
-    "guidance": FmuKind("AuvGuidance", "controller_fmu.auv_guidance_slave",
-                        ("controller_fmu", "plant_model", "fmu_common"),
-                        "auv_guidance_config.json", True),
-    "autopilot": FmuKind("AuvAutopilot", "plant_model.remus100.auv_autopilot_slave",
-                         ("plant_model", "fmu_common"), "auv_autopilot_config.json", True),
+    _built("guidance", "AuvGuidance", "controller_fmu.auv_guidance_slave", True),
+    _built("autopilot", "AuvAutopilot", "plant_model.remus100.auv_autopilot_slave", True),
     # a vehicle the user brings as an FMU (model "fmu"): its file, its interface through
     # the port map (plant_model.vehicle_fmu.VehicleFmuPorts)
-    "vehicle_fmu": FmuKind("VehicleFmuPorts", "plant_model.vehicle_fmu", (), "", False,
-                           external=True),
-}
+    ("vehicle_fmu", FmuKind("VehicleFmuPorts", "plant_model.vehicle_fmu", (), "", False,
+                            external=True)),
+])
 
 #: the guidance interface: built beside a scenario's system for a host's own vehicle stack,
 #: and per vehicle in it for a model whose ``stack`` names them

@@ -188,13 +188,12 @@ def export_ssp(sc: Scenario, out_path: Path | str, *,
     Returns
     -------
     Path
-        ``out_path``.
+        ``out_path``, as :func:`write_ssp` writes it.
 
     Raises
     ------
     ExportError
-        Naming every problem, if the connections do not match the FMUs' variables
-        (before anything is written).
+        As :func:`write_ssp`, but before any FMU is built.
     """
     from ..running.systems import scenario_system
     system = system or scenario_system(sc)

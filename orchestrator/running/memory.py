@@ -15,7 +15,7 @@ if TYPE_CHECKING:
     from ..scenario import Scenario
 
 __all__ = ["ANNOUNCE_S", "DESIGN_COST", "DesignEstimate", "MAX_DESIGN_S", "MEMORY_SHARE",
-           "available_memory", "check_design",
+           "STACKED_DESIGNS", "available_memory", "check_design",
            "design_estimate", "stacked_states"]
 
 # --- the stacked design: one Riccati, Sylvester and Kalman design for the whole system ------
@@ -44,6 +44,16 @@ DESIGN_BYTES_PER_STATE2 = 90 * 8
 MAX_DESIGN_S = 600.0
 #: a step estimated to take longer is announced in one line before it starts, s
 ANNOUNCE_S = 2.0
+#: who solves one stacked design -> how its refusal starts, and what a fleet too large for
+#: it should do instead (a single system is told to be smaller)
+STACKED_DESIGNS = {
+    "stacked": ("the stacked deployment solves one design for",
+                "use --deployment per-vehicle --architecture distributed (each vehicle "
+                "designed on its own, independent of N)"),
+    "centralized": ("the centralized architecture solves one stacked design for",
+                    "use --architecture distributed (designed per vehicle, independent "
+                    "of N)"),
+}
 
 
 @dataclass(frozen=True)
@@ -91,22 +101,22 @@ def stacked_states(sc: Scenario) -> int:
     return sc.system.n + sc.system.r + sc.system.l
 
 
-def check_design(sc: Scenario, estimators: Iterable[str], predict: str, *, who: str,
-                 remedy: str, available: int | None = None) -> DesignEstimate:
+def check_design(sc: Scenario, estimators: Iterable[str], predict: str = "stationary",
+                 solver: str = "stacked", available: int | None = None) -> DesignEstimate:
     """Refuse, before it starts, a stacked set-up that would take longer than MAX_DESIGN_S
-    or more than MEMORY_SHARE of the memory available (:func:`design_estimate`).
+    or more than MEMORY_SHARE of the memory available (:func:`design_estimate`): the
+    stacked deployment's, or the one of the centralized per-vehicle methods.
 
     Parameters
     ----------
     sc : Scenario
     estimators : iterable of str
-        The estimator modes the methods run ('kalman' adds the filter's phase).
-    predict : str
+        The estimator modes the methods run ('kalman' adds the filter's phase); none: the
+        scenario's own.
+    predict : str, optional
         The prediction level ('none' leaves the predictions out).
-    who : str
-        Starts the message, e.g. "the stacked deployment solves one design for".
-    remedy : str
-        Ends the message: what to do instead.
+    solver : str, optional
+        Who solves the design, a key of :data:`STACKED_DESIGNS` (the message's words).
     available : int, optional
         Bytes available (default :func:`available_memory`).
 
@@ -121,6 +131,7 @@ def check_design(sc: Scenario, estimators: Iterable[str], predict: str, *, who: 
     """
     from estimator_fmu.registry import estimator_kind
     from plant_model.linalg_checks import ModelError
+    estimators = list(estimators) or [sc.estimator]
     est = design_estimate(stacked_states(sc), any(estimator_kind(e).solves_riccati
                                                   for e in set(estimators)),
                           predict != "none")
@@ -134,6 +145,8 @@ def check_design(sc: Scenario, estimators: Iterable[str], predict: str, *, who: 
                  f"more than {MEMORY_SHARE:.0%} of the {short / 1e9:.3g} GB of memory "
                  "available")
         phases = ", ".join(PHASE_NAMES[p] for p in est.phases)
+        who, remedy = STACKED_DESIGNS[solver]
+        remedy = remedy if sc.fleet is not None else "a smaller system"
         raise ModelError(f"{who} {what} ({est.states} states; {phases}): "
                          f"{est.text()}, {limit}; {remedy}")
     return est

@@ -9,7 +9,7 @@ or the Lyapunov prediction of the distributed loop (:mod:`orchestrator.analysis.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -56,7 +56,7 @@ from .stacked import stacked_phase
 if TYPE_CHECKING:
     from ..scenario import Scenario
 
-__all__ = ["DISTRIBUTED_REMEDY", "PerVehicleSetup", "TRANSIENT_LIMIT", "check_centralized"]
+__all__ = ["PerVehicleSetup", "TRANSIENT_LIMIT"]
 
 #: largest loop state for which the window-average prediction from the start is computed
 TRANSIENT_LIMIT = 1500
@@ -78,38 +78,6 @@ def prediction_path(net: Any, steps: int) -> str | None:
     if prediction_work(net, steps, blocks=True) <= NETWORK_PREDICTION_WORK:
         return "blocks"
     return None
-#: what a centralized fleet too large for one stacked design should do instead
-DISTRIBUTED_REMEDY = ("use --architecture distributed (designed per vehicle, independent "
-                      "of N)")
-
-
-def check_centralized(sc: Scenario, estimators: Sequence[str] = (),
-                      predict: str = "stationary") -> DesignEstimate:
-    """Refuse, before trying, a centralized fleet whose stacked design (with its filter
-    and predictions) would take too long or not fit in memory
-    (:func:`orchestrator.running.memory.check_design`).
-
-    Parameters
-    ----------
-    sc : Scenario
-        A fleet scenario.
-    estimators : sequence of str, optional
-        The estimator modes of the centralized methods (default: the scenario's).
-    predict : str, optional
-        The prediction level ('none': no predictions).
-
-    Returns
-    -------
-    DesignEstimate
-
-    Raises
-    ------
-    ModelError
-        One line with N, the state size, the estimate and the limit.
-    """
-    return check_design(sc, list(estimators) or [sc.estimator], predict,
-                        who="the centralized architecture solves one stacked design for",
-                        remedy=DISTRIBUTED_REMEDY)
 
 
 def _prediction(p: Any) -> Prediction:
@@ -132,7 +100,7 @@ class PerVehicleSetup(RunSetup):
             self._check_centralized()       # before anything is built: refused in one line
 
     def _check_centralized(self) -> DesignEstimate:
-        return check_centralized(self.sc, self._central or [self.sc.estimator], self.predict)
+        return check_design(self.sc, self._central, self.predict, "centralized")
 
     def phase(self, method: Method) -> str:
         """The stacked design of a centralized method, else the predictions."""

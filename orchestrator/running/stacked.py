@@ -14,42 +14,7 @@ from ..scenario import Scenario
 from .memory import DesignEstimate, check_design, design_estimate, stacked_states
 from .setup import Method, Predictions, RunSetup
 
-__all__ = ["PER_VEHICLE_REMEDY", "StackedSetup", "check_stacked", "stacked_phase"]
-
-
-#: what a stacked fleet too large for one design should do instead
-PER_VEHICLE_REMEDY = ("use --deployment per-vehicle --architecture distributed (each vehicle "
-                      "designed on its own, independent of N)")
-
-
-def check_stacked(sc: Scenario, methods: Sequence[Method] = (),
-                  predict: str = "stationary") -> DesignEstimate:
-    """Refuse, before anything is built, a stacked scenario whose design (with the
-    methods' filters and the predictions) would take longer than
-    :data:`~orchestrator.running.memory.MAX_DESIGN_S` or not fit in memory.
-
-    Parameters
-    ----------
-    sc : Scenario
-    methods : sequence of Method, optional
-        The methods that will run (default: the scenario's own).
-    predict : str, optional
-        The prediction level ('none': no predictions).
-
-    Returns
-    -------
-    DesignEstimate
-
-    Raises
-    ------
-    ModelError
-        One line with the vehicles, the states, the estimate and the limit.
-    """
-    estimators = [m.estimator for m in methods] or [sc.estimator]
-    return check_design(sc, estimators, predict,
-                        who="the stacked deployment solves one design for",
-                        remedy=PER_VEHICLE_REMEDY if sc.fleet is not None else
-                        "a smaller system")
+__all__ = ["StackedSetup", "stacked_phase"]
 
 
 def stacked_phase(sc: Scenario, est: DesignEstimate) -> str:
@@ -66,7 +31,7 @@ class StackedSetup(RunSetup):
     ------
     ModelError
         From the constructor, when the stacked design is estimated too long or too large
-        (:func:`check_stacked`).
+        (:func:`~orchestrator.running.memory.check_design`).
     """
 
     deployment = "stacked"
@@ -74,7 +39,8 @@ class StackedSetup(RunSetup):
     def __init__(self, sc: Scenario, fmu_dir: Path | str, methods: Sequence[Method] = (),
                  *, coupling: str = "gauss-seidel", predict: str = "stationary"):
         super().__init__(sc, fmu_dir, methods, coupling=coupling, predict=predict)
-        self.estimate = check_stacked(sc, self.methods, predict)   # before anything is built
+        # before anything is built
+        self.estimate = check_design(sc, [m.estimator for m in self.methods], predict)
         from .fmus import scenario_config
         self.config = scenario_config(sc)
         self._fmus: dict[str, Path] | None = None

@@ -9,9 +9,10 @@ from pathlib import Path
 from ..cosim.system import SystemDescription
 from ..scenario import Scenario, ScenarioError
 from ..scenario.size import memory_short
-from .per_vehicle import PerVehicleSetup, check_centralized
+from .memory import check_design
+from .per_vehicle import PerVehicleSetup
 from .setup import Method, RunSetup, check_setup
-from .stacked import StackedSetup, check_stacked
+from .stacked import StackedSetup
 
 __all__ = ["DEPLOYMENT_SETUPS", "build", "check_memory", "check_native", "check_run",
            "check_size", "make_setup", "scenario_system"]
@@ -80,11 +81,11 @@ def check_size(sc: Scenario, methods: Sequence[Method] = (), predict: str = "sta
     """
     methods = tuple(methods) or (Method.of(sc),)
     if sc.deployment == "stacked":
-        check_stacked(sc, methods, predict)
+        check_design(sc, [m.estimator for m in methods], predict)
         return
     central = [m.estimator for m in methods if m.architecture == "centralized"]
     if central:
-        check_centralized(sc, central, predict)
+        check_design(sc, central, predict, "centralized")
 
 
 def scenario_system(sc: Scenario) -> SystemDescription:
@@ -251,7 +252,7 @@ def check_memory(sc: Scenario, n_methods: int, available: int | None = None, *,
     Returns
     -------
     int
-        The estimated bytes of memory.
+        The estimated bytes of memory (a chunk and its copies).
 
     Raises
     ------

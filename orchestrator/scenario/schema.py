@@ -273,6 +273,10 @@ class NoiseSection(Section):
             check_covariance(name, getattr(self, name), size)
 
 
+#: a single system's section -> the vehicle sizes its ``check`` takes
+SECTION_SIZES = {"disturbance": ("r",), "reference": ("p",), "cost": ("p", "m")}
+
+
 class SystemScenario(ScenarioFile):
     """A single stacked system (:class:`plant_model.system.LinearSystem`) and its run."""
 
@@ -282,29 +286,16 @@ class SystemScenario(ScenarioFile):
     cost: CostSection = Field(default_factory=CostSection)
     noise: NoiseSection = Field(default_factory=NoiseSection)
 
-    @field_validator("disturbance")
+    @field_validator("disturbance", "reference", "cost")
     @classmethod
-    def disturbance_fits(cls, dist: DisturbanceSection, info: ValidationInfo) -> DisturbanceSection:
-        """K is r x r and w0 of length r, r = columns of B2."""
+    def section_fits(cls, section: DisturbanceSection | ReferenceSection | CostSection,
+                     info: ValidationInfo) -> DisturbanceSection | ReferenceSection | CostSection:
+        """The section's sizes agree with the vehicles' (:data:`SECTION_SIZES`): K is r x r
+        and w0 of length r (r = columns of B2); F is square, H has p rows (p = rows of C)
+        and l columns, z0 length l; Q is p x p and R m x m, positive definite."""
         if (vehicles := info.data.get("vehicles")) is not None:
-            dist.check(vehicles.sizes["r"])
-        return dist
-
-    @field_validator("reference")
-    @classmethod
-    def reference_fits(cls, ref: ReferenceSection, info: ValidationInfo) -> ReferenceSection:
-        """F is square, H has p rows (p = rows of C) and l columns, z0 length l."""
-        if (vehicles := info.data.get("vehicles")) is not None:
-            ref.check(vehicles.sizes["p"])
-        return ref
-
-    @field_validator("cost")
-    @classmethod
-    def cost_fits(cls, cost: CostSection, info: ValidationInfo) -> CostSection:
-        """Q is p x p and R m x m, positive definite."""
-        if (vehicles := info.data.get("vehicles")) is not None:
-            cost.check(vehicles.sizes["p"], vehicles.sizes["m"])
-        return cost
+            section.check(*(vehicles.sizes[k] for k in SECTION_SIZES[info.field_name]))
+        return section
 
     @field_validator("noise")
     @classmethod

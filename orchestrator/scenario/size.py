@@ -59,7 +59,7 @@ def check_fleet_model(fleet: FleetScenario, where: str, available: int | None = 
     Returns
     -------
     int
-        The estimated bytes.
+        The stacked model's estimated bytes.
 
     Raises
     ------

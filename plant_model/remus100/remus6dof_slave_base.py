@@ -21,13 +21,7 @@ from plant_model.navigation import (
     sensor_parameter_specs,
     sensors_from_parameters,
 )
-from plant_model.parameters import (
-    integer_spec,
-    noise_convention_spec,
-    sample_period_spec,
-    system_parameter_specs,
-    vehicle_seed_spec,
-)
+from plant_model.parameters import VEHICLE_PARAMETERS, vehicle_parameter_specs
 from plant_model.per_vehicle import sample_vehicle
 from plant_model.remus100.autopilot import AutopilotGains
 from plant_model.remus100.dynamics import Remus100
@@ -43,8 +37,6 @@ from plant_model.remus100.plant import (
 from plant_model.slave_common import PlantSlave, vehicle_view
 
 __all__ = ["REMUS_OUTPUTS", "Remus6dofSlave", "VEHICLE_PARAMETERS"]
-
-VEHICLE_PARAMETERS = ("A", "B1", "B2", "C", "K", "x0", "w0", "W_x", "W_w", "V_y", "V_ybar")
 
 _UNITS = {"L": "m", "diam": "m", "rho": "kg/m3", "T_surge": "s", "T_sway": "s", "T_yaw": "s",
           "A_rudder": "m2", "A_stern": "m2", "delta_max": "rad", "T_delta": "s",
@@ -98,12 +90,8 @@ class Remus6dofSlave(PlantSlave):
                  **config.get("remus", {})}
         gains = {**{f: getattr(default_gains, f) for f in GAIN_FIELDS},
                  **config.get("autopilot", {})}
-        specs = system_parameter_specs(config, VEHICLE_PARAMETERS) + [
-            sample_period_spec(config, "sample period: the communication step"),
-            vehicle_seed_spec(config),
-            integer_spec("vehicle", "the vehicle's number in the fleet, 1..N",
-                         config.get("vehicle", 1), 1),
-            noise_convention_spec(config),
+        specs = vehicle_parameter_specs(config, "sample period: the communication step",
+                                        "the vehicle's number in the fleet, 1..N") + [
             ArraySpec("substep", (), "parameter", "RK4 sub-step; must divide h",
                       start=config.get("substep") or default_substep(float(config["h"])),
                       unit="s"),

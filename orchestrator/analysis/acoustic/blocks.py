@@ -15,6 +15,7 @@ are those of the dense propagation (a test compares them on formation-4).
 """
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -25,7 +26,7 @@ import scipy.sparse as sp
 from .cache import cached
 from .cycle import _Compiler, doubled
 from .loop import NetworkedLoop
-from .prediction import NetworkPrediction, _pieces
+from .prediction import NetworkPrediction, window_cost
 
 __all__ = ["predict_window_blocks"]
 
@@ -223,15 +224,5 @@ def _window_cost_blocks(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int) -> 
     X: Blocks = (np.outer(Z0[:nc], Z0[:nc]), np.outer(Z0[:nc], Z0[nc:]),
                  np.outer(Z0[nc:], Z0[nc:]))
     b, P = comp.first_cycle(), net.period
-    cost = 0.0
-    cyc = None
-    for ka, kb, counted in _pieces(0, k0, b, P, False) + _pieces(k0, K, b, P, True):
-        if ka >= b and (ka - b) % P == 0 and (kb - ka) % P == 0:
-            cyc = cyc or comp.plan(b, b + P)
-            plan, times = cyc, (kb - ka) // P
-        else:
-            plan, times = comp.plan(ka, kb), 1
-        for _ in range(times):
-            X, c = comp.apply_blocks(plan, X)
-            cost += c if counted else 0.0
-    return cost / max(K - k0, 1)
+    cycle = functools.cache(lambda: comp.plan(b, b + P))     # compiled once, when first used
+    return window_cost(X, k0, K, b, P, cycle, comp.plan, comp.apply_blocks)

@@ -215,21 +215,10 @@ def bursty_window(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int) -> float:
     """E[J] / (K - k0) over samples k0 <= k < K from Z(0) = Z0, with the loop's bursty
     links (module docstring); kept in the prediction cache."""
     def compute() -> float:
-        from .prediction import _pieces
+        from .prediction import window_cost
         bm = BurstyMoments(net)
-        comp = bm.comp
-        M = bm.start(np.asarray(Z0, float))
-        b, P = comp.first_cycle(), net.period
-        cost = 0.0
-        for ka, kb, counted in _pieces(0, k0, b, P, False) + _pieces(k0, K, b, P, True):
-            if ka >= b and (ka - b) % P == 0 and (kb - ka) % P == 0:
-                plan, times = bm.cycle(), (kb - ka) // P
-            else:
-                plan, times = bm.plan(ka, kb), 1
-            for _ in range(times):
-                M, c = bm.apply(plan, M)
-                cost += c if counted else 0.0
-        return cost / max(K - k0, 1)
+        return window_cost(bm.start(np.asarray(Z0, float)), k0, K, bm.comp.first_cycle(),
+                           net.period, bm.cycle, bm.plan, bm.apply)
     return cached("bursty-window", net, (_models_key(net.bursty), np.asarray(Z0, float),
                                          int(k0), int(K)), compute)
 

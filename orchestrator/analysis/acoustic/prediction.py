@@ -13,7 +13,9 @@ they are), so a long window costs a few products per cycle.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -22,7 +24,7 @@ from .cycle import _Compiler
 from .loop import NetworkedLoop
 from .stability import ms_spectral_radius
 
-__all__ = ["NetworkPrediction", "predict_window", "prediction_work"]
+__all__ = ["NetworkPrediction", "predict_window", "prediction_work", "window_cost"]
 
 @dataclass(frozen=True)
 class NetworkPrediction:
@@ -64,16 +66,27 @@ def predict_window(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int,
 def _window_cost(net: NetworkedLoop, Z0: np.ndarray, k0: int, K: int) -> float:
     """E[J] / (K - k0): X2 propagated from Z0 Z0' through the compiled plans."""
     comp = _Compiler(net)
-    X = np.outer(Z0, Z0)
-    b, P = comp.first_cycle(), net.period
+    return window_cost(np.outer(Z0, Z0), k0, K, comp.first_cycle(), net.period,
+                       comp.cycle, comp.plan, comp.apply)
+
+
+def window_cost(M: Any, k0: int, K: int, b: int, P: int, cycle: Callable[[], Any],
+                plan: Callable[[int, int], Any],
+                apply: Callable[[Any, Any], tuple[Any, float]]) -> float:
+    """E[J] / (K - k0) over samples k0 <= k < K: the moment ``M`` at k = 0 carried through
+    [0, K) split at the cycle boundaries b + m P (:func:`_pieces`), each whole run of
+    cycles as ``cycle()`` applied once per cycle, every other piece as ``plan(ka, kb)``;
+    ``apply(plan, M)`` returns the next moment and the piece's expected cost, summed over
+    the pieces inside the window. Every propagation (dense, in blocks, bursty) shares it.
+    """
     cost = 0.0
     for ka, kb, counted in _pieces(0, k0, b, P, False) + _pieces(k0, K, b, P, True):
         if ka >= b and (ka - b) % P == 0 and (kb - ka) % P == 0:
-            plan, times = comp.cycle(), (kb - ka) // P
+            step, times = cycle(), (kb - ka) // P
         else:
-            plan, times = comp.plan(ka, kb), 1
+            step, times = plan(ka, kb), 1
         for _ in range(times):
-            X, c = comp.apply(plan, X)
+            M, c = apply(step, M)
             cost += c if counted else 0.0
     return cost / max(K - k0, 1)
 
