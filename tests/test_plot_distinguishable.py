@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 from matplotlib.colors import to_rgb
 
-from orchestrator.cli import main
-from orchestrator.plotting import build_figures, deterministic_style, load_run
 from orchestrator.plotting.figure import drawing_order, line_styles
+from support.plots import figures_of, made_runs
 
 METHODS = ("kalman", "classical", "ideal")
 
@@ -42,14 +41,11 @@ def folders(tmp_path_factory):
     made = {"compare": ["compare", "--T", "40", "--seeds", "0"],
             "short": ["compare", "--T", "4", "--seeds", "0"],
             "fleet": ["compare", "--scenario", "formation-4", "--T", "30", "--seeds", "0"]}
-    for name, argv in made.items():
-        assert main([*argv, "--out", str(base / name), "--quiet"]) == 0
-    return {name: base / name for name in made}
+    return made_runs(base, made)
 
 
 def _figures(folder):
-    with deterministic_style():
-        return {pf.name: pf for pf in build_figures(load_run(folder))}
+    return figures_of(folder)
 
 
 def _pixels(fig, ax) -> np.ndarray:

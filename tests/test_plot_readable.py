@@ -15,10 +15,9 @@ from matplotlib.patches import Rectangle
 
 from orchestrator.campaign.aggregate import aggregate_rows
 from orchestrator.campaign.plot import Y_LABEL, nice_ticks, write_plots
-from orchestrator.cli import main
-from orchestrator.plotting import build_figures, deterministic_style, load_run
 from orchestrator.plotting.fleet import _PATH_MARGIN
 from orchestrator.plotting.window import BINS, ZOOM_S, envelope
+from support.plots import figures_of, made_runs
 
 METHODS = ("kalman", "classical", "ideal")
 
@@ -30,14 +29,11 @@ def folders(tmp_path_factory):
     base = tmp_path_factory.mktemp("readable")
     made = {"compare": ["compare", "--T", "40", "--seeds", "0"],
             "fleet": ["run", "--scenario", "formation-4", "--T", "30"]}
-    for name, argv in made.items():
-        assert main([*argv, "--out", str(base / name), "--quiet"]) == 0
-    return {name: base / name for name in made}
+    return made_runs(base, made)
 
 
 def _figures(folder):
-    with deterministic_style():
-        return {pf.name: pf for pf in build_figures(load_run(folder))}
+    return figures_of(folder)
 
 
 def test_envelope_holds_every_sample_of_its_bin():

@@ -6,11 +6,10 @@ import argparse
 import json
 from collections.abc import Callable
 
-from controller_fmu.regulator import TRACKING_MODES
-from estimator_fmu.registry import DEFAULT_ESTIMATOR, ESTIMATOR_MODES
+from estimator_fmu.registry import DEFAULT_ESTIMATOR
 
 from .args import _fleet_sizes
-from .common import add_fmu_options, add_scenario_options, scenario_of
+from .common import add_fmu_options, add_method_options, add_scenario_options, scenario_of
 from .errors import UsageError
 
 __all__ = ["add_bench", "cmd_bench"]
@@ -333,10 +332,7 @@ def add_bench(sub: argparse._SubParsersAction) -> None:
     """The ``bench`` command's sub-parser."""
     sp = sub.add_parser("bench", help="time the co-simulation against the monolithic loop")
     add_scenario_options(sp)
-    sp.add_argument("--estimator", choices=ESTIMATOR_MODES,
-                    help=f"estimator mode (default: {DEFAULT_ESTIMATOR})")
-    sp.add_argument("--seed", type=int, help="noise seed")
-    sp.add_argument("--tracking", choices=TRACKING_MODES, help="tracking law")
+    add_method_options(sp)
     modes = sp.add_mutually_exclusive_group()       # one of MODES at most
     for name, (_, text) in MODES.items():
         # --fleet takes the sizes; every other mode is a flag

@@ -67,6 +67,17 @@ def add_fmu_options(sp: argparse.ArgumentParser) -> None:
                          "fmus, else python)")
 
 
+def add_method_options(sp: argparse.ArgumentParser) -> None:
+    """--estimator, --seed and --tracking: the one method and seed a command runs."""
+    from controller_fmu.regulator import TRACKING_MODES
+    from estimator_fmu.registry import DEFAULT_ESTIMATOR, ESTIMATOR_MODES
+    sp.add_argument("--estimator", choices=ESTIMATOR_MODES,
+                    help=f"estimator mode (default: the scenario's, else {DEFAULT_ESTIMATOR})")
+    sp.add_argument("--seed", type=int, help="noise seed (default: the scenario's)")
+    sp.add_argument("--tracking", choices=TRACKING_MODES,
+                    help="tracking law: lq (the paper) or regulator (default: the scenario's)")
+
+
 def add_master_option(sp: argparse.ArgumentParser) -> None:
     """--master: which master runs the systems (run and compare)."""
     sp.add_argument("--master", choices=("native", "python"),

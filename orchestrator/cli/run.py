@@ -12,7 +12,7 @@ from typing import Any
 
 from controller_fmu.regulator import TRACKING_MODES
 from controller_fmu.vehicle_law import ARCHITECTURES
-from estimator_fmu.registry import COMPARED_BY_DEFAULT, DEFAULT_ESTIMATOR, ESTIMATOR_MODES
+from estimator_fmu.registry import COMPARED_BY_DEFAULT, ESTIMATOR_MODES
 
 from ..outputs import staged_output
 from ..scenario import Scenario
@@ -21,6 +21,7 @@ from .common import (
     add_fmu_options,
     add_force_option,
     add_master_option,
+    add_method_options,
     add_predict_option,
     add_scenario_options,
     print_summary,
@@ -243,14 +244,10 @@ def add_run(sub: argparse._SubParsersAction) -> None:
     """The ``run`` command's sub-parser."""
     sp = sub.add_parser("run", help="co-simulate one estimator mode, write .rrd and summary.json")
     add_scenario_options(sp)
-    sp.add_argument("--estimator", choices=ESTIMATOR_MODES,
-                    help=f"estimator mode (default: {DEFAULT_ESTIMATOR})")
-    sp.add_argument("--seed", type=int, help="noise seed (default: scenario's)")
+    add_method_options(sp)
     _add_run_outputs(sp, "out/<scenario>[_<system>]_<estimator>_seed<seed>; <system> names a "
                          "per-vehicle deployment and architecture, links, nonlinear vehicles, "
                          "native FMUs")
-    sp.add_argument("--tracking", choices=TRACKING_MODES,
-                    help="tracking law: lq (the paper) or regulator (default: scenario's)")
     add_fmu_options(sp)
     add_master_option(sp)
     long = sp.add_argument_group("long runs (docs/long-runs.md)")

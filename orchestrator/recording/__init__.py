@@ -29,17 +29,4 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = [
-    "RrdStream",
-    "TRACE_KEYS",
-    "VIEW_GROUPS",
-    "FleetLayout",
-    "method_color",
-    "read_rrd_line_strips",
-    "read_rrd_points",
-    "read_rrd_scalars",
-    "read_rrd_series",
-    "read_rrd_series_lines",
-    "read_rrd_view_ranges",
-    "write_rrd",
-]
+__all__ = ["TRACE_KEYS", "VIEW_GROUPS", "FleetLayout", "method_color", *_LAZY]
