@@ -3,7 +3,7 @@
 Importing rerun-sdk and pyarrow takes about 0.5 s, as long as a third of the paper run's
 loop. :class:`BackgroundWriter` starts ``python -m orchestrator.recording.background`` at
 once (for ``run`` and ``compare`` at the very start of the command, :func:`prestart`);
-the child imports :func:`orchestrator.recording.writer.write_rrd` (and with it Rerun)
+the child imports :func:`orchestrator.recording.whole.write_rrd` (and with it Rerun)
 on the other core, then waits for length-prefixed pickled frames on its standard input
 (a private pipe between two processes of this program). Either :meth:`write` sends the
 whole traces in one frame and waits for the child's one-line JSON answer, the figures
@@ -81,7 +81,7 @@ class BackgroundWriter:
             Sampling period, s.
         **kwargs : Any
             The other keyword arguments of
-            :func:`~orchestrator.recording.writer.write_rrd`.
+            :func:`~orchestrator.recording.whole.write_rrd`.
 
         Returns
         -------
@@ -98,7 +98,7 @@ class BackgroundWriter:
         size = sum(getattr(a, "nbytes", 0) for tr in runs.values() for a in tr.values())
         if self.proc is None or size > MAX_PIPE_BYTES:
             self.close()
-            from .writer import write_rrd
+            from .whole import write_rrd
             return write_rrd(Path(path), runs, h, **kwargs)
         out, err = self.proc.communicate(_frame(("write", str(path), runs, float(h), kwargs)))
         if self.proc.returncode != 0:
@@ -292,7 +292,7 @@ def _read_frame(inp: IO[bytes]) -> tuple | None:
 
 def _child() -> int:
     from .stream import RrdStream
-    from .writer import write_rrd  # the import this process exists to pay
+    from .whole import write_rrd  # the import this process exists to pay
 
     inp = sys.stdin.buffer
     message = _read_frame(inp)

@@ -21,7 +21,7 @@ from __future__ import annotations
 import socket
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 from urllib.parse import urlsplit
 
 if TYPE_CHECKING:
@@ -29,7 +29,6 @@ if TYPE_CHECKING:
     import rerun as rr
     import rerun.blueprint as rrb
 
-    from .stream import RrdStream
 
 __all__ = ["DEFAULT_PORT", "LIVE_ROW_SECONDS", "SPAWN", "LiveViewer", "LiveViewerError",
            "check_viewer", "live_url", "spawn_viewer"]
@@ -182,7 +181,7 @@ class LiveViewer:
         self.rec.disconnect()
 
 
-def start_live(stream: RrdStream, method: str, clean: dict[str, np.ndarray]) -> LiveViewer:
+def start_live(stream: Any, method: str, clean: dict[str, np.ndarray]) -> LiveViewer:
     """Send the live viewer of ``stream`` its layout and legend, before the first rows
     (``clean``: the first chunk of the first method, the traces' dimensions and kinds).
 

@@ -1,7 +1,7 @@
 """Write a .rrd chunk by chunk as a run goes, in bounded memory: :class:`RrdStream`.
 
 A stream is opened on the run's methods; the master sends each method's traces in chunks of
-steps (every simulated step, the layout :func:`~orchestrator.recording.writer.write_rrd`
+steps (every simulated step, the layout :func:`~orchestrator.recording.whole.write_rrd`
 takes), the methods one after the other, and closes it. The recorded rows are written to the
 file as they come (gathered into blocks of ``chunk_rows``), to a temporary name in the same
 folder (``.{name}.{pid}.part``) that :meth:`close` renames to the final one
@@ -12,32 +12,19 @@ file there stays until the rename. :meth:`abort` (or an exception in a
 What is recorded does not depend on the chunks: samples are chosen by global step (k % stride
 == 0 for the series and the 3D scene; edges, trails and the leader's path as
 :mod:`.scene` says), so the same traces sent in one chunk or in many give the same file
-contents. What needs the whole run is kept as it goes, bounded, and written at :meth:`close`:
-the default blueprint (its y ranges and camera from running minima and maxima of every trace
-column; in the paper layout, whose views also count how many estimate samples leave the true
-signal's range, from the traces themselves up to :data:`SAMPLE_ROWS` steps, then from every
-2nd, 4th, ... step plus the exact extremes), the legends, the actuator limits and the
-leader's whole path. The blueprint is sent at the close, not first: its ranges, the views it
-leaves an estimate out of, and its panels (actuators, links) are only known then, and a file
-is read whole by the viewer, so it makes no difference there; a live viewer sees the
-data at once and the blueprint at the end.
-
-Memory: the traces of one chunk (the caller's), the recorded rows gathered until they are
-written (:data:`CHUNK_ROWS` rows, fewer for wide fleets: at most :data:`PENDING_BYTES`),
-a few rows per trace column, the sample of the paper layout (at most :data:`SAMPLE_ROWS`
-rows of its few columns per method) and the leader's path (at most
-:data:`~orchestrator.recording.scene.PATH_POINTS` points per method). Gathered rows are
-flushed to the file as they are written, so nothing queues in Rerun's sink. One thing grows
-with the run: the file's footer, a manifest of its Rerun chunks that Rerun's sink keeps in
-memory until the close (about 850 bytes per chunk, one chunk per entity per write: the
-gathering keeps it small; ``footer=False`` drops it, at the cost of the readers' random
-access, see ``rerun.RecordingStream.save``).
+contents. What needs the whole run (the blueprint's y ranges and camera, the legends, the
+actuator limits, the leader's whole path) is kept as it goes, bounded
+(:mod:`.summary`), and written at :meth:`close`; a live viewer (``live``,
+:mod:`.live`) gets a layout of its own first. A checkpoint (:meth:`checkpoint`) finishes
+the file so far as a segment; :meth:`close` joins the segments. Memory: one chunk, the
+rows gathered until written (at most :data:`PENDING_BYTES`), a few rows per trace column
+and the file's footer, which grows about 850 bytes per Rerun chunk written
+(docs/recording.md, "Written as the run goes").
 """
 from __future__ import annotations
 
 import os
 import pickle
-import subprocess
 import sys
 import time
 import uuid
@@ -52,19 +39,18 @@ from .actuators import DEFAULT_DELTA_MAX, DEFAULT_N_MAX, send_limits
 from .blueprint import LEGEND_ENTITY, _blueprint, _fleet_blueprint
 from .layout import FLEET_TRACE_KEYS, TRACE_KEYS, FleetLayout, _Fleet, method_color
 from .live import start_live
-from .network import LINK_KEYS, LINKS_LEGEND_ENTITY, links_legend, send_links
+from .network import LINKS_LEGEND_ENTITY, links_legend, send_links
 from .scene import WorldStream, leader_position, time_columns
-from .summary import SAMPLE_ROWS, RunSummary
+from .stream_state import _Run, _StaticOnce, clean_chunk, join_segments
+from .summary import SAMPLE_ROWS
 from .validation import (
     _method_name,
     _positive_int,
     _positive_ns,
     _step_ns,
-    _validate,
     _validate_fleet,
 )
 from .writer import (
-    _ACTUATOR_KEYS,
     _fleet_legend,
     _paper_legend,
     _send_fleet_series,
@@ -77,45 +63,6 @@ __all__ = ["CHUNK_ROWS", "PENDING_BYTES", "SAMPLE_ROWS", "RrdStream"]
 CHUNK_ROWS = 4096
 #: ... or fewer, once they hold this many bytes (a wide fleet's rows)
 PENDING_BYTES = 32 << 20
-
-
-class _StaticOnce:
-    """The recording, logging each entity's static style only the first time (the series
-    writers log it with every chunk)."""
-
-    def __init__(self, rec: rr.RecordingStream) -> None:
-        self.rec = rec
-        self._seen: set[tuple[str, type]] = set()
-
-    def log(self, entity: str, data: Any, *args: Any, static: bool = False,
-            **kwargs: Any) -> None:
-        if static:
-            key = (entity, type(data))
-            if key in self._seen:
-                return
-            self._seen.add(key)
-        self.rec.log(entity, data, *args, static=static, **kwargs)
-
-    def send_columns(self, *args: Any, **kwargs: Any) -> None:
-        self.rec.send_columns(*args, **kwargs)
-
-    def __getstate__(self) -> dict[str, Any]:
-        """What a checkpoint keeps: the statics logged (not the recording's connection)."""
-        return {"rec": None, "_seen": set(self._seen)}
-
-
-class _Run:
-    """One method's state in the stream."""
-
-    def __init__(self, index: int, k0: int, dims: dict[str, int], sample: bool) -> None:
-        self.index, self.next_k, self.dims = index, k0, dims
-        self.summary = RunSummary(sample)
-        self.world: WorldStream | None = None
-        self.counted = False
-        self.last_recorded = -1
-        self.pending: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []   # recorded rows
-        self.pending_rows = 0
-        self.pending_bytes = 0
 
 
 class RrdStream:
@@ -131,7 +78,7 @@ class RrdStream:
         Step, s (> 0); times are stored as round(h * 1e9) integer nanoseconds.
     recording_name, application_id, fleet, stride, scene_stride, trail_seconds, \
 trail_sample_seconds, links
-        As :func:`~orchestrator.recording.writer.write_rrd`.
+        As :func:`~orchestrator.recording.whole.write_rrd`.
     chunk_rows : int, optional
         Recorded rows gathered before they are written (one Rerun chunk per entity; fewer
         when they reach :data:`PENDING_BYTES`); 1 writes every send at once (a live viewer).
@@ -146,7 +93,7 @@ trail_sample_seconds, links
     Raises
     ------
     ValueError
-        A bad argument (as :func:`~orchestrator.recording.writer.write_rrd`); nothing is
+        A bad argument (as :func:`~orchestrator.recording.whole.write_rrd`); nothing is
         written then.
     RuntimeError
         If Rerun logging is disabled (``RERUN=off``).
@@ -272,22 +219,10 @@ trail_sample_seconds, links
 
     def _join_segments(self) -> None:
         """The segments and the temporary file joined into one file at the temporary name
-        (``rerun rrd merge``: Rerun's own join, which checks every chunk; ``rerun rrd
-        route``, which would not decode them, fails on files with a footer in Rerun
-        0.41)."""
-        if not self.segments:
-            return
-        assert self.segment_dir is not None
-        joined = self.tmp.with_name(self.tmp.name + ".joined")
-        cmd = [sys.executable, "-m", "rerun", "rrd", "merge", "-o", str(joined),
-               *(str(self.segment_dir / s) for s in self.segments), str(self.tmp)]
-        done = subprocess.run(cmd, capture_output=True, text=True)
-        if done.returncode != 0 or not joined.is_file():
-            joined.unlink(missing_ok=True)
-            lines = done.stderr.strip().splitlines()
-            raise RuntimeError(f"joining the recording's {len(self.segments) + 1} segments "
-                               f"failed: {lines[-1] if lines else done.returncode}")
-        os.replace(joined, self.tmp)
+        (:func:`.stream_state.join_segments`)."""
+        if self.segments:
+            assert self.segment_dir is not None
+            join_segments([self.segment_dir / name for name in self.segments], self.tmp)
 
     def _sinks(self, rec: rr.RecordingStream) -> None:
         """Where the recording goes: the temporary file and, with ``live`` (a viewer's
@@ -316,28 +251,8 @@ trail_sample_seconds, links
 
     def _clean(self, method: str, traces: Mapping[str, Any],
                with_links: bool) -> dict[str, np.ndarray] | None:
-        """The chunk's traces as float64 (the layout's keys, the actuator keys present, the
-        link keys if ``with_links``), checked; None for a chunk of no steps."""
-        if isinstance(traces, Mapping):
-            first = traces.get(self.keys[0])
-            if first is not None and np.ndim(first) == 2 and np.shape(first)[0] == 0:
-                return None
-        clean = _validate({method: traces}, self.h, self.keys)[0][method]
-        steps = clean[self.keys[0]].shape[0]
-        extra = [k for k in _ACTUATOR_KEYS if k in traces]
-        if with_links:
-            missing = [k for k in LINK_KEYS if k not in traces]
-            if missing:
-                raise ValueError(f"write_rrd: run {method!r} over links is missing trace "
-                                 f"key(s) {', '.join(map(repr, missing))}")
-            extra += list(LINK_KEYS)
-        for key in extra:
-            arr = np.asarray(traces[key], dtype=np.float64)
-            if arr.ndim != 2 or arr.shape[0] != steps:
-                raise ValueError(f"write_rrd: run {method!r} trace {key!r} has shape "
-                                 f"{arr.shape}, expected ({steps}, ...)")
-            clean[key] = arr
-        return clean
+        """The chunk's traces checked (:func:`.stream_state.clean_chunk`)."""
+        return clean_chunk(self.keys, self.h, method, traces, with_links)
 
     def send(self, method: str, k0: int, traces: Mapping[str, Any],
              links: Sequence[str] | None = None) -> None:
@@ -355,7 +270,7 @@ trail_sample_seconds, links
             (>= 0), each later one where the previous ended.
         traces : Mapping[str, array]
             Trace key -> array (n, dim), the keys and shapes of
-            :func:`~orchestrator.recording.writer.write_rrd` (the actuator traces and, for a
+            :func:`~orchestrator.recording.whole.write_rrd` (the actuator traces and, for a
             method over links, the link traces too); the same dims in every chunk.
             A chunk of no rows is ignored.
         links : Sequence[str] or None, optional
@@ -496,7 +411,7 @@ trail_sample_seconds, links
         -------
         dict[str, float]
             ``rrd_s`` (wall-clock seconds spent in the stream's calls), ``signals`` (scalar
-            series written, counted as :func:`~orchestrator.recording.writer.write_rrd`
+            series written, counted as :func:`~orchestrator.recording.whole.write_rrd`
             does) and ``bytes`` (the file's size).
 
         Raises

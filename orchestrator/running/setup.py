@@ -371,8 +371,9 @@ class RunSetup:
                                               start=start, checkpoints=checkpoints,
                                               realtime=realtime)
             add_phase("loop", loop_s - (sink.seconds if sink is not None else 0.0))
+            if sink is not None:              # the chunks' stacking and statistics
+                add_phase("statistics", sink.seconds)
         if recorder is not None:
-            add_phase("statistics", sink.seconds)
             info.update(chunk_info)
             stacked = recorder.traces()
         else:
