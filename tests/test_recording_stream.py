@@ -277,3 +277,23 @@ def test_checkpoint_segments_join_into_the_same_file(tmp_path, resume):
     stream.close()
     assert_same_files(tmp_path / "one.rrd", tmp_path / "segmented.rrd")
     assert not [p for p in tmp_path.iterdir() if p.name.endswith(".part")]
+
+
+def test_a_failed_join_keeps_every_segment(tmp_path):
+    """A segment the join cannot read (here: damaged): the close says so in one line and
+    the recording so far stays in the segment files, the last part with them."""
+    runs = make_runs()
+    (method, traces), = list(runs.items())[:1]
+    folder = tmp_path / "checkpoint"
+    stream = RrdStream(tmp_path / "run.rrd", [method], H, recording_name="join")
+    stream.send(method, 0, {k: v[:100] for k, v in traces.items()})
+    stream.checkpoint(folder)
+    stream.send(method, 100, {k: v[100:] for k, v in traces.items()})
+    (folder / "segment-0000.rrd").write_bytes(b"not a recording")
+    with pytest.raises(RuntimeError, match="the recording is kept in 2 files"):
+        stream.close()
+    assert sorted(p.name for p in folder.iterdir()) == ["segment-0000.rrd",
+                                                         "segment-0001.rrd"]
+    assert not (tmp_path / "run.rrd").exists()
+    steps = read_rrd_scalars(folder / "segment-0001.rrd")
+    assert steps and all(k[0] >= 100 for k, _, _ in steps.values())

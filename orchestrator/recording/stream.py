@@ -448,9 +448,13 @@ trail_sample_seconds, links
         self._open = False
         try:
             self._join_segments()
-        except BaseException:
-            self.tmp.unlink(missing_ok=True)
-            raise
+        except Exception as exc:            # nothing lost: the last part joins the segments
+            assert self.segment_dir is not None
+            last = self.segment_dir / f"segment-{len(self.segments):04d}.rrd"
+            os.replace(self.tmp, last)
+            raise RuntimeError(f"{exc}; the recording is kept in {len(self.segments) + 1} "
+                               f"files, {self.segment_dir}/segment-*.rrd (the viewer opens "
+                               "them together)") from None
         os.replace(self.tmp, self.path)
         self.seconds += time.perf_counter() - t0
         return {"rrd_s": self.seconds, "signals": self.signals,
