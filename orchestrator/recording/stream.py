@@ -217,13 +217,6 @@ trail_sample_seconds, links
         self._connect()
         return self
 
-    def _join_segments(self) -> None:
-        """The segments and the temporary file joined into one file at the temporary name
-        (:func:`.stream_state.join_segments`)."""
-        if self.segments:
-            assert self.segment_dir is not None
-            join_segments([self.segment_dir / name for name in self.segments], self.tmp)
-
     def _sinks(self, rec: rr.RecordingStream) -> None:
         """Where the recording goes: the temporary file and, with ``live`` (a viewer's
         URL), that viewer too (Rerun's file and gRPC sinks: the same rows, as they are
@@ -446,15 +439,8 @@ trail_sample_seconds, links
         self._rec.disconnect()
         del self._rec, self.rec
         self._open = False
-        try:
-            self._join_segments()
-        except Exception as exc:            # nothing lost: the last part joins the segments
-            assert self.segment_dir is not None
-            last = self.segment_dir / f"segment-{len(self.segments):04d}.rrd"
-            os.replace(self.tmp, last)
-            raise RuntimeError(f"{exc}; the recording is kept in {len(self.segments) + 1} "
-                               f"files, {self.segment_dir}/segment-*.rrd (the viewer opens "
-                               "them together)") from None
+        if self.segments:               # a checkpointed run: join its files (nothing lost)
+            join_segments([Path(self.segment_dir) / n for n in self.segments], self.tmp)
         os.replace(self.tmp, self.path)
         self.seconds += time.perf_counter() - t0
         return {"rrd_s": self.seconds, "signals": self.signals,

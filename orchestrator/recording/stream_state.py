@@ -69,7 +69,8 @@ def join_segments(segments: Sequence[Path], tmp: Path) -> None:
     Raises
     ------
     RuntimeError
-        If the join fails, with Rerun's last line; ``tmp`` is left as it was.
+        If the join fails, with Rerun's last line; nothing is lost: ``tmp`` becomes the
+        next segment file beside the others, and the message names them.
     """
     joined = tmp.with_name(tmp.name + ".joined")
     cmd = [sys.executable, "-m", "rerun", "rrd", "merge", "-o", str(joined),
@@ -77,9 +78,13 @@ def join_segments(segments: Sequence[Path], tmp: Path) -> None:
     done = subprocess.run(cmd, capture_output=True, text=True)
     if done.returncode != 0 or not joined.is_file():
         joined.unlink(missing_ok=True)
+        folder = Path(segments[-1]).parent
+        os.replace(tmp, folder / f"segment-{len(segments):04d}.rrd")
         lines = done.stderr.strip().splitlines()
-        raise RuntimeError(f"joining the recording's {len(segments) + 1} segments "
-                           f"failed: {lines[-1] if lines else done.returncode}")
+        raise RuntimeError(f"joining the recording's {len(segments) + 1} segments failed: "
+                           f"{lines[-1] if lines else done.returncode}; the recording is "
+                           f"kept in {len(segments) + 1} files, {folder}/segment-*.rrd (the "
+                           "viewer opens them together)")
     os.replace(joined, tmp)
 
 
