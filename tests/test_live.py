@@ -159,7 +159,7 @@ def test_stream_shows_the_layout_first_then_the_traces_and_writes_the_same_file(
     assert {"error-1 (dimensionless)", "control-2 (dimensionless)"} <= seen["views"]
     assert {"/error/1/kalman", "/state/3/kalman/estimate", "/legend"} <= seen["entities"]
     assert not any("/classical" in e for e in seen["entities"])
-    assert seen["pixels"] > blank + 20000, (blank, seen["pixels"])
+    assert seen["pixels"] > blank + 10000, (blank, seen["pixels"])   # traces drawn
     # at the close: every method, the final blueprint made the active one (its y ranges)
     rec = recording_of(viewer)
     assert "/error/1/classical" in entities(viewer, rec.store_id)
@@ -216,4 +216,4 @@ def test_a_run_streams_its_traces_to_the_viewer_and_writes_the_same_rrd(viewer, 
     last = int(max(a[k][0][-1] for k in a))
     rec = recording_of(viewer, last_step=last)
     assert any(e.startswith(entity) for e in entities(viewer, rec.store_id))
-    assert coloured_pixels(viewer, tmp_path / "end.png") > blank + 20000
+    assert coloured_pixels(viewer, tmp_path / "end.png") > blank + 10000   # ten times blank
