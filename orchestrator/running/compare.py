@@ -164,6 +164,7 @@ class _Keeper:
         self.seconds = 0.0                      #: spent writing them
         self.resumed_at: float | None = None    #: the time the resumed run went on from, s
         self.before = 0.0                       #: loop seconds of the resumed run before
+        self.going_on = False                   #: the run prepared is the resumed one
 
     def recording(self) -> tuple[bytes, Path] | None:
         """The .rrd stream's state to go on from, and the folder of its segments (None:
@@ -173,15 +174,17 @@ class _Keeper:
             return None
         return ck.recording, self.out / CHECKPOINT_DIR
 
-    def prepare(self, sc: Scenario, name: str, seed: int, recorder: RunRecorder,
-                stream: Any = None) -> tuple[RunRecorder, MasterState | None, Saver | None]:
-        """The recorder, the master state to start from and the saver of one run
-        (``stream``: the command's .rrd stream, which a resumed recorder sends to)."""
+    def prepare(self, sc: Scenario, name: str, seed: int, recorder: RunRecorder
+                ) -> tuple[RunRecorder, MasterState | None, Saver | None]:
+        """The recorder, the master state to start from and the saver of one run (a
+        resumed recorder sends to the command's .rrd stream)."""
         start = None
+        self.going_on = False
         ck = self.resume
         if ck is not None and ck.method == name and ck.seed == seed:
             recorder, start = ck.recorder, ck.master
-            recorder.stream = stream
+            recorder.stream = self.stream
+            self.going_on = True
             self.resumed_at, self.before = start.step * sc.h, ck.loop_s
             self.resume = None
         if not self.every_s:
@@ -203,9 +206,10 @@ class _Keeper:
             self.seconds += saver.seconds
         if "realtime" in res.info:
             self.paced.append(res.info["realtime"])
-        if self.resumed_at is not None and res.info.get("resumed_from_s") is None:
+        if self.going_on:                       # the run that went on from the checkpoint
             res.info["resumed_from_s"] = self.resumed_at
             res.loop_s += self.before
+            self.going_on = False
 
     def summary(self) -> dict[str, Any]:
         """summary.json's ``checkpoints``."""
@@ -349,7 +353,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
             recorder = RunRecorder(RunStatistics(sc, k0, formation),
                                    stream=stream if first else None, name=name,
                                    chunk=live_chunk if first else None)
-            recorder, start, saver = keeper.prepare(sc, name, seed, recorder, stream)
+            recorder, start, saver = keeper.prepare(sc, name, seed, recorder)
             res = setup.run(method, seed, progress=bar, stop=stop, recorder=recorder,
                             start=start, checkpoints=saver, realtime=keeper.realtime)
             keeper.done(res, saver)
