@@ -276,16 +276,23 @@ def _seconds(text: str) -> float:
     return value
 
 
-def _factor(text: str) -> float:
-    """A real-time factor > 0 (argparse type)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not value > 0 or math.isinf(value):
-        raise argparse.ArgumentTypeError(f"{text!r}: give simulated seconds per wall-clock "
-                                         "second, a number > 0 (1: real time)")
-    return value
+def _positive_number(what: str) -> Callable[[str], float]:
+    """An argparse type: a finite number > 0, refused naming ``what`` it is."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not value > 0 or math.isinf(value):
+            raise argparse.ArgumentTypeError(f"{text!r}: give {what}")
+        return value
+    return parse
+
+
+#: --realtime's and --record-hz's values
+_factor = _positive_number("simulated seconds per wall-clock second, a number > 0 "
+                           "(1: real time)")
+_rate = _positive_number("samples per second of simulated time, a number > 0")
 
 
 def _add_run_outputs(sp: argparse.ArgumentParser, default_out: str) -> None:
@@ -293,7 +300,7 @@ def _add_run_outputs(sp: argparse.ArgumentParser, default_out: str) -> None:
     sp.add_argument("--out", help=f"output folder (default: {default_out})")
     add_force_option(sp)
     add_predict_option(sp)
-    sp.add_argument("--record-hz", type=_factor, metavar="HZ",
+    sp.add_argument("--record-hz", type=_rate, metavar="HZ",
                     help="samples per second of simulated time in the .rrd (default: every "
                          "step for a single system, 20 for a fleet); every step is still "
                          "simulated and in the statistics")
