@@ -79,7 +79,8 @@ def test_out_that_is_a_file_or_under_a_file(capsys, tmp_path):
 
 @pytest.mark.parametrize("argv, fragments", [
     (["--T", "1e12"], ["T = 1e+12 s with h = 0.01 s is 1e+14 steps", "GB on disk",
-                       "shorten T, lengthen h or record fewer samples (--record-hz)"]),
+                       "shorten T, lengthen h, record fewer samples (--record-hz) or fewer "
+                       "outputs (--record)"]),
     (["--h", "1e-300"], ["[simulation] h: step h = 1e-300 s is too small for this model"]),
     (["--T", "1e9", "--h", "1e-6"], ["T = 1e+09 s with h = 1e-06 s is 1e+15 steps"]),
     (["--T", "1e-299", "--h", "1e-300"], ["step h = 1e-300 s is too small for this model",

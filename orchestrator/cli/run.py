@@ -54,9 +54,10 @@ def cmd_run(args: argparse.Namespace) -> int:
               f"(checkpoint of {when})")
     options = resume.options if resume is not None else {"predict": args.predict,
                                                          "master": args.master or "auto",
-                                                         "record_hz": args.record_hz}
+                                                         "record_hz": args.record_hz,
+                                                         "record": args.record}
     check_run(sc, predict=options["predict"],   # every check, before anything is created
-              record_hz=options.get("record_hz"))
+              record_hz=options.get("record_hz"), record=options.get("record"))
     live = _live(args)
     every = DEFAULT_EVERY_S if args.checkpoint_every is None else args.checkpoint_every
     out = args.resume or args.out or default_out(sc, sc.estimator, f"seed{sc.seed}")
@@ -68,7 +69,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                            log=_log(args, st), predict=options["predict"],
                            master=options["master"], checkpoint_every=every, resume=resume,
                            realtime=args.realtime, record_hz=options.get("record_hz"),
-                           live=live)
+                           record=options.get("record"), live=live)
         complete = not summary.get("interrupted")
         if complete:                    # a finished run needs no checkpoint
             remove_tree(st.path / CHECKPOINT_DIR)
@@ -98,7 +99,8 @@ def _resumed(args: argparse.Namespace) -> Any:
     changed = [f"--{k.replace('_', '-')}" for k in ("estimator", "seed", "tracking", "fmus",
                                                     "master", "deployment", "architecture",
                                                     "latency", "period", "loss", "receiver",
-                                                    "T", "h", "out", "record_hz")
+                                                    "T", "h", "out", "record_hz",
+                                                    "record")
                if getattr(args, k, None) is not None]
     if args.scenario != "paper":
         changed.insert(0, "--scenario")
@@ -135,7 +137,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     trackings = picked if what == "tracking" else None
     architectures = picked if what == "architectures" else None
     check_run(sc, method_list(sc, modes, trackings, architectures), predict=args.predict,
-              record_hz=args.record_hz)
+              record_hz=args.record_hz, record=args.record)
     live = _live(args)
     tail = "compare" if args.what is None else f"compare-{what}"
     with staged_output(args.out or default_out(sc, tail), "compare",
@@ -145,7 +147,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
                            log=_log(args, st), trackings=trackings,
                            workers=args.workers, architectures=architectures,
                            predict=args.predict, master=args.master or "auto",
-                           record_hz=args.record_hz, live=live)
+                           record_hz=args.record_hz, record=args.record, live=live)
         out = st.finish(complete=not summary.get("interrupted"))
     return print_summary(st.relocate(summary), out, st.note)
 
@@ -295,8 +297,18 @@ _factor = _positive_number("simulated seconds per wall-clock second, a number > 
 _rate = _positive_number("samples per second of simulated time, a number > 0")
 
 
+def _groups(text: str) -> tuple[str, ...]:
+    """--record's groups: names separated by commas (each checked against the scenario's
+    layout by :func:`orchestrator.running.systems.check_record`)."""
+    names = tuple(n.strip() for n in text.split(","))
+    if not all(names):
+        raise argparse.ArgumentTypeError(f"{text!r}: name the groups separated by commas, "
+                                         "e.g. error,control,scene")
+    return names
+
+
 def _add_run_outputs(sp: argparse.ArgumentParser, default_out: str) -> None:
-    """--out, --force, --predict and --record-hz of run and compare."""
+    """--out, --force, --predict, --record-hz, --record and --live of run and compare."""
     sp.add_argument("--out", help=f"output folder (default: {default_out})")
     add_force_option(sp)
     add_predict_option(sp)
@@ -304,6 +316,12 @@ def _add_run_outputs(sp: argparse.ArgumentParser, default_out: str) -> None:
                     help="samples per second of simulated time in the .rrd (default: every "
                          "step for a single system, 20 for a fleet); every step is still "
                          "simulated and in the statistics")
+    sp.add_argument("--record", type=_groups, metavar="GROUPS",
+                    help="the outputs written to the .rrd, groups separated by commas "
+                         "(default: all). A fleet: error, control, state, current, leader, "
+                         "scene, actuators, setpoint, links; a single system: error, state, "
+                         "control, disturbance, reference, measurement. The statistics and "
+                         "summary.json use every output (docs/long-runs.md)")
     sp.add_argument("--live", nargs="?", const="spawn", metavar="URL",
                     help="watch the run in a Rerun viewer as it goes: one spawned (no URL) "
                          "or the one at URL (rerun+http://HOST:PORT/proxy); the .rrd is "

@@ -190,6 +190,8 @@ class ChildStream:
         self.proc: subprocess.Popen | None = proc
         self.path = Path(path)
         self._lines: deque[bytes] = deque(maxlen=100)
+        self._spec: Any = None                  # the child's, its first answer (_ready)
+        self._links: dict[str, list[str]] = {}
         self._drain = threading.Thread(target=self._drain_stderr, args=(proc.stderr,),
                                        daemon=True)
         self._drain.start()
@@ -223,16 +225,37 @@ class ChildStream:
         except (BrokenPipeError, ConnectionResetError):
             raise self._failure() from None
 
+    def _ready(self) -> tuple[Any, dict[str, list[str]]]:
+        """The child stream's :class:`~.chunks.ChunkSpec` and links, its first answer."""
+        if self._spec is None:
+            assert self.proc is not None and self.proc.stdout is not None
+            reply = _read_frame(self.proc.stdout)
+            if reply is None:
+                raise self._failure()
+            self._spec, self._links = reply[1], dict(reply[2])
+        return self._spec, self._links
+
     def send(self, method: str, k0: int, traces: Mapping[str, Any],
              links: Sequence[str] | None = None) -> None:
-        """:meth:`~orchestrator.recording.stream.RrdStream.send` in the child (the chunk is
-        copied into the pipe: the caller may reuse its arrays at once)."""
-        self._put(("send", method, int(k0), dict(traces),
-                   None if links is None else list(links)))
+        """:meth:`~orchestrator.recording.stream.RrdStream.send` in the child: the chunk is
+        reduced here to what the file keeps (:func:`~.chunks.digest`: the recorded rows of
+        the recorded outputs, the extremes of every step) and that is copied into the pipe
+        (the caller may reuse its arrays at once). A bad chunk raises ValueError here."""
+        if self.proc is None:
+            raise RuntimeError(f"writing {self.path}: the stream is closed")
+        from .chunks import digest
+        spec, known = self._ready()
+        chunk = digest(spec, method, int(k0), traces, links is not None or method in known)
+        if chunk is None:
+            return
+        if links is not None:
+            known.setdefault(method, list(links))
+        self._put(("take", chunk, None if links is None else list(links)))
 
     def checkpoint(self, folder: Path | str) -> bytes:
         """:meth:`~orchestrator.recording.stream.RrdStream.checkpoint` in the child: its
         state, answered as a frame on its standard output."""
+        self._ready()
         self._put(("checkpoint", str(folder)))
         assert self.proc is not None and self.proc.stdout is not None
         reply = _read_frame(self.proc.stdout)
@@ -242,6 +265,7 @@ class ChildStream:
 
     def close(self, last_step: int | None = None) -> dict[str, Any]:
         """:meth:`~orchestrator.recording.stream.RrdStream.close` in the child; its figures."""
+        self._ready()
         self._put(("close", last_step))
         assert self.proc is not None and self.proc.stdin is not None
         self.proc.stdin.close()
@@ -309,12 +333,14 @@ def _child() -> int:
             _, path, methods, h, kwargs = message
             opened = RrdStream(path, methods, h, **kwargs)
         with opened as stream:                  # aborted unless closed
+            sys.stdout.buffer.write(_frame(("spec", stream.spec, stream.links)))
+            sys.stdout.buffer.flush()
             while True:
                 message = _read_frame(inp)
                 if message is None:          # the parent aborted or died
                     return 0
-                if message[0] == "send":
-                    stream.send(*message[1:])
+                if message[0] == "take":
+                    stream.take(*message[1:])
                 elif message[0] == "checkpoint":
                     sys.stdout.buffer.write(_frame(("state", stream.checkpoint(message[1]))))
                     sys.stdout.buffer.flush()

@@ -34,6 +34,7 @@ from rerun.encodings import TimeRange
 
 from .layout import _SIM_TIME, _STEP, VIEW_GROUPS, _Fleet
 from .ranges import DIMENSIONLESS, data_range, tick_range, unit_of
+from .selection import Selection
 
 #: entity of the one-line colour legend (a markdown TextDocument written by the writer)
 LEGEND_ENTITY = "legend"
@@ -122,14 +123,19 @@ def _true_and_estimates(group: str, i: int, methods: list[str],
     return fitted, full
 
 
-def _blueprint(clean: dict[str, dict[str, np.ndarray]], fixed: bool = True) -> rrb.Blueprint:
+def _blueprint(clean: dict[str, dict[str, np.ndarray]], fixed: bool = True,
+               selection: Selection | None = None) -> rrb.Blueprint:
     """The paper layout (module docstring) for the runs ``clean`` (method -> traces); not
-    ``fixed``: the layout of a live viewer, every y-axis automatic (the data are to come)."""
+    ``fixed``: the layout of a live viewer, every y-axis automatic (the data are to come).
+    ``selection``: the recorded groups (default all), whose views only are laid out."""
     methods = list(clean)
+    selection = selection or Selection(fleet=False)
     view = _series_view if fixed else _auto_view
     rows: dict[str, list[rrb.TimeSeriesView]] = {}
     full: list[rrb.Horizontal] = []
     for group, keys in VIEW_GROUPS:
+        if not selection.has(group):
+            continue
         dim = max(run[k].shape[1] for run in clean.values() for k in keys)
         if group in _TRUE_GROUPS:
             pairs = [_true_and_estimates(group, i, methods, clean, fixed)
@@ -142,16 +148,19 @@ def _blueprint(clean: dict[str, dict[str, np.ndarray]], fixed: bool = True) -> r
                 data_range([run[k][:, i - 1] for run in clean.values() for k in keys
                             if run[k].shape[1] >= i]))
                 for i in range(1, dim + 1)]
-    figures = rrb.Vertical(*[rrb.Horizontal(*rows[g], name=g)
-                             for g in ("error", "state", "control")],
-                           name="paper figures 2-7")
-    exo = rrb.Vertical(*[rrb.Horizontal(*rows[g], name=g) for g in ("disturbance", "reference")],
-                       name="disturbance & reference")
-    estimates = rrb.Vertical(*full, name="estimates, full scale")
+    tabs = [rrb.Vertical(*[rrb.Horizontal(*rows[g], name=g) for g in groups if g in rows],
+                         name=name)
+            for name, groups in (("paper figures 2-7", ("error", "state", "control")),
+                                 ("disturbance & reference", ("disturbance", "reference")))
+            if any(g in rows for g in groups)]
+    if full:
+        tabs.append(rrb.Vertical(*full, name="estimates, full scale"))
+    if selection.groups is not None and "measurement" in selection.groups:  # asked for
+        tabs.append(_auto_view("measurements", "/measurement"))
     legend = rrb.TextDocumentView(origin=f"/{LEGEND_ENTITY}", name="legend")
     return rrb.Blueprint(
-        rrb.Vertical(legend, rrb.Tabs(figures, exo, estimates, active_tab=0),
-                     row_shares=[1.0, 14.0], name="auv-cosim"),
+        rrb.Vertical(legend, rrb.Tabs(*tabs, active_tab=0), row_shares=[1.0, 14.0],
+                     name="auv-cosim"),
         *_panels(fixed),
     )
 
@@ -211,7 +220,7 @@ def fleet_camera(points: np.ndarray) -> rrb.EyeControls3D:
 
 
 def fleet_ranges(fleet: _Fleet, runs: dict[str, dict[str, np.ndarray]]
-                 ) -> tuple[tuple[float, float], tuple[float, float]]:
+                 ) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
     """The y ranges of the fleet's error views and of its control views: each one range
     for every vehicle and every method (the views of a comparison share their scale, so
     the gap between the methods and between the vehicles shows).
@@ -224,25 +233,33 @@ def fleet_ranges(fleet: _Fleet, runs: dict[str, dict[str, np.ndarray]]
 
     Returns
     -------
-    tuple[tuple[float, float], tuple[float, float]]
-        (error range, control range).
+    tuple
+        (error range, control range); None for one not recorded.
     """
-    return (data_range([r["e"][:, fleet.error_index.ravel()] for r in runs.values()]),
-            data_range([r["u"][:, fleet.control_index.ravel()] for r in runs.values()]))
+    def of(key: str, index: np.ndarray) -> tuple[float, float] | None:
+        if not all(key in r for r in runs.values()):      # not recorded
+            return None
+        return data_range([r[key][:, index.ravel()] for r in runs.values()])
+    return of("e", fleet.error_index), of("u", fleet.control_index)
 
 
 def _fleet_blueprint(methods: list[str], fleet: _Fleet, trail_ns: int, trail_steps: int,
                      runs: dict[str, dict[str, np.ndarray]],
                      links: dict[str, list[str]] | None = None,
-                     points: np.ndarray | None = None, fixed: bool = True) -> rrb.Blueprint:
+                     points: np.ndarray | None = None, fixed: bool = True,
+                     selection: Selection | None = None) -> rrb.Blueprint:
     """3D view(s) of the fleet on the left (framed by :func:`fleet_camera` on every vehicle
     and leader position), under them the actuator views (nonlinear vehicles) and the links
     (legend line and counts); per-vehicle error/control (and age of information) views on
     the right (whole run, legends hidden: the legend view on top names the colours).
     ``points``: every vehicle and leader position to frame, if not those of ``runs``. Not
-    ``fixed`` (a live viewer, the data to come): automatic y-axes and camera."""
+    ``fixed`` (a live viewer, the data to come): automatic y-axes and camera. ``selection``:
+    the recorded groups (default all), whose views only are laid out."""
     n = fleet.n
+    selection = selection or Selection(fleet=True)
     view = _series_view if fixed else _auto_view
+    if not selection.has("scene"):
+        points = np.zeros((1, 3))       # no 3D view to frame
     if points is None:                  # else: the extremes, kept as a stream went
         points = np.concatenate(
             [np.concatenate([run["x"][:, fleet.position_index].reshape(-1, 3),
@@ -257,24 +274,27 @@ def _fleet_blueprint(methods: list[str], fleet: _Fleet, trail_ns: int, trail_ste
         )
         for m in methods
     ]
-    view_3d: rrb.Container | rrb.View = (
-        views_3d[0] if len(views_3d) == 1 else rrb.Tabs(*views_3d, active_tab=0, name="fleet 3D"))
-    left_parts: list[rrb.Container | rrb.View] = [view_3d]
-    shares = [3.0]
-    if any("rpm" in r for r in runs.values()):  # the nonlinear vehicle: actuators per kind
+    left_parts: list[rrb.Container | rrb.View] = []
+    shares: list[float] = []
+    if selection.has("scene"):
+        left_parts.append(views_3d[0] if len(views_3d) == 1
+                          else rrb.Tabs(*views_3d, active_tab=0, name="fleet 3D"))
+        shares.append(3.0)
+    # the nonlinear vehicle: actuators per kind
+    if selection.has("actuators") and any("rpm" in r for r in runs.values()):
         from .actuators import DEFAULT_DELTA_MAX, DEFAULT_N_MAX, actuator_views
         left_parts.append(actuator_views(
             n, runs, fleet.n_max or DEFAULT_N_MAX, fleet.delta_max or DEFAULT_DELTA_MAX, view))
         shares.append(2.2)
     ages: dict[int, rrb.TimeSeriesView] = {}
-    if links:                           # acoustic links: counts under the 3D view
+    if links and selection.has("links"):    # acoustic links: counts under the 3D view
         from .network import network_view
         links_part, age_views = network_view(runs, links, view)
         ages = {int(i): v for i, v in age_views.items() if i.isdigit()}
         left_parts.append(links_part)
         shares.append(1.6)
-    left = left_parts[0] if len(left_parts) == 1 else rrb.Vertical(*left_parts,
-                                                                      row_shares=shares)
+    left = (None if not left_parts else left_parts[0] if len(left_parts) == 1
+            else rrb.Vertical(*left_parts, row_shares=shares))
     error_unit = unit_of(fleet.error_names, fleet.error_unit)
     control_unit = unit_of(fleet.control_names, fleet.control_unit)
 
@@ -282,14 +302,18 @@ def _fleet_blueprint(methods: list[str], fleet: _Fleet, trail_ns: int, trail_ste
     err, ctl = fleet_ranges(fleet, runs) if fixed else (None, None)
 
     def vehicle_views(i: int) -> list[rrb.TimeSeriesView]:
-        views = [view(f"vehicle {i} error ({error_unit})", f"/vehicles/{i}/error", None, err),
-                 view(f"vehicle {i} control ({control_unit})", f"/vehicles/{i}/control", None,
-                      ctl)]
+        views = []
+        if selection.has("error"):
+            views.append(view(f"vehicle {i} error ({error_unit})", f"/vehicles/{i}/error",
+                              None, err))
+        if selection.has("control"):
+            views.append(view(f"vehicle {i} control ({control_unit})",
+                              f"/vehicles/{i}/control", None, ctl))
         if i in ages:
             views.append(ages[i])
         return views
 
-    columns = 3 if ages else 2
+    columns = max(1, len(vehicle_views(1)))
     if n <= _FLEET_GRID_MAX:
         right: rrb.Container = rrb.Grid(
             contents=[v for i in range(1, n + 1) for v in vehicle_views(i)],
@@ -302,8 +326,11 @@ def _fleet_blueprint(methods: list[str], fleet: _Fleet, trail_ns: int, trail_ste
                                  grid_columns=columns, name=f"vehicles {a}-{b}"))
         right = rrb.Tabs(*tabs, active_tab=0, name="vehicles")
     legend = rrb.TextDocumentView(origin=f"/{LEGEND_ENTITY}", name="legend")
+    sides = [p for p in (left, right if vehicle_views(1) else None) if p is not None]
+    if not sides:                       # only series without views of their own (state, ...)
+        sides = [_auto_view("vehicles", "/vehicles")]
+    body = sides[0] if len(sides) == 1 else rrb.Horizontal(*sides, column_shares=[1.0, 1.0])
     return rrb.Blueprint(
-        rrb.Vertical(legend, rrb.Horizontal(left, right, column_shares=[1.0, 1.0]),
-                     row_shares=[1.0, 14.0], name="fleet"),
+        rrb.Vertical(legend, body, row_shares=[1.0, 14.0], name="fleet"),
         *_panels(fixed),
     )

@@ -206,7 +206,7 @@ def start_live(stream: Any, method: str, clean: dict[str, np.ndarray]) -> LiveVi
     viewer = LiveViewer(stream._rec, stream.live)
     runs = {m: clean for m in stream.methods}           # the layout of every method to come
     if stream._fleet is None:
-        blueprint = _blueprint(runs, fixed=False)
+        blueprint = _blueprint(runs, fixed=False, selection=stream.selection)
         legend = _paper_legend(stream.methods, stream.colors)
     else:
         fleet = stream._fleet
@@ -214,8 +214,9 @@ def start_live(stream: Any, method: str, clean: dict[str, np.ndarray]) -> LiveVi
                  if stream.links.get(m, stream.links.get(method)) is not None}
         blueprint = _fleet_blueprint(stream.methods, fleet, stream.trail_ns, stream.trail_steps,
                                      runs, links=links or None, points=np.zeros((1, 3)),
-                                     fixed=False)
-        legend = _fleet_legend(stream.methods, fleet, "rpm" in clean)
+                                     fixed=False, selection=stream.selection)
+        legend = _fleet_legend(stream.methods, fleet,
+                               "rpm" in clean and stream.selection.has("actuators"))
     viewer.start(blueprint, legend)
     return viewer
 

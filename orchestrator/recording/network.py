@@ -22,12 +22,12 @@ import rerun.blueprint as rrb
 
 from .layout import _shade, _vehicle_colors
 from .ranges import data_range
+from .selection import LINK_KEYS
 
 __all__ = ["LINK_COLORS", "LINK_KEYS", "LINKS_LEGEND_ENTITY", "links_legend", "network_view",
            "send_links"]
 
 #: the traces of the links (one column per link)
-LINK_KEYS = ("link_age", "link_delivered", "link_lost", "link_in_flight")
 #: delivered, lost, in flight: grey, orange, purple (apart from the components' red, green,
 #: blue)
 LINK_COLORS: tuple[tuple[int, int, int], ...] = ((150, 150, 150), (255, 140, 0),

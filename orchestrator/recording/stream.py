@@ -37,11 +37,13 @@ import rerun as rr
 
 from .actuators import DEFAULT_DELTA_MAX, DEFAULT_N_MAX, send_limits
 from .blueprint import LEGEND_ENTITY, _blueprint, _fleet_blueprint
+from .chunks import RecordedChunk, digest, shapes, spec_of
 from .layout import FLEET_TRACE_KEYS, TRACE_KEYS, FleetLayout, _Fleet, method_color
 from .live import start_live
 from .network import LINKS_LEGEND_ENTITY, links_legend, send_links
-from .scene import WorldStream, leader_position, time_columns
-from .stream_state import _Run, _StaticOnce, clean_chunk, join_segments
+from .scene import WorldStream, time_columns
+from .selection import Selection
+from .stream_state import _Run, _StaticOnce, join_segments
 from .summary import SAMPLE_ROWS
 from .validation import (
     _method_name,
@@ -89,6 +91,9 @@ trail_sample_seconds, links
         file goes to it too, after a live layout of its own, and the final blueprint at
         the close (:mod:`.live`); the file is the same. Check it first
         (:func:`.live.check_viewer`): Rerun's sink does not wait for the viewer.
+    record : Sequence[str] or None, optional
+        The groups of outputs recorded (:mod:`.selection`; None: all): the file holds
+        their entities and the blueprint their views only.
 
     Raises
     ------
@@ -105,7 +110,8 @@ trail_sample_seconds, links
                  trail_sample_seconds: float = 0.5,
                  links: Mapping[str, Sequence[str]] | None = None,
                  application_id: str = "auv-cosim", chunk_rows: int = CHUNK_ROWS,
-                 footer: bool = True, live: str | None = None) -> None:
+                 footer: bool = True, live: str | None = None,
+                 record: Sequence[str] | None = None) -> None:
         t0 = time.perf_counter()
         self.chunk_rows = _positive_int(chunk_rows, "chunk_rows")
         self.methods = [_method_name(m) for m in methods]
@@ -122,6 +128,9 @@ trail_sample_seconds, links
                                  f"of stride = {self.stride}")
         self.fleet_layout = fleet
         self.keys = FLEET_TRACE_KEYS if fleet is not None else TRACE_KEYS
+        self.selection = Selection.of(fleet is not None, record)
+        self.spec = spec_of(self.keys, h, self.stride, self.selection,
+                            None if fleet is None else fleet.leader_output)
         if fleet is not None:
             self.trail_ns, sample_ns = (_positive_ns(v, name) for v, name in (
                 (trail_seconds, "trail_seconds"),
@@ -164,7 +173,7 @@ trail_sample_seconds, links
         try:
             self._sinks(rec)
             rec.send_recording_name(self.recording_name)
-            if self.fleet_layout is not None:
+            if self.fleet_layout is not None and self.selection.has("scene"):
                 rec.log("world", rr.ViewCoordinates.FRD, static=True)
         except BaseException:
             self.abort()
@@ -242,10 +251,11 @@ trail_sample_seconds, links
 
     # -- sending --------------------------------------------------------------------------
 
-    def _clean(self, method: str, traces: Mapping[str, Any],
-               with_links: bool) -> dict[str, np.ndarray] | None:
-        """The chunk's traces checked (:func:`.stream_state.clean_chunk`)."""
-        return clean_chunk(self.keys, self.h, method, traces, with_links)
+    def digest(self, method: str, k0: int, traces: Mapping[str, Any],
+               links: Sequence[str] | None = None) -> RecordedChunk | None:
+        """The chunk reduced to what the file keeps (:func:`.chunks.digest`), checked."""
+        return digest(self.spec, method, k0, traces,
+                      links is not None or method in self.links)
 
     def send(self, method: str, k0: int, traces: Mapping[str, Any],
              links: Sequence[str] | None = None) -> None:
@@ -277,9 +287,16 @@ trail_sample_seconds, links
         RuntimeError
             If the stream is closed or aborted.
         """
+        t0 = time.perf_counter()
+        self._check_send(method, k0, links)
+        chunk = self.digest(method, int(k0), traces, links)
+        self.seconds += time.perf_counter() - t0
+        if chunk is not None:
+            self.take(chunk, links)
+
+    def _check_send(self, method: str, k0: int, links: Sequence[str] | None) -> None:
         if not self._open:
             raise RuntimeError(f"RrdStream {self.path}: send after close or abort")
-        t0 = time.perf_counter()
         if method not in self.colors:
             raise ValueError(f"write_rrd: method {method!r} is not one of the stream's "
                              f"{self.methods}")
@@ -299,47 +316,48 @@ trail_sample_seconds, links
                                                            and method not in self.links):
                 raise ValueError(f"write_rrd: method {method!r}: links {links} differ from "
                                  "those given before (at the open or with its first chunk)")
-        clean = self._clean(method, traces, links is not None or method in self.links)
-        if clean is None:
-            return
+
+    def take(self, chunk: RecordedChunk, links: Sequence[str] | None = None) -> None:
+        """Record a chunk's digest (:meth:`digest`; :meth:`send` is both): what a stream
+        in the writer child gets (:class:`~.background.ChildStream`)."""
+        t0 = time.perf_counter()
+        method, k0 = chunk.method, chunk.k0
+        self._check_send(method, k0, links)
+        run = self._runs.get(method)
         if links is not None:
-            self.links[method] = links
-        dims = {k: v.shape[1] for k, v in clean.items()}
+            self.links[method] = list(links)
+        dims = chunk.dims
         if run is None:
             fleet = None
             if self.fleet_layout is not None:
-                fleet = _validate_fleet(self.fleet_layout, {method: clean})
+                fleet = _validate_fleet(self.fleet_layout, {method: shapes(chunk)})
             self._finish_current()
             run = _Run(self.methods.index(method), k0, dims, sample=fleet is None)
             if fleet is not None:
                 self._fleet = self._fleet or fleet
+            if fleet is not None and self.selection.has("scene"):
                 run.world = WorldStream(self.rec, method, self._fleet, self.h_ns, self.stride,
                                         self.scene_stride, self.trail_stride)
             if self.live is not None and not self._runs:   # the viewer's layout first
-                self._viewer = start_live(self, method, clean)
+                self._viewer = start_live(self, method, {**shapes(chunk), **chunk.rows})
             self._runs[method] = run
             self._current = method
         elif dims != run.dims:
             raise ValueError(f"write_rrd: method {method!r} chunk has trace columns {dims}, "
                              f"its first chunk had {run.dims}")
         try:
-            self._write(method, run, k0, clean)
+            self._write(method, run, chunk)
         except BaseException:
             self.abort()
             raise
         self.seconds += time.perf_counter() - t0
 
-    def _write(self, method: str, run: _Run, k0: int, clean: dict[str, np.ndarray]) -> None:
-        steps = clean[self.keys[0]].shape[0]
-        run.summary.add(k0, clean)
-        if self._fleet is not None:
-            run.summary.add_leader(leader_position(clean["z"], self._fleet.leader_output))
-        first = k0 + (-k0) % self.stride                      # first recorded step
-        ks = np.arange(first, k0 + steps, self.stride, dtype=np.int64)
-        run.next_k = k0 + steps
+    def _write(self, method: str, run: _Run, chunk: RecordedChunk) -> None:
+        run.summary.add(chunk)
+        ks, rows = chunk.ks, chunk.rows
+        run.next_k = chunk.k0 + chunk.steps
         if not ks.size:
             return
-        rows = {k: v[first - k0::self.stride] for k, v in clean.items()}
         size = sum(v.nbytes for v in rows.values())
         run.last_recorded = int(ks[-1])
         if run.pending_rows + ks.size >= self.chunk_rows or \
@@ -366,8 +384,8 @@ trail_sample_seconds, links
             lines = _send_paper(self.rec, method, rows, self.colors, 1, indexes)
         else:
             lines = _send_fleet_series(self.rec, method, rows, self._fleet, run.index, 1,
-                                       indexes, len(self.methods))
-            if method in self.links:
+                                       indexes, len(self.methods), self.selection)
+            if method in self.links and self.selection.has("links"):
                 lines += send_links(self.rec, method, rows, self.links[method], 1, indexes,
                                     run.index, n=self._fleet.n)
         if not run.counted:
@@ -452,12 +470,12 @@ trail_sample_seconds, links
         if self._fleet is None:
             rec.log(LEGEND_ENTITY, rr.TextDocument(_paper_legend(sent, self.colors),
                                                    media_type=rr.MediaType.MARKDOWN), static=True)
-            blueprint = _blueprint(compact)
+            blueprint = _blueprint(compact, selection=self.selection)
         else:
             actuators = any("rpm" in compact[m] for m in sent)
             rec.log(LEGEND_ENTITY, rr.TextDocument(_fleet_legend(sent, self._fleet, actuators),
                                                    media_type=rr.MediaType.MARKDOWN), static=True)
-            with_links = [m for m in sent if m in self.links]
+            with_links = [m for m in sent if m in self.links and self.selection.has("links")]
             if with_links:
                 rec.log(LINKS_LEGEND_ENTITY, rr.TextDocument(
                     links_legend(with_links), media_type=rr.MediaType.MARKDOWN), static=True)
@@ -468,10 +486,11 @@ trail_sample_seconds, links
                             self._fleet.delta_max or DEFAULT_DELTA_MAX)
             points = np.concatenate([np.vstack([
                 compact[m]["x"][:, self._fleet.position_index].reshape(-1, 3),
-                *self._runs[m].summary.leader]) for m in sent])
+                *self._runs[m].summary.leader]) for m in sent]) \
+                if self.selection.has("scene") else np.zeros((1, 3))
             blueprint = _fleet_blueprint(sent, self._fleet, self.trail_ns, self.trail_steps,
                                          compact, links={m: self.links[m] for m in with_links}
-                                         or None, points=points)
+                                         or None, points=points, selection=self.selection)
         self._rec.send_blueprint(blueprint, make_active=False, make_default=True)
         if self._viewer is not None:                # a live viewer: made its active one
             self._viewer.finish(blueprint)

@@ -4,9 +4,12 @@ themselves up to :data:`SAMPLE_ROWS` steps, then every 2nd, 4th, ... step (by gl
 the same whatever the chunks)."""
 from __future__ import annotations
 
-from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .chunks import RecordedChunk
 
 __all__ = ["SAMPLE_ROWS", "RunSummary"]
 
@@ -29,18 +32,20 @@ class RunSummary:
         self.ks: list[np.ndarray] = []
         self.leader: list[np.ndarray] = []                   # leader (min, max), fleets
 
-    def add(self, k0: int, traces: Mapping[str, np.ndarray]) -> None:
-        for key, a in traces.items():
-            fin = np.isfinite(a)
-            new = [a.min(axis=0), a.max(axis=0), np.where(fin, a, np.inf).min(axis=0),
-                   np.where(fin, a, -np.inf).max(axis=0), fin.any(axis=0)]
+    def add(self, chunk: RecordedChunk) -> None:
+        """A chunk's digest (:func:`.chunks.digest`): its extremes, its leader's, and with
+        ``sample`` its rows of every step."""
+        for key, new in chunk.extremes.items():
             old = self.ext.get(key)
             self.ext[key] = new if old is None else [
                 np.minimum(old[0], new[0]), np.maximum(old[1], new[1]),
                 np.minimum(old[2], new[2]), np.maximum(old[3], new[3]), old[4] | new[4]]
-        if not self.sample:
+        if chunk.leader is not None:
+            self.add_leader(chunk.leader)
+        if not self.sample or chunk.every is None:
             return
-        ks = np.arange(k0, k0 + next(iter(traces.values())).shape[0], dtype=np.int64)
+        traces = chunk.every
+        ks = np.arange(chunk.k0, chunk.k0 + chunk.steps, dtype=np.int64)
         keep = ks % self.every == 0
         self.ks.append(ks[keep])
         for key, a in traces.items():
@@ -52,8 +57,8 @@ class RunSummary:
             self.ks = [ks[keep]]
             self.rows = {key: [np.concatenate(v)[keep]] for key, v in self.rows.items()}
 
-    def add_leader(self, lead: np.ndarray) -> None:
-        new = [lead.min(axis=0), lead.max(axis=0)]
+    def add_leader(self, new: list[np.ndarray]) -> None:
+        """The leader position's [minimum, maximum] over a chunk."""
         self.leader = new if not self.leader else [np.minimum(self.leader[0], new[0]),
                                                    np.maximum(self.leader[1], new[1])]
 

@@ -3,6 +3,7 @@
 streamed file and this one are the same file)."""
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,8 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
               fleet: FleetLayout | None = None, trail_seconds: float = 60.0,
               trail_sample_seconds: float = 0.5, stride: int = 1,
               scene_stride: int | None = None,
-              links: dict[str, list[str]] | None = None) -> dict[str, float]:
+              links: dict[str, list[str]] | None = None,
+              record: Sequence[str] | None = None) -> dict[str, float]:
     """Write the traces of one or more runs to a Rerun .rrd file with a default blueprint.
 
     Parameters
@@ -62,6 +64,9 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
         Per method over acoustic links the link of each column of its ``link_*`` traces
         ("j -> i"): each link's counts and each vehicle's age of information are recorded
         (:mod:`orchestrator.recording.network`).  Only used with ``fleet``.
+    record : Sequence[str] or None, optional
+        The groups of outputs written (:mod:`orchestrator.recording.selection`; None: all):
+        the file holds their entities and the blueprint their views only.
 
     Returns
     -------
@@ -101,7 +106,7 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
     with RrdStream(path, list(clean), h, recording_name=recording_name, fleet=fleet,
                    stride=stride, scene_stride=scene_stride, trail_seconds=trail_seconds,
                    trail_sample_seconds=trail_sample_seconds, links=links,
-                   application_id=application_id) as stream:
+                   application_id=application_id, record=record) as stream:
         for method, traces in clean.items():
             stream.send(method, 0, traces)
         return stream.close()

@@ -21,6 +21,7 @@ from .layout import (
     method_styles,
 )
 from .scene import leader_position
+from .selection import Selection
 
 __all__: list[str] = []           # used by the recording modules only
 
@@ -51,22 +52,29 @@ def _send_block(rec: rr.RecordingStream, entity: str, values: np.ndarray, names:
 
 def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarray],
                        fleet: _Fleet, method_index: int, stride: int,
-                       indexes: list[rr.TimeColumn], n_methods: int = 1) -> int:
+                       indexes: list[rr.TimeColumn], n_methods: int = 1,
+                       selection: Selection | None = None) -> int:
     """Per-vehicle multi-component series and the leader series of one run (recorded steps
-    only); returns the number of scalar lines (components) written."""
-    rec_traces = {key: traces[key][::stride] for key in ("e", "u", "x", "xhat", "w", "what", "z")}
+    only) of the groups ``selection`` records (default: all); returns the number of scalar
+    lines (components) written."""
+    selection = selection or Selection(fleet=True)
+    rec_traces = {key: traces[key][::stride] for key in ("e", "u", "x", "xhat", "w", "what", "z")
+                  if key in traces}
 
     def shades(count: int, estimate: bool = False) -> list[tuple[int, int, int]]:
         colors = axis_colors(count, method_index)
         return [_lighter(c) for c in colors] if estimate else colors
 
-    groups: list[tuple[str, str, np.ndarray, tuple[str, ...], str, bool]] = [
-        ("e", "error/{m}", fleet.error_index, fleet.error_names, "", False),
-        ("u", "control/{m}", fleet.control_index, fleet.control_names, "", False),
-        ("x", "state/{m}/true", fleet.state_index, fleet.state_names, "", False),
-        ("xhat", "state/{m}/estimate", fleet.state_index, fleet.state_names, " estimate", True),
-    ]
-    if fleet.disturbance_index is not None:
+    groups: list[tuple[str, str, np.ndarray, tuple[str, ...], str, bool]] = []
+    if selection.has("error"):
+        groups.append(("e", "error/{m}", fleet.error_index, fleet.error_names, "", False))
+    if selection.has("control"):
+        groups.append(("u", "control/{m}", fleet.control_index, fleet.control_names, "", False))
+    if selection.has("state"):
+        groups += [("x", "state/{m}/true", fleet.state_index, fleet.state_names, "", False),
+                   ("xhat", "state/{m}/estimate", fleet.state_index, fleet.state_names,
+                    " estimate", True)]
+    if fleet.disturbance_index is not None and selection.has("current"):
         groups += [
             ("w", "current/{m}/true", fleet.disturbance_index, fleet.disturbance_names, "", False),
             ("what", "current/{m}/estimate", fleet.disturbance_index, fleet.disturbance_names,
@@ -81,19 +89,21 @@ def _send_fleet_series(rec: rr.RecordingStream, method: str, traces: dict[str, n
         for i in range(1, fleet.n + 1):
             signals += _send_block(rec, f"vehicles/{i}/{template.format(m=method)}",
                                    arr[:, index[i - 1]], line_names, colors, indexes, line)
-    if "rpm" in traces:                  # the nonlinear vehicle: its actuators
+    if "rpm" in traces and selection.has("actuators"):   # the nonlinear vehicle's actuators
         signals += send_actuators(rec, method, traces, fleet.n, stride, indexes, method_index,
                                   _vehicle_colors(fleet.n))
-    if "setpoint" in traces:             # flown through the guidance FMUs: its set-points
+    if "setpoint" in traces and selection.has("setpoint"):   # flown through guidance FMUs
         sp = traces["setpoint"][::stride]
         for i in range(1, fleet.n + 1):
             signals += _send_block(rec, f"vehicles/{i}/setpoint/{method}",
                                    sp[:, 3 * (i - 1):3 * i],
                                    [f"{method} speed (m/s)", f"{method} course (rad)",
                                     f"{method} depth (m)"], shades(3), indexes)
-    leader = leader_position(rec_traces["z"], fleet.leader_output)  # (rows, 3)
-    signals += _send_block(rec, f"leader/{method}", leader,
-                           [f"{method} leader {c}" for c in _POSITION_NAMES], shades(3), indexes)
+    if selection.has("leader"):
+        leader = leader_position(rec_traces["z"], fleet.leader_output)  # (rows, 3)
+        signals += _send_block(rec, f"leader/{method}", leader,
+                               [f"{method} leader {c}" for c in _POSITION_NAMES], shades(3),
+                               indexes)
     return signals
 
 
@@ -149,6 +159,8 @@ def _send_paper(rec: rr.RecordingStream, method: str, traces: dict[str, np.ndarr
     style_of = method_styles(list(colors))[method]
     width, alpha = style_of.width, style_of.viewer_alpha
     for key, template, suffix, is_estimate in _SERIES:
+        if key not in traces:           # not recorded (a selection of outputs)
+            continue
         arr = traces[key]
         if key in _SHARED_TRUTH:        # exogenous: the same for every method
             style = rr.SeriesLines(colors=[TRUE_COLOR], names=["true"],

@@ -22,6 +22,7 @@ from ..atomic import write_text_atomically
 from ..cosim.master import MasterState, RunResult
 from ..interrupt import StopFlag, stop_on_signals
 from ..outputs import file_stem
+from ..recording.selection import Selection
 from ..scenario import Scenario
 from . import phases
 from .checkpoint import CHECKPOINT_DIR, RunCheckpoint, Saver
@@ -49,8 +50,8 @@ NONLINEAR_NOTE = ("predicted on the linear design model: the vehicles are nonlin
 def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], out_dir: Path | str,
              *, progress: bool = True, log: Callable[[str], None] = print,
              trackings: Sequence[str] | None = None,
-             record_hz: float | None = None, workers: int | None = None,
-             architectures: Sequence[str] | None = None,
+             record_hz: float | None = None, record: Sequence[str] | None = None,
+             workers: int | None = None, architectures: Sequence[str] | None = None,
              predict: str = "stationary", master: str = "auto",
              window_from_step: int = 0, checkpoint_every: float | None = None,
              resume: RunCheckpoint | None = None,
@@ -91,6 +92,9 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
         Information architectures of a per-vehicle fleet (None: the scenario's).
     record_hz : float, optional
         Recording rate of fleets, Hz (:func:`orchestrator.running.fmus.record_stride`).
+    record : sequence of str, optional
+        The groups of outputs the .rrd holds (None: all;
+        :mod:`orchestrator.recording.selection`); the statistics use every output.
     workers : int, optional
         Worker processes for the seeds after each method's first (default one per core;
         1: all in this process; :mod:`orchestrator.running.seeds`); results do not
@@ -135,18 +139,18 @@ def simulate(sc: Scenario, modes: Sequence[str] | None, seeds: Sequence[int], ou
     out = Path(out_dir)
     setup = make_setup(sc, out / "fmus", methods, predict=predict, master=master)
     check_run(sc, methods, predict=predict, setup=setup,   # run's checks: every caller
-              record_hz=record_hz)
+              record_hz=record_hz, record=record)
     out.mkdir(parents=True, exist_ok=True)
     # the .rrd writer imports Rerun in a child while we simulate; SIGINT / SIGTERM stop
     # the runs between steps and keep what was simulated
     with BackgroundWriter.take() as writer, stop_on_signals() as stop, \
             seed_pool(sc.steps, len(seeds), len(methods), workers) as pool:
         options = {"modes": modes, "seeds": list(seeds), "trackings": trackings,
-                   "record_hz": record_hz, "architectures": architectures,
+                   "record_hz": record_hz, "record": record, "architectures": architectures,
                    "predict": predict, "master": master, "window_from_step": window_from_step}
         keeper = _Keeper(out, checkpoint_every, options, resume, realtime)
         return _simulate(setup, methods, seeds, out, writer, t0, progress=progress, log=log,
-                         record_hz=record_hz, stop=stop, pool=pool,
+                         record_hz=record_hz, record=record, stop=stop, pool=pool,
                          window_from_step=window_from_step, keeper=keeper, live=live)
 
 
@@ -281,6 +285,7 @@ def _predictions(setup: RunSetup, methods: list[Method], results: dict[str, Any]
 def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out: Path,
               writer: Any, t0: float, *, progress: bool, log: Callable[[str], None],
               record_hz: float | None, stop: StopFlag, pool: Any = None,
+              record: Sequence[str] | None = None,
               window_from_step: int = 0, keeper: _Keeper | None = None,
               live: str | None = None) -> dict[str, Any]:
     sc = setup.sc
@@ -316,7 +321,7 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
             live_kw["chunk_rows"] = 1       # each chunk written as it comes
     stream = writer.stream(rrd_path, list(preds), sc.h, resume=keeper.recording(),
                            recording_name=f"{sc.name} ({', '.join(preds)})",
-                           fleet=fleet_layout(sc), stride=stride, **live_kw)
+                           fleet=fleet_layout(sc), stride=stride, record=record, **live_kw)
     keeper.stream = stream
     bound: dict[int, float | None] = {}     # the full-information bound over the window
     notes: set[str] = set()
@@ -440,7 +445,9 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
         "interrupted_by": stop.name,
         "time_reached_s": recorded * sc.h if stop else sc.T,
         "rrd": {"path": str(rrd_path) if recorded else None, "traces_of_seed": int(seeds[0]),
-                "recorded_every_steps": stride, "recorded_steps": recorded, **rrd_info},
+                "recorded_every_steps": stride, "recorded_steps": recorded,
+                "recorded_groups": Selection.of(fleet_layout(sc) is not None, record).names(),
+                **rrd_info},
         "timing": {"cosim_loop_us_per_step_mean": float(np.mean(loop_us)) if loop_us else None,
                    # where the command's time went (orchestrator.running.phases)
                    "phases_s": phases.split(time.perf_counter() - t0)},

@@ -137,7 +137,8 @@ def build(sc: Scenario, out_dir: Path | str) -> dict[str, Path]:
 def check_run(sc: Scenario, methods: Sequence[Method] = (), *,
               coupling: str = "gauss-seidel", predict: str = "stationary",
               available: int | None = None, setup: RunSetup | None = None,
-              record_hz: float | None = None) -> int:
+              record_hz: float | None = None,
+              record: Sequence[str] | None = None) -> int:
     """Every check a run makes before it starts: the one set of rules of ``run``,
     ``compare``, each ``envelope`` point and each ``campaign`` point.
 
@@ -151,7 +152,9 @@ def check_run(sc: Scenario, methods: Sequence[Method] = (), *,
        (:func:`orchestrator.running.setup.check_setup`);
     2. the stacked design's estimated time and memory (:func:`check_size`);
     3. native FMUs need a C compiler (:func:`check_native`);
-    4. a chunk of the run fits in memory and its recording on the disk
+    4. the groups of outputs recorded (``--record``) are the layout's and the run has
+       them (:func:`check_record`);
+    5. a chunk of the run fits in memory and its recording on the disk
        (:func:`check_memory`): a T that would not finish (``T = 1e9``: 1e11 steps) is
        refused here, at once.
 
@@ -174,6 +177,8 @@ def check_run(sc: Scenario, methods: Sequence[Method] = (), *,
         vehicle laws and network loop are made once, not twice).
     record_hz : float, optional
         The recording's samples per second (the disk the .rrd needs).
+    record : sequence of str, optional
+        The groups of outputs recorded (None: all; :mod:`orchestrator.recording.selection`).
 
     Returns
     -------
@@ -193,8 +198,62 @@ def check_run(sc: Scenario, methods: Sequence[Method] = (), *,
     if setup is None:
         setup = make_setup(sc, Path("."), methods, coupling=coupling, predict=predict)  # 1, 2
     check_native(sc)
-    width = setup.python_system(Method.of(sc), sc.seed).output_width()  # as scenario_system
-    return check_memory(sc, len(methods), available, width=width, record_hz=record_hz)
+    system = setup.python_system(Method.of(sc), sc.seed)                # as scenario_system
+    share = check_record(sc, system, record)
+    return check_memory(sc, len(methods), available, width=system.output_width(),
+                        record_hz=record_hz, record_share=share)
+
+
+def check_record(sc: Scenario, system: SystemDescription,
+                 record: Sequence[str] | None) -> float:
+    """Check the groups of outputs a run records (``--record``): each a group of the
+    scenario's layout (:mod:`orchestrator.recording.selection`: the fleet's when it has one)
+    and, for the groups only some runs have (links, actuators, set-points), one this run
+    has.
+
+    Parameters
+    ----------
+    sc : Scenario
+    system : SystemDescription
+        The run's system (its components and outputs).
+    record : sequence of str or None
+        The groups (None: all).
+
+    Returns
+    -------
+    float
+        The share of the run's recorded values the groups hold (1 for all), from the
+        columns of the stacked layout's keys (for the disk estimate).
+
+    Raises
+    ------
+    ScenarioError
+        One line naming the group and the layout's groups, or what the run lacks.
+    """
+    from ..recording.selection import Selection
+    from .fmus import fleet_layout
+    fleet = fleet_layout(sc) is not None
+    try:
+        selection = Selection.of(fleet, record)
+    except ValueError as exc:
+        raise ScenarioError(f"--{exc}") from None
+    if selection.groups is None:
+        return 1.0
+    names = system.trace_names()
+    lacking = {"links": ("acoustic links", any(c.fmu == "network" for c in system.components)),
+               "actuators": ("nonlinear vehicles", ("vehicle_1", "rpm") in names),
+               "setpoint": ("guidance FMUs", ("guidance_1", "speed") in names)}
+    absent = {g: what for g, (what, present) in lacking.items() if fleet and not present}
+    for group in selection.names():
+        if group in absent:
+            has = [g for g in Selection.of(fleet, None).names() if g not in absent]
+            raise ScenarioError(f"--record {group}: this run has no {absent[group]}, so no "
+                                f"{group} to record (its groups: {', '.join(has)})")
+    s = sc.system
+    width = {"x": s.n, "xhat": s.n, "u": s.m, "e": s.p, "w": s.r, "what": s.r, "z": s.l,
+             "zhat": s.l, "y": s.p, "ybar": s.l}
+    every = sum(width.get(k, 0) for k in Selection.of(fleet, None).keys())
+    return sum(width.get(k, 0) for k in selection.keys()) / max(every, 1)
 
 
 def check_native(sc: Scenario) -> None:
@@ -221,7 +280,7 @@ RRD_BYTES_PER_VALUE = 32
 
 def check_memory(sc: Scenario, n_methods: int, available: int | None = None, *,
                  width: int | None = None, record_hz: float | None = None,
-                 disk: int | None = None) -> int:
+                 disk: int | None = None, record_share: float = 1.0) -> int:
     """Refuse a run whose chunks cannot fit in memory, or whose recording cannot fit on the
     disk, before anything is built.
 
@@ -248,6 +307,8 @@ def check_memory(sc: Scenario, n_methods: int, available: int | None = None, *,
         The recording's samples per second (:func:`orchestrator.running.fmus.record_stride`).
     disk : int, optional
         Bytes free on the disk of the output (default: that of the current folder).
+    record_share : float, optional
+        The share of the values recorded (``--record``: :func:`check_record`).
 
     Returns
     -------
@@ -273,12 +334,13 @@ def check_memory(sc: Scenario, n_methods: int, available: int | None = None, *,
             f"a chunk of {chunk} steps ({width} values per step) needs about "
             f"{need / 1e9:.3g} GB, more than the {short / 1e9:.3g} GB of memory available")
     samples = sc.steps // record_stride(sc, record_hz) + 1
-    rrd = RRD_BYTES_PER_VALUE * samples * width * n_methods
+    rrd = RRD_BYTES_PER_VALUE * samples * width * n_methods * record_share
     free = shutil.disk_usage(".").free if disk is None else disk
     if rrd > free:
         raise ScenarioError(
             f"T = {sc.T:g} s with h = {sc.h:g} s is {sc.steps:.4g} steps: its recording "
             f"({width} values per sample, {n_methods} method(s), {samples:.4g} samples) "
             f"needs about {rrd / 1e9:.3g} GB on disk, more than the {free / 1e9:.3g} GB "
-            "free; shorten T, lengthen h or record fewer samples (--record-hz)")
+            "free; shorten T, lengthen h, record fewer samples (--record-hz) or fewer "
+            "outputs (--record)")
     return need
