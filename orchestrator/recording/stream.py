@@ -35,15 +35,13 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
-from .actuators import DEFAULT_DELTA_MAX, DEFAULT_N_MAX, send_limits
-from .blueprint import LEGEND_ENTITY, _blueprint, _fleet_blueprint
 from .chunks import RecordedChunk, digest, shapes, spec_of
 from .layout import FLEET_TRACE_KEYS, TRACE_KEYS, FleetLayout, _Fleet, method_color
 from .live import start_live
-from .network import LINKS_LEGEND_ENTITY, links_legend, send_links
+from .network import send_links
 from .scene import WorldStream, time_columns
 from .selection import Selection
-from .stream_state import _Run, _StaticOnce, join_segments
+from .stream_state import _Run, _StaticOnce, closing_rows, join_segments
 from .summary import SAMPLE_ROWS
 from .validation import (
     _method_name,
@@ -53,8 +51,6 @@ from .validation import (
     _validate_fleet,
 )
 from .writer import (
-    _fleet_legend,
-    _paper_legend,
     _send_fleet_series,
     _send_paper,
 )
@@ -448,7 +444,7 @@ trail_sample_seconds, links
                                      f"{last}, which was sent")
                 last = int(last_step)
             self._finish_current()
-            self._closing_rows(sent, last)
+            closing_rows(self, sent, last)
             self._flush_sinks()
         except BaseException:
             self.abort()
@@ -463,37 +459,6 @@ trail_sample_seconds, links
         self.seconds += time.perf_counter() - t0
         return {"rrd_s": self.seconds, "signals": self.signals,
                 "bytes": self.path.stat().st_size}
-
-    def _closing_rows(self, sent: list[str], last: int) -> None:
-        rec = self.rec
-        compact = {m: self._runs[m].summary.compact() for m in sent}
-        if self._fleet is None:
-            rec.log(LEGEND_ENTITY, rr.TextDocument(_paper_legend(sent, self.colors),
-                                                   media_type=rr.MediaType.MARKDOWN), static=True)
-            blueprint = _blueprint(compact, selection=self.selection)
-        else:
-            actuators = any("rpm" in compact[m] for m in sent)
-            rec.log(LEGEND_ENTITY, rr.TextDocument(_fleet_legend(sent, self._fleet, actuators),
-                                                   media_type=rr.MediaType.MARKDOWN), static=True)
-            with_links = [m for m in sent if m in self.links and self.selection.has("links")]
-            if with_links:
-                rec.log(LINKS_LEGEND_ENTITY, rr.TextDocument(
-                    links_legend(with_links), media_type=rr.MediaType.MARKDOWN), static=True)
-            if actuators:
-                ends = np.array([0, last // self.stride * self.stride], dtype=np.int64)
-                send_limits(rec, time_columns(ends, self.h_ns),
-                            self._fleet.n_max or DEFAULT_N_MAX,
-                            self._fleet.delta_max or DEFAULT_DELTA_MAX)
-            points = np.concatenate([np.vstack([
-                compact[m]["x"][:, self._fleet.position_index].reshape(-1, 3),
-                *self._runs[m].summary.leader]) for m in sent]) \
-                if self.selection.has("scene") else np.zeros((1, 3))
-            blueprint = _fleet_blueprint(sent, self._fleet, self.trail_ns, self.trail_steps,
-                                         compact, links={m: self.links[m] for m in with_links}
-                                         or None, points=points, selection=self.selection)
-        self._rec.send_blueprint(blueprint, make_active=False, make_default=True)
-        if self._viewer is not None:                # a live viewer: made its active one
-            self._viewer.finish(blueprint)
 
     def abort(self) -> None:
         """Stop writing and remove the temporary file (the final name is left as it was).

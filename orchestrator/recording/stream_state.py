@@ -13,13 +13,15 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
-from .network import LINK_KEYS
-from .scene import WorldStream
+from .actuators import DEFAULT_DELTA_MAX, DEFAULT_N_MAX, send_limits
+from .blueprint import LEGEND_ENTITY, _blueprint, _fleet_blueprint
+from .network import LINK_KEYS, LINKS_LEGEND_ENTITY, links_legend
+from .scene import WorldStream, time_columns
 from .summary import RunSummary
 from .validation import _validate
-from .writer import _ACTUATOR_KEYS
+from .writer import _ACTUATOR_KEYS, _fleet_legend, _paper_legend
 
-__all__ = ["clean_chunk", "join_segments"]
+__all__ = ["clean_chunk", "closing_rows", "join_segments"]
 
 
 class _StaticOnce:
@@ -112,3 +114,37 @@ def clean_chunk(keys: Sequence[str], h: float, method: str, traces: Mapping[str,
                              f"{arr.shape}, expected ({steps}, ...)")
         clean[key] = arr
     return clean
+
+
+def closing_rows(self: Any, sent: list[str], last: int) -> None:
+    """What an :class:`~.stream.RrdStream` writes at its close: the legends, the actuator
+    limits, the default blueprint (of the recorded groups; a live viewer's too)."""
+    rec = self.rec
+    compact = {m: self._runs[m].summary.compact() for m in sent}
+    if self._fleet is None:
+        rec.log(LEGEND_ENTITY, rr.TextDocument(_paper_legend(sent, self.colors),
+                                               media_type=rr.MediaType.MARKDOWN), static=True)
+        blueprint = _blueprint(compact, selection=self.selection)
+    else:
+        actuators = any("rpm" in compact[m] for m in sent)
+        rec.log(LEGEND_ENTITY, rr.TextDocument(_fleet_legend(sent, self._fleet, actuators),
+                                               media_type=rr.MediaType.MARKDOWN), static=True)
+        with_links = [m for m in sent if m in self.links and self.selection.has("links")]
+        if with_links:
+            rec.log(LINKS_LEGEND_ENTITY, rr.TextDocument(
+                links_legend(with_links), media_type=rr.MediaType.MARKDOWN), static=True)
+        if actuators:
+            ends = np.array([0, last // self.stride * self.stride], dtype=np.int64)
+            send_limits(rec, time_columns(ends, self.h_ns),
+                        self._fleet.n_max or DEFAULT_N_MAX,
+                        self._fleet.delta_max or DEFAULT_DELTA_MAX)
+        points = np.concatenate([np.vstack([
+            compact[m]["x"][:, self._fleet.position_index].reshape(-1, 3),
+            *self._runs[m].summary.leader]) for m in sent]) \
+            if self.selection.has("scene") else np.zeros((1, 3))
+        blueprint = _fleet_blueprint(sent, self._fleet, self.trail_ns, self.trail_steps,
+                                     compact, links={m: self.links[m] for m in with_links}
+                                     or None, points=points, selection=self.selection)
+    self._rec.send_blueprint(blueprint, make_active=False, make_default=True)
+    if self._viewer is not None:                # a live viewer: made its active one
+        self._viewer.finish(blueprint)
