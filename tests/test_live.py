@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rerun.chunk import RrdReader
 from test_recording_stream import assert_same_files
 
 from orchestrator.recording import read_rrd_scalars
@@ -124,6 +125,14 @@ def test_run_with_an_unreachable_viewer_is_refused_before_anything_runs(tmp_path
 
 # -- the stream ------------------------------------------------------------------------------
 
+def has_footer(path: Path) -> bool:
+    """The .rrd has Rerun's footer (its manifest): no 'legacy format' warning on opening."""
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        RrdReader(path).recordings()
+    return not any("no footer" in str(w.message) for w in said)
+
+
 def send(stream, runs, every=50, pause=0.0, between=None):
     for i, (m, tr) in enumerate(runs.items()):
         n = len(next(iter(tr.values())))
@@ -150,11 +159,15 @@ def test_stream_shows_the_layout_first_then_the_traces_and_writes_the_same_file(
 
     with RrdStream(tmp_path / "live.rrd", list(runs), H, recording_name="t", chunk_rows=1,
                    live=viewer.url) as stream:
+        opened_without_footer = not stream.footer and stream.footer_at_close
         send(stream, runs, between=midway)
     with RrdStream(tmp_path / "file.rrd", list(runs), H, recording_name="t",
                    chunk_rows=1) as stream:
         send(stream, runs)
     assert_same_files(tmp_path / "file.rrd", tmp_path / "live.rrd")
+    # written without a footer as it went (the manifest of its 1-row chunks would grow
+    # without bound), given one at the close, its chunks compacted
+    assert opened_without_footer and has_footer(tmp_path / "live.rrd")
     # midway: the live layout (the paper's views) and the first method's traces
     assert {"error-1 (dimensionless)", "control-2 (dimensionless)"} <= seen["views"]
     assert {"/error/1/kalman", "/state/3/kalman/estimate", "/legend"} <= seen["entities"]

@@ -41,7 +41,7 @@ from .live import start_live
 from .network import send_links
 from .scene import WorldStream, time_columns
 from .selection import Selection
-from .stream_state import _Run, _StaticOnce, closing_rows, join_segments
+from .stream_state import _Run, _StaticOnce, add_footer, closing_rows, join_segments
 from .summary import SAMPLE_ROWS
 from .validation import (
     _method_name,
@@ -81,7 +81,10 @@ trail_sample_seconds, links
         Recorded rows gathered before they are written (one Rerun chunk per entity; fewer
         when they reach :data:`PENDING_BYTES`); 1 writes every send at once (a live viewer).
     footer : bool, optional
-        Write the file's footer (Rerun's chunk manifest, kept in memory until the close).
+        Write the file's footer (Rerun's chunk manifest, kept in memory until the close). A
+        live stream writes none as it goes (its many small writes would grow the manifest
+        without bound) and gets it at the close, its chunks compacted
+        (:func:`.stream_state.add_footer`).
     live : str or None, optional
         A Rerun viewer's URL (``rerun+http://HOST:PORT/proxy``): every row written to the
         file goes to it too, after a live layout of its own, and the final blueprint at
@@ -145,7 +148,10 @@ trail_sample_seconds, links
         self.signals = 0
         self._open = False
         self.application_id, self.recording_id = application_id, str(uuid.uuid4())
-        self.recording_name, self.footer = recording_name, bool(footer)
+        self.recording_name = recording_name
+        #: written as it goes / added at the close (a live stream: :func:`add_footer`)
+        self.footer, self.footer_at_close = bool(footer) and live is None, bool(footer) and \
+            live is not None
         self.live = live
         self._viewer: Any = None                # a live viewer's own stream (.live)
         #: the files of the run before its checkpoints (:meth:`checkpoint`), in order, in
@@ -455,6 +461,8 @@ trail_sample_seconds, links
         self._open = False
         if self.segments:               # a checkpointed run: join its files (nothing lost)
             join_segments([Path(self.segment_dir) / n for n in self.segments], self.tmp)
+        elif self.footer_at_close:
+            add_footer(self.tmp)
         os.replace(self.tmp, self.path)
         self.seconds += time.perf_counter() - t0
         return {"rrd_s": self.seconds, "signals": self.signals,

@@ -21,7 +21,7 @@ from .summary import RunSummary
 from .validation import _validate
 from .writer import _ACTUATOR_KEYS, _fleet_legend, _paper_legend
 
-__all__ = ["clean_chunk", "closing_rows", "join_segments"]
+__all__ = ["add_footer", "clean_chunk", "closing_rows", "join_segments"]
 
 
 class _StaticOnce:
@@ -88,6 +88,24 @@ def join_segments(segments: Sequence[Path], tmp: Path) -> None:
                            f"kept in {len(segments) + 1} files, {folder}/segment-*.rrd (the "
                            "viewer opens them together)")
     os.replace(joined, tmp)
+
+
+def add_footer(path: Path) -> None:
+    """Give a .rrd written without a footer its footer (``rerun rrd merge`` of the file
+    alone: the same data, its small chunks compacted, the manifest that lets a reader
+    enumerate its stores without a scan). If that fails the file stays as written (a
+    footer-less .rrd opens in the viewer, read whole) and one line on stderr says so."""
+    joined = path.with_name(path.name + ".joined")
+    cmd = [sys.executable, "-m", "rerun", "rrd", "merge", "-o", str(joined), str(path)]
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    if done.returncode != 0 or not joined.is_file():
+        joined.unlink(missing_ok=True)
+        lines = done.stderr.strip().splitlines()
+        print(f"the recording keeps no footer (compacting it failed: "
+              f"{lines[-1] if lines else done.returncode}); it opens in the viewer as it is",
+              file=sys.stderr)
+        return
+    os.replace(joined, path)
 
 
 def clean_chunk(keys: Sequence[str], h: float, method: str, traces: Mapping[str, Any],
