@@ -148,3 +148,30 @@ def test_a_non_finite_column_keeps_its_finite_extremes():
     lo, hi, flo, fhi, fin = column_extremes(a)
     assert lo[0] == -2.0 and hi[0] == 1.0 and np.isnan(lo[1]) and np.isnan(hi[1])
     assert flo[2] == 3.0 and fhi[2] == 3.0 and list(fin) == [True, False, True]
+
+
+@pytest.mark.slow
+def test_a_per_vehicle_run_over_links_records_its_links_alone(tmp_path):
+    """Native FMUs, the compiled master, acoustic links: ``--record links`` holds the links'
+    counts and each vehicle's age of information, nothing else; the figures are those of a
+    full recording."""
+    common = ["run", "--scenario", "formation-4", "--deployment", "per-vehicle",
+              "--architecture", "distributed", "--latency", "0.5", "--period", "1",
+              "--loss", "0.2", "--fmus", "native", "--master", "native", "--T", "10",
+              "--quiet"]
+    assert main([*common, "--out", str(tmp_path / "full")]) == 0
+    assert main([*common, "--out", str(tmp_path / "links"), "--record", "links"]) == 0
+    a = json.loads((tmp_path / "full" / "summary.json").read_text())
+    b = json.loads((tmp_path / "links" / "summary.json").read_text())
+    assert b["methods"] == a["methods"] and set(b["master"].values()) == {"native"}
+    ents = entities(tmp_path / "links" / "formation-4.rrd")
+    assert {e.split("/")[0] for e in ents} == {"network", "vehicles", "legend", "legend_links"}
+    assert {e.split("/")[2] for e in ents if e.startswith("vehicles/")} == {"network"}
+    sa = read_rrd_scalars(tmp_path / "full" / "formation-4.rrd")
+    sb = read_rrd_scalars(tmp_path / "links" / "formation-4.rrd")
+    assert set(sb) == {k for k in sa if k.startswith("network/") or "/network/" in k}
+    for k in sb:
+        assert all(np.array_equal(x, y) for x, y in zip(sa[k], sb[k])), k
+    views = read_rrd_blueprint_views(tmp_path / "links" / "formation-4.rrd")
+    assert not any("error" in n or "control" in n or cls == "3D" for n, (cls, _) in views.items())
+    assert any("age" in n for n in views), sorted(views)
