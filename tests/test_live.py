@@ -230,3 +230,32 @@ def test_a_run_streams_its_traces_to_the_viewer_and_writes_the_same_rrd(viewer, 
     rec = recording_of(viewer, last_step=last)
     assert any(e.startswith(entity) for e in entities(viewer, rec.store_id))
     assert coloured_pixels(viewer, tmp_path / "end.png") > blank + 10000   # ten times blank
+
+
+@pytest.mark.slow
+def test_a_resumed_run_streams_the_recording_so_far_and_the_rest(viewer, tmp_path):
+    """``run --resume OUT --live URL``: the viewer gets the recording of the killed run (its
+    segments, replayed) and then the rows to come; the file is the uninterrupted run's."""
+    from support.resume import killed_after_a_checkpoint
+    args = ["--scenario", "formation-4-links", "--T", "200", "--fmus", "native",
+            "--realtime", "50"]                 # paced: killed mid-run, after a chunk
+    out = tmp_path / "killed"
+    step = killed_after_a_checkpoint(out, args, seed=5)
+    assert step > 0
+    resumed = subprocess.run([sys.executable, "-m", "orchestrator", "run", "--resume",
+                              str(out), "--live", viewer.url], capture_output=True,
+                             text=True, timeout=600)
+    assert resumed.returncode == 0, resumed.stderr
+    run_cli("--scenario", "formation-4-links", "--T", "200", "--fmus", "native", "--out",
+            str(tmp_path / "whole"))
+    a = read_rrd_scalars(tmp_path / "whole" / "formation-4-links.rrd")
+    b = read_rrd_scalars(out / "formation-4-links.rrd")
+    assert sorted(a) == sorted(b)
+    for key in a:
+        for x, y in zip(a[key], b[key]):
+            np.testing.assert_array_equal(x, y, err_msg=key)
+    last = int(max(a[k][0][-1] for k in a))
+    rec = recording_of(viewer, last_step=last)
+    first = {t.name: t.start for t in rec.timelines}
+    assert first["step"] == 0, first                # the steps before the kill, replayed
+    assert any(e.startswith("/vehicles/1/error") for e in entities(viewer, rec.store_id))

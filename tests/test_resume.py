@@ -7,12 +7,8 @@ line."""
 from __future__ import annotations
 
 import json
-import pickle
-import random
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +17,7 @@ import pytest
 from orchestrator.recording import read_rrd_scalars
 from orchestrator.running.checkpoint import CHECKPOINT_DIR, CHECKPOINT_FILE
 from support.outputs import staging_folders
+from support.resume import killed_after_a_checkpoint
 
 #: summary keys that say how (not what) a run ran
 HOW = ("timing", "wall_s", "fmus", "checkpoints", "rrd", "source")
@@ -34,32 +31,6 @@ def _cli(*args: str, **kw) -> subprocess.CompletedProcess:
 def _figures(out: Path) -> dict:
     summary = json.loads((out / "summary.json").read_text())
     return {k: v for k, v in summary.items() if k not in HOW}
-
-
-def _killed_after_a_checkpoint(out: Path, args: list[str], seed: int) -> int:
-    """Start ``run`` into ``out`` checkpointing at every chunk, SIGKILL it a random moment
-    (0-0.4 s) after its first checkpoint; the step it was killed after."""
-    proc = subprocess.Popen([sys.executable, "-m", "orchestrator", "run", *args, "--quiet",
-                             "--out", str(out), "--checkpoint-every", "0.001"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 300
-        while not [s for s in staging_folders(out)
-                   if (s / CHECKPOINT_DIR / CHECKPOINT_FILE).exists()]:
-            assert proc.poll() is None, proc.stderr.read()
-            assert time.monotonic() < deadline
-            time.sleep(0.02)
-        time.sleep(random.Random(seed).uniform(0.0, 0.4))
-        assert proc.poll() is None, "the run ended before it could be killed"
-        proc.send_signal(signal.SIGKILL)
-        proc.wait(timeout=60)
-    finally:
-        proc.kill()
-    assert proc.returncode == -signal.SIGKILL
-    assert not (out / "summary.json").exists()            # nothing finished under OUT
-    (staging,) = staging_folders(out)
-    ck = pickle.loads((staging / CHECKPOINT_DIR / CHECKPOINT_FILE).read_bytes())
-    return ck.master.step
 
 
 def _same_rrd(a: Path, b: Path) -> None:
@@ -87,7 +58,7 @@ def test_a_killed_run_resumes_to_the_uninterrupted_result(tmp_path, args):
     done = _cli("run", *fast, "--quiet", "--out", str(whole), "--checkpoint-every", "0")
     assert done.returncode == 0, done.stderr
     out = tmp_path / "killed"
-    step = _killed_after_a_checkpoint(out, args, seed=len(str(tmp_path)))
+    step = killed_after_a_checkpoint(out, args, seed=len(str(tmp_path)))
     assert step > 0
     resumed = _cli("run", "--resume", str(out))
     assert resumed.returncode == 0, resumed.stderr

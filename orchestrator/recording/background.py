@@ -140,7 +140,8 @@ class BackgroundWriter:
             self.close()
             from .stream import RrdStream
             self._stream = (RrdStream(path, methods, h, **kwargs) if resume is None else
-                            RrdStream.resumed(resume[0], resume[1], path))
+                            RrdStream.resumed(resume[0], resume[1], path,
+                                              kwargs.get("live")))
         else:
             proc, self.proc = self.proc, None
             self._stream = ChildStream(proc, path, methods, h, kwargs, resume)
@@ -198,7 +199,7 @@ class ChildStream:
         if resume is None:
             self._put(("open", str(path), list(methods), float(h), kwargs))
         else:
-            self._put(("resume", str(path), resume[0], str(resume[1])))
+            self._put(("resume", str(path), resume[0], str(resume[1]), kwargs.get("live")))
 
     def _drain_stderr(self, err: IO[bytes]) -> None:
         """Keep the child's last lines of standard error (and never let the pipe fill)."""
@@ -327,8 +328,8 @@ def _child() -> int:
         info = write_rrd(Path(path), runs, h, **kwargs)
     else:
         if message[0] == "resume":
-            _, path, state, folder = message
-            opened = RrdStream.resumed(state, folder, path)
+            _, path, state, folder, live = message
+            opened = RrdStream.resumed(state, folder, path, live)
         else:
             _, path, methods, h, kwargs = message
             opened = RrdStream(path, methods, h, **kwargs)

@@ -170,6 +170,13 @@ class LiveViewer:
                      static=True)
         self.rec.flush(timeout_sec=0.0)
 
+    def replay(self, files: list[Path]) -> None:
+        """The recording so far, from its .rrd segment files (a resumed run: Rerun's own
+        loader, into the viewer alone)."""
+        for f in files:
+            self.rec.log_file_from_path(f)
+        self.rec.flush(timeout_sec=_FLUSH_S)
+
     def finish(self, blueprint: rrb.Blueprint) -> None:
         """The final blueprint, made the viewer's active one (the file's only the default:
         a viewer keeps the active one), then the connection closed."""

@@ -210,13 +210,15 @@ trail_sample_seconds, links
     def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
         state.pop("_rec", None)
-        state["_viewer"] = state["live"] = None      # a resumed run is not streamed live
+        state["_viewer"] = state["live"] = None      # a resumed run: live if asked again
         return state
 
     @classmethod
-    def resumed(cls, state: bytes, folder: str | Path, path: str | Path) -> RrdStream:
+    def resumed(cls, state: bytes, folder: str | Path, path: str | Path,
+                live: str | None = None) -> RrdStream:
         """The stream of a checkpoint (:meth:`checkpoint`'s state) going on: its segments
-        are in ``folder``, its final file is ``path``."""
+        are in ``folder``, its final file is ``path``; ``live``: a viewer's URL that gets
+        the live layout, the recording so far (the segments) and then the rows to come."""
         self = pickle.loads(state)
         self.segment_dir, self.path = Path(folder), Path(path)
         missing = [s for s in self.segments if not (self.segment_dir / s).is_file()]
@@ -225,7 +227,14 @@ trail_sample_seconds, links
                              f"{', '.join(missing)} are not in {self.segment_dir}")
         self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.part")
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        if live is not None:            # the file gets its footer at the join; rows at once
+            self.live, self.footer, self.chunk_rows = live, False, 1
         self._connect()
+        if live is not None and self._current is not None:
+            run = self._runs[self._current]
+            self._viewer = start_live(self, self._current,
+                                      {k: np.empty((0, d)) for k, d in run.dims.items()})
+            self._viewer.replay([self.segment_dir / n for n in self.segments])
         return self
 
     def _sinks(self, rec: rr.RecordingStream) -> None:
