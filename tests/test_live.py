@@ -198,6 +198,16 @@ def test_a_viewer_that_goes_away_does_not_stop_the_run(viewer, tmp_path, capfd):
 
 # -- real runs -------------------------------------------------------------------------------
 
+def same_series(a_path: Path, b_path: Path) -> int:
+    """Assert that two .rrd files hold the same scalar series, bit for bit; their last step."""
+    a, b = read_rrd_scalars(a_path), read_rrd_scalars(b_path)
+    assert sorted(a) == sorted(b)
+    for key in a:
+        for x, y in zip(a[key], b[key]):
+            np.testing.assert_array_equal(x, y, err_msg=key)
+    return int(max(a[k][0][-1] for k in a))
+
+
 def run_cli(*args: str) -> subprocess.CompletedProcess:
     p = subprocess.run([sys.executable, "-m", "orchestrator", "run", "--quiet", *args],
                        capture_output=True, text=True, timeout=600)
@@ -221,13 +231,7 @@ def test_a_run_streams_its_traces_to_the_viewer_and_writes_the_same_rrd(viewer, 
         assert set(summary["master"].values()) == {"native"}, summary["master"]
     live, = (tmp_path / "live").glob("*.rrd")
     file, = (tmp_path / "file").glob("*.rrd")
-    a, b = read_rrd_scalars(live), read_rrd_scalars(file)
-    assert sorted(a) == sorted(b)
-    for key in a:
-        for x, y in zip(a[key], b[key]):
-            np.testing.assert_array_equal(x, y, err_msg=key)
-    last = int(max(a[k][0][-1] for k in a))
-    rec = recording_of(viewer, last_step=last)
+    rec = recording_of(viewer, last_step=same_series(live, file))
     assert any(e.startswith(entity) for e in entities(viewer, rec.store_id))
     assert coloured_pixels(viewer, tmp_path / "end.png") > blank + 10000   # ten times blank
 
@@ -248,14 +252,8 @@ def test_a_resumed_run_streams_the_recording_so_far_and_the_rest(viewer, tmp_pat
     assert resumed.returncode == 0, resumed.stderr
     run_cli("--scenario", "formation-4-links", "--T", "200", "--fmus", "native", "--out",
             str(tmp_path / "whole"))
-    a = read_rrd_scalars(tmp_path / "whole" / "formation-4-links.rrd")
-    b = read_rrd_scalars(out / "formation-4-links.rrd")
-    assert sorted(a) == sorted(b)
-    for key in a:
-        for x, y in zip(a[key], b[key]):
-            np.testing.assert_array_equal(x, y, err_msg=key)
-    last = int(max(a[k][0][-1] for k in a))
-    rec = recording_of(viewer, last_step=last)
+    rec = recording_of(viewer, last_step=same_series(
+        tmp_path / "whole" / "formation-4-links.rrd", out / "formation-4-links.rrd"))
     first = {t.name: t.start for t in rec.timelines}
     assert first["step"] == 0, first                # the steps before the kill, replayed
     assert any(e.startswith("/vehicles/1/error") for e in entities(viewer, rec.store_id))
