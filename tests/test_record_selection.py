@@ -86,7 +86,9 @@ def test_a_fleet_run_records_the_chosen_groups_and_every_statistic(tmp_path):
     b = json.loads((part / "summary.json").read_text())
     assert b["methods"] == a["methods"]             # the statistics: every output
     assert b["rrd"]["recorded_groups"] == ["error", "scene"]
-    assert a["rrd"]["recorded_groups"] == list(FLEET_GROUPS)
+    # all of the fleet's groups that this run has (no links, actuators, set-points)
+    assert a["rrd"]["recorded_groups"] == ["error", "control", "state", "current", "leader",
+                                           "scene"]
     ents = entities(part / "formation-4.rrd")
     assert {e.split("/")[2] for e in ents if e.startswith("vehicles/")} == {"error"}
     assert {"world/kalman/vehicles", "world/kalman/trails", "world/kalman/edges"} <= ents
@@ -164,6 +166,8 @@ def test_a_per_vehicle_run_over_links_records_its_links_alone(tmp_path):
     a = json.loads((tmp_path / "full" / "summary.json").read_text())
     b = json.loads((tmp_path / "links" / "summary.json").read_text())
     assert b["methods"] == a["methods"] and set(b["master"].values()) == {"native"}
+    assert b["rrd"]["recorded_groups"] == ["links"]
+    assert "links" in a["rrd"]["recorded_groups"]
     ents = entities(tmp_path / "links" / "formation-4.rrd")
     assert {e.split("/")[0] for e in ents} == {"network", "vehicles", "legend", "legend_links"}
     assert {e.split("/")[2] for e in ents if e.startswith("vehicles/")} == {"network"}

@@ -73,7 +73,9 @@ def test_fleet_per_vehicle_series_round_trip(fleet_written):
         assert np.array_equal(got[entity][0], ks) and np.array_equal(got[entity][2], values), entity
     assert info["signals"] == sum(v.shape[1] for v in expected.values()) == len(FLEET_METHODS) * (
         N_VEH * (3 + 3 + 6 + 6 + 3 + 3) + 3)
-    assert set(info) == {"rrd_s", "signals", "bytes"} and info["bytes"] == path.stat().st_size
+    assert set(info) == {"rrd_s", "signals", "bytes", "recorded_groups"}
+    assert info["bytes"] == path.stat().st_size
+    assert info["recorded_groups"] == ["error", "control", "state", "current", "leader", "scene"]
 
 
 def test_fleet_has_no_per_component_layout(fleet_written):

@@ -48,7 +48,9 @@ def test_every_series_round_trips_exactly(written):
 
 def test_returned_figures(written):
     path, runs, info = written
-    assert set(info) == {"rrd_s", "signals", "bytes"}
+    assert set(info) == {"rrd_s", "signals", "bytes", "recorded_groups"}
+    assert info["recorded_groups"] == ["error", "state", "control", "disturbance", "reference",
+                                      "measurement"]
     assert info["signals"] == len(expected_series(runs))
     assert info["bytes"] == path.stat().st_size > 0
     assert info["rrd_s"] > 0.0

@@ -434,7 +434,8 @@ trail_sample_seconds, links
         dict[str, float]
             ``rrd_s`` (wall-clock seconds spent in the stream's calls), ``signals`` (scalar
             series written, counted as :func:`~orchestrator.recording.whole.write_rrd`
-            does) and ``bytes`` (the file's size).
+            does), ``bytes`` (the file's size) and ``recorded_groups``
+            (:meth:`recorded_groups`).
 
         Raises
         ------
@@ -475,7 +476,14 @@ trail_sample_seconds, links
         os.replace(self.tmp, self.path)
         self.seconds += time.perf_counter() - t0
         return {"rrd_s": self.seconds, "signals": self.signals,
-                "bytes": self.path.stat().st_size}
+                "bytes": self.path.stat().st_size, "recorded_groups": self.recorded_groups()}
+
+    def recorded_groups(self) -> list[str]:
+        """The groups of the selection the file holds: those whose traces some method sent
+        (links, actuators and set-points only where a run had them)."""
+        sent = {k for run in self._runs.values() for k in run.dims}
+        return [g for g in self.selection.names()
+                if sent & set(self.selection.table[g][0])]
 
     def abort(self) -> None:
         """Stop writing and remove the temporary file (the final name is left as it was).

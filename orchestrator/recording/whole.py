@@ -74,7 +74,8 @@ def write_rrd(path: str | Path, runs: dict[str, dict[str, np.ndarray]], h: float
         ``rrd_s`` (wall-clock seconds spent writing, validation excluded), ``signals``
         (number of scalar series written, an int: one per entity in the paper layout, one
         per component, i.e. per line, of each multi-component entity in the fleet layout)
-        and ``bytes`` (file size in bytes, an int).
+        ``bytes`` (file size in bytes, an int) and ``recorded_groups`` (the groups of
+        outputs the file holds, :mod:`orchestrator.recording.selection`).
 
     Raises
     ------

@@ -22,7 +22,6 @@ from ..atomic import write_text_atomically
 from ..cosim.master import MasterState, RunResult
 from ..interrupt import StopFlag, stop_on_signals
 from ..outputs import file_stem
-from ..recording.selection import Selection
 from ..scenario import Scenario
 from . import phases
 from .checkpoint import CHECKPOINT_DIR, RunCheckpoint, Saver
@@ -446,7 +445,6 @@ def _simulate(setup: RunSetup, methods: list[Method], seeds: Sequence[int], out:
         "time_reached_s": recorded * sc.h if stop else sc.T,
         "rrd": {"path": str(rrd_path) if recorded else None, "traces_of_seed": int(seeds[0]),
                 "recorded_every_steps": stride, "recorded_steps": recorded,
-                "recorded_groups": Selection.of(fleet_layout(sc) is not None, record).names(),
                 **rrd_info},
         "timing": {"cosim_loop_us_per_step_mean": float(np.mean(loop_us)) if loop_us else None,
                    # where the command's time went (orchestrator.running.phases)
