@@ -27,7 +27,7 @@ __all__ = ["cached_prediction", "distributed_digest"]
 
 #: the modules whose code the cached values come from
 _SOURCES = ("distributed_verdict.py", "distributed.py", "block_stein.py", "prediction.py",
-            "distributed_cache.py")
+            "mean_motion.py", "distributed_cache.py")
 
 
 def distributed_digest(loop: Any) -> str:

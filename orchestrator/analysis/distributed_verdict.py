@@ -252,7 +252,8 @@ def _predict_cost(loop: DistributedLoop, window: tuple[int, int] | None,
         k0, K = window
         Phi = csr_matrix(loop.Phi)             # each vehicle hears a few others: sparse
         X = np.asarray(X0, dtype=float)
-        ee, uu = window_mean_sums(Phi, X, k0, K, loop.Ce, loop.Gx, _MEAN_BLOCK)
+        ee, uu = window_mean_sums(Phi, X, k0, K, loop.Ce, loop.Gx, _MEAN_BLOCK,
+                                  np.asarray(loop.deterministic))
         See, Suu = See + ee / max(K - k0, 1), Suu + uu / max(K - k0, 1)
     rho = verdict.stacked_spectral_radius if PhiR.size else 0.0
     tau = -loop.h / np.log(rho) if rho > 0 else loop.h

@@ -15,7 +15,9 @@ A planned leader path (reference states without noise, known to the estimator) n
 settles: its states and their exact estimates are deterministic and are left out of the
 Lyapunov equation (their deviation from the mean is zero). Their effect is the mean
 motion X_mean[k] = Phi^k X(0); with a statistics window [k0, K) the prediction adds the
-window average of e_mean' Q e_mean + u_mean' R u_mean, and E[e e'] = Cov + mean mean'.
+window average of e_mean' Q e_mean + u_mean' R u_mean, and E[e e'] = Cov + mean mean'
+(:func:`orchestrator.analysis.mean_motion.window_mean_sums`: the transient, then the
+exosystem's steady pattern in closed form).
 
 Over a finite window, transient included (``transient=True``): the run starts from a known
 state, so Sigma_0 = 0 and Sigma_k = Sigma - Phi^k Sigma Phi'^k. Its average over samples
@@ -26,7 +28,7 @@ a run of that length computes, which short runs can be compared with.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.linalg import block_diag, solve_discrete_lyapunov
@@ -34,6 +36,8 @@ from scipy.linalg import block_diag, solve_discrete_lyapunov
 from estimator_fmu.estimators import LinearEstimator
 from plant_model.discretization import DiscreteModel
 from plant_model.system import LinearSystem
+
+from .mean_motion import window_mean_sums
 
 if TYPE_CHECKING:
     from ..scenario import Scenario
@@ -141,48 +145,6 @@ def deterministic_states(system: LinearSystem, model: DiscreteModel,
     return np.concatenate([known, q_known])
 
 
-def window_mean_sums(Phi: Any, X: np.ndarray, k0: int, K: int, E: np.ndarray,
-                     G: np.ndarray, block: int) -> tuple[np.ndarray, np.ndarray]:
-    """The sums over samples k0 <= k < K of e e' and u u', e = E X_k and u = G X_k, along
-    the mean X_{k+1} = Phi X_k from X_0 = ``X``: the window's states taken ``block`` rows at
-    a time, so one product per block, not per sample (sum of e e' = E' (X' X) E).
-
-    Parameters
-    ----------
-    Phi : np.ndarray or sparse matrix
-        The closed loop's transition matrix.
-    X : np.ndarray
-        The mean state at k = 0.
-    k0, K : int
-        The window.
-    E, G : np.ndarray
-        The maps from the state to the tracking error and to the control input.
-    block : int
-        The most rows a block holds.
-
-    Returns
-    -------
-    tuple[np.ndarray, np.ndarray]
-        The sums of e e' and of u u' (not yet divided by K - k0).
-    """
-    for _ in range(k0):
-        X = Phi @ X
-    ee = np.zeros((E.shape[0], E.shape[0]))
-    uu = np.zeros((G.shape[0], G.shape[0]))
-    rows = np.empty((min(block, max(K - k0, 1)), X.size))
-    k = k0
-    while k < K:
-        b = min(rows.shape[0], K - k)
-        for j in range(b):
-            rows[j] = X
-            X = Phi @ X
-        e, u = rows[:b] @ E.T, rows[:b] @ G.T
-        ee += e.T @ e
-        uu += u.T @ u
-        k += b
-    return ee, uu
-
-
 def window_average_covariance(Phi: np.ndarray, Sigma: np.ndarray, k0: int,
                               K: int) -> np.ndarray:
     """Average of Sigma_k over k = k0..K-1 for Sigma_{k+1} = Phi Sigma_k Phi' + G, Sigma_0 = 0,
@@ -280,7 +242,7 @@ def predict_stationary(system: LinearSystem, model: DiscreteModel, est: LinearEs
         X = np.concatenate([system.initial_state(), est.q0]) if x0 is None else x0.copy()
         Eb = np.zeros((model.E.shape[0], Phi.shape[0]))
         Eb[:, :ns] = model.E
-        ee, uu = window_mean_sums(Phi, X, k0, K, Eb, Gx, 1024)
+        ee, uu = window_mean_sums(Phi, X, k0, K, Eb, Gx, 1024, D)
         See = See + ee / max(K - k0, 1)
         Suu = Suu + uu / max(K - k0, 1)
         rms_e_mean = np.sqrt(np.diag(ee) / max(K - k0, 1)).tolist()
