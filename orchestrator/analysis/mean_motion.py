@@ -33,7 +33,7 @@ times S^block. The transient lasts about 40 time constants of the slowest error 
 cost no longer grows with the window.
 
 Accuracy, against the step loop X_{k+1} = Phi X_k in extended precision (entries relative
-to sqrt(ee_ii ee_jj)), formation-4 over 1 h and 3 h and formation-100 over 1 h: uu to 1e-11,
+to sqrt(ee_ii ee_jj)), formation-4 and formation-100 over 1 h and 3 h: uu to 1e-11,
 as the step loop in double precision; ee, the small steady error of the mean motion beside
 positions that grow along the path, to 4e-11 (formation-4) and 1.2e-9 (formation-100), where
 the double-precision step loop is off by 1.2e-9 and 6e-8 (its rounding of X cancels in
