@@ -12,14 +12,17 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from .scene import leader_position
-from .selection import Selection
-from .stream_state import clean_chunk
+from .selection import LINK_KEYS, Selection
+from .validation import _validate
+from .writer import _ACTUATOR_KEYS
 
-__all__ = ["ChunkSpec", "RecordedChunk", "column_extremes", "digest", "shapes", "spec_of"]
+__all__ = ["ChunkSpec", "RecordedChunk", "clean_chunk", "column_extremes", "digest", "shapes",
+           "spec_of"]
 
 
 @dataclass(frozen=True)
@@ -65,9 +68,35 @@ def column_extremes(a: np.ndarray) -> list[np.ndarray]:
             fin.any(axis=0)]
 
 
+def clean_chunk(keys: Sequence[str], h: float, method: str, traces: Mapping[str, Any],
+                with_links: bool) -> dict[str, np.ndarray] | None:
+    """The chunk's traces as float64 (the layout's keys, the actuator keys present, the
+    link keys if ``with_links``), checked; None for a chunk of no steps."""
+    if isinstance(traces, Mapping):
+        first = traces.get(keys[0])
+        if first is not None and np.ndim(first) == 2 and np.shape(first)[0] == 0:
+            return None
+    clean = _validate({method: traces}, h, keys)[0][method]
+    steps = clean[keys[0]].shape[0]
+    extra = [k for k in _ACTUATOR_KEYS if k in traces]
+    if with_links:
+        missing = [k for k in LINK_KEYS if k not in traces]
+        if missing:
+            raise ValueError(f"write_rrd: run {method!r} over links is missing trace "
+                             f"key(s) {', '.join(map(repr, missing))}")
+        extra += list(LINK_KEYS)
+    for key in extra:
+        arr = np.asarray(traces[key], dtype=np.float64)
+        if arr.ndim != 2 or arr.shape[0] != steps:
+            raise ValueError(f"write_rrd: run {method!r} trace {key!r} has shape "
+                             f"{arr.shape}, expected ({steps}, ...)")
+        clean[key] = arr
+    return clean
+
+
 def digest(spec: ChunkSpec, method: str, k0: int, traces: Mapping[str, object],
            with_links: bool) -> RecordedChunk | None:
-    """The chunk's traces checked (:func:`.stream_state.clean_chunk`: the layout's keys,
+    """The chunk's traces checked (:func:`clean_chunk`: the layout's keys,
     the actuator keys present, the link keys with ``with_links``) and reduced to what the
     recording keeps; None for a chunk of no steps.
 

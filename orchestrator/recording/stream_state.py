@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -15,13 +15,12 @@ import rerun as rr
 
 from .actuators import DEFAULT_DELTA_MAX, DEFAULT_N_MAX, send_limits
 from .blueprint import LEGEND_ENTITY, _blueprint, _fleet_blueprint
-from .network import LINK_KEYS, LINKS_LEGEND_ENTITY, links_legend
+from .network import LINKS_LEGEND_ENTITY, links_legend
 from .scene import WorldStream, time_columns
 from .summary import RunSummary
-from .validation import _validate
-from .writer import _ACTUATOR_KEYS, _fleet_legend, _paper_legend
+from .writer import _fleet_legend, _paper_legend
 
-__all__ = ["add_footer", "clean_chunk", "closing_rows", "join_segments"]
+__all__ = ["add_footer", "closing_rows", "join_segments"]
 
 
 class _StaticOnce:
@@ -106,32 +105,6 @@ def add_footer(path: Path) -> None:
               file=sys.stderr)
         return
     os.replace(joined, path)
-
-
-def clean_chunk(keys: Sequence[str], h: float, method: str, traces: Mapping[str, Any],
-                with_links: bool) -> dict[str, np.ndarray] | None:
-    """The chunk's traces as float64 (the layout's keys, the actuator keys present, the
-    link keys if ``with_links``), checked; None for a chunk of no steps."""
-    if isinstance(traces, Mapping):
-        first = traces.get(keys[0])
-        if first is not None and np.ndim(first) == 2 and np.shape(first)[0] == 0:
-            return None
-    clean = _validate({method: traces}, h, keys)[0][method]
-    steps = clean[keys[0]].shape[0]
-    extra = [k for k in _ACTUATOR_KEYS if k in traces]
-    if with_links:
-        missing = [k for k in LINK_KEYS if k not in traces]
-        if missing:
-            raise ValueError(f"write_rrd: run {method!r} over links is missing trace "
-                             f"key(s) {', '.join(map(repr, missing))}")
-        extra += list(LINK_KEYS)
-    for key in extra:
-        arr = np.asarray(traces[key], dtype=np.float64)
-        if arr.ndim != 2 or arr.shape[0] != steps:
-            raise ValueError(f"write_rrd: run {method!r} trace {key!r} has shape "
-                             f"{arr.shape}, expected ({steps}, ...)")
-        clean[key] = arr
-    return clean
 
 
 def closing_rows(self: Any, sent: list[str], last: int) -> None:
