@@ -37,10 +37,13 @@ def _loop(view, model, sensors, steps, seed=5, current_max=1.0):
 
 @pytest.mark.slow
 def test_with_every_sensor_every_step_the_gain_is_the_riccati_one(vehicle):
+    """The filter's covariance after 5,000 steps is scipy's Riccati solution to 1e-9 of its
+    scale (measured: 7e-11 after 1,000 steps, 3.3e-13 from 4,000 steps on, as after
+    30,000)."""
     view, model = vehicle
     s = NavigationSensors(fix_period=0.01, dvl_period=0.01, depth_period=0.01,
                           fix_dropout=0.0, dvl_dropout=0.0, depth_dropout=0.0)
-    _, _, kf = _loop(view, model, s, 30_000)
+    _, _, kf = _loop(view, model, s, 5_000)
     H = navigation_rows(6, 3)
     P = solve_discrete_are(model.Ad.T, H.T, model.Qd, kf.R)
     assert np.abs(kf.P - P).max() < 1e-9 * np.abs(P).max()
